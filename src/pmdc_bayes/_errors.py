@@ -1,0 +1,29 @@
+"""Errors raised for user mistakes: one line, naming the file, the place and the fix."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["SessionError", "UsageError"]
+
+
+class SessionError(ValueError):
+    """A session directory or one of its files cannot be used as given.
+
+    The message is one line: ``<file>[:<where>]: <what is wrong>; <how to fix it>``.
+    The command line prints it and exits with code 2.
+    """
+
+    def __init__(self, path: str | Path | None, message: str, *, where: str | None = None):
+        self.path = None if path is None else Path(path)
+        self.where = where
+        self.message = message
+        prefix = "" if path is None else str(path)
+        if where:
+            prefix = f"{prefix}:{where}" if prefix else where
+        text = f"{prefix}: {message}" if prefix else message
+        super().__init__(" ".join(text.split()))
+
+
+class UsageError(ValueError):
+    """A command-line option or output location is unusable (exit code 2)."""

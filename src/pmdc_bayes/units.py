@@ -1,0 +1,70 @@
+"""Unit conversion to SI, done once at the boundary (the session loader and the CLI).
+
+Every quantity inside pmdc_bayes is SI: s, rad/s, A, V, N·m, H, Ω, kg·m², N·m·s/rad,
+V·s/rad.  :func:`to_si` converts a value given in a named unit of a known kind.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["KINDS", "SI_UNIT", "to_si", "from_si", "unit_factor"]
+
+_TORQUE = {"N*m": 1.0, "N.m": 1.0, "N·m": 1.0, "Nm": 1.0, "mN*m": 1e-3, "mN.m": 1e-3,
+           "mN·m": 1e-3, "mNm": 1e-3}
+
+KINDS: dict[str, dict[str, float]] = {
+    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6},
+    "speed": {"rad/s": 1.0, "rpm": 2.0 * math.pi / 60.0, "rev/s": 2.0 * math.pi},
+    "current": {"A": 1.0, "mA": 1e-3},
+    "voltage": {"V": 1.0, "mV": 1e-3},
+    "torque": _TORQUE,
+    "inductance": {"H": 1.0, "mH": 1e-3, "uH": 1e-6, "µH": 1e-6},
+    "resistance": {"ohm": 1.0, "Ohm": 1.0, "Ω": 1.0, "mohm": 1e-3, "mOhm": 1e-3, "mΩ": 1e-3},
+    "inertia": {"kg*m^2": 1.0, "kg·m²": 1.0, "kg*m2": 1.0, "kg.m^2": 1.0, "g*cm^2": 1e-7,
+                "g·cm²": 1e-7, "g*cm2": 1e-7},
+    "damping": {"N*m*s/rad": 1.0, "N·m·s/rad": 1.0, "N*m*s": 1.0, "mN*m*s/rad": 1e-3},
+    "motor_constant": {"V*s/rad": 1.0, "V·s/rad": 1.0, "N*m/A": 1.0, "N·m/A": 1.0,
+                       "mV*s/rad": 1e-3, "mN*m/A": 1e-3, "V/krpm": 60.0 / (2.0 * math.pi * 1000.0)},
+    "duty": {"1": 1.0, "": 1.0, "%": 0.01},
+}
+
+SI_UNIT: dict[str, str] = {
+    "time": "s", "speed": "rad/s", "current": "A", "voltage": "V", "torque": "N*m",
+    "inductance": "H", "resistance": "ohm", "inertia": "kg*m^2", "damping": "N*m*s/rad",
+    "motor_constant": "V*s/rad", "duty": "1",
+}
+
+
+def unit_factor(kind: str, unit: str) -> float:
+    """Return the factor that converts a value in ``unit`` to SI for a quantity of ``kind``.
+
+    Raises
+    ------
+    KeyError
+        If ``kind`` is unknown; ``ValueError`` (with the accepted units) if ``unit`` is.
+    """
+    table = KINDS[kind]
+    key = unit.strip()
+    if key not in table:
+        accepted = ", ".join(u for u in table if u)
+        raise ValueError(f"unknown {kind} unit {unit!r}; use one of: {accepted}")
+    return table[key]
+
+
+def to_si(value, kind: str, unit: str):
+    """Convert ``value`` (float or array) from ``unit`` to SI."""
+    factor = unit_factor(kind, unit)
+    if isinstance(value, np.ndarray):
+        return value * factor
+    return float(value) * factor
+
+
+def from_si(value, kind: str, unit: str):
+    """Convert ``value`` from SI to ``unit`` (for display only)."""
+    factor = unit_factor(kind, unit)
+    if isinstance(value, np.ndarray):
+        return value / factor
+    return float(value) / factor
