@@ -1,0 +1,432 @@
+"""The motor model, equations (5)–(6), and its exact solution for piecewise-constant inputs.
+
+State ``x = (ia, ω)``; inputs the armature voltage Va(t) and load torque TL(t), both
+piecewise constant (a logged column is held between samples).  Between input
+changes the viscous model is linear and time-invariant, so its solution is a
+matrix exponential; :func:`simulate` evaluates it in closed (modal) form at every
+sample at once, after a short sequential pass over the input segments.  Coulomb
+friction is a constant torque ``Tc·sign(ω)`` while the motor turns, with the rotor
+held at rest while the driving torque cannot overcome it; the breakaway and stop
+times are found inside each segment, so the solution stays exact.
+
+:func:`simulate_scan` is the straightforward zero-order-hold formulation
+(``expm([[A, b], [0, 0]]·dt)`` stepped sample by sample in ``lax.scan``), kept as a
+reference for the viscous model.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .session import Trace
+
+__all__ = [
+    "Params",
+    "Experiment",
+    "experiment_from_trace",
+    "make_experiment",
+    "steady_state",
+    "simulate",
+    "simulate_padded",
+    "real_modes",
+    "simulate_scan",
+    "system_matrices",
+]
+
+INITIAL_MODES = {"rest": 0, "steady": 1, "given": 2}
+
+
+class Params(NamedTuple):
+    """Motor parameters, SI.
+
+    Attributes
+    ----------
+    Ra : armature resistance (Ω).
+    La : armature inductance (H).
+    K : torque constant = back-emf constant (N·m/A = V·s/rad).
+    B : viscous friction (N·m·s/rad).
+    J : inertia of rotor and load (kg·m²).
+    Tc : Coulomb friction torque (N·m); 0 for the viscous model.
+    """
+
+    Ra: jax.Array | float
+    La: jax.Array | float
+    K: jax.Array | float
+    B: jax.Array | float
+    J: jax.Array | float
+    Tc: jax.Array | float = 0.0
+
+
+class Experiment(NamedTuple):
+    """One trace's inputs and sample times, prepared for :func:`simulate` (all SI).
+
+    The inputs are split into ``S`` constant segments starting at ``seg_t0`` with
+    voltage ``seg_va`` and load ``seg_tl``; ``seg_len`` is each segment's duration up to
+    the next one (the last ends at the last sample).  The samples are laid out in
+    ``C`` chunks of ``L`` (padded): chunk ``c`` lies in segment ``chunk_seg[c]`` and
+    its samples at ``tau[c]`` seconds after that segment's start, where ``mask`` is
+    True.  ``index`` maps the samples, in time order, into the flattened ``(C, L)``
+    layout.  This layout lets every sample be evaluated at once without gathers.
+    """
+
+    seg_t0: jax.Array
+    seg_len: jax.Array
+    seg_va: jax.Array
+    seg_tl: jax.Array
+    chunk_seg: jax.Array
+    tau: jax.Array
+    mask: jax.Array
+    index: jax.Array
+    initial_mode: jax.Array
+    x0: jax.Array
+
+    @property
+    def time(self) -> np.ndarray:
+        t = np.asarray(self.seg_t0)[np.asarray(self.chunk_seg)][:, None] + np.asarray(self.tau)
+        return t.reshape(-1)[np.asarray(self.index)]
+
+    def pad(self, values) -> jax.Array:
+        """Place per-sample values (time order) into the padded ``(C, L)`` layout."""
+        flat = jnp.zeros(self.tau.size).at[self.index].set(jnp.asarray(values))
+        return flat.reshape(self.tau.shape)
+
+    def unpad(self, padded) -> jax.Array:
+        """Per-sample values in time order from the padded layout."""
+        return padded.reshape(padded.shape[:-2] + (-1,))[..., self.index]
+
+
+def _chunk_length(counts: np.ndarray) -> int:
+    """Chunk length that keeps padding plus per-chunk overhead small."""
+    best, best_cost = 1, None
+    length = 1
+    while length <= max(1, int(counts.max())) * 2:
+        chunks = np.ceil(counts / length).sum()
+        cost = chunks * length + 16 * chunks
+        if best_cost is None or cost < best_cost:
+            best, best_cost = length, cost
+        length *= 2
+    return best
+
+
+def make_experiment(time, va_times, va_values, tl_times=None, tl_values=None, *,
+                    initial="rest") -> Experiment:
+    """Build an :class:`Experiment` from sample times and piecewise-constant inputs.
+
+    ``initial`` is ``"rest"``, ``"steady"`` (steady state of the inputs at the first
+    sample) or a pair ``(ia, ω)``.
+    """
+    t = np.asarray(time, dtype=np.float64)
+    va_t = np.asarray(va_times, dtype=np.float64)
+    va_v = np.asarray(va_values, dtype=np.float64)
+    if tl_times is None:
+        tl_t, tl_v = np.array([t[0]]), np.array([0.0])
+    else:
+        tl_t = np.asarray(tl_times, dtype=np.float64)
+        tl_v = np.asarray(tl_values, dtype=np.float64)
+    inner = np.concatenate([va_t, tl_t])
+    inner = inner[(inner > t[0]) & (inner < t[-1])]
+    seg_t0 = np.unique(np.concatenate([[t[0]], inner]))
+
+    def held(bt, bv, at):
+        idx = np.searchsorted(bt, at, side="right") - 1
+        return bv[np.clip(idx, 0, len(bv) - 1)]
+
+    seg_va = held(va_t, va_v, seg_t0)
+    seg_tl = held(tl_t, tl_v, seg_t0)
+    keep = np.ones(seg_t0.size, dtype=bool)
+    keep[1:] = (np.diff(seg_va) != 0) | (np.diff(seg_tl) != 0)
+    seg_t0, seg_va, seg_tl = seg_t0[keep], seg_va[keep], seg_tl[keep]
+    seg_end = np.append(seg_t0[1:], t[-1])
+    sample_seg = np.searchsorted(seg_t0, t, side="right") - 1
+    counts = np.bincount(sample_seg, minlength=seg_t0.size)
+    length = _chunk_length(counts[counts > 0])
+    chunk_seg, taus, masks, index = [], [], [], np.empty(t.size, dtype=np.int64)
+    start = 0
+    for s, n in enumerate(counts):
+        if n == 0:
+            continue
+        tau_s = t[start:start + n] - seg_t0[s]
+        n_chunks = -(-n // length)
+        padded = np.concatenate([tau_s, np.full(n_chunks * length - n, tau_s[-1])])
+        mask = np.arange(n_chunks * length) < n
+        index[start:start + n] = len(chunk_seg) * length + np.arange(n)
+        chunk_seg.extend([s] * n_chunks)
+        taus.append(padded.reshape(n_chunks, length))
+        masks.append(mask.reshape(n_chunks, length))
+        start += n
+    if isinstance(initial, str):
+        mode, x0 = INITIAL_MODES[initial], np.zeros(2)
+    else:
+        mode, x0 = INITIAL_MODES["given"], np.asarray(initial, dtype=np.float64)
+    return Experiment(
+        jnp.asarray(seg_t0), jnp.asarray(seg_end - seg_t0), jnp.asarray(seg_va),
+        jnp.asarray(seg_tl), jnp.asarray(np.array(chunk_seg, dtype=np.int32)),
+        jnp.asarray(np.concatenate(taus)), jnp.asarray(np.concatenate(masks)),
+        jnp.asarray(index), jnp.asarray(mode, dtype=jnp.int32), jnp.asarray(x0),
+    )
+
+
+def experiment_from_trace(trace: Trace, *, delay: float = 0.0) -> Experiment:
+    """The :class:`Experiment` of a session trace (inputs, sample times, initial state)."""
+    init = trace.initial if isinstance(trace.initial, str) else tuple(trace.initial)
+    return make_experiment(
+        trace.time - delay, trace.voltage.times, trace.voltage.values,
+        trace.load_torque.times, trace.load_torque.values, initial=init,
+    )
+
+
+def system_matrices(p: Params):
+    """``A`` and the input matrix for ``x = (ia, ω)``, ``u = (Va, TL)``: equations (5)–(6)."""
+    A = jnp.array([[-p.Ra / p.La, -p.K / p.La], [p.K / p.J, -p.B / p.J]])
+    Bu = jnp.array([[1.0 / p.La, 0.0], [0.0, -1.0 / p.J]])
+    return A, Bu
+
+
+def steady_state(p: Params, va, tl=0.0):
+    """Steady ``(ia, ω)`` of the viscous model under constant inputs, equations (15)–(18)."""
+    den = p.K * p.K + p.Ra * p.B
+    return (p.B * va + p.K * tl) / den, (p.K * va - p.Ra * tl) / den
+
+
+def _steady_coulomb(p: Params, va, tl, direction):
+    return steady_state(p, va, tl + direction * p.Tc)
+
+
+def _eigen(p: Params):
+    """Mean m, discriminant z, determinant of A: eigenvalues m ± sqrt(z)."""
+    a11, a22 = -p.Ra / p.La, -p.B / p.J
+    m = 0.5 * (a11 + a22)
+    det = (p.Ra * p.B + p.K * p.K) / (p.La * p.J)
+    z = (0.5 * (a11 - a22)) ** 2 - p.K * p.K / (p.La * p.J)
+    return m, z, det
+
+
+def real_modes(p: Params):
+    """True where A's eigenvalues are real and far enough apart for :func:`_propagator_real`."""
+    m, z, _ = _eigen(p)
+    return z > (1e-3 * m) ** 2
+
+
+def _propagator_real(p: Params, tau):
+    """(α, β) with ``expm(A·τ) = α·I + β·A``, for real, well-separated eigenvalues.
+
+    The fast eigenvalue is formed without cancellation and the slow one from the
+    product of the two (det), so neither loses digits.
+    """
+    m, z, det = _eigen(p)
+    s = jnp.sqrt(jnp.where(z > 0, z, 1.0))
+    lf = m - s
+    ls = det / lf
+    e_s, e_f = jnp.exp(ls * tau), jnp.exp(lf * tau)
+    gap = ls - lf
+    return (ls * e_f - lf * e_s) / gap, (e_s - e_f) / gap
+
+
+def _propagator(p: Params, tau):
+    """(α, β) with ``expm(A·τ) = α·I + β·A`` for any eigenvalues of the 2×2 motor matrix."""
+    m, z, det = _eigen(p)
+    zt2 = z * tau * tau
+    small = jnp.abs(zt2) < 1e-4
+    alpha_r, beta_r = _propagator_real(p, tau)
+    # Complex pair m ± iw.
+    w = jnp.sqrt(jnp.where(z < 0, -z, 1.0))
+    em = jnp.exp(m * tau)
+    sinc = jnp.sin(w * tau) / w
+    beta_c = em * sinc
+    alpha_c = em * (jnp.cos(w * tau) - m * sinc)
+    # Nearly repeated eigenvalues: series in z·τ².
+    beta_0 = tau * em * (1.0 + zt2 / 6.0 + zt2 * zt2 / 120.0)
+    alpha_0 = em * (1.0 + zt2 / 2.0 + zt2 * zt2 / 24.0) - m * beta_0
+    alpha = jnp.where(small, alpha_0, jnp.where(z > 0, alpha_r, alpha_c))
+    beta = jnp.where(small, beta_0, jnp.where(z > 0, beta_r, beta_c))
+    return alpha, beta
+
+
+def _apply(p: Params, alpha, beta, d):
+    """``(α·I + β·A)·d`` for d = (d_ia, d_ω) (arrays broadcast)."""
+    di, dw = d
+    ai = -(p.Ra * di + p.K * dw) / p.La
+    aw = (p.K * di - p.B * dw) / p.J
+    return alpha * di + beta * ai, alpha * dw + beta * aw
+
+
+def _stuck_current(p: Params, ia0, va, tau):
+    """Current with the rotor held at rest: first order with time constant La/Ra."""
+    i_inf = va / p.Ra
+    return i_inf + (ia0 - i_inf) * jnp.exp(-p.Ra / p.La * tau)
+
+
+class _Segment(NamedTuple):
+    ia0: jax.Array       # current at the segment start
+    t_move: jax.Array    # breakaway time after the start (0 if moving, inf if never)
+    xm_i: jax.Array      # state when motion starts
+    xm_w: jax.Array
+    ss_i: jax.Array      # steady state of the moving phase
+    ss_w: jax.Array
+    t_stop: jax.Array    # stop time after breakaway (inf if it does not stop)
+    i_stop: jax.Array    # current at the stop
+
+
+def _moving(p, seg, tau_m, fast=False):
+    alpha, beta = (_propagator_real if fast else _propagator)(p, tau_m)
+    di, dw = _apply(p, alpha, beta, (seg.xm_i - seg.ss_i, seg.xm_w - seg.ss_w))
+    return seg.ss_i + di, seg.ss_w + dw
+
+
+def _segment_info(p: Params, x, va, tl, length, coulomb: bool, fast: bool) -> _Segment:
+    ia0, w0 = x
+    inf = jnp.inf
+    if not coulomb:
+        ss_i, ss_w = steady_state(p, va, tl)
+        zero = jnp.zeros_like(ia0)
+        return _Segment(ia0, zero, ia0, w0, ss_i, ss_w, zero + inf, zero)
+    at_rest = w0 == 0.0
+    drive = p.K * va / p.Ra - tl
+    direction = jnp.where(at_rest, jnp.where(drive >= 0, 1.0, -1.0),
+                          jnp.where(w0 >= 0, 1.0, -1.0))
+    # Breakaway from rest: K·ia − TL reaches ±Tc while ia rises towards Va/Ra.
+    i_star = (tl + direction * p.Tc) / p.K
+    i_inf = va / p.Ra
+    already = direction * (p.K * ia0 - tl) > p.Tc
+    possible = direction * drive > p.Tc
+    ratio = jnp.where(possible & ~already, (i_inf - i_star) / (i_inf - ia0), 1.0)
+    t_break = -p.La / p.Ra * jnp.log(jnp.clip(ratio, 1e-300, 1.0))
+    t_move = jnp.where(at_rest, jnp.where(already, 0.0, jnp.where(possible, t_break, inf)), 0.0)
+    xm_i = jnp.where(at_rest & ~already, i_star, ia0)
+    ss_i, ss_w = _steady_coulomb(p, va, tl, direction)
+    seg = _Segment(ia0, t_move, xm_i, w0, ss_i, ss_w, jnp.zeros_like(ia0) + inf, ia0)
+    # Stop: the moving phase crosses ω = 0 before the segment ends.
+    span = jnp.clip(length - jnp.where(jnp.isfinite(t_move), t_move, length), 0.0, None)
+    _, w_end = _moving(p, seg, span, fast)
+    stops = jnp.isfinite(t_move) & (direction * w_end < 0)
+
+    def bisect(_, lohi):
+        lo, hi = lohi
+        mid = 0.5 * (lo + hi)
+        _, wm = _moving(p, seg, mid, fast)
+        pos = direction * wm > 0
+        return jnp.where(pos, mid, lo), jnp.where(pos, hi, mid)
+
+    lo, hi = jax.lax.fori_loop(0, 60, bisect, (jnp.zeros_like(span), span))
+    t_root = jax.lax.stop_gradient(0.5 * (lo + hi))
+    for _ in range(2):  # Newton steps carry the root's dependence on the parameters
+        i_r, w_r = _moving(p, seg, t_root, fast)
+        dw_dt = (p.K * i_r - p.B * w_r - tl - direction * p.Tc) / p.J
+        t_root = t_root - w_r / jnp.where(dw_dt == 0, 1.0, dw_dt)
+    i_stop, _ = _moving(p, seg, t_root, fast)
+    return seg._replace(t_stop=jnp.where(stops, t_root, inf),
+                        i_stop=jnp.where(stops, i_stop, ia0))
+
+
+def _state_in_segment(p: Params, seg: _Segment, va, tau, coulomb: bool, fast: bool):
+    """State at ``tau`` after the segment start (broadcasts over samples)."""
+    if not coulomb:
+        return _moving(p, seg, tau, fast)
+    t_move = jnp.where(jnp.isfinite(seg.t_move), seg.t_move, 0.0)
+    tau_m = jnp.clip(tau - t_move, 0.0, None)
+    t_end = jnp.where(jnp.isfinite(seg.t_stop), seg.t_stop, tau_m)
+    i_m, w_m = _moving(p, seg, jnp.minimum(tau_m, t_end), fast)
+    i_pre = _stuck_current(p, seg.ia0, va, tau)
+    t_stop = jnp.where(jnp.isfinite(seg.t_stop), seg.t_stop, 0.0)
+    i_post = _stuck_current(p, seg.i_stop, va, jnp.clip(tau_m - t_stop, 0.0, None))
+    before = tau < seg.t_move
+    after = jnp.isfinite(seg.t_stop) & (tau_m >= seg.t_stop)
+    ia = jnp.where(before, i_pre, jnp.where(after, i_post, i_m))
+    w = jnp.where(before | after, 0.0, w_m)
+    return ia, w
+
+
+def _initial_state(p: Params, exp: Experiment, coulomb: bool):
+    va, tl = exp.seg_va[0], exp.seg_tl[0]
+    if coulomb:
+        drive = p.K * va / p.Ra - tl
+        direction = jnp.where(drive >= 0, 1.0, -1.0)
+        ss_i, ss_w = _steady_coulomb(p, va, tl, direction)
+        stuck = jnp.abs(drive) <= p.Tc
+        ss_i, ss_w = jnp.where(stuck, va / p.Ra, ss_i), jnp.where(stuck, 0.0, ss_w)
+    else:
+        ss_i, ss_w = steady_state(p, va, tl)
+    mode = exp.initial_mode
+    given = mode == INITIAL_MODES["given"]
+    steady = mode == INITIAL_MODES["steady"]
+    ia = jnp.where(given, exp.x0[0], jnp.where(steady, ss_i, 0.0))
+    w = jnp.where(given, exp.x0[1], jnp.where(steady, ss_w, 0.0))
+    return ia, w
+
+
+def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
+                    fast: bool = False):
+    """Exact ``(ia, ω)`` in the experiment's padded ``(C, L)`` sample layout.
+
+    ``fast=True`` assumes real, well-separated eigenvalues (:func:`real_modes`) and
+    skips the complex and nearly-repeated branches; callers check that first.
+    """
+    x0 = _initial_state(p, exp, coulomb)
+
+    def step(x, seg_in):
+        va, tl, length = seg_in
+        seg = _segment_info(p, x, va, tl, length, coulomb, fast)
+        x_end = _state_in_segment(p, seg, va, length, coulomb, fast)
+        return x_end, seg
+
+    _, segs = jax.lax.scan(step, x0, (exp.seg_va, exp.seg_tl, exp.seg_len))
+    per_chunk = jax.tree_util.tree_map(lambda a: a[exp.chunk_seg][:, None], segs)
+    va = exp.seg_va[exp.chunk_seg][:, None]
+    return _state_in_segment(p, per_chunk, va, exp.tau, coulomb, fast)
+
+
+def simulate(p: Params, exp: Experiment, *, coulomb: bool = False):
+    """Exact ``(ia, ω)`` at the experiment's sample times.
+
+    Parameters
+    ----------
+    p : motor parameters (SI); ``p.Tc`` is used only when ``coulomb`` is True.
+    exp : inputs and sample times from :func:`make_experiment`.
+    coulomb : include Coulomb friction (static: compiled separately).
+
+    Returns
+    -------
+    ia, omega : arrays of shape ``(n_samples,)``, A and rad/s, in time order.
+
+    Notes
+    -----
+    Between input changes, ``x(t0 + τ) = x_ss + expm(A·τ)·(x(t0) − x_ss)`` with
+    ``expm(A·τ) = α(τ)·I + β(τ)·A`` from A's two eigenvalues (Cayley–Hamilton), A
+    and x_ss from equations (5)–(6) and (15)–(16).
+    """
+    ia, w = simulate_padded(p, exp, coulomb=coulomb)
+    return exp.unpad(ia), exp.unpad(w)
+
+
+def simulate_scan(p: Params, exp: Experiment):
+    """Viscous model by zero-order-hold ``expm`` steps over samples and input changes.
+
+    The reference formulation: the augmented matrix ``[[A, b], [0, 0]]·dt`` is
+    exponentiated for every step of the grid formed by the sample times and the
+    input breakpoints, and the state is carried through ``lax.scan``.
+    """
+    t = exp.time
+    grid = np.unique(np.concatenate([t, np.asarray(exp.seg_t0)]))
+    seg_of = np.searchsorted(np.asarray(exp.seg_t0), grid[:-1], side="right") - 1
+    dts = jnp.asarray(np.diff(grid))
+    va = exp.seg_va[seg_of]
+    tl = exp.seg_tl[seg_of]
+    A, Bu = system_matrices(p)
+    x0 = jnp.stack(_initial_state(p, exp, False))
+
+    def step(x, inp):
+        dt, v, load = inp
+        b = Bu @ jnp.stack([v, load])
+        M = jnp.zeros((3, 3)).at[:2, :2].set(A).at[:2, 2].set(b)
+        E = jax.scipy.linalg.expm(M * dt)
+        x_new = E[:2, :2] @ x + E[:2, 2]
+        return x_new, x_new
+
+    _, xs = jax.lax.scan(step, x0, (dts, va, tl))
+    xs = jnp.concatenate([x0[None], xs])
+    idx = np.searchsorted(grid, t)
+    return xs[idx, 0], xs[idx, 1]
