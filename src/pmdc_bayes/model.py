@@ -35,6 +35,7 @@ __all__ = [
     "real_modes",
     "simulate_scan",
     "system_matrices",
+    "initial_state",
 ]
 
 INITIAL_MODES = {"rest": 0, "steady": 1, "given": 2}
@@ -293,7 +294,8 @@ def _segment_info(p: Params, x, va, tl, length, coulomb: bool, fast: bool) -> _S
     i_inf = va / p.Ra
     already = direction * (p.K * ia0 - tl) > p.Tc
     possible = direction * drive > p.Tc
-    ratio = jnp.where(possible & ~already, (i_inf - i_star) / (i_inf - ia0), 1.0)
+    breaks = possible & ~already
+    ratio = jnp.where(breaks, (i_inf - i_star) / jnp.where(breaks, i_inf - ia0, 1.0), 1.0)
     t_break = -p.La / p.Ra * jnp.log(jnp.clip(ratio, 1e-300, 1.0))
     t_move = jnp.where(at_rest, jnp.where(already, 0.0, jnp.where(possible, t_break, inf)), 0.0)
     xm_i = jnp.where(at_rest & ~already, i_star, ia0)
@@ -312,7 +314,7 @@ def _segment_info(p: Params, x, va, tl, length, coulomb: bool, fast: bool) -> _S
         return jnp.where(pos, mid, lo), jnp.where(pos, hi, mid)
 
     lo, hi = jax.lax.fori_loop(0, 60, bisect, (jnp.zeros_like(span), span))
-    t_root = jax.lax.stop_gradient(0.5 * (lo + hi))
+    t_root = jax.lax.stop_gradient(jnp.where(stops, 0.5 * (lo + hi), 0.0))
     for _ in range(2):  # Newton steps carry the root's dependence on the parameters
         i_r, w_r = _moving(p, seg, t_root, fast)
         dw_dt = (p.K * i_r - p.B * w_r - tl - direction * p.Tc) / p.J
@@ -340,7 +342,7 @@ def _state_in_segment(p: Params, seg: _Segment, va, tau, coulomb: bool, fast: bo
     return ia, w
 
 
-def _initial_state(p: Params, exp: Experiment, coulomb: bool):
+def initial_state(p: Params, exp: Experiment, coulomb: bool):
     va, tl = exp.seg_va[0], exp.seg_tl[0]
     if coulomb:
         drive = p.K * va / p.Ra - tl
@@ -365,7 +367,7 @@ def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
     ``fast=True`` assumes real, well-separated eigenvalues (:func:`real_modes`) and
     skips the complex and nearly-repeated branches; callers check that first.
     """
-    x0 = _initial_state(p, exp, coulomb)
+    x0 = initial_state(p, exp, coulomb)
 
     def step(x, seg_in):
         va, tl, length = seg_in
@@ -416,7 +418,7 @@ def simulate_scan(p: Params, exp: Experiment):
     va = exp.seg_va[seg_of]
     tl = exp.seg_tl[seg_of]
     A, Bu = system_matrices(p)
-    x0 = jnp.stack(_initial_state(p, exp, False))
+    x0 = jnp.stack(initial_state(p, exp, False))
 
     def step(x, inp):
         dt, v, load = inp
