@@ -38,7 +38,7 @@ def _cmd_closed_form(args) -> int:
         return 0
     num, den = cf.tf22()
     print(f"Closed-form identification (reference paper, Section III): {session.motor}")
-    print(f"{'parameter':<12}{'value':>14}  unit          source")
+    print(f"{'parameter':<12}{'value':>14}  {'unit':<16}source")
     rows = [
         ("Ra", f"{cf.Ra:.4g}", "ohm", cf.used["Ra"]),
         ("La", f"{cf.La * 1e3:.4g}", "mH", cf.used["La"]),
@@ -49,11 +49,22 @@ def _cmd_closed_form(args) -> int:
         ("G", f"{cf.G:.4g}", "rad/s per V", "equation (10)"),
     ]
     for name, val, unit, src in rows:
-        print(f"{name:<12}{val:>14}  {unit:<14}{src}")
+        print(f"{name:<12}{val:>14}  {unit:<16}{src}")
     print(
         "Transfer function (22): w(s)/Va(s) = "
         f"{num[0]:.4g} / ({den[0]:.4g} s^2 + {den[1]:.4g} s + {den[2]:.4g})"
     )
+    return 0
+
+
+def _cmd_simulate(args) -> int:
+    from .simulator import simulate_session
+
+    plan = Path(args.plan)
+    out = simulate_session(plan, Path(args.out) if args.out else plan.parent, seed=args.seed,
+                           force=args.force)
+    print(f"wrote a SIMULATED session to {out} (true parameters in {out / 'truth.json'}); "
+          f"try: pmdc-bayes closed-form {out}")
     return 0
 
 
@@ -75,6 +86,23 @@ def _parser() -> argparse.ArgumentParser:
                     f"'{DEFAULT_SESSION}')")
     cf.add_argument("--json", action="store_true", help="print one JSON object with SI floats")
     cf.set_defaults(func=_cmd_closed_form)
+    sim = sub.add_parser(
+        "simulate",
+        help="write a simulated session (bench, steady points, traces) from a plan",
+        description="Simulate the bench work a plan describes (true parameters, bench "
+        "uncertainties, operating points, steady tables, traces with sensor noise, "
+        "quantisation and delay) and write it as a session directory: session.toml, CSV "
+        "files and truth.json.  The same plan and seed give byte-identical files.  "
+        "Example: pmdc-bayes simulate data/demo/plan.toml --out data/demo --force",
+    )
+    sim.add_argument("plan", help="the plan TOML file (see data/demo/plan.toml)")
+    sim.add_argument("--out", metavar="DIR", help="session directory to write (default: the "
+                     "plan's directory)")
+    sim.add_argument("--seed", type=int, metavar="N", help="random seed (default: the plan's "
+                     "seed)")
+    sim.add_argument("--force", action="store_true", help="replace the generated files of an "
+                     "existing session in DIR (other files such as plan.toml are kept)")
+    sim.set_defaults(func=_cmd_simulate)
     return p
 
 

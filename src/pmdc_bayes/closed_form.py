@@ -247,7 +247,11 @@ def closed_form(session: Session) -> ClosedForm:
     elif steps:
         tr = max(steps, key=lambda s: abs(_step_of(s)[2] - _step_of(s)[1]))
         t_step, _, _ = _step_of(tr)
-        tau = read_time_constant(tr.time, tr.speed, t_step=t_step).tau
+        try:
+            tau = read_time_constant(tr.time, tr.speed, t_step=t_step).tau
+        except ValueError as exc:
+            raise SessionError(tr.file, f"cannot read a time constant from trace {tr.name!r}: "
+                               f"{exc}; log the step until the speed settles") from None
         used["tau"] = f"63.2 % point of trace {tr.name!r}"
     else:
         raise SessionError(session.root / "session.toml",
