@@ -36,7 +36,7 @@ def _sig(x, n):
 
 @pytest.fixture(scope="module")
 def paper_json():
-    proc = _cli("closed-form", "--json")  # the default session is the bundled paper
+    proc = _cli("closed-form", "paper", "--json")
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout)
 
@@ -47,11 +47,7 @@ def test_table1_to_printed_precision(paper_json):
     assert f"{out['La'] * 1e3:.3f}" == "5.621"
     assert round(out["K"], 3) == 0.062
     assert f"{out['B']:.3e}" == "5.663e-05"
-    # Table I prints Jeq = 5.902e-4.  From the printed tau = 1.16 s equation (9) gives
-    # 5.9028e-4, which prints as 5.903e-4: the printed tau (3 figures) fixes J to 3
-    # figures only.  See test_paper_used_an_unrounded_tau for the 4th figure.
-    assert f"{out['J']:.2e}" == "5.90e-04"
-    assert out["J"] == pytest.approx(5.902e-4, rel=2e-4)
+    assert f"{out['J']:.3e}" == "5.902e-04"
 
 
 def test_equation_22_to_printed_precision(paper_json):
@@ -59,34 +55,33 @@ def test_equation_22_to_printed_precision(paper_json):
     assert _sig(num[0], 3) == 105
     assert _sig(den[0], 4) == 0.005621
     assert _sig(den[1], 4) == 8.501
-    # den[2] = (Ra B + K^2)/J = Ra/tau exactly (equation (9)), so it carries tau's three
-    # figures: 8.5/1.16 = 7.328, the paper prints 7.329.
-    assert _sig(den[2], 3) == 7.33
-    assert den[2] == pytest.approx(8.5 / 1.16, rel=1e-12)
+    assert _sig(den[2], 4) == 7.329
+    # den[2] = (Ra B + K^2)/J = Ra/tau exactly (equation (9)).
+    assert den[2] == pytest.approx(8.5 / 1.1598, rel=1e-12)
 
 
-def test_paper_used_an_unrounded_tau():
-    """The paper's J and den[2] are both reproduced exactly by tau = 1.1598 s.
+def test_printed_tau_alone_misses_the_fourth_figure():
+    """With the printed tau = 1.16 s, J and den[2] miss Table I and (22) in the 4th figure.
 
     Equation (22)'s constant term is Ra/tau whatever K and B are, and 7.329 (to 4
     figures) needs tau in [1.15969, 1.15985] s; Table I's 5.902e-4 needs tau in
     [1.15970, 1.15990] s.  So the paper computed with a time constant of about
-    1.1598 s and printed it as 1.16 s.  The bundled session keeps the printed 1.16 s.
+    1.1598 s and printed it as 1.16 s; the bundled session carries 1.1598 s.
     """
     s = load_session(bundled_session_dir("paper"))
-    sr = dataclasses.replace(s.step_readings[0], tau=1.1598)
+    assert s.step_readings[0].tau == 1.1598
+    sr = dataclasses.replace(s.step_readings[0], tau=1.16)
     cf = closed_form(dataclasses.replace(s, step_readings=(sr,)))
     num, den = cf.tf22()
-    assert f"{cf.J:.3e}" == "5.902e-04"
-    assert _sig(num[0], 3) == 105
-    assert [_sig(den[0], 4), _sig(den[1], 4), _sig(den[2], 4)] == [0.005621, 8.501, 7.329]
+    assert f"{cf.J:.3e}" == "5.903e-04"
+    assert _sig(den[2], 4) == 7.328
 
 
 def test_closed_form_text_output():
     proc = _cli("closed-form", "paper")
     assert proc.returncode == 0, proc.stderr
     assert "0.062" in proc.stdout and "5.6630e-05" in proc.stdout
-    assert "105 / (0.005621 s^2 + 8.501 s + 7.328)" in proc.stdout
+    assert "105.1 / (0.005621 s^2 + 8.501 s + 7.329)" in proc.stdout
 
 
 @pytest.mark.parametrize("args", [["--help"], ["closed-form", "--help"]])

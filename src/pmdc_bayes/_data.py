@@ -7,7 +7,7 @@ from pathlib import Path
 __all__ = ["bundled_session_dir", "BUNDLED", "DEFAULT_SESSION"]
 
 BUNDLED = ("paper", "demo")
-DEFAULT_SESSION = "paper"
+DEFAULT_SESSION = "demo"
 
 
 def bundled_session_dir(name: str) -> Path:

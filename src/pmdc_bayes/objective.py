@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .closed_form import ClosedForm
-from .model import Params, experiment_from_trace, real_modes, simulate_padded
+from .model import Params, experiment_from_traces, real_modes, simulate, simulate_padded
 from .session import Session
 
 __all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "PARAM_NAMES", "noise_scale"]
@@ -73,17 +73,28 @@ class SessionModel:
         self.coulomb = coulomb
         self.names = PARAM_NAMES if coulomb else PARAM_NAMES[:5]
         self.seed = seed
-        self.exps = [experiment_from_trace(tr) for tr in session.traces]
         self.channels: list[Channel] = []
-        self._obs = []  # per trace: (padded speed, padded current or None, channel ids)
-        for tr, ex in zip(session.traces, self.exps):
-            ids = [self._add(f"{tr.name}: speed", "rad/s", tr.n, noise_scale(tr.speed))]
-            speed = ex.pad(tr.speed)
-            current = None
+        self.exp = experiment_from_traces(session.traces) if session.traces else None
+        speed_ch, current_ch = [], []
+        speeds, currents = [], []
+        for tr in session.traces:
+            speed_ch.append(self._add(f"{tr.name}: speed", "rad/s", tr.n, noise_scale(tr.speed)))
+            speeds.append(tr.speed)
             if tr.current is not None:
-                ids.append(self._add(f"{tr.name}: current", "A", tr.n, noise_scale(tr.current)))
-                current = ex.pad(tr.current)
-            self._obs.append((speed, current, ids))
+                current_ch.append(self._add(f"{tr.name}: current", "A", tr.n,
+                                            noise_scale(tr.current)))
+                currents.append(tr.current)
+            else:
+                current_ch.append(-1)
+                currents.append(np.zeros(tr.n))
+        if self.exp is not None:
+            ct = np.asarray(self.exp.chunk_trace)
+            self._speed = self.exp.pad(np.concatenate(speeds))
+            self._current = self.exp.pad(np.concatenate(currents))
+            self._speed_ch = np.asarray(speed_ch)[ct]
+            cur = np.asarray(current_ch)[ct]
+            self._current_mask = np.asarray(self.exp.mask) & (cur >= 0)[:, None]
+            self._current_ch = np.where(cur >= 0, cur, 0)
         st = self._steady_arrays(session)
         self._steady = st
         self._steady_w = self._add("steady: speed", "rad/s", st["w_mask"].sum(),
@@ -97,8 +108,25 @@ class SessionModel:
         self.n_obs = np.array([c.n for c in self.channels], dtype=float)
         self.s0 = np.array([c.s0 for c in self.channels], dtype=float)
         self.prior_mean, self.prior_sd = self._priors(session, seed)
+        self.data = self._collect_data()
 
     # -- construction helpers ---------------------------------------------------------
+    def _collect_data(self) -> dict:
+        """Every array the objective reads, as one pytree: pass it as an argument to a
+        compiled function so that sessions of the same shapes share the compilation."""
+        st = self._steady
+        d = {"steady_v": st["v"], "steady_tl": st["tl"], "steady_w": st["w"],
+             "steady_i": st["i"], "steady_w_mask": st["w_mask"], "steady_i_mask": st["i_mask"],
+             "tau_obs": self._tau_obs, "n_obs": self.n_obs, "s0": self.s0,
+             "ra": [self.session.Ra.value, self.session.Ra.sd],
+             "la": [self.session.La.value, self.session.La.sd],
+             "prior_mean": self.prior_mean, "prior_sd": self.prior_sd}
+        if self.exp is not None:
+            d.update(exp=self.exp, speed=self._speed, current=self._current,
+                     current_mask=self._current_mask, speed_ch=self._speed_ch,
+                     current_ch=self._current_ch)
+        return jax.tree_util.tree_map(jnp.asarray, d)
+
     def _add(self, name, unit, n, s0) -> int:
         self.channels.append(Channel(name, unit, int(n), float(s0)))
         return len(self.channels) - 1
@@ -172,78 +200,116 @@ class SessionModel:
         """First-order time constant (9): what a 63.2 % reading measures when La/Ra ≪ τ."""
         return p.J * p.Ra / (p.B * p.Ra + p.K * p.K)
 
-    def channel_residuals(self, theta, *, fast: bool = False):
-        """Residuals per channel (observed − model), each padded with a mask."""
-        p = self.params(theta)
+    def _d(self, data):
+        return self.data if data is None else data
+
+    def _steady_and_tau_residuals(self, p: Params, *, data=None):
+        d = self._d(data)
+        w, i = self.steady_prediction(p, d["steady_v"], d["steady_tl"])
+        return [(d["steady_w"] - w, d["steady_w_mask"]), (d["steady_i"] - i, d["steady_i_mask"]),
+                (d["tau_obs"] - self.tau_prediction(p), jnp.ones(d["tau_obs"].shape, bool))]
+
+    def trace_residuals(self, theta, *, fast: bool = False, data=None):
+        """Padded speed and current residuals (observed − model) of all traces."""
+        d = self._d(data)
+        ia, w = simulate_padded(self.params(theta), d["exp"], coulomb=self.coulomb, fast=fast)
+        return d["speed"] - w, d["current"] - ia
+
+    def channel_residuals(self, theta, *, fast: bool = False, data=None):
+        """Residuals per channel (observed − model) with their masks, in channel order."""
         out = []
-        for ex, (speed, current, _) in zip(self.exps, self._obs):
-            ia, w = simulate_padded(p, ex, coulomb=self.coulomb, fast=fast)
-            out.append(((speed - w), ex.mask))
-            if current is not None:
-                out.append(((current - ia), ex.mask))
-        st = self._steady
-        w, i = self.steady_prediction(p, st["v"], st["tl"])
-        out.append((st["w"] - w, st["w_mask"]))
-        out.append((st["i"] - i, st["i_mask"]))
-        out.append((self._tau_obs - self.tau_prediction(p), np.ones(len(self._tau_obs), bool)))
-        return out
+        if self.exp is not None:
+            rw, ri = self.trace_residuals(theta, fast=fast)
+            mask = np.asarray(self.exp.mask)
+            for c in range(len(self.channels) - 3):
+                m_w = mask & (self._speed_ch == c)[:, None]
+                m_i = self._current_mask & (self._current_ch == c)[:, None]
+                out.append((rw, m_w) if m_w.any() else (ri, m_i))
+        return out + self._steady_and_tau_residuals(self.params(theta))
 
-    def sums_of_squares(self, theta, *, fast: bool = False):
-        return jnp.stack([jnp.sum(jnp.where(m, r, 0.0) ** 2)
-                          for r, m in self.channel_residuals(theta, fast=fast)])
+    def sums_of_squares(self, theta, *, fast: bool = False, data=None):
+        """Sum of squared residuals per channel."""
+        d = self._d(data)
+        n_ch = len(self.channels)
+        if self.exp is not None:
+            rw, ri = self.trace_residuals(theta, fast=fast, data=d)
+            row_w = jnp.sum(jnp.where(d["exp"].mask, rw * rw, 0.0), axis=1)
+            row_i = jnp.sum(jnp.where(d["current_mask"], ri * ri, 0.0), axis=1)
+            ss = (jax.ops.segment_sum(row_w, d["speed_ch"], num_segments=n_ch)
+                  + jax.ops.segment_sum(row_i, d["current_ch"], num_segments=n_ch))
+        else:
+            ss = jnp.zeros(n_ch)
+        tail = [jnp.sum(jnp.where(m, r, 0.0) ** 2)
+                for r, m in self._steady_and_tau_residuals(self.params(theta), data=d)]
+        return ss.at[n_ch - 3:].add(jnp.stack(tail))
 
-    def log_prior(self, theta):
+    def _prior_terms(self, theta, d):
         p = self.params(theta)
-        s = self.session
-        lp = -0.5 * ((p.Ra - s.Ra.value) / s.Ra.sd) ** 2 - 0.5 * ((p.La - s.La.value) / s.La.sd) ** 2
-        z = (theta[2:] - self.prior_mean[2:]) / self.prior_sd[2:]
-        # Ra, La are Gaussian in value: add the log-Jacobian of θ = log(value).
-        return lp - 0.5 * jnp.sum(z * z) + theta[0] + theta[1]
+        bench = jnp.stack([(p.Ra - d["ra"][0]) / d["ra"][1], (p.La - d["la"][0]) / d["la"][1]])
+        z = (theta[2:] - d["prior_mean"][2:]) / d["prior_sd"][2:]
+        return bench, z
 
-    def log_likelihood(self, theta, *, fast: bool = False):
-        ss = self.sums_of_squares(theta, fast=fast)
-        n, s0 = jnp.asarray(self.n_obs), jnp.asarray(self.s0)
+    def log_prior(self, theta, *, data=None):
+        """Gaussian bench priors on Ra, La (in value); log-normal on K, B, J, Tc."""
+        bench, z = self._prior_terms(theta, self._d(data))
+        # Ra, La are Gaussian in value: add the log-Jacobian of θ = log(value).
+        return -0.5 * jnp.sum(bench * bench) - 0.5 * jnp.sum(z * z) + theta[0] + theta[1]
+
+    def log_likelihood(self, theta, *, fast: bool = False, data=None):
+        """Σ_c −(n_c + ν0)/2 · log(ν0·s0_c² + SS_c): Gaussian noise, σ_c integrated out."""
+        d = self._d(data)
+        ss = self.sums_of_squares(theta, fast=fast, data=d)
+        n, s0 = d["n_obs"], d["s0"]
         return jnp.sum(jnp.where(n > 0, -0.5 * (n + NU0) * jnp.log(NU0 * s0**2 + ss), 0.0))
 
-    def log_posterior(self, theta, *, fast: bool = False):
-        lp = self.log_prior(theta) + self.log_likelihood(theta, fast=fast)
+    def log_posterior(self, theta, *, fast: bool = False, data=None):
+        """Log-posterior (up to a constant); −inf wherever the model is not finite."""
+        lp = self.log_prior(theta, data=data) + self.log_likelihood(theta, fast=fast, data=data)
         return jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
 
-    def log_posterior_batch(self, thetas):
+    def log_posterior_batch(self, thetas, *, data=None):
         """Log-posterior of a batch ``(W, P)``; the fast path when every member allows it."""
         ok = jnp.all(jax.vmap(lambda t: real_modes(self.params(t)))(thetas))
         return jax.lax.cond(
             ok,
-            jax.vmap(lambda t: self.log_posterior(t, fast=True)),
-            jax.vmap(lambda t: self.log_posterior(t, fast=False)),
+            jax.vmap(lambda t: self.log_posterior(t, fast=True, data=data)),
+            jax.vmap(lambda t: self.log_posterior(t, fast=False, data=data)),
             thetas,
         )
 
-    def weights(self, theta):
+    def weights(self, theta, *, data=None):
         """Per-channel weights 1/σ_c² at θ: the posterior mode of σ_c² given SS_c."""
-        ss = self.sums_of_squares(theta)
-        return (jnp.asarray(self.n_obs) + NU0) / (NU0 * jnp.asarray(self.s0) ** 2 + ss)
+        d = self._d(data)
+        ss = self.sums_of_squares(theta, data=d)
+        return (d["n_obs"] + NU0) / (NU0 * d["s0"] ** 2 + ss)
 
-    def weighted_residuals(self, theta, weights):
+    def weighted_residuals(self, theta, weights, *, fast: bool = False, data=None):
         """Residual vector whose half squared norm is the negative log-posterior at fixed
         weights (for Levenberg–Marquardt)."""
-        parts = [jnp.where(m, r, 0.0).reshape(-1) * jnp.sqrt(weights[c])
-                 for c, (r, m) in enumerate(self.channel_residuals(theta))]
-        p = self.params(theta)
-        s = self.session
-        prior = jnp.stack([(p.Ra - s.Ra.value) / s.Ra.sd, (p.La - s.La.value) / s.La.sd])
-        z = (theta[2:] - self.prior_mean[2:]) / self.prior_sd[2:]
-        return jnp.concatenate(parts + [prior, z])
+        d = self._d(data)
+        sw = jnp.sqrt(weights)
+        parts = []
+        if self.exp is not None:
+            rw, ri = self.trace_residuals(theta, fast=fast, data=d)
+            parts.append((jnp.where(d["exp"].mask, rw, 0.0) * sw[d["speed_ch"]][:, None])
+                         .reshape(-1))
+            parts.append((jnp.where(d["current_mask"], ri, 0.0)
+                          * sw[d["current_ch"]][:, None]).reshape(-1))
+        n_ch = len(self.channels)
+        for k, (r, m) in enumerate(self._steady_and_tau_residuals(self.params(theta), data=d)):
+            parts.append(jnp.where(m, r, 0.0) * sw[n_ch - 3 + k])
+        bench, z = self._prior_terms(theta, d)
+        return jnp.concatenate(parts + [bench, z])
 
     def predict(self, theta, *, coulomb: bool | None = None):
-        """Per trace ``(ia, ω)`` in time order (A, rad/s)."""
-        from .model import simulate
-
-        p = self.params(theta)
+        """Per trace ``(ia, ω)`` in time order (A, rad/s), as NumPy arrays."""
+        if self.exp is None:
+            return []
         c = self.coulomb if coulomb is None else coulomb
-        return [simulate(p, ex, coulomb=c) for ex in self.exps]
+        ia, w = simulate(self.params(theta), self.exp, coulomb=c)
+        return list(zip(self.exp.split(ia), self.exp.split(w)))
 
-    def pointwise_log_likelihood(self, theta):
+    def pointwise_log_likelihood(self, theta, *, data=None):
         """Gaussian log-density of every observation at σ_c² = SS_c/n_c (for LOO)."""
         ss = self.sums_of_squares(theta)
         var = (NU0 * jnp.asarray(self.s0) ** 2 + ss) / (jnp.asarray(self.n_obs) + NU0)

@@ -1,0 +1,121 @@
+"""Convergence summaries and checks of a posterior sample, and LOO model comparison.
+
+Everything here reads ArviZ objects and returns plain records (dicts of floats and
+messages), so a report or the command line can print them without ArviZ.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+with warnings.catch_warnings():
+    # ArviZ 0.23 emits a once-a-day FutureWarning on import announcing its 1.0
+    # refactor; the project pins arviz<0.24, so the notice does not concern users.
+    warnings.filterwarnings("ignore", message=r"\s*ArviZ is undergoing", category=FutureWarning)
+    import arviz as az
+
+__all__ = ["summarize", "gates", "compare_laplace", "loo_compare", "format_loo", "az"]
+
+HDI_PROB = 0.94
+LAPLACE_TOLERANCE = 0.2
+_PARETO_WARNING = r"Estimated shape parameter of Pareto distribution"
+
+
+def summarize(posterior) -> dict[str, dict[str, float]]:
+    """Per parameter (SI): mean, sd, 94 % HDI, bulk and tail ESS, R-hat.
+
+    Walkers count as chains; R-hat is the rank-normalised split R-hat of ArviZ.
+    """
+    table = az.summary(posterior.idata, var_names=list(posterior.names), hdi_prob=HDI_PROB,
+                       round_to="none")
+    cols = ["mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r_hat"]
+    return {name: {c: float(table.loc[name, c]) for c in cols} for name in posterior.names}
+
+
+def gates(summary: dict, *, posterior=None, r_hat_max: float = 1.01,
+          ess_min: float = 400) -> tuple[bool, list[str]]:
+    """Whether the sample may be trusted, and why not in words, one message per failure.
+
+    ``posterior`` (optional) adds a failure when the run stopped at its step cap.
+    """
+    failures = []
+    if posterior is not None and posterior.capped:
+        failures.append(f"run capped: {posterior.message}")
+    for name, row in summary.items():
+        r_hat, bulk, tail = row["r_hat"], row["ess_bulk"], row["ess_tail"]
+        if not np.isfinite(r_hat) or r_hat > r_hat_max:
+            failures.append(f"{name}: R-hat {r_hat:.3g} > {r_hat_max} (chains have not mixed)")
+        if not np.isfinite(bulk) or bulk < ess_min:
+            failures.append(f"{name}: bulk ESS {bulk:.0f} < {ess_min:g}")
+        if not np.isfinite(tail) or tail < ess_min:
+            failures.append(f"{name}: tail ESS {tail:.0f} < {ess_min:g}")
+    return not failures, failures
+
+
+def compare_laplace(fit, summary: dict, *, tolerance: float = LAPLACE_TOLERANCE) -> list[dict]:
+    """Laplace (linearised) sd against the posterior sd, per parameter (SI).
+
+    A ratio ``posterior_sd / laplace_sd`` further than ``tolerance`` from 1 is flagged:
+    the posterior is then not the Gaussian the Laplace approximation assumes.
+    """
+    rows = []
+    for name in fit.names:
+        lap, post = float(fit.sd[name]), float(summary[name]["sd"])
+        ratio = post / lap if lap > 0 else float("inf")
+        flagged = bool(not np.isfinite(ratio) or abs(ratio - 1.0) > tolerance)
+        rows.append({"name": name, "laplace_sd": lap, "posterior_sd": post, "ratio": ratio,
+                     "flagged": flagged,
+                     "note": "non-Gaussian or banana-shaped posterior" if flagged else ""})
+    return rows
+
+
+def _reff(idata) -> float:
+    """Relative efficiency of the draws that carry a log-likelihood (possibly thinned)."""
+    ll = idata.log_likelihood
+    post = idata.posterior.sel(draw=ll.draw)
+    n = ll.sizes["chain"] * ll.sizes["draw"]
+    ess = az.ess(post, method="mean")
+    return float(min(1.0, np.mean([ess[v].values for v in ess.data_vars]) / n))
+
+
+def _loo(idata):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.filterwarnings("always", message=_PARETO_WARNING, category=UserWarning)
+        elpd = az.loo(idata, pointwise=True, reff=_reff(idata))
+    for w in caught:  # anything but the Pareto-k notice (reported in the rows) goes on
+        if not str(w.message).startswith("Estimated shape parameter of Pareto"):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return elpd
+
+
+def loo_compare(idata_by_model: dict) -> list[dict]:
+    """PSIS-LOO of each model and their comparison (best first), e.g. viscous vs Coulomb.
+
+    The models must be fitted to the same session (same observations).  Each row:
+    ``model, rank, elpd_loo, se, p_loo, elpd_diff, dse, weight, n_bad_k`` (observations
+    with Pareto k > 0.7, where the LOO estimate is unreliable), ``warning``.
+    """
+    loos = {name: _loo(idata) for name, idata in idata_by_model.items()}
+    table = az.compare(loos, ic="loo")
+    rows = []
+    for name, r in table.iterrows():
+        k = np.asarray(loos[name].pareto_k)
+        rows.append({"model": name, "rank": int(r["rank"]), "elpd_loo": float(r["elpd_loo"]),
+                     "se": float(r["se"]), "p_loo": float(r["p_loo"]),
+                     "elpd_diff": float(r["elpd_diff"]), "dse": float(r["dse"]),
+                     "weight": float(r["weight"]), "n_bad_k": int(np.sum(k > 0.7)),
+                     "warning": bool(r["warning"])})
+    return rows
+
+
+def format_loo(rows: list[dict]) -> str:
+    """The rows of :func:`loo_compare` as a small text table."""
+    lines = [f"{'model':<12} {'elpd_loo':>12} {'se':>9} {'Δelpd':>10} {'dse':>9} "
+             f"{'p_loo':>7} {'weight':>7}  bad k"]
+    for r in rows:
+        lines.append(f"{r['model']:<12} {r['elpd_loo']:12.1f} {r['se']:9.1f} "
+                     f"{r['elpd_diff']:10.1f} {r['dse']:9.1f} {r['p_loo']:7.1f} "
+                     f"{r['weight']:7.2f}  {r['n_bad_k']}")
+    return "\n".join(lines)

@@ -1,0 +1,303 @@
+"""Posterior sampling of a session model with emcee, and its ArviZ record.
+
+:func:`sample_posterior` runs an affine-invariant ensemble (differential-evolution
+moves by default) started around the MAP, in chunks, until the chain is many
+integrated autocorrelation times long and the autocorrelation estimate has settled,
+or until a step cap.  The result, :class:`Posterior`, carries its status in words;
+:func:`summarize` and :func:`gates` (in :mod:`pmdc_bayes._diagnostics`) say whether it
+can be trusted.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import sys
+import time
+import weakref
+from dataclasses import dataclass
+
+import emcee
+import jax
+import jax.numpy as jnp
+import numpy as np
+import xarray as xr
+from tqdm.auto import tqdm
+
+from ._diagnostics import az, compare_laplace, format_loo, gates, loo_compare, summarize
+
+__all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
+           "compare_laplace", "loo_compare", "format_loo", "default_moves"]
+
+CHUNK = 500  # steps between autocorrelation checks
+TAU_RTOL = 0.01  # relative change of τ between checks that counts as settled
+LL_DRAWS = 1000  # at most this many draws carry a pointwise log-likelihood
+_LL_BATCH = 50
+
+_compiled = weakref.WeakKeyDictionary()  # model -> its jit-compiled functions
+
+
+def default_moves():
+    """Differential evolution with some snooker moves (fresh instances)."""
+    return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+
+
+@dataclass(frozen=True)
+class Posterior:
+    """An ensemble sample of the posterior, burn-in removed, not thinned.
+
+    Attributes
+    ----------
+    names : parameter names, in θ order.
+    draws : ``(chains, draws, ndim)`` SI values; walkers are the chains.
+    draws_log : the same draws in log space (θ).
+    log_prob : ``(chains, draws)`` log-posterior of each draw.
+    acceptance : per-walker acceptance fraction over the whole run.
+    tau : integrated autocorrelation time per parameter (steps), at the end.
+    n_steps, burn_in : steps run and steps discarded (``ceil(2·max τ)``).
+    capped : the run hit ``max_steps`` before the stopping rule; ``message`` says why.
+    wall_time : seconds spent sampling (including the log-likelihood for ``idata``).
+    idata : the ArviZ record (see :func:`to_inference_data`).
+    """
+
+    names: tuple
+    draws: np.ndarray
+    draws_log: np.ndarray
+    log_prob: np.ndarray
+    acceptance: np.ndarray
+    tau: dict
+    n_steps: int
+    burn_in: int
+    capped: bool
+    message: str
+    wall_time: float
+    idata: az.InferenceData
+
+    def draws_si(self) -> dict[str, np.ndarray]:
+        """All draws of each parameter (SI), chains flattened."""
+        return {n: self.draws[..., k].reshape(-1) for k, n in enumerate(self.names)}
+
+
+def _functions(model):
+    """The model's jit-compiled batch log-posterior and pointwise log-likelihood,
+    compiled once per model (and per batch shape)."""
+    if model not in _compiled:
+        _compiled[model] = (jax.jit(model.log_posterior_batch),
+                            jax.jit(jax.vmap(model.pointwise_log_likelihood)))
+    return _compiled[model]
+
+
+class _LogProb:
+    """emcee's vectorised ``log_prob_fn``: NumPy ``(n, P)`` in, ``(n,)`` out, -inf for
+    anything non-finite.  Evaluates in padded batches of a fixed size so the batch
+    log-posterior compiles once, whatever size of batch a move proposes."""
+
+    def __init__(self, fn, batch: int):
+        self.fn, self.batch = fn, batch
+
+    def __call__(self, thetas) -> np.ndarray:
+        thetas = np.asarray(thetas, dtype=float)
+        n = thetas.shape[0]
+        ok = np.all(np.isfinite(thetas), axis=1) & np.all(np.abs(thetas) < 700.0, axis=1)
+        out = np.full(n, -np.inf)
+        good = thetas[ok]
+        if good.shape[0] == 0:
+            return out
+        m = math.ceil(good.shape[0] / self.batch) * self.batch
+        padded = np.concatenate([good, np.repeat(good[:1], m - good.shape[0], axis=0)])
+        vals = np.empty(m)
+        for a in range(0, m, self.batch):
+            try:
+                vals[a:a + self.batch] = np.asarray(self.fn(jnp.asarray(padded[a:a + self.batch])))
+            except (ArithmeticError, ValueError, RuntimeError):  # a failed solve is -inf
+                vals[a:a + self.batch] = -np.inf
+        vals = vals[:good.shape[0]]
+        out[ok] = np.where(np.isfinite(vals), vals, -np.inf)
+        return out
+
+
+def _initial(fit, log_prob, n_walkers, rng, scale=1.0):
+    """Walkers drawn from the Laplace approximation, redrawn where the density is -inf."""
+    theta, cov = np.asarray(fit.theta, dtype=float), np.asarray(fit.cov_log) * scale**2
+    p0 = rng.multivariate_normal(theta, cov, size=n_walkers, method="eigh")
+    lp = log_prob(p0)
+    for _ in range(20):
+        bad = ~np.isfinite(lp)
+        if not bad.any():
+            return p0, lp
+        p0[bad] = rng.multivariate_normal(theta, cov, size=int(bad.sum()), method="eigh")
+        lp[bad] = log_prob(p0[bad])
+    raise ValueError(f"{int(bad.sum())} of {n_walkers} initial walkers have a zero posterior "
+                     "density around the MAP; check that fit_map converged (fit.message)")
+
+
+def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
+                     max_steps: int = 20_000, min_tau_multiple: float = 50,
+                     progress: bool | None = None, moves=None,
+                     ll_draws: int = LL_DRAWS) -> Posterior:
+    """Sample the posterior of ``model`` with an emcee ensemble started at ``fit``.
+
+    Parameters
+    ----------
+    model : a :class:`pmdc_bayes.objective.SessionModel`.
+    fit : its MAP fit (:func:`pmdc_bayes.fit.fit_map`): walkers start from
+        ``N(fit.theta, fit.cov_log)``.
+    seed : seeds the initial walkers and emcee's generator; same seed, same draws.
+    n_walkers : default ``max(32, 4·ndim)``, rounded up to even.
+    max_steps : step cap; a capped run says so in ``capped`` and ``message``.
+    min_tau_multiple : stop once the chain is this many τ_max long and every τ
+        changed by less than 1 % since the previous check (every 500 steps).
+    progress : a tqdm bar on stderr; default when stderr is a terminal.
+    moves : emcee moves; default :func:`default_moves`.
+    ll_draws : at most this many draws carry the pointwise log-likelihood in ``idata``
+        (evenly thinned along each chain).
+    """
+    t_start = time.perf_counter()
+    ndim = len(model.names)
+    if n_walkers is None:
+        n_walkers = max(32, 4 * ndim)
+    n_walkers += n_walkers % 2
+    if n_walkers < 2 * ndim:
+        raise ValueError(f"n_walkers={n_walkers} is too few for {ndim} parameters; "
+                         f"use at least {2 * ndim}")
+    if progress is None:
+        progress = sys.stderr.isatty()
+    batch_fn, _ = _functions(model)
+    log_prob = _LogProb(batch_fn, max(1, math.ceil(n_walkers / 4)))
+    rng = np.random.default_rng(seed)
+    p0, lp0 = _initial(fit, log_prob, n_walkers, rng)
+    sampler = emcee.EnsembleSampler(n_walkers, ndim, log_prob, vectorize=True,
+                                    moves=default_moves() if moves is None else moves)
+    sampler.random_state = np.random.RandomState(seed).get_state()
+    state = emcee.State(p0, log_prob=lp0)
+
+    names = tuple(model.names)
+    tau_prev, converged, steps = None, False, 0
+    bar = tqdm(total=max_steps, disable=not progress, file=sys.stderr, unit="step")
+    with bar:
+        while steps < max_steps:
+            n = min(CHUNK, max_steps - steps)
+            state = sampler.run_mcmc(state, n, progress=False)
+            steps += n
+            bar.update(n)
+            tau = np.asarray(sampler.get_autocorr_time(tol=0), dtype=float)
+            tau = np.where(np.isfinite(tau), tau, float(steps))
+            bar.set_postfix(tau_max=f"{tau.max():.0f}")
+            if tau_prev is not None:
+                settled = np.all(np.abs(tau - tau_prev) < TAU_RTOL * tau)
+                if settled and steps >= min_tau_multiple * tau.max():
+                    converged = True
+                    break
+            tau_prev = tau
+
+    worst = names[int(np.argmax(tau))]
+    if converged:
+        message = (f"converged after {steps} steps: {steps / tau.max():.0f} × τ_max "
+                   f"(τ_max {tau.max():.1f} steps, {worst})")
+    else:
+        message = (f"stopped at max_steps={max_steps} before the chain was "
+                   f"{min_tau_multiple:g} × τ_max long with τ settled; slowest parameter "
+                   f"{worst} (τ ≈ {tau.max():.0f} steps, so {min_tau_multiple * tau.max():.0f}"
+                   " steps would be needed): it may be poorly identified by the data")
+    burn = min(math.ceil(2.0 * tau.max()), steps // 2)
+    chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)  # (walkers, draws, P)
+    lp = np.swapaxes(sampler.get_log_prob(discard=burn), 0, 1)
+    acc = np.asarray(sampler.acceptance_fraction, dtype=float)
+    idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws)
+    idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged))
+    return Posterior(names, np.exp(chain), chain, lp, acc, dict(zip(names, map(float, tau))),
+                     steps, burn, not converged, message, time.perf_counter() - t_start, idata)
+
+
+def _identifier(name: str, taken: set) -> str:
+    ident = re.sub(r"\W+", "_", name).strip("_") or "channel"
+    if ident[0].isdigit():
+        ident = "c_" + ident
+    base, k = ident, 2
+    while ident in taken:
+        ident, k = f"{base}_{k}", k + 1
+    taken.add(ident)
+    return ident
+
+
+def _observed(model) -> list[np.ndarray]:
+    """Observed values per channel, in the model's channel order (the order the
+    objective builds them in: traces, steady speeds, steady currents, τ readings)."""
+    s = model.session
+    out = []
+    for tr in s.traces:
+        out.append(np.asarray(tr.speed, dtype=float))
+        if tr.current is not None:
+            out.append(np.asarray(tr.current, dtype=float))
+    w, i = [], []
+    for op in s.operating_points:
+        w.append(op.speed)
+        if op.current is not None:
+            i.append(op.current)
+    for tab in s.steady_tables:
+        w.extend(np.asarray(tab.speed, dtype=float))
+        if tab.current is not None:
+            i.extend(np.asarray(tab.current, dtype=float))
+    w.extend(r.final_speed for r in s.step_readings)
+    out += [np.asarray(w, dtype=float), np.asarray(i, dtype=float),
+            np.asarray([r.tau for r in s.step_readings], dtype=float)]
+    sizes = [c.n for c in model.channels]
+    if [o.size for o in out] != sizes:
+        raise ValueError(f"observed values per channel have sizes {[o.size for o in out]}, "
+                         f"but the model's channels have {sizes}: the channel order of "
+                         "SessionModel changed; update sampling._observed")
+    return out
+
+
+def _pointwise(model, chain_log: np.ndarray, thin: int) -> np.ndarray:
+    """Pointwise log-likelihood ``(chains, kept, n_obs)`` at every ``thin``-th draw."""
+    _, fn = _functions(model)
+    sub = chain_log[:, ::thin]
+    flat = sub.reshape(-1, sub.shape[-1])
+    m = math.ceil(flat.shape[0] / _LL_BATCH) * _LL_BATCH
+    padded = np.concatenate([flat, np.repeat(flat[:1], m - flat.shape[0], axis=0)])
+    parts = []
+    for a in range(0, m, _LL_BATCH):
+        per_channel = fn(jnp.asarray(padded[a:a + _LL_BATCH]))
+        parts.append(np.concatenate([np.asarray(x) for x in per_channel], axis=1))
+    ll = np.concatenate(parts)[:flat.shape[0]]
+    return ll.reshape(*sub.shape[:2], -1)
+
+
+def to_inference_data(model, chain_log: np.ndarray, log_prob: np.ndarray,
+                      acceptance: np.ndarray, *, ll_draws: int = LL_DRAWS) -> az.InferenceData:
+    """ArviZ record of a sample: ``posterior`` (SI value per parameter, walkers as
+    chains), ``sample_stats`` (``lp``; per-chain ``acceptance``), ``observed_data`` (one
+    variable per channel, names made identifiers) and ``log_likelihood``.
+
+    ``log_likelihood`` holds one variable ``y`` over all observations (dimension
+    ``observation``, with a ``channel`` coordinate naming each one's channel), so
+    ``az.loo(idata)`` works directly.  It is evaluated at every ``thin``-th draw
+    (``attrs["thin"]``) so that at most ``ll_draws`` draws carry it; its ``draw``
+    coordinate gives the draws used.
+    """
+    chains, draws, _ = chain_log.shape
+    taken: set = set()
+    obs_names = [_identifier(c.name, taken) for c in model.channels]
+    observed = {nm: o for nm, o in zip(obs_names, _observed(model)) if o.size}
+    values = np.exp(chain_log)
+    idata = az.from_dict(
+        posterior={n: values[..., k] for k, n in enumerate(model.names)},
+        sample_stats={"lp": log_prob},
+        observed_data=observed,
+        dims={nm: [f"{nm}_dim"] for nm in observed},
+        attrs={"inference_library": "emcee"},
+    )
+    idata.sample_stats["acceptance"] = xr.DataArray(np.asarray(acceptance), dims=["chain"],
+                                                    coords={"chain": np.arange(chains)})
+    thin = max(1, math.ceil(chains * draws / max(ll_draws, chains)))
+    ll = _pointwise(model, chain_log, thin)
+    labels = np.asarray([nm for nm, c in zip(obs_names, model.channels) for _ in range(c.n)])
+    ds = xr.Dataset(
+        {"y": (("chain", "draw", "observation"), ll)},
+        coords={"chain": np.arange(chains), "draw": np.arange(0, draws, thin),
+                "observation": np.arange(ll.shape[-1]), "channel": ("observation", labels)},
+        attrs={"thin": thin},
+    )
+    idata.add_groups(log_likelihood=ds)
+    return idata
