@@ -171,7 +171,7 @@ def test_paper_session():
                                rtol=1e-15)
     np.testing.assert_array_equal(figure7.load_torque, [0.0, 0.01, 0.02])
     (fig4,) = s.step_readings
-    assert (fig4.voltage, fig4.tau) == (12.97, 1.16)
+    assert (fig4.voltage, fig4.tau) == (12.97, 1.1598)  # printed 1.16; see session.toml
     assert fig4.final_speed == pytest.approx(166.5, abs=0.05)
     again = load_session(path / TOML)  # the session.toml path works as well as the directory
     assert again.name == "paper" and again.root == s.root and again.Ra == s.Ra

@@ -68,6 +68,48 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
+def _cmd_fit(args) -> int:
+    from .run import run_fit
+
+    _enable_compilation_cache()
+    out, summary = run_fit(
+        _session_path(args.session), out=args.out, force=args.force, mcmc=not args.no_mcmc,
+        friction=args.friction, seed=args.seed, holdout=args.holdout or (),
+        allow_unconverged=args.allow_unconverged,
+    )
+    print(f"Fit of {summary['session']['motor']} ({summary['session']['friction']} friction): "
+          f"{summary['fit']['message']}")
+    print(f"{'parameter':<6}{'closed form':>14}{'MAP':>14}{'± sd':>12}  unit")
+    for name, row in summary["parameters"].items():
+        cf = "—" if row["closed_form"] is None else f"{row['closed_form']:.5g}"
+        print(f"{name:<6}{cf:>14}{row['map']:>14.6g}{row['map_sd']:>12.3g}  {row['unit']}")
+    for line in summary["identifiability"]["findings"]:
+        print(f"- {line}")
+    print(f"Wrote {out / 'summary.json'}")
+    if summary["fit"]["status"] != "converged" and not args.allow_unconverged:
+        print(f"pmdc-bayes: error: the fit did not converge: {summary['fit']['message']}",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+def _enable_compilation_cache() -> None:
+    """Keep compiled functions across runs (a second run of the same session shapes
+    skips compilation)."""
+    import os
+
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    cache = Path(os.environ.get("PMDC_BAYES_CACHE", Path.home() / ".cache" / "pmdc-bayes"))
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+        jax.config.update("jax_compilation_cache_dir", str(cache / "jax"))
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    except OSError:
+        pass
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="pmdc-bayes",
@@ -103,6 +145,26 @@ def _parser() -> argparse.ArgumentParser:
     sim.add_argument("--force", action="store_true", help="replace the generated files of an "
                      "existing session in DIR (other files such as plan.toml are kept)")
     sim.set_defaults(func=_cmd_simulate)
+    ft = sub.add_parser(
+        "fit",
+        help="closed form, then the joint MAP fit of every trace and steady point",
+        description="Identify the motor from a session: the paper's closed form seeds a joint "
+        "Levenberg-Marquardt fit of every trace, steady table and operating point, with Laplace "
+        "uncertainty and an identifiability report.  Writes OUT/summary.json.",
+    )
+    ft.add_argument("session", nargs="?", help=f"session directory (default: bundled "
+                    f"'{DEFAULT_SESSION}')")
+    ft.add_argument("--out", type=Path, help="run directory (default: reports/<session>-<time>)")
+    ft.add_argument("--force", action="store_true", help="replace an existing --out directory")
+    ft.add_argument("--no-mcmc", action="store_true", help="stop after the MAP fit")
+    ft.add_argument("--friction", choices=("viscous", "coulomb"),
+                    help="friction model (default: the session's)")
+    ft.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    ft.add_argument("--holdout", action="append", metavar="TRACE",
+                    help="fit without this trace (repeatable)")
+    ft.add_argument("--allow-unconverged", action="store_true",
+                    help="exit 0 even if the fit or the sampler fails its checks")
+    ft.set_defaults(func=_cmd_fit)
     return p
 
 

@@ -25,11 +25,13 @@ import xarray as xr
 from tqdm.auto import tqdm
 
 from ._diagnostics import az, compare_laplace, format_loo, gates, loo_compare, summarize
+from .objective import NU0
 
 __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
            "compare_laplace", "loo_compare", "format_loo", "default_moves"]
 
-CHUNK = 500  # steps between autocorrelation checks
+CHUNK = 500  # steps between autocorrelation checks while the chain is too short to stop
+CHECK = 100  # steps between checks once it is long enough
 TAU_RTOL = 0.01  # relative change of τ between checks that counts as settled
 LL_DRAWS = 1000  # at most this many draws carry a pointwise log-likelihood
 _LL_BATCH = 50
@@ -79,12 +81,27 @@ class Posterior:
 
 
 def _functions(model):
-    """The model's jit-compiled batch log-posterior and pointwise log-likelihood,
+    """The model's jit-compiled batch log-posterior and padded pointwise log-likelihood,
     compiled once per model (and per batch shape)."""
     if model not in _compiled:
-        _compiled[model] = (jax.jit(model.log_posterior_batch),
-                            jax.jit(jax.vmap(model.pointwise_log_likelihood)))
+        pointwise = jax.vmap(lambda t: _padded_pointwise(model, t), out_axes=(0, None))
+        _compiled[model] = (jax.jit(model.log_posterior_batch), jax.jit(pointwise))
     return _compiled[model]
+
+
+def _padded_pointwise(model, theta):
+    """:meth:`SessionModel.pointwise_log_likelihood` before its boolean selection of
+    the observed samples, so that it compiles: per channel the log-density of every
+    (padded) sample, and the masks (independent of θ) that select the observations.
+    The tests check it against the model's own method."""
+    ss = model.sums_of_squares(theta)
+    var = (NU0 * jnp.asarray(model.s0) ** 2 + ss) / (jnp.asarray(model.n_obs) + NU0)
+    dens, masks = [], []
+    for c, (r, m) in enumerate(model.channel_residuals(theta)):
+        r = jnp.asarray(r).reshape(-1)
+        dens.append(-0.5 * (jnp.log(2 * jnp.pi * var[c]) + r * r / var[c]))
+        masks.append(jnp.asarray(m, dtype=bool).reshape(-1))
+    return dens, masks
 
 
 class _LogProb:
@@ -146,7 +163,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     n_walkers : default ``max(32, 4·ndim)``, rounded up to even.
     max_steps : step cap; a capped run says so in ``capped`` and ``message``.
     min_tau_multiple : stop once the chain is this many τ_max long and every τ
-        changed by less than 1 % since the previous check (every 500 steps).
+        changed by less than 1 % since the previous check (τ is estimated every 500
+        steps, every 100 once the chain is long enough).
     progress : a tqdm bar on stderr; default when stderr is a terminal.
     moves : emcee moves; default :func:`default_moves`.
     ll_draws : at most this many draws carry the pointwise log-likelihood in ``idata``
@@ -176,7 +194,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     bar = tqdm(total=max_steps, disable=not progress, file=sys.stderr, unit="step")
     with bar:
         while steps < max_steps:
-            n = min(CHUNK, max_steps - steps)
+            long_enough = tau_prev is not None and steps >= min_tau_multiple * tau_prev.max()
+            n = min(CHECK if long_enough else CHUNK, max_steps - steps)
             state = sampler.run_mcmc(state, n, progress=False)
             steps += n
             bar.update(n)
@@ -258,8 +277,9 @@ def _pointwise(model, chain_log: np.ndarray, thin: int) -> np.ndarray:
     padded = np.concatenate([flat, np.repeat(flat[:1], m - flat.shape[0], axis=0)])
     parts = []
     for a in range(0, m, _LL_BATCH):
-        per_channel = fn(jnp.asarray(padded[a:a + _LL_BATCH]))
-        parts.append(np.concatenate([np.asarray(x) for x in per_channel], axis=1))
+        dens, masks = fn(jnp.asarray(padded[a:a + _LL_BATCH]))
+        parts.append(np.concatenate([np.asarray(d)[:, np.asarray(k)]
+                                     for d, k in zip(dens, masks)], axis=1))
     ll = np.concatenate(parts)[:flat.shape[0]]
     return ll.reshape(*sub.shape[:2], -1)
 

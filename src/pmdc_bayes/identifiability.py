@@ -1,0 +1,91 @@
+"""What the data can and cannot determine, read off the Laplace approximation.
+
+Findings are plain sentences backed by numbers: the condition number of the
+correlation matrix, the directions in parameter space the data barely constrain,
+parameters whose posterior is as wide as their prior, strongly correlated pairs, and
+whether any trace samples the current fast enough to see La.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .fit import FitResult
+from .objective import SessionModel
+
+__all__ = ["identifiability"]
+
+PRIOR_DOMINATED = 0.8
+STRONG_CORRELATION = 0.95
+WEAK_EIGENVALUE = 1e-3
+
+
+def identifiability(model: SessionModel, fit: FitResult) -> dict:
+    """Condition number, weak directions and findings (a dict ready for JSON)."""
+    names = list(fit.names)
+    corr = np.asarray(fit.corr)
+    sd_log = np.sqrt(np.clip(np.diag(fit.cov_log), 0.0, None))
+    eig, vec = np.linalg.eigh(corr)
+    cond = float(eig.max() / max(eig.min(), 1e-300))
+    findings = []
+    weak = []
+    for k in np.argsort(eig):
+        if eig[k] >= WEAK_EIGENVALUE * eig.max():
+            break
+        v = vec[:, k] / np.abs(vec[:, k]).max()
+        terms = [f"{v[j]:+.2f}·log {names[j]}" for j in np.argsort(-np.abs(v)) if abs(v[j]) > 0.1]
+        weak.append({"eigenvalue": float(eig[k]), "direction": dict(zip(names, map(float, v)))})
+        findings.append(f"The data barely constrain the combination {' '.join(terms)} "
+                        f"(correlation-matrix eigenvalue {eig[k]:.1e}).")
+    ratio = sd_log / np.asarray(model.prior_sd)
+    prior_bound = [names[j] for j in range(len(names)) if ratio[j] > PRIOR_DOMINATED]
+    for j, name in enumerate(names):
+        if name in prior_bound and name != "La":
+            findings.append(f"{name} is determined by its prior alone: its posterior width is "
+                            f"{100 * ratio[j]:.0f} % of the prior width.")
+    la_finding = _la_finding(model, fit, "La" in prior_bound, ratio[names.index("La")])
+    if la_finding:
+        findings.append(la_finding)
+    mech = [n for n in ("K", "B", "J", "Tc") if n in names]
+    for a in range(len(mech)):
+        for b in range(a + 1, len(mech)):
+            i, j = names.index(mech[a]), names.index(mech[b])
+            if abs(corr[i, j]) >= STRONG_CORRELATION:
+                findings.append(
+                    f"{mech[a]} and {mech[b]} are {abs(corr[i, j]):.2f} correlated: "
+                    f"{_separate_hint(model, mech[a], mech[b])}")
+    return {"condition_number": cond, "weak_directions": weak,
+            "prior_dominated": prior_bound,
+            "posterior_to_prior_width": dict(zip(names, map(float, ratio))),
+            "findings": findings}
+
+
+def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: float):
+    tau_e = fit.values["La"] / fit.values["Ra"]
+    with_current = [tr for tr in model.session.traces if tr.current is not None]
+    if not prior_bound:
+        if with_current:
+            dt = min(tr.dt for tr in with_current)
+            return None if dt < tau_e else (
+                f"La is informed by the traces (posterior width {100 * ratio:.0f} % of the "
+                f"bench prior) although the fastest current sampling ({dt * 1e3:.3g} ms) is "
+                f"slower than τe = {tau_e * 1e3:.3g} ms.")
+        return None
+    if not with_current:
+        return (f"La is determined by the bench prior alone: no trace logs the current "
+                f"(τe = {tau_e * 1e3:.2g} ms).")
+    dt = min(tr.dt for tr in with_current)
+    return (f"La is determined by the bench prior alone: no trace samples the current fast "
+            f"enough (τe = {tau_e * 1e3:.2g} ms, sampling {dt * 1e3:.3g} ms).")
+
+
+def _separate_hint(model: SessionModel, a: str, b: str) -> str:
+    kinds = {tr.kind for tr in model.session.traces}
+    has_load = any(np.ptp(tr.load_torque.values) > 0 for tr in model.session.traces)
+    if {a, b} & {"J"} and not has_load:
+        return "a load step or a coast-down would separate them."
+    if "Tc" in (a, b):
+        return "steady points over a wider range of speeds would separate them."
+    if not model.session.traces:
+        return "a logged step response would separate them."
+    return f"the traces ({', '.join(sorted(kinds))}) do not excite them independently."
