@@ -46,7 +46,7 @@ def gates(summary: dict, *, posterior=None, r_hat_max: float = 1.01,
     for name, row in summary.items():
         r_hat, bulk, tail = row["r_hat"], row["ess_bulk"], row["ess_tail"]
         if not np.isfinite(r_hat) or r_hat > r_hat_max:
-            failures.append(f"{name}: R-hat {r_hat:.3g} > {r_hat_max} (chains have not mixed)")
+            failures.append(f"{name}: R-hat {r_hat:.3f} > {r_hat_max} (chains have not mixed)")
         if not np.isfinite(bulk) or bulk < ess_min:
             failures.append(f"{name}: bulk ESS {bulk:.0f} < {ess_min:g}")
         if not np.isfinite(tail) or tail < ess_min:
@@ -98,7 +98,11 @@ def loo_compare(idata_by_model: dict) -> list[dict]:
     with Pareto k > 0.7, where the LOO estimate is unreliable), ``warning``.
     """
     loos = {name: _loo(idata) for name, idata in idata_by_model.items()}
-    table = az.compare(loos, ic="loo")
+    with warnings.catch_warnings():
+        # ArviZ 0.23's compare calls DataFrame.sort_values(inplace=True), which pandas
+        # >= 3.1 deprecates; the result is unaffected.
+        warnings.filterwarnings("ignore", message="The inplace keyword in DataFrame")
+        table = az.compare(loos, ic="loo")
     rows = []
     for name, r in table.iterrows():
         k = np.asarray(loos[name].pareto_k)

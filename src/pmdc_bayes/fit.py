@@ -66,23 +66,29 @@ def _solver():
 
 
 def _make_solve(model: SessionModel, *, fast: bool):
-    def residuals(theta, args):
-        weights, data = args
-        return model.weighted_residuals(theta, weights, fast=fast, data=data)
+    """Batched Levenberg–Marquardt at fixed weights, plus the weight update: compiled
+    once per session structure (data travel as an argument)."""
 
-    def solve_one(theta0, weights, data):
-        sol = optx.least_squares(residuals, _solver(), theta0, args=(weights, data),
-                                 max_steps=400, throw=False)
-        ok = sol.result == optx.RESULTS.successful
-        return sol.value, ok, sol.stats["num_steps"]
+    def build():
+        def residuals(theta, args):
+            weights, data = args
+            return model.weighted_residuals(theta, weights, fast=fast, data=data)
 
-    def step(thetas, weights, data):
-        values, ok, steps = jax.vmap(solve_one, in_axes=(0, 0, None))(thetas, weights, data)
-        new_w = jax.vmap(lambda t: model.weights(t, data=data))(values)
-        logp = jax.vmap(lambda t: model.log_posterior(t, data=data))(values)
-        return values, ok, steps, new_w, logp
+        def solve_one(theta0, weights, data):
+            sol = optx.least_squares(residuals, _solver(), theta0, args=(weights, data),
+                                     max_steps=400, throw=False)
+            ok = sol.result == optx.RESULTS.successful
+            return sol.value, ok, sol.stats["num_steps"]
 
-    jitted = jax.jit(step)
+        def step(thetas, weights, data):
+            values, ok, steps = jax.vmap(solve_one, in_axes=(0, 0, None))(thetas, weights, data)
+            new_w = jax.vmap(lambda t: model.weights(t, data=data))(values)
+            logp = jax.vmap(lambda t: model.log_posterior(t, data=data))(values)
+            return values, ok, steps, new_w, logp
+
+        return jax.jit(step)
+
+    jitted = model.compiled(f"lm-fast={fast}", build)
     return lambda thetas, weights: jitted(thetas, weights, model.data)
 
 
@@ -94,7 +100,9 @@ def _starts(model: SessionModel, theta0, n: int, rng: np.random.Generator):
 
 def laplace(model: SessionModel, theta, weights):
     """Covariance in log space from the Gauss–Newton Hessian at ``theta``."""
-    jac = jax.jacfwd(model.weighted_residuals)(theta, weights)
+    jac_fn = model.compiled("jacobian", lambda: jax.jit(jax.jacfwd(
+        lambda t, w, d: model.weighted_residuals(t, w, data=d))))
+    jac = jac_fn(theta, weights, model.data)
     H = np.asarray(jac.T @ jac)
     cov = np.linalg.pinv(H, rcond=1e-14, hermitian=True)
     return cov, H

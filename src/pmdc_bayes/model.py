@@ -356,14 +356,19 @@ def _segment_info(p: Params, x, va, tl, length, coulomb: bool, fast: bool) -> _S
     _, w_end = _moving(p, seg, span, fast)
     stops = jnp.isfinite(t_move) & (direction * w_end < 0)
 
+    # Bisection brackets the root without derivatives (no tangents flow through the
+    # loop); the Newton steps below carry its dependence on the parameters.
+    p_c, seg_c, dir_c = jax.lax.stop_gradient((p, seg, direction))
+
     def bisect(_, lohi):
         lo, hi = lohi
         mid = 0.5 * (lo + hi)
-        _, wm = _moving(p, seg, mid, fast)
-        pos = direction * wm > 0
+        _, wm = _moving(p_c, seg_c, mid, fast)
+        pos = dir_c * wm > 0
         return jnp.where(pos, mid, lo), jnp.where(pos, hi, mid)
 
-    lo, hi = jax.lax.fori_loop(0, 60, bisect, (jnp.zeros_like(span), span))
+    span_c = jax.lax.stop_gradient(span)
+    lo, hi = jax.lax.fori_loop(0, 60, bisect, (jnp.zeros_like(span_c), span_c))
     t_root = jax.lax.stop_gradient(jnp.where(stops, 0.5 * (lo + hi), 0.0))
     for _ in range(2):  # Newton steps carry the root's dependence on the parameters
         i_r, w_r = _moving(p, seg, t_root, fast)

@@ -31,6 +31,7 @@ NU0 = 2.0
 PRIOR_FACTOR = 10.0
 PARAM_NAMES = ("Ra", "La", "K", "B", "J", "Tc")
 STEADY_RELATIVE_NOISE = 0.01
+_COMPILED: dict = {}  # (name, structure) -> compiled function of (..., data)
 
 
 def noise_scale(y: np.ndarray) -> float:
@@ -170,6 +171,24 @@ class SessionModel:
         w_ref = float(w.max()) if w.size else 100.0
         return max(self.seed.B * w_ref / 3.0, 1e-9)
 
+    def structure_key(self) -> tuple:
+        """Everything compiled code depends on besides ``data``'s values: sessions with
+        the same key share compiled functions."""
+        leaves, treedef = jax.tree_util.tree_flatten(self.data)
+        return (self.coulomb, self.names, len(self.channels), self.exp is None, treedef,
+                tuple((x.shape, str(x.dtype)) for x in leaves))
+
+    def compiled(self, name: str, build):
+        """A compiled function of ``(..., data)``, built once per ``name`` and structure.
+
+        ``build()`` must return a ``jax.jit``-ed function that reads the session only
+        through its ``data`` argument (the methods of this class do).
+        """
+        key = (name,) + self.structure_key()
+        if key not in _COMPILED:
+            _COMPILED[key] = build()
+        return _COMPILED[key]
+
     # -- parameters ----------------------------------------------------------------------
     def params(self, theta) -> Params:
         """The one place θ (log space) becomes physical parameters (SI)."""
@@ -306,7 +325,9 @@ class SessionModel:
         if self.exp is None:
             return []
         c = self.coulomb if coulomb is None else coulomb
-        ia, w = simulate(self.params(theta), self.exp, coulomb=c)
+        fn = self.compiled(f"predict-coulomb={c}", lambda: jax.jit(
+            lambda t, d: simulate(self.params(t), d["exp"], coulomb=c)))
+        ia, w = fn(jnp.asarray(theta), self.data)
         return list(zip(self.exp.split(ia), self.exp.split(w)))
 
     def pointwise_log_likelihood(self, theta, *, data=None):
