@@ -75,22 +75,42 @@ def _cmd_fit(args) -> int:
     out, summary = run_fit(
         _session_path(args.session), out=args.out, force=args.force, mcmc=not args.no_mcmc,
         friction=args.friction, seed=args.seed, holdout=args.holdout or (),
-        allow_unconverged=args.allow_unconverged,
+        compare_friction=args.compare_friction,
     )
     print(f"Fit of {summary['session']['motor']} ({summary['session']['friction']} friction): "
           f"{summary['fit']['message']}")
-    print(f"{'parameter':<6}{'closed form':>14}{'MAP':>14}{'± sd':>12}  unit")
+    has_post = "mean" in next(iter(summary["parameters"].values()))
+    head = f"{'parameter':<6}{'closed form':>13}{'MAP':>13}{'± sd':>11}"
+    if has_post:
+        head += f"{'mean':>13}{'± sd':>11}{'94 % HDI':>26}{'R-hat':>7}{'ESS':>7}"
+    print(head + "  unit")
     for name, row in summary["parameters"].items():
         cf = "—" if row["closed_form"] is None else f"{row['closed_form']:.5g}"
-        print(f"{name:<6}{cf:>14}{row['map']:>14.6g}{row['map_sd']:>12.3g}  {row['unit']}")
+        line = f"{name:<6}{cf:>13}{row['map']:>13.6g}{row['map_sd']:>11.3g}"
+        if has_post:
+            hdi = f"[{row['hdi_3%']:.5g}, {row['hdi_97%']:.5g}]"
+            line += (f"{row['mean']:>13.6g}{row['sd']:>11.3g}{hdi:>26}{row['r_hat']:>7.3f}"
+                     f"{row['ess_bulk']:>7.0f}")
+        print(f"{line}  {row['unit']}")
     for line in summary["identifiability"]["findings"]:
         print(f"- {line}")
-    print(f"Wrote {out / 'summary.json'}")
+    for row in summary.get("laplace_check", []):
+        if row["flagged"]:
+            print(f"- {row['name']}: posterior sd is {row['ratio']:.2f} x the Laplace sd "
+                  f"({row['note']}).")
+    print(f"Wrote {out}")
+    status = 0
     if summary["fit"]["status"] != "converged" and not args.allow_unconverged:
         print(f"pmdc-bayes: error: the fit did not converge: {summary['fit']['message']}",
               file=sys.stderr)
-        return 1
-    return 0
+        status = 1
+    diag = summary["diagnostics"]
+    if diag.get("gates_passed") is False and not args.allow_unconverged:
+        print("pmdc-bayes: error: the posterior failed its convergence gates: "
+              + "; ".join(diag["failures"]) + " (rerun with --allow-unconverged to accept)",
+              file=sys.stderr)
+        status = 1
+    return status
 
 
 def _enable_compilation_cache() -> None:
@@ -162,6 +182,9 @@ def _parser() -> argparse.ArgumentParser:
     ft.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     ft.add_argument("--holdout", action="append", metavar="TRACE",
                     help="fit without this trace (repeatable)")
+    ft.add_argument("--compare-friction", action="store_true",
+                    help="also fit and sample the other friction model and compare the two "
+                    "by PSIS-LOO (ArviZ)")
     ft.add_argument("--allow-unconverged", action="store_true",
                     help="exit 0 even if the fit or the sampler fails its checks")
     ft.set_defaults(func=_cmd_fit)

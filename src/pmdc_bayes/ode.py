@@ -46,8 +46,8 @@ def vector_field(t, y, args):
     return jnp.stack([dia, dw])
 
 
-def simulate_ode(p: Params, exp: Experiment, *, coulomb: bool = False, rtol: float = 1e-10,
-                 atol: float = 1e-12, max_steps: int = 200_000):
+def simulate_ode(p: Params, exp: Experiment, *, coulomb: bool = False, rtol: float = 1e-8,
+                 atol: float = 1e-10, max_steps: int = 200_000):
     """``(ia, ω)`` at the experiment's sample times, by adaptive stiff integration.
 
     ``exp`` must be concrete (its sample times are read with NumPy); ``p`` may be

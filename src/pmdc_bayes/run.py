@@ -71,7 +71,8 @@ def _closed_form_theta(model, cf):
 
 def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             mcmc: bool = True, friction: str | None = None, seed: int = 0,
-            holdout=(), allow_unconverged: bool = False, progress=None) -> tuple[Path, dict]:
+            holdout=(), compare_friction: bool = False,
+            progress=None) -> tuple[Path, dict]:
     """Run the pipeline and write ``summary.json`` (and ``posterior.nc``) into ``out``.
 
     Returns the run directory and the summary.  Raises :class:`UsageError` for an
@@ -123,13 +124,75 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     }
     if session.truth:
         summary["truth"] = {k: session.truth.get(k) for k in model.names}
+    summary["diagnostics"] = {"gates_passed": None, "failures": []}
+    extra = None
     wall["mcmc"] = 0.0
+    if mcmc:
+        t0 = time.perf_counter()
+        post, stats = _posterior_stage(model, fit, seed=seed, progress=progress)
+        for name in model.names:
+            params[name].update(stats["summary"][name])
+        summary["derived"] = stats["derived"]
+        summary["laplace_check"] = stats["laplace_check"]
+        summary["diagnostics"].update(stats["diagnostics"])
+        if compare_friction:
+            summary["model_comparison"] = _compare_friction(session, cf, model, post,
+                                                            seed=seed, progress=progress)
+        wall["mcmc"] = time.perf_counter() - t0
+        extra = lambda tmp: post.idata.to_netcdf(tmp / "posterior.nc")  # noqa: E731
     wall["report"] = 0.0
     wall["total"] = time.perf_counter() - t_start
-    summary["diagnostics"] = {"wall_s": wall, "gates_passed": None}
+    summary["diagnostics"]["wall_s"] = wall
     _write_atomically(out, {"summary.json": json.dumps(summary, indent=2, default=_json)},
-                      force=force)
+                      force=force, extra=extra)
     return out, summary
+
+
+def _reference_voltage(session) -> float:
+    """The voltage at which derived no-load figures are stated: the highest the session
+    applies (step, operating point or table)."""
+    volts = [float(np.max(tr.voltage.values)) for tr in session.traces]
+    volts += [op.voltage for op in session.operating_points]
+    volts += [float(np.max(t.voltage)) for t in session.steady_tables]
+    volts += [sr.voltage for sr in session.step_readings]
+    return max(volts) if volts else 12.0
+
+
+def _posterior_stage(model, fit, *, seed, progress):
+    from .derived import derived_quantities
+    from .sampling import compare_laplace, gates, sample_posterior, summarize
+
+    post = sample_posterior(model, fit, seed=seed, progress=progress)
+    summ = summarize(post)
+    passed, failures = gates(summ, posterior=post)
+    voltage = _reference_voltage(model.session)
+    stats = {
+        "summary": summ,
+        "derived": {"voltage": voltage,
+                    "quantities": derived_quantities(post.draws_si(), voltage=voltage)},
+        "laplace_check": compare_laplace(fit, summ),
+        "diagnostics": {
+            "gates_passed": bool(passed), "failures": failures,
+            "autocorrelation_time": {k: float(v) for k, v in post.tau.items()},
+            "acceptance_fraction": float(np.mean(post.acceptance)),
+            "n_walkers": int(post.draws.shape[0]), "n_steps": int(post.n_steps),
+            "burn_in": int(post.burn_in), "capped": bool(post.capped),
+            "sampler_message": post.message,
+        },
+    }
+    return post, stats
+
+
+def _compare_friction(session, cf, model, post, *, seed, progress):
+    """LOO of the viscous and viscous + Coulomb models on the same session."""
+    from .sampling import loo_compare, sample_posterior
+
+    other = build_model(session, cf, coulomb=not model.coulomb)
+    other_post = sample_posterior(other, fit_map(other, seed=seed), seed=seed,
+                                  progress=progress)
+    by_name = {("coulomb" if model.coulomb else "viscous"): post.idata,
+               ("coulomb" if other.coulomb else "viscous"): other_post.idata}
+    return loo_compare(by_name)
 
 
 def _no_trace(session, name):

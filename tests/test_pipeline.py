@@ -1,0 +1,79 @@
+"""`pmdc-bayes fit` end to end on the demo: closed form → MAP → MCMC → summary.json."""
+
+import json
+import subprocess
+import sys
+
+import arviz as az
+import pytest
+
+from pmdc_bayes._data import bundled_session_dir
+from pmdc_bayes.run import run_fit
+
+CONTRACT = {"unit", "closed_form", "map", "map_sd", "mean", "sd", "hdi_3%", "hdi_97%",
+            "ess_bulk", "r_hat"}
+
+
+@pytest.fixture(scope="module")
+def demo_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs") / "demo"
+    return run_fit(bundled_session_dir("demo"), out=out, seed=1)
+
+
+@pytest.mark.slow
+def test_summary_contract(demo_run):
+    out, summary = demo_run
+    on_disk = json.loads((out / "summary.json").read_text())
+    assert on_disk["parameters"].keys() == {"Ra", "La", "K", "B", "J", "Tc"}
+    for row in on_disk["parameters"].values():
+        assert CONTRACT <= set(row)
+    for key in ("derived", "diagnostics", "seed", "session", "versions"):
+        assert key in on_disk
+    assert set(on_disk["diagnostics"]["wall_s"]) >= {"closed_form", "map", "mcmc", "report",
+                                                     "total"}
+    assert on_disk["versions"]["jax"] and on_disk["versions"]["emcee"]
+    assert on_disk["seed"] == 1
+
+
+@pytest.mark.slow
+def test_demo_hdi_contains_truth_and_gates_pass(demo_run):
+    out, summary = demo_run
+    assert summary["diagnostics"]["gates_passed"], summary["diagnostics"]["failures"]
+    for name, row in summary["parameters"].items():
+        truth = summary["truth"][name]
+        assert row["hdi_3%"] <= truth <= row["hdi_97%"], name
+        assert row["r_hat"] <= 1.01 and row["ess_bulk"] >= 400
+
+
+@pytest.mark.slow
+def test_posterior_file_has_the_arviz_groups(demo_run):
+    out, _ = demo_run
+    idata = az.from_netcdf(out / "posterior.nc")
+    for group in ("posterior", "sample_stats", "observed_data", "log_likelihood"):
+        assert group in idata.groups()
+    assert set(idata.posterior.data_vars) >= {"Ra", "La", "K", "B", "J", "Tc"}
+
+
+@pytest.mark.slow
+def test_derived_quantities_from_draws(demo_run):
+    _, summary = demo_run
+    q = summary["derived"]["quantities"]
+    p = summary["parameters"]
+    tau_m = p["J"]["mean"] * p["Ra"]["mean"] / (p["B"]["mean"] * p["Ra"]["mean"]
+                                                 + p["K"]["mean"] ** 2)
+    assert set(q) >= {"tau_m", "tau_e", "gain", "no_load_speed", "no_load_current",
+                      "stall_torque"}
+    # The draw-wise mean of a smooth function is its value at the mean to O(sd²), and the
+    # relative sds here are ~1e-4.
+    assert q["tau_m"]["mean"] == pytest.approx(tau_m, rel=1e-5)
+    assert q["tau_m"]["hdi_3%"] < q["tau_m"]["mean"] < q["tau_m"]["hdi_97%"]
+
+
+@pytest.mark.slow
+def test_fit_command_refuses_existing_run_without_force(demo_run):
+    out, _ = demo_run
+    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", "demo", "--no-mcmc",
+                           "--out", str(out)], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "already exists" in proc.stderr and "Traceback" not in proc.stderr
+    assert (out / "posterior.nc").is_file()  # the earlier run is untouched
