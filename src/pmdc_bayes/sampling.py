@@ -25,22 +25,59 @@ from ._diagnostics import az, compare_laplace, format_loo, gates, loo_compare, s
 from ._idata import LL_DRAWS, to_inference_data
 
 __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
-           "compare_laplace", "loo_compare", "format_loo", "default_moves"]
+           "compare_laplace", "loo_compare", "format_loo", "default_moves",
+           "LaplaceIndependenceMove"]
 
-CHUNK = 500  # steps between autocorrelation checks while the chain is too short to stop
+CHUNK = 200  # steps between autocorrelation checks while the chain is too short to stop
 CHECK = 100  # steps between checks once it is long enough
-TAU_RTOL = 0.01  # relative change of τ between checks that counts as settled
+TAU_RTOL = 0.05  # relative change of τ between checks that counts as settled
 
 
 
-def default_moves():
-    """Differential-evolution moves (fresh instances).
+class LaplaceIndependenceMove(emcee.moves.MHMove):
+    """Metropolis–Hastings independence proposals from the Laplace approximation.
 
-    On the demo session (6 parameters, 32 walkers) DE gave about 170 bulk-ESS/s per
-    parameter, DE 0.8 + snooker 0.2 about 145, DE 0.8 + stretch 0.2 about 135 and the
-    stretch move about 50 (τ ≈ 18, 24, 22 and 60 steps).
+    Every walker proposes a fresh point from a multivariate Student-t (ν = 8) centred
+    on the MAP with the Laplace covariance (inflated by ``scale``), and accepts it with
+    the Hastings ratio ``p(x')·q(x) / (p(x)·q(x'))``.  When the posterior is close to
+    the Laplace Gaussian the acceptance is high and successive draws are nearly
+    independent; the heavier-than-Gaussian tails keep the ratio bounded where it is not.
     """
-    return [(emcee.moves.DEMove(), 1.0)]
+
+    def __init__(self, mean, cov, *, nu: float = 8.0, scale: float = 1.2):
+        self.mean = np.asarray(mean, dtype=float)
+        cov = np.asarray(cov, dtype=float) * scale**2 * (nu - 2.0) / nu
+        vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+        vals = np.clip(vals, 1e-300, None)
+        self._root = vecs * np.sqrt(vals)
+        self._inv_root = vecs / np.sqrt(vals)
+        self.nu = float(nu)
+        super().__init__(self._propose)
+
+    def _log_q(self, x):
+        z = (x - self.mean) @ self._inv_root
+        return -0.5 * (self.nu + self.mean.size) * np.log1p(np.sum(z * z, axis=1) / self.nu)
+
+    def _propose(self, x0, random):
+        n, d = x0.shape
+        z = random.standard_normal((n, d))
+        g = random.chisquare(self.nu, size=n) / self.nu
+        x1 = self.mean + (z @ self._root.T) / np.sqrt(g)[:, None]
+        return x1, self._log_q(x0) - self._log_q(x1)
+
+
+def default_moves(fit=None):
+    """Half Laplace-independence proposals, half differential evolution (fresh instances).
+
+    Differential evolution alone gave τ ≈ 18–20 steps on the demo session (stretch:
+    ≈ 60); mixing in independence proposals from the Laplace approximation brings τ
+    to a few steps when the posterior is near-Gaussian, while DE keeps the chain
+    moving where it is not.  Without ``fit``, DE only.
+    """
+    if fit is None:
+        return [(emcee.moves.DEMove(), 1.0)]
+    return [(LaplaceIndependenceMove(fit.theta, fit.cov_log), 0.5),
+            (emcee.moves.DEMove(), 0.5)]
 
 
 @dataclass(frozen=True)
@@ -169,7 +206,7 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     rng = np.random.default_rng(seed)
     p0, lp0 = _initial(fit, log_prob, n_walkers, rng)
     sampler = emcee.EnsembleSampler(n_walkers, ndim, log_prob, vectorize=True,
-                                    moves=default_moves() if moves is None else moves)
+                                    moves=default_moves(fit) if moves is None else moves)
     sampler.random_state = np.random.RandomState(seed).get_state()
     state = emcee.State(p0, log_prob=lp0)
 
