@@ -113,19 +113,33 @@ def _cmd_fit(args) -> int:
     return status
 
 
+def _cmd_report(args) -> int:
+    from .report import write_report
+
+    run_dir = Path(args.run_dir)
+    if not (run_dir / "summary.json").is_file():
+        raise UsageError(f"{run_dir}: no summary.json here; give a directory that "
+                         "'pmdc-bayes fit' wrote")
+    _enable_compilation_cache()
+    paths = write_report(run_dir)
+    print(f"Wrote {paths['html']}, {paths['markdown'].name}, {paths['controller'].name} and "
+          f"{len(paths['figures'])} figures in {run_dir / 'figures'}")
+    return 0
+
+
 def _enable_compilation_cache() -> None:
-    """Keep compiled functions across runs (a second run of the same session shapes
-    skips compilation)."""
+    """Keep compiled programs across runs (a later run of sessions of the same shapes
+    skips tracing and compilation); ``PMDC_BAYES_CACHE`` moves the cache."""
     import os
 
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    cache = Path(os.environ.get("PMDC_BAYES_CACHE", Path.home() / ".cache" / "pmdc-bayes"))
+    from . import _cache
+
+    path = Path(os.environ.get("PMDC_BAYES_CACHE", Path.home() / ".cache" / "pmdc-bayes"))
     try:
-        cache.mkdir(parents=True, exist_ok=True)
-        jax.config.update("jax_compilation_cache_dir", str(cache / "jax"))
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+        _cache.enable(path)
     except OSError:
         pass
 
@@ -188,6 +202,15 @@ def _parser() -> argparse.ArgumentParser:
     ft.add_argument("--allow-unconverged", action="store_true",
                     help="exit 0 even if the fit or the sampler fails its checks")
     ft.set_defaults(func=_cmd_fit)
+    rp = sub.add_parser(
+        "report",
+        help="regenerate the uncertainty report of a finished run",
+        description="Write RUN_DIR/report.html (self-contained), RUN_DIR/report.md, "
+        "RUN_DIR/figures/*.png and RUN_DIR/controller.json from RUN_DIR/summary.json, "
+        "RUN_DIR/posterior.nc (if present) and the session the summary names.",
+    )
+    rp.add_argument("run_dir", metavar="RUN_DIR", help="a directory written by 'pmdc-bayes fit'")
+    rp.set_defaults(func=_cmd_report)
     return p
 
 

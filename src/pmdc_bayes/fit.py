@@ -93,9 +93,24 @@ def _make_solve(model: SessionModel, *, fast: bool):
 
 
 def _starts(model: SessionModel, theta0, n: int, rng: np.random.Generator):
+    theta0 = np.asarray(theta0, dtype=float)
     spread = np.minimum(model.prior_sd, START_SPREAD)
     pert = rng.standard_normal((n - 1, theta0.size)) * spread
-    return jnp.concatenate([theta0[None, :], theta0[None, :] + pert])
+    return np.concatenate([theta0[None, :], theta0[None, :] + pert])
+
+
+def _real_modes(theta) -> bool:
+    """NumPy twin of :func:`pmdc_bayes.model.real_modes` for a log-space θ."""
+    Ra, La, K, B, J = np.exp(np.asarray(theta, dtype=float)[:5])
+    a11, a22 = -Ra / La, -B / J
+    m = 0.5 * (a11 + a22)
+    z = (0.5 * (a11 - a22)) ** 2 - K * K / (La * J)
+    return bool(z > (1e-3 * m) ** 2)
+
+
+def _initial_weights(model: SessionModel, n: int) -> np.ndarray:
+    """1/s0² per channel: the model-free noise estimates, before any residual exists."""
+    return np.tile(1.0 / np.asarray(model.s0) ** 2, (n, 1))
 
 
 def laplace(model: SessionModel, theta, weights):
@@ -120,12 +135,22 @@ def fit_map(model: SessionModel, *, theta0=None, n_starts: int = N_STARTS, seed:
     seed : seed of the perturbations.
     solve : a compiled step from a previous call with the same session shapes.
     """
-    theta0 = model.theta_seed() if theta0 is None else jnp.asarray(theta0)
+    theta0 = np.asarray(model.theta_seed() if theta0 is None else theta0, dtype=float)
     rng = np.random.default_rng(seed)
-    thetas = _starts(model, theta0, n_starts, rng)
-    fast = bool(real_modes(model.params(theta0)))
+    starts = _starts(model, theta0, n_starts, rng)
+    fast = _real_modes(theta0)
+    result = _solve_starts(model, starts, fast=fast, solve=solve)
+    if fast and not _real_modes(result[0]):
+        # The optimum left the region where the fast propagator is valid: redo it with
+        # the general one.
+        result = _solve_starts(model, starts, fast=False, solve=None)
+    return _finish(model, *result)
+
+
+def _solve_starts(model: SessionModel, starts, *, fast: bool, solve=None):
     solve = _make_solve(model, fast=fast) if solve is None else solve
-    weights = jax.vmap(model.weights)(thetas)
+    thetas = starts
+    weights = _initial_weights(model, starts.shape[0])
     logp_prev = None
     settled = False
     for it in range(1, REWEIGHT_ITERATIONS + 1):
@@ -138,7 +163,12 @@ def fit_map(model: SessionModel, *, theta0=None, n_starts: int = N_STARTS, seed:
     ok = np.asarray(ok)
     logp = np.where(np.isfinite(logp), logp, -np.inf)
     best = int(np.argmax(logp))
-    theta = np.asarray(thetas[best])
+    return np.asarray(thetas[best]), np.asarray(thetas), logp, ok, np.asarray(weights), \
+        settled, it
+
+
+def _finish(model, theta, thetas, logp, ok, weights, settled, it) -> FitResult:
+    best = int(np.argmax(logp))
     agree = np.all(np.abs(np.asarray(thetas) - theta) < 1e-4, axis=1) & (
         np.abs(logp - logp[best]) < 1e-6 * max(1.0, abs(logp[best])))
     starts = [{"start": i, "log_posterior": float(logp[i]), "agrees": bool(agree[i]),

@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import _cache
 from .closed_form import ClosedForm
 from .model import Params, experiment_from_traces, real_modes, simulate, simulate_padded
 from .session import Session
@@ -31,7 +32,6 @@ NU0 = 2.0
 PRIOR_FACTOR = 10.0
 PARAM_NAMES = ("Ra", "La", "K", "B", "J", "Tc")
 STEADY_RELATIVE_NOISE = 0.01
-_COMPILED: dict = {}  # (name, structure) -> compiled function of (..., data)
 
 
 def noise_scale(y: np.ndarray) -> float:
@@ -184,10 +184,7 @@ class SessionModel:
         ``build()`` must return a ``jax.jit``-ed function that reads the session only
         through its ``data`` argument (the methods of this class do).
         """
-        key = (name,) + self.structure_key()
-        if key not in _COMPILED:
-            _COMPILED[key] = build()
-        return _COMPILED[key]
+        return _cache.compiled((name,) + self.structure_key(), build)
 
     # -- parameters ----------------------------------------------------------------------
     def params(self, theta) -> Params:

@@ -1,0 +1,88 @@
+"""Compiled functions kept across calls and, when enabled, across runs.
+
+In a process, a compiled function is built once per name and session *structure*
+(what the compiled code depends on besides the data it is given).  With
+:func:`enable`, two caches on disk let a later run skip the expensive steps too:
+XLA's persistent compilation cache, and the traced and lowered program (exported
+with :mod:`jax.export`), so that neither tracing nor compilation is repeated.  The
+disk key includes the versions of jax and of this package's source, so a stale entry
+is never used.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import jax
+from jax import export
+
+from .model import Experiment
+
+__all__ = ["enable", "compiled", "cache_dir"]
+
+_IN_MEMORY: dict = {}
+_STATE = {"dir": None}
+_LAPACK = ("lapack_dormqr_ffi", "lapack_dgeqrf_ffi", "lapack_dorgqr_ffi", "lapack_dtrsm_ffi",
+           "lapack_dpotrf_ffi", "lapack_dgesdd_ffi", "lapack_dsyevd_ffi", "lapack_dgetrf_ffi")
+export.register_namedtuple_serialization(Experiment, serialized_name="pmdc_bayes.Experiment")
+
+
+_TRACED_MODULES = ("model.py", "objective.py", "fit.py", "sampling.py", "_idata.py",
+                   "_cache.py")
+
+
+def _source_hash() -> str:
+    """jax's version and the source of every module whose code gets traced."""
+    h = hashlib.sha256(jax.__version__.encode())
+    for name in _TRACED_MODULES:
+        h.update((Path(__file__).parent / name).read_bytes())
+    return h.hexdigest()[:16]
+
+
+def enable(path: str | Path) -> None:
+    """Keep compiled programs under ``path`` (created if needed)."""
+    path = Path(path)
+    (path / "export").mkdir(parents=True, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", str(path / "xla"))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    _STATE["dir"] = path / "export" / _source_hash()
+    _STATE["dir"].mkdir(exist_ok=True)
+
+
+def cache_dir() -> Path | None:
+    return _STATE["dir"]
+
+
+class _Exported:
+    """Calls a program exported to disk; exports it on the first call if missing."""
+
+    def __init__(self, jitted, file: Path):
+        self.jitted, self.file, self.exp = jitted, file, None
+
+    def __call__(self, *args):
+        if self.exp is None:
+            if self.file.is_file():
+                try:
+                    self.exp = export.deserialize(bytearray(self.file.read_bytes()))
+                except Exception:  # a damaged entry: rebuild it
+                    self.exp = None
+            if self.exp is None:
+                checks = [export.DisabledSafetyCheck.custom_call(n) for n in _LAPACK]
+                self.exp = export.export(self.jitted, disabled_checks=checks)(*args)
+                tmp = self.file.with_suffix(".tmp")
+                tmp.write_bytes(self.exp.serialize())
+                tmp.replace(self.file)
+        return self.exp.call(*args)
+
+
+def compiled(key: tuple, build):
+    """The function ``build()`` returns (a ``jax.jit``-ed function of arrays), built once
+    per ``key``; exported to and loaded from disk when :func:`enable` was called."""
+    if key not in _IN_MEMORY:
+        fn = build()
+        if _STATE["dir"] is not None:
+            digest = hashlib.sha256(repr(key).encode()).hexdigest()[:24]
+            fn = _Exported(fn, _STATE["dir"] / f"{key[0]}-{digest}.jaxexport")
+        _IN_MEMORY[key] = fn
+    return _IN_MEMORY[key]
