@@ -32,6 +32,7 @@ NU0 = 2.0
 PRIOR_FACTOR = 10.0
 PARAM_NAMES = ("Ra", "La", "K", "B", "J", "Tc")
 STEADY_RELATIVE_NOISE = 0.01
+BATCH_CHUNK = 4  # parameter vectors evaluated together inside a batch (see benchmarks/)
 
 
 def noise_scale(y: np.ndarray) -> float:
@@ -284,14 +285,22 @@ class SessionModel:
         return jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
 
     def log_posterior_batch(self, thetas, *, data=None):
-        """Log-posterior of a batch ``(W, P)``; the fast path when every member allows it."""
+        """Log-posterior of a batch ``(W, P)``; the fast path when every member allows it.
+
+        The batch is evaluated ``BATCH_CHUNK`` vectors at a time (``lax.map``): measured
+        on 3 × 10,000 samples, 4 at a time gives ~6,000 vectors/s whatever the batch
+        size, where vectorising all 64 at once gives under 1,000.
+        """
         ok = jnp.all(jax.vmap(lambda t: real_modes(self.params(t)))(thetas))
-        return jax.lax.cond(
-            ok,
-            jax.vmap(lambda t: self.log_posterior(t, fast=True, data=data)),
-            jax.vmap(lambda t: self.log_posterior(t, fast=False, data=data)),
-            thetas,
-        )
+
+        def over(fast):
+            # Sub-batches of a few vectors keep each pass over the samples in cache; a
+            # whole batch at once is several times slower per vector on large sessions.
+            return lambda th: jax.lax.map(
+                lambda t: self.log_posterior(t, fast=fast, data=data), th,
+                batch_size=BATCH_CHUNK)
+
+        return jax.lax.cond(ok, over(True), over(False), thetas)
 
     def weights(self, theta, *, data=None):
         """Per-channel weights 1/σ_c² at θ: the posterior mode of σ_c² given SS_c."""

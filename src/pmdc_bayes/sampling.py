@@ -202,7 +202,7 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     if progress is None:
         progress = sys.stderr.isatty()
     batch_fn = _log_posterior_batch(model)
-    log_prob = _LogProb(batch_fn, max(1, math.ceil(n_walkers / 4)))
+    log_prob = _LogProb(batch_fn, max(1, n_walkers // 2))
     rng = np.random.default_rng(seed)
     p0, lp0 = _initial(fit, log_prob, n_walkers, rng)
     sampler = emcee.EnsembleSampler(n_walkers, ndim, log_prob, vectorize=True,
