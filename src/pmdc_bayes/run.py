@@ -145,6 +145,9 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     summary["diagnostics"]["wall_s"] = wall
     _write_atomically(out, {"summary.json": json.dumps(summary, indent=2, default=_json)},
                       force=force, extra=extra)
+    from .report import report_stage  # the report (issue 6); records its wall time
+
+    report_stage(out, summary)
     return out, summary
 
 

@@ -1,0 +1,92 @@
+"""The uncertainty report of a finished run: ``report.html``, ``report.md``,
+``figures/*.png`` and ``controller.json`` in the run directory.
+
+:func:`write_report` regenerates everything from ``summary.json``, ``posterior.nc``
+(optional: without it the posterior parts are skipped and the report says so) and the
+session the summary names.  Matplotlib is used here only, with the Agg backend.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+from ._context import load_context
+from .build import CONTROLLER_FILE, build_sections
+from .export import controller_model, to_control
+from .html import render_html
+from .markdown import render_markdown
+
+__all__ = ["write_report", "report_stage", "controller_model", "to_control"]
+
+FIGURES = "figures"
+
+
+def _write(path: Path, data: bytes | str) -> None:
+    """Write via a temporary file in the same directory and ``os.replace``."""
+    raw = data.encode("utf-8") if isinstance(data, str) else data
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(raw)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _figures(sections):
+    return [b for s in sections for b in s.blocks if type(b).__name__ == "Figure"]
+
+
+def write_report(run_dir) -> dict[str, Path]:
+    """Write the report of the run in ``run_dir``; return the paths written.
+
+    Keys: ``html``, ``markdown``, ``controller`` and ``figures`` (a list).  Raises
+    :class:`pmdc_bayes.UsageError` when ``run_dir`` holds no ``summary.json``.
+    """
+    ctx = load_context(run_dir)
+    run_dir = ctx.run_dir
+    sections, model = build_sections(ctx)
+    s = ctx.summary["session"]
+    title = f"pmdc-bayes report: {s['motor']} (session {s['name']!r})"
+    figdir = run_dir / FIGURES
+    figdir.mkdir(exist_ok=True)
+    figs = []
+    for fig in _figures(sections):
+        path = figdir / f"{fig.name}.png"
+        _write(path, fig.png)
+        figs.append(path)
+    paths = {"html": run_dir / "report.html", "markdown": run_dir / "report.md",
+             "controller": run_dir / CONTROLLER_FILE, "figures": figs}
+    _write(paths["controller"], json.dumps(model, indent=2))
+    _write(paths["markdown"], render_markdown(title, sections, figdir=FIGURES))
+    _write(paths["html"], render_html(title, sections))
+    return paths
+
+
+def report_stage(run_dir, summary: dict) -> dict[str, Path]:
+    """The report stage of ``pmdc-bayes fit``: write the report, record its wall time in
+    ``summary["diagnostics"]["wall_s"]`` (``report`` and ``total``) and rewrite
+    ``summary.json`` atomically."""
+    t0 = time.perf_counter()
+    paths = write_report(run_dir)
+    wall = summary.setdefault("diagnostics", {}).setdefault("wall_s", {})
+    dt = time.perf_counter() - t0
+    wall["report"] = dt
+    wall["total"] = wall.get("total", 0.0) + dt
+    _write(Path(run_dir) / "summary.json", json.dumps(summary, indent=2, default=_json))
+    return paths
+
+
+def _json(x):
+    import numpy as np
+
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return str(x)

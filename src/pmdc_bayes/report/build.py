@@ -1,0 +1,173 @@
+"""Assemble the report's sections from a :class:`~._context.ReportContext`."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from ._doc import Bullets, Figure, Paragraph, Section, Table, fmt
+from .comparison import compare_closed_form
+from .export import controller_model
+from .fig_params import chains_figure, corner_figure, forest_figure, ranks_figure
+from .fig_steady import steady_figure
+from .fig_traces import trace_figure
+from .predictive import METHODS
+from .published import published_findings
+from .tables import (comparison_table, derived_table, diagnostics_table, holdout_table,
+                     parameter_table, rms_table, transfer_table)
+
+__all__ = ["build_sections", "CONTROLLER_FILE"]
+
+CONTROLLER_FILE = "controller.json"
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^\w.-]+", "_", name)
+
+
+def _overview(ctx) -> Section:
+    s = ctx.summary
+    info = s["session"]
+    sec = Section("Overview")
+    text = (f"Session {info['name']!r} ({info['motor']}), read from {info['path']}; "
+            f"{info['friction']} friction model; fit: {s['fit']['message']}.")
+    if info.get("holdout"):
+        text += f" Held out of the fit: {', '.join(info['holdout'])}."
+    sec.add(Paragraph(text))
+    if not ctx.has_posterior:
+        sec.add(Paragraph("No posterior was sampled (the run used --no-mcmc, or posterior.nc "
+                          "is missing): posterior columns, bands, chain plots and the posterior "
+                          "predictive are skipped; uncertainties are the Laplace approximation "
+                          "at the MAP."))
+    if ctx.truth:
+        sec.add(Paragraph("This is a SIMULATED session: the true parameters are known and "
+                          "shown beside the estimates."))
+    findings = list(s.get("identifiability", {}).get("findings", []))
+    findings += s.get("consistency", {}).get("findings", [])
+    if findings:
+        sec.add(Paragraph("What the data can and cannot determine, and where the session's "
+                          "own numbers disagree:"))
+        sec.add(Bullets(tuple(findings)))
+    return sec
+
+
+def _published(ctx):
+    lines = published_findings(ctx)
+    if not lines:
+        return None
+    sec = Section("The paper's published numbers")
+    sec.add(Paragraph("Arithmetic on the paper's own numbers (Table I, Table II, Figures 6 "
+                      "and 7); the simulated values are quoted from the paper, not fitted."))
+    return sec.add(Bullets(tuple(lines)))
+
+
+def _parameters(ctx) -> Section:
+    sec = Section("Parameters")
+    sec.add(parameter_table(ctx))
+    sec.add(Figure("forest", "Every parameter on a common relative scale: closed form, MAP ± 2 "
+                   "sd (Laplace), posterior 94 % HDI and, for a simulated session, the truth.",
+                   forest_figure(ctx, None)))
+    sec.add(Figure("corner", "Pair plot of the mechanical parameters with the closed-form "
+                   "point (an arrow at the edge points to it when it lies off the axes), the "
+                   "MAP and the truth when known.", corner_figure(ctx)))
+    sec.add(derived_table(ctx))
+    return sec
+
+
+def _comparison(ctx) -> Section:
+    rows = compare_closed_form(ctx)
+    sec = Section("Comparison with the closed-form method")
+    sec.add(Paragraph(f"How far the paper's closed-form values lie from the {ctx.best_label}, "
+                      "in its standard deviations, and which known weakness of the method "
+                      "accounts for the difference (each part with its number; the parts add "
+                      "up to the difference)."))
+    sec.add(comparison_table(ctx, rows))
+    for r in rows:
+        sec.add(Paragraph(r["headline"]))
+        sec.add(Bullets(tuple(r["causes"])))
+    return sec
+
+
+def _traces(ctx) -> Section:
+    sec = Section("Traces")
+    if not ctx.predictions:
+        return sec.add(Paragraph("The session has no traces (e.g. the paper published none), "
+                                 "so there are no time-series figures."))
+    sec.add(Paragraph("Each trace against the closed-form model (viscous, as the paper's "
+                      "method assumes), the MAP and the posterior predictive 94 % band: the "
+                      "model at posterior draws plus measurement noise at each channel's "
+                      "fitted level. The parameter uncertainty alone gives a band far narrower "
+                      "than the noise (see the table)."))
+    note = ("RMS of measured − model. 'inside 94 % band': share of samples within the "
+            "posterior predictive band (94 % expected for Gaussian noise).")
+    sec.add(rms_table(ctx.predictions, note=note))
+    if ctx.has_posterior:
+        widths = [f"{tp.trace.name} {c}: "
+                  f"{fmt(float(np.mean(tp.param_band[c][1] - tp.param_band[c][0])), 2)}"
+                  for tp in ctx.predictions for c in tp.channels]
+        sec.add(Paragraph("Mean width of the parameter-only 94 % band: " + "; ".join(widths)
+                          + " (rad/s for speed, A for current)."))
+    for tp in ctx.predictions:
+        sec.add(Figure(f"trace_{_safe(tp.trace.name)}", f"Trace {tp.trace.name!r}: measured "
+                       "against the models, residuals underneath.", trace_figure(tp)))
+    return sec
+
+
+def _holdout(ctx):
+    if not ctx.holdout:
+        return None
+    sec = Section("Hold-out validation")
+    sec.add(holdout_table(ctx))
+    for tp in ctx.holdout:
+        for c in tp.channels:
+            parts = [f"{METHODS[m]} {fmt(tp.rms[m][c], 3)}" for m in METHODS if m in tp.rms]
+            sec.add(Paragraph(f"Held-out {tp.trace.name!r} {c}: RMS prediction error "
+                              + ", ".join(parts) + f" (noise level {fmt(tp.noise[c], 3)})."))
+        sec.add(Figure(f"heldout_{_safe(tp.trace.name)}", f"Held-out trace {tp.trace.name!r} "
+                       "predicted by each parameter set.", trace_figure(tp)))
+    return sec
+
+
+def _steady(ctx) -> Section:
+    sec = Section("Steady state")
+    sec.add(Paragraph("Steady speed against voltage (no load) and against load torque: the "
+                      "closed-form line (viscous, equations (15)-(18)), the MAP and the "
+                      "posterior 94 % band of the parameters, with the measured points and "
+                      "their residuals."))
+    return sec.add(Figure("steady", "Steady-state speed-voltage and speed-torque lines.",
+                          steady_figure(ctx)))
+
+
+def _diagnostics(ctx) -> Section:
+    sec = Section("Diagnostics")
+    sec.add(diagnostics_table(ctx))
+    if ctx.has_posterior:
+        sec.add(Figure("chains", "Trace plot of the walkers (ArviZ).", chains_figure(ctx)))
+        sec.add(Figure("ranks", "Rank plots (ArviZ), walkers pooled into four sets.",
+                       ranks_figure(ctx)))
+    else:
+        sec.add(Paragraph("No chains to show (--no-mcmc)."))
+    return sec
+
+
+def _export(ctx) -> tuple[Section, dict]:
+    model = controller_model(ctx)
+    sec = Section("Controller design")
+    sec.add(transfer_table(ctx))
+    sec.add(Paragraph(f"{CONTROLLER_FILE} holds the model at the {ctx.best_label}: state-space "
+                      "matrices (11)-(14) with x = [ω, ia], u = [TL, Va], y = ω, the transfer "
+                      "function (7) and the parameter covariance. "
+                      "pmdc_bayes.report.to_control() turns it into python-control objects."))
+    rows = tuple((name, "; ".join("[" + ", ".join(fmt(x) for x in r) + "]" for r in model[name]))
+                 for name in ("A", "B", "C", "D"))
+    sec.add(Table("State-space matrices", ("matrix", "rows"), rows))
+    return sec, model
+
+
+def build_sections(ctx) -> tuple[list[Section], dict]:
+    """The report's sections and the controller model (for ``controller.json``)."""
+    export, model = _export(ctx)
+    parts = [_overview(ctx), _published(ctx), _parameters(ctx), _comparison(ctx),
+             _traces(ctx), _holdout(ctx), _steady(ctx), export, _diagnostics(ctx)]
+    return [p for p in parts if p is not None], model

@@ -1,0 +1,234 @@
+"""Parameter figures: the corner (pair) plot, the forest plot and the chain plots."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._plot import COLORS, UNIT_TEXT, arviz_plot, plt, png, scale_of
+
+__all__ = ["corner_figure", "forest_figure", "chains_figure", "ranks_figure", "CORNER_NAMES"]
+
+CORNER_NAMES = ("J", "B", "K", "Tc")
+_N_SCATTER = 3000
+
+
+def _samples(ctx, names):
+    """Posterior draws of ``names`` (SI), else draws from the Laplace approximation."""
+    idx = [ctx.names.index(n) for n in names]
+    if ctx.draws is not None:
+        d = ctx.draws[:, idx]
+        step = max(1, d.shape[0] // _N_SCATTER)
+        return d[::step], "posterior draws"
+    mean = np.array([ctx.values["map"][n] for n in names])
+    cov = ctx.covariance()[np.ix_(idx, idx)]
+    rng = np.random.default_rng(int(ctx.summary.get("seed", 0)))
+    return rng.multivariate_normal(mean, cov, size=_N_SCATTER, method="eigh"), \
+        "Laplace approximation (no posterior sampled)"
+
+
+def _limits(x, extra):
+    m, s = float(np.mean(x)), float(np.std(x))
+    lo, hi = m - 5 * s, m + 5 * s
+    for v in extra:  # truth and other points within 10 sd widen the view
+        if v is not None and abs(v - m) < 10 * s:
+            lo, hi = min(lo, v - s), max(hi, v + s)
+    return lo, hi
+
+
+def _mark(ax, x, y, lims, style, label):
+    """A point, or an arrow at the edge pointing to it when it is off the axes."""
+    (x0, x1), (y0, y1) = lims
+    if x0 <= x <= x1 and y0 <= y <= y1:
+        ax.plot(x, y, style["marker"], color=style["color"], ms=8, mec="k", mew=0.6,
+                label=label, zorder=5)
+        return
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    dx, dy = (x - cx) / (x1 - x0), (y - cy) / (y1 - y0)
+    f = 0.45 / max(abs(dx), abs(dy))
+    ax.annotate("", xy=(cx + f * dx * (x1 - x0), cy + f * dy * (y1 - y0)),
+                xytext=(cx + 0.7 * f * dx * (x1 - x0), cy + 0.7 * f * dy * (y1 - y0)),
+                arrowprops={"arrowstyle": "->", "color": style["color"], "lw": 1.6})
+
+
+def corner_figure(ctx) -> bytes:
+    """PNG: pair plot of J, B, K (and Tc) with the closed form, MAP and truth."""
+    names = [n for n in CORNER_NAMES if n in ctx.names]
+    d, source = _samples(ctx, names)
+    scales = [scale_of(n, float(np.mean(d[:, k]))) for k, n in enumerate(names)]
+    ds = d * np.array([s for s, _ in scales])
+    pts = {"closed_form": ctx.values["closed_form"], "map": ctx.values["map"]}
+    if ctx.truth:
+        pts["truth"] = ctx.truth
+    pts = {k: np.array([(v.get(n) if v.get(n) is not None else np.nan) * s
+                        for n, (s, _) in zip(names, scales)]) for k, v in pts.items()}
+    styles = {"closed_form": {"marker": "s", "color": COLORS["closed_form"]},
+              "map": {"marker": "P", "color": COLORS["map"]},
+              "truth": {"marker": "*", "color": COLORS["truth"]}}
+    labels = {"closed_form": "closed form (arrow: off the axes)", "map": "MAP",
+              "truth": "truth (simulated session)"}
+    n = len(names)
+    fig, axes = plt.subplots(n, n, figsize=(2.3 * n + 0.8, 2.3 * n + 0.6), squeeze=False)
+    lims = [_limits(ds[:, k], [pts.get("truth", [None] * n)[k]]) for k in range(n)]
+    for i in range(n):
+        for j in range(n):
+            ax = axes[i, j]
+            if j > i:
+                ax.set_axis_off()
+                continue
+            if i == j:
+                ax.hist(ds[:, i], bins=40, color=COLORS["mean"], alpha=0.6, range=lims[i])
+                ax.set_yticks([])
+                for k, p in pts.items():
+                    if lims[i][0] <= p[i] <= lims[i][1]:
+                        ax.axvline(p[i], color=styles[k]["color"], lw=1.2)
+            else:
+                ax.plot(ds[:, j], ds[:, i], ".", ms=1.5, alpha=0.3, color=COLORS["mean"],
+                        rasterized=True)
+                for k, p in pts.items():
+                    _mark(ax, p[j], p[i], (lims[j], lims[i]), styles[k], labels[k])
+                ax.set_ylim(lims[i])
+            ax.set_xlim(lims[j])
+            ax.ticklabel_format(useOffset=False)
+            ax.locator_params(axis="x", nbins=4)
+            if i != j:
+                ax.locator_params(axis="y", nbins=5)
+            ax.tick_params(labelsize=7)
+            if i == n - 1:
+                ax.set_xlabel(scales[j][1])
+            else:
+                ax.set_xticklabels([])
+            if j == 0 and i > 0:
+                ax.set_ylabel(scales[i][1])
+            elif i != j:
+                ax.set_yticklabels([])
+    handles = [plt.Line2D([], [], ls="", marker=".", ms=8, color=COLORS["mean"])]
+    text = [source]
+    for k in pts:
+        handles.append(plt.Line2D([], [], ls="", marker=styles[k]["marker"], ms=8,
+                                  color=styles[k]["color"], mec="k", mew=0.6))
+        text.append(labels[k])
+    fig.legend(handles, text, loc="upper right", bbox_to_anchor=(0.98, 0.98), frameon=False)
+    fig.suptitle("Pair plot of the mechanical parameters", x=0.02, ha="left")
+    fig.tight_layout()
+    return png(fig)
+
+
+def forest_figure(ctx, rows) -> bytes:
+    """PNG: every parameter relative to the reference (posterior mean, else MAP), in %:
+    closed form, MAP ± 2 sd, posterior 94 % HDI and truth.  The axis is symmetric-log,
+    linear within the widest ± 2 sd interval, so narrow intervals and far closed-form
+    values are both visible."""
+    ref = ctx.best
+    params = ctx.summary["parameters"]
+    names = list(ctx.names)
+    fig, ax = plt.subplots(figsize=(8.5, 0.75 * len(names) + 1.6))
+    lin = 0.0
+    for k, n in enumerate(names):
+        y = len(names) - 1 - k
+        rel = lambda v, n=n: 100.0 * (v / ref[n] - 1.0)  # noqa: E731
+        m, s = params[n]["map"], params[n]["map_sd"]
+        lin = max(lin, abs(rel(m + 2 * s)), abs(rel(m - 2 * s)))
+        ax.errorbar(rel(m), y + 0.15, xerr=[[rel(m) - rel(m - 2 * s)], [rel(m + 2 * s) - rel(m)]],
+                    fmt="P", color=COLORS["map"], ms=6, capsize=3,
+                    label="MAP ± 2 sd (Laplace)" if k == 0 else None)
+        if "hdi_3%" in params[n]:
+            lo, hi = rel(params[n]["hdi_3%"]), rel(params[n]["hdi_97%"])
+            ax.plot([lo, hi], [y - 0.05] * 2, "-", color=COLORS["mean"], lw=4,
+                    label="posterior 94 % HDI" if k == 0 else None)
+            ax.plot(0.0, y - 0.05, "o", color="white", mec=COLORS["mean"], ms=5)
+        cf = ctx.values["closed_form"][n]
+        ax.plot(rel(cf), y - 0.22, "s", color=COLORS["closed_form"], ms=6, mec="k", mew=0.5,
+                label="closed form" if k == 0 else None)
+        if ctx.truth and ctx.truth.get(n) is not None:
+            ax.plot(rel(ctx.truth[n]), y, "*", color=COLORS["truth"], ms=10, mec="k", mew=0.5,
+                    label="truth" if k == 0 else None)
+    lin = max(lin, 1e-3) * 1.2
+    ax.set_xscale("symlog", linthresh=lin)
+    lo, hi = ax.get_xlim()
+    ticks = [0.0] + [sg * float(f"{lin:.1g}") for sg in (-1, 1)]
+    ticks += [sg * 10.0**e for e in range(-3, 4) for sg in (-1, 1) if 10.0**e > 3 * lin]
+    ax.set_xticks(sorted(t for t in ticks if lo <= t <= hi))
+    ax.xaxis.set_major_formatter(lambda v, _: f"{v:+g} %" if v else "0")
+    ax.xaxis.set_minor_locator(plt.NullLocator())
+    ax.axvline(0.0, color="k", lw=0.7)
+    ax.set_yticks(range(len(names)))
+    ax.set_yticklabels([f"{n} ({UNIT_TEXT[n]})\n{ref[n]:.4g}" for n in reversed(names)])
+    ax.set_ylim(-0.7, len(names) - 0.3)
+    ax.set_xlabel(f"difference from the {ctx.best_label} (%, linear within ±{lin:.2g} %, "
+                  "logarithmic beyond)")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=4, frameon=False)
+    ax.set_title(f"Every parameter relative to its {ctx.best_label} (value under each name)")
+    fig.tight_layout()
+    return png(fig)
+
+
+def _grouped(ctx, groups: int):
+    """The posterior with the walkers pooled into ``groups`` sets (for readable ranks),
+    thinned to at most ~500 draws per walker."""
+    from .._diagnostics import az
+
+    post = ctx.idata.posterior
+    out = {}
+    for n in ctx.names:
+        x = np.asarray(post[n].values)
+        g = min(groups, x.shape[0])
+        x = x[: (x.shape[0] // g) * g, :: max(1, x.shape[1] // 500)]
+        out[n] = x.reshape(g, -1)
+    return az.from_dict(posterior=out)
+
+
+def chains_figure(ctx) -> bytes:
+    """PNG: ArviZ trace plot of every walker (marginal density and draws against step),
+    each parameter in a power-of-ten unit so the ticks stay short."""
+    from .._diagnostics import az
+
+    post = ctx.idata.posterior
+    scaled, labels = {}, {}
+    for name in ctx.names:
+        x = np.asarray(post[name].values)
+        x = x[:, :: max(1, x.shape[1] // 500)]  # at most ~500 steps per walker drawn
+        f, labels[name] = scale_of(name, float(np.mean(x)))
+        scaled[name] = x * f
+    n = len(ctx.names)
+    axes = arviz_plot(az.plot_trace, az.from_dict(posterior=scaled), var_names=list(ctx.names),
+                         combined=True, compact=True,
+                         backend_kwargs={"figsize": (9, 1.6 * n + 0.5)},
+                         trace_kwargs={"alpha": 0.25, "linewidth": 0.4})
+    fig = axes.ravel()[0].figure
+    for row, name in zip(axes, ctx.names):
+        row[0].set_title(f"{labels[name]}: marginal, all walkers", fontsize=9)
+        row[1].set_title(f"{labels[name]} against step (thinned), one line per walker",
+                         fontsize=9)
+        for ax in row:
+            ax.tick_params(labelsize=7)
+            ax.ticklabel_format(axis="both", useOffset=False)
+        row[0].locator_params(axis="x", nbins=6)
+        row[1].locator_params(axis="y", nbins=4)
+    axes[-1][1].set_xlabel("draw index after burn-in (thinned)")
+    axes[-1][0].set_xlabel("parameter value (unit in the title)")
+    fig.tight_layout()
+    return png(fig)
+
+
+def ranks_figure(ctx, groups: int = 4) -> bytes:
+    """PNG: ArviZ rank plots, the walkers pooled into ``groups`` sets; bars near uniform
+    (the dashed line) mean the sets sample the same distribution."""
+    from .._diagnostics import az
+
+    n = len(ctx.names)
+    cols = 3
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(9, 2.2 * rows + 0.5), squeeze=False)
+    arviz_plot(az.plot_rank, _grouped(ctx, groups), var_names=list(ctx.names), kind="bars",
+                 ax=axes.ravel()[:n])
+    walkers = ctx.idata.posterior.sizes["chain"]
+    for ax, name in zip(axes.ravel(), ctx.names):
+        ax.set_title(f"{name}", fontsize=9)
+        ax.set_xlabel("rank of the draw (all draws)", fontsize=8)
+        ax.set_ylabel(f"walker set ({walkers // groups} walkers each)", fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[n:]:
+        ax.set_axis_off()
+    fig.suptitle("Rank plots of the chains", x=0.02, ha="left")
+    fig.tight_layout()
+    return png(fig)
