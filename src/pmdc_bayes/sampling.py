@@ -169,6 +169,18 @@ def _initial(fit, log_prob, n_walkers, rng, scale=1.0):
                      "density around the MAP; check that fit_map converged (fit.message)")
 
 
+def _gates_met(sampler, burn: int, *, r_hat_max: float = 1.01, ess_min: float = 400) -> bool:
+    """Whether the chain so far (after ``burn``) already passes the convergence gates,
+    so that stopping now will not fail them (walkers count as chains)."""
+    chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
+    data = {f"p{k}": chain[..., k] for k in range(chain.shape[-1])}
+    r_hat = az.rhat(data)
+    ess = az.ess(data, method="bulk")
+    ess_tail = az.ess(data, method="tail")
+    return all(float(r_hat[v]) <= r_hat_max and float(ess[v]) >= ess_min
+               and float(ess_tail[v]) >= ess_min for v in data)
+
+
 def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                      max_steps: int = 20_000, min_tau_multiple: float = 50,
                      progress: bool | None = None, moves=None,
@@ -183,9 +195,10 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     seed : seeds the initial walkers and emcee's generator; same seed, same draws.
     n_walkers : default ``max(32, 4·ndim)``, rounded up to even.
     max_steps : step cap; a capped run says so in ``capped`` and ``message``.
-    min_tau_multiple : stop once the chain is this many τ_max long and every τ
-        changed by less than 1 % since the previous check (τ is estimated every 500
-        steps, every 100 once the chain is long enough).
+    min_tau_multiple : stop once the chain is this many τ_max long, every τ changed
+        by less than 5 % since the previous check (τ is estimated every 200 steps, every
+        100 once the chain is long enough), and the draws after burn-in already pass
+        the gates (R-hat ≤ 1.01, bulk and tail ESS ≥ 400).
     progress : a tqdm bar on stderr; default when stderr is a terminal.
     moves : emcee moves; default :func:`default_moves` (differential evolution).
     ll_draws : at most this many draws carry the pointwise log-likelihood in ``idata``
@@ -225,7 +238,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
             bar.set_postfix(tau_max=f"{tau.max():.0f}")
             if tau_prev is not None:
                 settled = np.all(np.abs(tau - tau_prev) < TAU_RTOL * tau)
-                if settled and steps >= min_tau_multiple * tau.max():
+                if settled and steps >= min_tau_multiple * tau.max() and _gates_met(
+                        sampler, math.ceil(2.0 * tau.max())):
                     converged = True
                     break
             tau_prev = tau
