@@ -1,6 +1,13 @@
+import os
+import tempfile
+
 import jax
 
 jax.config.update("jax_enable_x64", True)
+
+# Commands run by the tests (in this process or as subprocesses) keep their compiled
+# programs in a cache of this test run, never in the user's home directory.
+os.environ.setdefault("PMDC_BAYES_CACHE", tempfile.mkdtemp(prefix="pmdc-bayes-test-cache-"))
 
 # Shared fixtures: a small valid session written into ``tmp_path``.  Tests break one
 # thing of it at a time (a key, a unit, a CSV cell) and check the error.

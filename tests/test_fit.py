@@ -119,3 +119,43 @@ def test_fit_command_writes_summary_and_refuses_to_overwrite(tmp_path):
     assert "already exists" in again.stderr and "Traceback" not in again.stderr
     assert len(again.stderr.strip().splitlines()) == 1
     assert not list(tmp_path.glob(".run.*"))  # no temporary directory left behind
+
+
+@pytest.mark.slow
+def test_fit_compiles_once_per_session_structure(demo_fit):
+    import dataclasses
+
+    from pmdc_bayes import _cache
+
+    s, model, fit = demo_fit
+    rng = np.random.default_rng(0)
+    traces = tuple(dataclasses.replace(tr, speed=tr.speed + 0.3 * rng.standard_normal(tr.n))
+                   for tr in s.traces)
+    other = dataclasses.replace(s, traces=traces,
+                                Ra=dataclasses.replace(s.Ra, value=8.45))
+    model2 = build_model(other, closed_form(other))
+    assert model2.structure_key() == model.structure_key()
+    before = dict(_cache._IN_MEMORY)
+    fit2 = fit_map(model2)
+    assert fit2.ok
+    assert dict(_cache._IN_MEMORY).keys() == before.keys()  # nothing new was built
+    lm = next(fn for key, fn in _cache._IN_MEMORY.items() if key[0].startswith("lm-"))
+    assert lm._cache_size() == 1  # and the compiled solve was traced once, for both
+
+
+@pytest.mark.slow
+def test_friction_option_reports_goodness_of_fit_and_tc(tmp_path):
+    runs = {}
+    for friction in ("viscous", "coulomb"):
+        out = tmp_path / friction
+        proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", "demo", "--no-mcmc",
+                               "--friction", friction, "--out", str(out)],
+                              capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+        runs[friction] = json.loads((out / "summary.json").read_text())
+    assert "Tc" not in runs["viscous"]["parameters"]
+    assert runs["coulomb"]["parameters"]["Tc"]["map"] > 0
+    # The demo motor has Coulomb friction: the viscous model fits its traces worse.
+    for trace in ("step_12v97", "step_6v49"):
+        assert (runs["viscous"]["residuals"]["map"][trace]["speed"]
+                > 1.5 * runs["coulomb"]["residuals"]["map"][trace]["speed"])

@@ -12,6 +12,7 @@ is never used.
 from __future__ import annotations
 
 import hashlib
+import os
 from pathlib import Path
 
 import jax
@@ -55,25 +56,37 @@ def cache_dir() -> Path | None:
 
 
 class _Exported:
-    """Calls a program exported to disk; exports it on the first call if missing."""
+    """Calls a program exported to disk, one per signature of its arguments (an
+    exported program has fixed shapes); exports it on the first call if missing."""
 
-    def __init__(self, jitted, file: Path):
-        self.jitted, self.file, self.exp = jitted, file, None
+    def __init__(self, jitted, stem: Path):
+        self.jitted, self.stem, self.programs = jitted, stem, {}
+
+    def _program(self, args):
+        leaves, treedef = jax.tree_util.tree_flatten(args)
+        signature = repr((treedef, [(jax.numpy.shape(x), str(jax.numpy.result_type(x)))
+                                    for x in leaves]))
+        if signature in self.programs:
+            return self.programs[signature]
+        digest = hashlib.sha256(signature.encode()).hexdigest()[:16]
+        file = self.stem.with_name(f"{self.stem.name}-{digest}.jaxexport")
+        exp = None
+        if file.is_file():
+            try:
+                exp = export.deserialize(bytearray(file.read_bytes()))
+            except Exception:  # a damaged entry: rebuild it
+                exp = None
+        if exp is None:
+            checks = [export.DisabledSafetyCheck.custom_call(n) for n in _LAPACK]
+            exp = export.export(self.jitted, disabled_checks=checks)(*args)
+            tmp = file.with_suffix(f".{os.getpid()}.tmp")
+            tmp.write_bytes(exp.serialize())
+            tmp.replace(file)
+        self.programs[signature] = exp
+        return exp
 
     def __call__(self, *args):
-        if self.exp is None:
-            if self.file.is_file():
-                try:
-                    self.exp = export.deserialize(bytearray(self.file.read_bytes()))
-                except Exception:  # a damaged entry: rebuild it
-                    self.exp = None
-            if self.exp is None:
-                checks = [export.DisabledSafetyCheck.custom_call(n) for n in _LAPACK]
-                self.exp = export.export(self.jitted, disabled_checks=checks)(*args)
-                tmp = self.file.with_suffix(".tmp")
-                tmp.write_bytes(self.exp.serialize())
-                tmp.replace(self.file)
-        return self.exp.call(*args)
+        return self._program(args).call(*args)
 
 
 def compiled(key: tuple, build):
@@ -83,6 +96,6 @@ def compiled(key: tuple, build):
         fn = build()
         if _STATE["dir"] is not None:
             digest = hashlib.sha256(repr(key).encode()).hexdigest()[:24]
-            fn = _Exported(fn, _STATE["dir"] / f"{key[0]}-{digest}.jaxexport")
+            fn = _Exported(fn, _STATE["dir"] / f"{key[0]}-{digest}")
         _IN_MEMORY[key] = fn
     return _IN_MEMORY[key]

@@ -373,7 +373,9 @@ def _segment_info(p: Params, x, va, tl, length, coulomb: bool, fast: bool) -> _S
     for _ in range(2):  # Newton steps carry the root's dependence on the parameters
         i_r, w_r = _moving(p, seg, t_root, fast)
         dw_dt = (p.K * i_r - p.B * w_r - tl - direction * p.Tc) / p.J
-        t_root = t_root - w_r / jnp.where(dw_dt == 0, 1.0, dw_dt)
+        # Only where the motor stops: elsewhere the step would run off to huge times,
+        # whose overflowing exponentials poison reverse-mode derivatives.
+        t_root = jnp.where(stops, t_root - w_r / jnp.where(dw_dt == 0, 1.0, dw_dt), 0.0)
     i_stop, _ = _moving(p, seg, t_root, fast)
     return seg._replace(t_stop=jnp.where(stops, t_root, inf),
                         i_stop=jnp.where(stops, i_stop, ia0))
