@@ -159,18 +159,34 @@ class SessionModel:
         """Prior means and sds in θ space (Ra, La: Gaussian in value, linearised here
         only for the seed spread; their exact Gaussian terms are in :meth:`log_prior`)."""
         tc_seed = self.tc_seed()
-        mean = np.log([session.Ra.value, session.La.value, seed.K, seed.B, seed.J, tc_seed])
+        mean = np.log([session.Ra.value, session.La.value, *self.physical_seed(), tc_seed])
         sd = np.array([session.Ra.sd / session.Ra.value, session.La.sd / session.La.value]
                       + [np.log(PRIOR_FACTOR)] * 4)
         n = len(self.names)
         return mean[:n], sd[:n]
+
+    def physical_seed(self) -> tuple[float, float, float]:
+        """K, B, J to start from and centre the priors on: the closed form's, except
+        where it gave a non-physical value (B ≤ 0 when the no-load current is within
+        its noise, say), which is replaced by a rough magnitude: B from a mechanical
+        time constant ten times the electrical damping's, J from a 0.1 s time constant."""
+        K, B, J = self.seed.K, self.seed.B, self.seed.J
+        Ra = self.session.Ra.value
+        if not (np.isfinite(K) and K > 0):
+            w = self._steady["w"]
+            K = float(np.median(self._steady["v"] / w)) if w.size else 0.05
+        if not (np.isfinite(B) and B > 0):
+            B = 0.1 * K * K / Ra
+        if not (np.isfinite(J) and J > 0):
+            J = 0.1 * (B * Ra + K * K) / Ra
+        return float(K), float(B), float(J)
 
     def tc_seed(self) -> float:
         """A Coulomb torque to start from: a third of the friction torque B_cf·ω that the
         closed form attributes to viscous friction at its fastest steady point."""
         w = self._steady["w"]
         w_ref = float(w.max()) if w.size else 100.0
-        return max(self.seed.B * w_ref / 3.0, 1e-9)
+        return max(self.physical_seed()[1] * w_ref / 3.0, 1e-9)
 
     def structure_key(self) -> tuple:
         """Everything compiled code depends on besides ``data``'s values: sessions with
