@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import re
-import weakref
 
 import jax
 import jax.numpy as jnp
@@ -18,21 +17,60 @@ __all__ = ["to_inference_data", "LL_DRAWS"]
 
 LL_DRAWS = 1000  # at most this many draws carry a pointwise log-likelihood
 _LL_BATCH = 50
-_compiled = weakref.WeakKeyDictionary()  # model -> its compiled pointwise log-likelihood
 
 
 def _pointwise_fn(model):
-    if model not in _compiled:
-        fn = jax.vmap(lambda t: _padded_pointwise(model, t), out_axes=(0, None))
-        _compiled[model] = jax.jit(fn)
-    return _compiled[model]
+    """Compiled (once per session structure) Gaussian log-density of every padded
+    sample, at the noise level σ_c² = (ν0·s0_c² + SS_c)/(n_c + ν0) of its channel."""
+
+    def one(theta, data):
+        ss = model.sums_of_squares(theta, data=data)
+        var = (NU0 * data["s0"] ** 2 + ss) / (data["n_obs"] + NU0)
+
+        def dens(r, v):
+            return -0.5 * (jnp.log(2 * jnp.pi * v) + r * r / v)
+
+        out = []
+        if model.exp is not None:
+            rw, ri = model.trace_residuals(theta, data=data)
+            out += [dens(rw, var[data["speed_ch"]][:, None]),
+                    dens(ri, var[data["current_ch"]][:, None])]
+        n_ch = len(model.channels)
+        for k, (r, _) in enumerate(model._steady_and_tau_residuals(model.params(theta),
+                                                                   data=data)):
+            # lax.map cannot batch an empty output: an empty channel gets a dummy entry
+            # that its (empty) selection never reads.
+            out.append(dens(r if r.shape[0] else jnp.zeros(1), var[n_ch - 3 + k]))
+        return out
+
+    fn = model.compiled("pointwise", lambda: jax.jit(
+        lambda thetas, data: jax.lax.map(lambda t: one(t, data), thetas, batch_size=4)))
+    return lambda thetas: fn(thetas, model.data)
+
+
+def _selection(model):
+    """Per channel, (which output of :func:`_pointwise_fn`, flat indices of its
+    observations), in channel order."""
+    n_ch = len(model.channels)
+    sel = []
+    if model.exp is not None:
+        mask = np.asarray(model.exp.mask)
+        for c in range(n_ch - 3):
+            m_w = (mask & (model._speed_ch == c)[:, None]).reshape(-1)
+            m_i = (model._current_mask & (model._current_ch == c)[:, None]).reshape(-1)
+            sel.append((0, np.nonzero(m_w)[0]) if m_w.any() else (1, np.nonzero(m_i)[0]))
+    base = 2 if model.exp is not None else 0
+    st = model._steady
+    sel.append((base, np.nonzero(st["w_mask"])[0]))
+    sel.append((base + 1, np.nonzero(st["i_mask"])[0]))
+    sel.append((base + 2, np.arange(len(model.session.step_readings))))
+    return sel
 
 
 def _padded_pointwise(model, theta):
-    """:meth:`SessionModel.pointwise_log_likelihood` before its boolean selection of
-    the observed samples, so that it compiles: per channel the log-density of every
-    (padded) sample, and the masks (independent of θ) that select the observations.
-    The tests check it against the model's own method."""
+    """Per channel the log-density of every (padded) sample and the masks (independent
+    of θ) that select the observations (kept for the tests, which check it against
+    :meth:`SessionModel.pointwise_log_likelihood`)."""
     ss = model.sums_of_squares(theta)
     var = (NU0 * jnp.asarray(model.s0) ** 2 + ss) / (jnp.asarray(model.n_obs) + NU0)
     dens, masks = [], []
@@ -86,15 +124,16 @@ def _observed(model) -> list[np.ndarray]:
 def _pointwise(model, chain_log: np.ndarray, thin: int) -> np.ndarray:
     """Pointwise log-likelihood ``(chains, kept, n_obs)`` at every ``thin``-th draw."""
     fn = _pointwise_fn(model)
+    sel = _selection(model)
     sub = chain_log[:, ::thin]
     flat = sub.reshape(-1, sub.shape[-1])
     m = math.ceil(flat.shape[0] / _LL_BATCH) * _LL_BATCH
     padded = np.concatenate([flat, np.repeat(flat[:1], m - flat.shape[0], axis=0)])
     parts = []
     for a in range(0, m, _LL_BATCH):
-        dens, masks = fn(jnp.asarray(padded[a:a + _LL_BATCH]))
-        parts.append(np.concatenate([np.asarray(d)[:, np.asarray(k)]
-                                     for d, k in zip(dens, masks)], axis=1))
+        outs = [np.asarray(o) for o in fn(jnp.asarray(padded[a:a + _LL_BATCH]))]
+        outs = [o.reshape(_LL_BATCH, int(np.prod(o.shape[1:]))) for o in outs]
+        parts.append(np.concatenate([outs[k][:, idx] for k, idx in sel], axis=1))
     ll = np.concatenate(parts)[:flat.shape[0]]
     return ll.reshape(*sub.shape[:2], -1)
 
