@@ -15,7 +15,7 @@ from .objective import NU0
 
 __all__ = ["to_inference_data", "LL_DRAWS"]
 
-LL_DRAWS = 1000  # at most this many draws carry a pointwise log-likelihood
+LL_DRAWS = 400  # at most this many draws carry a pointwise log-likelihood (for LOO)
 _LL_BATCH = 50
 
 
@@ -168,7 +168,9 @@ def to_inference_data(model, chain_log: np.ndarray, log_prob: np.ndarray,
     ll = _pointwise(model, chain_log, thin)
     labels = np.asarray([nm for nm, c in zip(obs_names, model.channels) for _ in range(c.n)])
     ds = xr.Dataset(
-        {"y": (("chain", "draw", "observation"), ll)},
+        # float32: LOO needs ~3 significant digits of each term, and the group is by far
+        # the largest in posterior.nc.
+        {"y": (("chain", "draw", "observation"), ll.astype(np.float32))},
         coords={"chain": np.arange(chains), "draw": np.arange(0, draws, thin),
                 "observation": np.arange(ll.shape[-1]), "channel": ("observation", labels)},
         attrs={"thin": thin},
