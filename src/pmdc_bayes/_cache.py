@@ -29,8 +29,8 @@ _LAPACK = ("lapack_dormqr_ffi", "lapack_dgeqrf_ffi", "lapack_dorgqr_ffi", "lapac
 export.register_namedtuple_serialization(Experiment, serialized_name="pmdc_bayes.Experiment")
 
 
-_TRACED_MODULES = ("model.py", "objective.py", "fit.py", "sampling.py", "_idata.py",
-                   "_cache.py")
+_TRACED_MODULES = ("model.py", "experiment.py", "objective.py", "fit.py", "sampling.py",
+                   "_idata.py", "_cache.py")
 
 
 def _source_hash() -> str:

@@ -7,7 +7,6 @@ replaces a good one.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import tempfile
@@ -19,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ._errors import UsageError
+from ._jsonio import dumps
 from .closed_form import closed_form
 from .consistency import consistency_checks
 from .fit import fit_map
@@ -143,7 +143,7 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     wall["report"] = 0.0
     wall["total"] = time.perf_counter() - t_start
     summary["diagnostics"]["wall_s"] = wall
-    _write_atomically(out, {"summary.json": json.dumps(summary, indent=2, default=_json)},
+    _write_atomically(out, {"summary.json": dumps(summary)},
                       force=force, extra=extra)
     from .report import report_stage  # the report (issue 6); records its wall time
 
@@ -202,14 +202,6 @@ def _no_trace(session, name):
     names = ", ".join(t.name for t in session.traces) or "none"
     raise UsageError(f"{session.root / 'session.toml'}: --holdout {name!r} names no trace; "
                      f"traces are: {names}")
-
-
-def _json(x):
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    return str(x)
 
 
 def _write_atomically(out: Path, files: dict, *, force: bool, extra=None):

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 from ._context import load_context
+from .._jsonio import dumps
 from .build import CONTROLLER_FILE, build_sections
 from .export import controller_model, to_control
 from .html import render_html
@@ -78,15 +79,6 @@ def report_stage(run_dir, summary: dict) -> dict[str, Path]:
     dt = time.perf_counter() - t0
     wall["report"] = dt
     wall["total"] = wall.get("total", 0.0) + dt
-    _write(Path(run_dir) / "summary.json", json.dumps(summary, indent=2, default=_json))
+    _write(Path(run_dir) / "summary.json", dumps(summary))
     return paths
 
-
-def _json(x):
-    import numpy as np
-
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    return str(x)
