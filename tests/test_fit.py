@@ -139,7 +139,8 @@ def test_fit_compiles_once_per_session_structure(demo_fit):
     fit2 = fit_map(model2)
     assert fit2.ok
     assert dict(_cache._IN_MEMORY).keys() == before.keys()  # nothing new was built
-    lm = next(fn for key, fn in _cache._IN_MEMORY.items() if key[0].startswith("lm-"))
+    (lm,) = [fn for key, fn in _cache._IN_MEMORY.items()
+             if key[0].startswith("lm-") and key[1:] == model.structure_key()]
     assert lm._cache_size() == 1  # and the compiled solve was traced once, for both
 
 
