@@ -135,13 +135,14 @@ def test_fit_compiles_once_per_session_structure(demo_fit):
                                 Ra=dataclasses.replace(s.Ra, value=8.45))
     model2 = build_model(other, closed_form(other))
     assert model2.structure_key() == model.structure_key()
-    before = dict(_cache._IN_MEMORY)
-    fit2 = fit_map(model2)
-    assert fit2.ok
-    assert dict(_cache._IN_MEMORY).keys() == before.keys()  # nothing new was built
     (lm,) = [fn for key, fn in _cache._IN_MEMORY.items()
              if key[0].startswith("lm-") and key[1:] == model.structure_key()]
-    assert lm._cache_size() == 1  # and the compiled solve was traced once, for both
+    before = dict(_cache._IN_MEMORY)
+    assert lm._cache_size() == 1  # traced once for the first session...
+    fit2 = fit_map(model2)
+    assert fit2.ok
+    assert dict(_cache._IN_MEMORY).keys() == before.keys()  # ...nothing new was built...
+    assert lm._cache_size() == 1  # ...and the same trace served the second one
 
 
 @pytest.mark.slow
@@ -156,7 +157,11 @@ def test_friction_option_reports_goodness_of_fit_and_tc(tmp_path):
         runs[friction] = json.loads((out / "summary.json").read_text())
     assert "Tc" not in runs["viscous"]["parameters"]
     assert runs["coulomb"]["parameters"]["Tc"]["map"] > 0
-    # The demo motor has Coulomb friction: the viscous model fits its traces worse.
-    for trace in ("step_12v97", "step_6v49"):
-        assert (runs["viscous"]["residuals"]["map"][trace]["speed"]
-                > 1.5 * runs["coulomb"]["residuals"]["map"][trace]["speed"])
+    # The demo motor has Coulomb friction: the viscous model fits no trace better, and
+    # the half-voltage step and the load change (where Coulomb and viscous friction
+    # differ most) clearly worse.
+    rms = {f: runs[f]["residuals"]["map"] for f in runs}
+    for trace in rms["coulomb"]:
+        assert rms["viscous"][trace]["speed"] >= rms["coulomb"][trace]["speed"], trace
+    for trace in ("step_6v49", "load_change"):
+        assert rms["viscous"][trace]["speed"] > 1.5 * rms["coulomb"][trace]["speed"], trace

@@ -167,8 +167,10 @@ def fit_map(model: SessionModel, *, theta0=None, n_starts: int = N_STARTS, seed:
 
 def _solve_starts(model: SessionModel, starts, *, fast: bool, solve=None):
     solve = _make_solve(model, fast=fast) if solve is None else solve
-    thetas = starts
-    weights = _initial_weights(model, starts.shape[0])
+    # Device arrays from the start, like the outputs fed back in later rounds, so the
+    # compiled step is traced once.
+    thetas = jnp.asarray(starts)
+    weights = jnp.asarray(_initial_weights(model, starts.shape[0]))
     logp_prev = None
     settled = False
     for it in range(1, REWEIGHT_ITERATIONS + 1):
