@@ -47,6 +47,8 @@ from pmdc_bayes.objective import NU0, build_model  # noqa: E402
 from pmdc_bayes.ode import simulate_ode  # noqa: E402
 from pmdc_bayes.simulator import simulate_session  # noqa: E402
 
+from _common import replace_section  # noqa: E402  (benchmarks/ is on sys.path)
+
 SECTION = "Model evaluation speed"
 REPORT = Path(__file__).resolve().parents[1] / "reports" / "benchmarks.md"
 TARGET = 5_000.0  # vectors/s, batched exact path on 3 x 10,000 samples
@@ -277,27 +279,6 @@ def _section(machine: dict, results: dict, checks: list[str], quick: bool) -> st
     return "\n".join(lines)
 
 
-def _update_report(path: Path, section: str) -> None:
-    """Replace the ``## Model evaluation speed`` section of ``path`` (or add it)."""
-    text = path.read_text(encoding="utf-8") if path.exists() else "# Benchmarks\n"
-    lines = text.splitlines()
-    head = f"## {SECTION}"
-    try:
-        start = next(k for k, line in enumerate(lines) if line.strip() == head)
-        end = next((k for k in range(start + 1, len(lines)) if lines[k].startswith("## ")),
-                   len(lines))
-        before, after = lines[:start], lines[end:]
-    except StopIteration:
-        before, after = lines, []
-    while before and not before[-1].strip():
-        before.pop()
-    new = [*before, "", *section.rstrip("\n").splitlines()]
-    if after:
-        new += ["", *after]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(new) + "\n", encoding="utf-8")
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("--quick", action="store_true",
@@ -353,7 +334,7 @@ def main(argv=None) -> int:
     if args.quick or args.no_report:
         print(f"{args.report}: not written ({'--quick' if args.quick else '--no-report'})")
     else:
-        _update_report(args.report, section)
+        replace_section(args.report, SECTION, section)
         print(f"{args.report}: section '{SECTION}' updated")
     return 0
 

@@ -15,13 +15,13 @@ a factor ``PRIOR_FACTOR`` wide (one standard deviation), which do not bind.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from . import _cache
+from ._noise import Channel, noise_scale, typical_level
 from .closed_form import ClosedForm
 from .model import Params, experiment_from_traces, real_modes, simulate, simulate_padded
 from .session import Session
@@ -33,33 +33,6 @@ PRIOR_FACTOR = 10.0
 PARAM_NAMES = ("Ra", "La", "K", "B", "J", "Tc")
 STEADY_RELATIVE_NOISE = 0.01
 BATCH_CHUNK = 4  # parameter vectors evaluated together inside a batch (see benchmarks/)
-
-
-def noise_scale(y: np.ndarray) -> float:
-    """Model-free noise level of a sampled signal (robust, from second differences).
-
-    For white noise σ, second differences have standard deviation σ·√6; the median
-    absolute deviation ignores the few samples where the signal itself bends.  A
-    quantised signal whose differences are mostly zero gets the quantisation noise
-    q/√12 of its smallest step as a floor.
-    """
-    y = np.asarray(y, dtype=float)
-    d2 = np.diff(y, 2)
-    mad = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
-    steps = np.abs(np.diff(y))
-    steps = steps[steps > 1e-12 * max(1.0, np.abs(y).max())]
-    quantum = steps.min() / np.sqrt(12.0) if steps.size else 0.0
-    return float(max(mad, quantum, 1e-9 * max(1e-12, np.abs(y).max())))
-
-
-@dataclass(frozen=True)
-class Channel:
-    """A group of observations sharing one unknown noise level."""
-
-    name: str
-    unit: str
-    n: int
-    s0: float
 
 
 class SessionModel:
@@ -100,9 +73,9 @@ class SessionModel:
         st = self._steady_arrays(session)
         self._steady = st
         self._steady_w = self._add("steady: speed", "rad/s", st["w_mask"].sum(),
-                                   STEADY_RELATIVE_NOISE * _typical(st["w"], st["w_mask"]))
+                                   STEADY_RELATIVE_NOISE * typical_level(st["w"], st["w_mask"]))
         self._steady_i = self._add("steady: current", "A", st["i_mask"].sum(),
-                                   STEADY_RELATIVE_NOISE * _typical(st["i"], st["i_mask"]))
+                                   STEADY_RELATIVE_NOISE * typical_level(st["i"], st["i_mask"]))
         sr = session.step_readings
         self._tau_obs = jnp.asarray([s.tau for s in sr])
         self._tau_ch = self._add("step readings: tau", "s", len(sr),
@@ -361,11 +334,6 @@ class SessionModel:
             r = jnp.asarray(r).reshape(-1)[np.asarray(m).reshape(-1)]
             out.append(-0.5 * (jnp.log(2 * jnp.pi * var[c]) + r * r / var[c]))
         return out
-
-
-def _typical(x, mask) -> float:
-    vals = np.abs(np.asarray(x)[np.asarray(mask)])
-    return float(np.mean(vals)) if vals.size else 1.0
 
 
 def build_model(session: Session, seed: ClosedForm, *, coulomb: bool | None = None) -> SessionModel:
