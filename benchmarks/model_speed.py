@@ -10,8 +10,8 @@ Paths timed, each jit-compiled with x64 on (see ``benchmarks/README.md``):
 * ``exact``       ``jax.jit(model.log_posterior)``, one parameter vector (general branch);
 * ``exact xW``    ``jax.jit(model.log_posterior_batch)`` on W = 8, 32, 64, 256 perturbed
   vectors;
-* ``zoh scan``    :func:`pmdc_bayes.model.simulate_scan` per trace, same log-posterior;
-* ``diffrax``     :func:`pmdc_bayes.ode.simulate_ode` per trace, same log-posterior
+* ``zoh scan``    :func:`pmdc_bayes.physics.solution.simulate_scan` per trace, same log-posterior;
+* ``diffrax``     :func:`pmdc_bayes.physics.ode.simulate_ode` per trace, same log-posterior
   (its default tolerances, rtol 1e-10, atol 1e-12; ``diffrax loose``: rtol 1e-8, atol 1e-10).
 
 The scan and diffrax log-posteriors are built from the session model's own channels,
@@ -39,13 +39,13 @@ from pathlib import Path  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
-from pmdc_bayes._data import bundled_session_dir  # noqa: E402
-from pmdc_bayes.closed_form import closed_form  # noqa: E402
-from pmdc_bayes.loader import load_session  # noqa: E402
-from pmdc_bayes.model import experiment_from_trace, real_modes, simulate_scan  # noqa: E402
-from pmdc_bayes.objective import NU0, build_model  # noqa: E402
-from pmdc_bayes.ode import simulate_ode  # noqa: E402
-from pmdc_bayes.simulator import simulate_session  # noqa: E402
+from pmdc_bayes.io.bundled import bundled_session_dir  # noqa: E402
+from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
+from pmdc_bayes.io.loader import load_session  # noqa: E402
+from pmdc_bayes.physics.solution import experiment_from_trace, real_modes, simulate_scan  # noqa: E402
+from pmdc_bayes.inference.objective import NU0, build_model  # noqa: E402
+from pmdc_bayes.physics.ode import simulate_ode  # noqa: E402
+from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
 
 from _common import replace_section  # noqa: E402  (benchmarks/ is on sys.path)
 

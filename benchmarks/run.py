@@ -45,14 +45,14 @@ from _common import (REPORT, ROOT, cli_command, load_baseline, replace_section, 
                      run_measured)
 from model_speed import _fmt_rate, _load, _machine, _measure, _per_trace_log_posterior  # noqa: E402
 
-from pmdc_bayes._diagnostics import az  # noqa: E402
-from pmdc_bayes.closed_form import closed_form  # noqa: E402
-from pmdc_bayes.fit import fit_map  # noqa: E402
-from pmdc_bayes.loader import load_session  # noqa: E402
-from pmdc_bayes.objective import build_model  # noqa: E402
-from pmdc_bayes.ode import simulate_ode  # noqa: E402
-from pmdc_bayes.sampling import default_moves, sample_posterior, to_inference_data  # noqa: E402
-from pmdc_bayes.session import Measurement, Schedule, Session, Trace  # noqa: E402
+from pmdc_bayes.inference.diagnostics import az  # noqa: E402
+from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
+from pmdc_bayes.inference.fit import fit_map  # noqa: E402
+from pmdc_bayes.io.loader import load_session  # noqa: E402
+from pmdc_bayes.inference.objective import build_model  # noqa: E402
+from pmdc_bayes.physics.ode import simulate_ode  # noqa: E402
+from pmdc_bayes.inference.sampling import default_moves, sample_posterior, to_inference_data  # noqa: E402
+from pmdc_bayes.io.session import Measurement, Schedule, Session, Trace  # noqa: E402
 
 SECTION = "Benchmark against the baseline"
 TRUTH = {"Ra": 8.5, "La": 5.6e-3, "K": 0.062, "B": 4.5e-5, "J": 5.9e-4}

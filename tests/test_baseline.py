@@ -14,10 +14,10 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pmdc_bayes.closed_form import closed_form  # noqa: E402
-from pmdc_bayes.loader import load_session  # noqa: E402
-from pmdc_bayes.objective import build_model  # noqa: E402
-from pmdc_bayes.simulator import simulate_session  # noqa: E402
+from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
+from pmdc_bayes.io.loader import load_session  # noqa: E402
+from pmdc_bayes.inference.objective import build_model  # noqa: E402
+from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 AGREEMENT = 1e-3  # the bound on |Δ log-likelihood|

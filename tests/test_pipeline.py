@@ -7,8 +7,8 @@ import sys
 import arviz as az
 import pytest
 
-from pmdc_bayes._data import bundled_session_dir
-from pmdc_bayes.run import run_fit
+from pmdc_bayes.io.bundled import bundled_session_dir
+from pmdc_bayes.pipeline import run_fit
 
 CONTRACT = {"unit", "closed_form", "map", "map_sd", "mean", "sd", "hdi_3%", "hdi_97%",
             "ess_bulk", "r_hat"}

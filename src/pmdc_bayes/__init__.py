@@ -1,8 +1,8 @@
 """pmdc-bayes: identify permanent-magnet DC motor parameters with honest uncertainty."""
 
 from ._errors import SessionError, UsageError
-from .closed_form import ClosedForm, closed_form
-from .session import Session
+from .paper.closed_form import ClosedForm, closed_form
+from .io.session import Session
 
 __all__ = ["ClosedForm", "Session", "SessionError", "UsageError", "closed_form", "__version__"]
 

@@ -10,7 +10,7 @@ import json
 import sys
 from pathlib import Path
 
-from ._data import DEFAULT_SESSION, bundled_session_dir
+from .io.bundled import DEFAULT_SESSION, bundled_session_dir
 from ._errors import SessionError, UsageError
 
 __all__ = ["main"]
@@ -28,8 +28,8 @@ def _session_path(arg: str | None) -> Path:
 
 
 def _cmd_closed_form(args) -> int:
-    from .closed_form import closed_form
-    from .loader import load_session
+    from .paper.closed_form import closed_form
+    from .io.loader import load_session
 
     session = load_session(_session_path(args.session))
     cf = closed_form(session)
@@ -58,7 +58,7 @@ def _cmd_closed_form(args) -> int:
 
 
 def _cmd_simulate(args) -> int:
-    from .simulator import simulate_session
+    from .simulate.session import simulate_session
 
     plan = Path(args.plan)
     out = simulate_session(plan, Path(args.out) if args.out else plan.parent, seed=args.seed,
@@ -69,7 +69,7 @@ def _cmd_simulate(args) -> int:
 
 
 def _cmd_fit(args) -> int:
-    from .run import run_fit
+    from .pipeline import run_fit
 
     _enable_compilation_cache()
     out, summary = run_fit(
@@ -135,7 +135,7 @@ def _enable_compilation_cache() -> None:
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    from . import _cache
+    from .inference import cache as _cache
 
     path = Path(os.environ.get("PMDC_BAYES_CACHE", Path.home() / ".cache" / "pmdc-bayes"))
     try:

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 from ._context import load_context
-from .._jsonio import dumps
+from ..io._jsonio import dumps
 from .build import CONTROLLER_FILE, build_sections
 from .export import controller_model, to_control
 from .html import render_html

@@ -15,10 +15,10 @@ import jax
 import numpy as np
 
 from .._errors import UsageError
-from ..closed_form import ClosedForm, closed_form
-from ..loader import load_session
-from ..objective import SessionModel, build_model
-from ..session import Session
+from ..paper.closed_form import ClosedForm, closed_form
+from ..io.loader import load_session
+from ..inference.objective import SessionModel, build_model
+from ..io.session import Session
 from .predictive import TracePrediction, predict_traces
 
 __all__ = ["ReportContext", "load_context", "N_PREDICTIVE_DRAWS"]
@@ -105,7 +105,7 @@ def _read_posterior(run_dir: Path, names) -> tuple:
     path = run_dir / "posterior.nc"
     if not path.is_file():
         return None, None
-    from .._diagnostics import az
+    from ..inference.diagnostics import az
 
     idata = az.from_netcdf(path)
     post = idata.posterior

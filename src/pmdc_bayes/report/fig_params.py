@@ -165,7 +165,7 @@ def forest_figure(ctx, rows) -> bytes:
 def _grouped(ctx, groups: int):
     """The posterior with the walkers pooled into ``groups`` sets (for readable ranks),
     thinned to at most ~500 draws per walker."""
-    from .._diagnostics import az
+    from ..inference.diagnostics import az
 
     post = ctx.idata.posterior
     out = {}
@@ -180,7 +180,7 @@ def _grouped(ctx, groups: int):
 def chains_figure(ctx) -> bytes:
     """PNG: ArviZ trace plot of every walker (marginal density and draws against step),
     each parameter in a power-of-ten unit so the ticks stay short."""
-    from .._diagnostics import az
+    from ..inference.diagnostics import az
 
     post = ctx.idata.posterior
     scaled, labels = {}, {}
@@ -213,7 +213,7 @@ def chains_figure(ctx) -> bytes:
 def ranks_figure(ctx, groups: int = 4) -> bytes:
     """PNG: ArviZ rank plots, the walkers pooled into ``groups`` sets; bars near uniform
     (the dashed line) mean the sets sample the same distribution."""
-    from .._diagnostics import az
+    from ..inference.diagnostics import az
 
     n = len(ctx.names)
     cols = 3

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..closed_form import time_constant
+from ..paper.closed_form import time_constant
 from ._plot import COLORS, plt, png
 from .predictive import BAND
 from .published import FIGURE6_SIMULATED, PAPER_SESSION, TABLE2_SIMULATED

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..objective import noise_scale
-from ..session import Trace
+from ..inference.objective import noise_scale
+from ..io.session import Trace
 
 __all__ = ["TracePrediction", "predict_traces", "BAND", "METHODS"]
 
@@ -67,7 +67,7 @@ def predict_traces(model, values: dict, draws, noise_sd: dict, *, seed: int = 0,
 
     Parameters
     ----------
-    model : a :class:`pmdc_bayes.objective.SessionModel`.
+    model : a :class:`pmdc_bayes.inference.objective.SessionModel`.
     values : ``{"closed_form": {...}, "map": {...}}`` SI parameter values by name.
     draws : ``(N, P)`` SI posterior draws in ``model.names`` order, or None.
     noise_sd : fitted noise sd per channel name (``"<trace>: speed"``); a trace

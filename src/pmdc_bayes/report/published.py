@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..closed_form import gain
+from ..paper.closed_form import gain
 
 __all__ = ["PAPER_SESSION", "TABLE2_SIMULATED", "FIGURE6_SIMULATED", "published_findings"]
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..closed_form import gain, tf_full, time_constant
-from ..derived import derived_draws
+from ..paper.closed_form import gain, tf_full, time_constant
+from ..inference.derived import derived_draws
 from ._doc import Table, fmt, pm
 from ._plot import UNIT_TEXT
 from .predictive import METHODS

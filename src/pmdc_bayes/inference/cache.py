@@ -1,0 +1,112 @@
+"""Compiled functions kept across calls and, when enabled, across runs.
+
+In a process, a compiled function is built once per name and session *structure*
+(what the compiled code depends on besides the data it is given).  With
+:func:`enable`, two caches on disk let a later run skip the expensive steps too:
+XLA's persistent compilation cache, and the traced and lowered program (exported
+with :mod:`jax.export`), so that neither tracing nor compilation is repeated.  The
+disk key includes the versions of jax and of this package's source, so a stale entry
+is never used.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+import jax
+from jax import export
+
+from ..physics.solution import Experiment
+
+__all__ = ["enable", "compiled", "cache_dir"]
+
+_IN_MEMORY: dict = {}
+_STATE = {"dir": None}
+_LAPACK = ("lapack_dormqr_ffi", "lapack_dgeqrf_ffi", "lapack_dorgqr_ffi", "lapack_dtrsm_ffi",
+           "lapack_dpotrf_ffi", "lapack_dgesdd_ffi", "lapack_dsyevd_ffi", "lapack_dgetrf_ffi")
+export.register_namedtuple_serialization(Experiment, serialized_name="pmdc_bayes.Experiment")
+
+
+_TRACED_PACKAGES = ("physics", "inference")
+_TRACED_LIBRARIES = ("jax", "jaxlib", "optimistix", "equinox", "lineax", "diffrax")
+
+
+def _source_hash() -> str:
+    """The versions of every traced library and the source of every module of this
+    package whose code gets traced (the physics and inference subpackages)."""
+    from importlib import metadata
+
+    h = hashlib.sha256()
+    for lib in _TRACED_LIBRARIES:
+        try:
+            h.update(f"{lib}={metadata.version(lib)};".encode())
+        except metadata.PackageNotFoundError:
+            h.update(f"{lib}=none;".encode())
+    root = Path(__file__).resolve().parents[1]
+    for sub in _TRACED_PACKAGES:
+        for file in sorted((root / sub).glob("*.py")):
+            h.update(file.name.encode())
+            h.update(file.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def enable(path: str | Path) -> None:
+    """Keep compiled programs under ``path`` (created if needed)."""
+    path = Path(path)
+    (path / "export").mkdir(parents=True, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", str(path / "xla"))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    _STATE["dir"] = path / "export" / _source_hash()
+    _STATE["dir"].mkdir(exist_ok=True)
+
+
+def cache_dir() -> Path | None:
+    return _STATE["dir"]
+
+
+class _Exported:
+    """Calls a program exported to disk, one per signature of its arguments (an
+    exported program has fixed shapes); exports it on the first call if missing."""
+
+    def __init__(self, jitted, stem: Path):
+        self.jitted, self.stem, self.programs = jitted, stem, {}
+
+    def _program(self, args):
+        leaves, treedef = jax.tree_util.tree_flatten(args)
+        signature = repr((treedef, [(jax.numpy.shape(x), str(jax.numpy.result_type(x)))
+                                    for x in leaves]))
+        if signature in self.programs:
+            return self.programs[signature]
+        digest = hashlib.sha256(signature.encode()).hexdigest()[:16]
+        file = self.stem.with_name(f"{self.stem.name}-{digest}.jaxexport")
+        exp = None
+        if file.is_file():
+            try:
+                exp = export.deserialize(bytearray(file.read_bytes()))
+            except Exception:  # a damaged entry: rebuild it
+                exp = None
+        if exp is None:
+            checks = [export.DisabledSafetyCheck.custom_call(n) for n in _LAPACK]
+            exp = export.export(self.jitted, disabled_checks=checks)(*args)
+            tmp = file.with_suffix(f".{os.getpid()}.tmp")
+            tmp.write_bytes(exp.serialize())
+            tmp.replace(file)
+        self.programs[signature] = exp
+        return exp
+
+    def __call__(self, *args):
+        return self._program(args).call(*args)
+
+
+def compiled(key: tuple, build):
+    """The function ``build()`` returns (a ``jax.jit``-ed function of arrays), built once
+    per ``key``; exported to and loaded from disk when :func:`enable` was called."""
+    if key not in _IN_MEMORY:
+        fn = build()
+        if _STATE["dir"] is not None:
+            digest = hashlib.sha256(repr(key).encode()).hexdigest()[:24]
+            fn = _Exported(fn, _STATE["dir"] / f"{key[0]}-{digest}")
+        _IN_MEMORY[key] = fn
+    return _IN_MEMORY[key]

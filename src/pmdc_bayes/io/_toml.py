@@ -1,0 +1,128 @@
+"""Typed access to the tables of a parsed ``session.toml``, for the session loader.
+
+Every accessor raises a one-line :class:`SessionError` naming ``session.toml`` and the
+key path (e.g. ``bench.Ra.sd``, ``trace['step'].units.speed``) of the bad entry.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from .._errors import SessionError
+from .units import SI_UNIT, to_si, unit_factor
+
+__all__ = ["Table", "REQUIRED", "describe"]
+
+REQUIRED = object()
+
+
+def describe(value) -> str:
+    """How a TOML value reads in an error message."""
+    if isinstance(value, str):
+        return f"the string {value!r}"
+    if isinstance(value, bool):
+        return f"the boolean {str(value).lower()}"
+    if isinstance(value, dict):
+        return "a table"
+    if isinstance(value, list):
+        return "a list"
+    return f"{value!r}"
+
+
+class Table:
+    """Typed access to one TOML table; errors name ``session.toml`` and the key path."""
+
+    def __init__(self, file: Path, data: dict, where: str):
+        self.file, self.data, self.where = file, data, where
+
+    def path(self, key: str) -> str:
+        return f"{self.where}.{key}" if self.where else key
+
+    def fail(self, key: str, message: str):
+        raise SessionError(self.file, message, where=self.path(key))
+
+    def check_keys(self, allowed) -> None:
+        for key in self.data:
+            if key not in allowed:
+                self.fail(key, f"unknown key {key!r}; use one of: {', '.join(allowed)} "
+                          "(check the spelling)")
+
+    def _get(self, key, default, what):
+        if key not in self.data:
+            if default is REQUIRED:
+                self.fail(key, f"missing required key; add {key} = <{what}>")
+            return default, False
+        return self.data[key], True
+
+    def table(self, key: str, *, required: bool = True) -> Table | None:
+        if key not in self.data:
+            if required:
+                how = f"{key} = {{ ... }}" if "[" in self.where else f"a [{self.path(key)}] section"
+                self.fail(key, f"missing required table; add {how}")
+            return None
+        value = self.data[key]
+        if not isinstance(value, dict):
+            self.fail(key, f"expected a table, got {describe(value)}; write [{self.path(key)}] "
+                      "or an inline table { ... }")
+        return Table(self.file, value, self.path(key))
+
+    def tables(self, key: str) -> list[Table]:
+        """An array of tables ``[[key]]``, each labelled by its name (or 1-based position)."""
+        value = self.data.get(key, [])
+        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+            self.fail(key, f"expected an array of tables, got {describe(value)}; write each "
+                      f"entry as a [[{key}]] table")
+        out = []
+        for i, item in enumerate(value, start=1):
+            name = item.get("name")
+            label = f"{key}[{name!r}]" if isinstance(name, str) and name else f"{key}[{i}]"
+            out.append(Table(self.file, item, label))
+        return out
+
+    def string(self, key: str, *, default=REQUIRED) -> str:
+        value, given = self._get(key, default, "text in quotes")
+        if given and (not isinstance(value, str) or not value.strip()):
+            self.fail(key, f"expected a non-empty string, got {describe(value)}; write "
+                      f'{key} = "..."')
+        return value
+
+    def number(self, key: str, kind: str | None = None, unit: str | None = None, *,
+               default=REQUIRED, positive: bool = False) -> float:
+        """A finite number, converted from ``unit`` to SI for a quantity of ``kind``."""
+        value, given = self._get(key, default, "number")
+        if not given:
+            return value
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            self.fail(key, f"expected a number, got {describe(value)}; write the number "
+                      "without quotes" + (" and give its unit in units" if kind else ""))
+        if not math.isfinite(value):
+            self.fail(key, f"{value} is not a finite number; write the measured value")
+        si = float(value) if kind is None else to_si(value, kind, unit or SI_UNIT[kind])
+        if positive and not si > 0:
+            self.fail(key, f"must be positive, got {value}; check the value and its sign")
+        return si
+
+    def unit(self, key: str, kind: str) -> str:
+        text = self.string(key)
+        try:
+            unit_factor(kind, text)
+        except ValueError as exc:
+            self.fail(key, str(exc))
+        return text.strip()
+
+    def units(self, kinds: dict[str, str]) -> dict[str, str]:
+        """The optional ``units`` table: key -> unit, SI for keys not given."""
+        out = {key: SI_UNIT[kind] for key, kind in kinds.items()}
+        given = self.table("units", required=False)
+        if given is not None:
+            given.check_keys(kinds)
+            out.update({key: given.unit(key, kinds[key]) for key in given.data})
+        return out
+
+    def columns(self, kinds: dict[str, str], required: tuple[str, ...]) -> dict[str, str]:
+        cols = self.table("columns")
+        cols.check_keys(kinds)
+        for role in required:
+            cols.string(role)
+        return {role: cols.string(role) for role in kinds if role in cols.data}

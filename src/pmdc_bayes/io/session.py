@@ -1,0 +1,180 @@
+"""The in-memory form of a session: one motor's bench work, every number in SI.
+
+A session is read from a directory holding ``session.toml`` by
+:func:`pmdc_bayes.io.loader.load_session`, which validates everything once; the records
+here are what the numerics see.  See ``docs/session-format.md`` for the file format.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "Measurement",
+    "OperatingPoint",
+    "SteadyTable",
+    "StepReading",
+    "Schedule",
+    "Trace",
+    "Session",
+    "FRICTION_MODELS",
+]
+
+FRICTION_MODELS = ("viscous", "coulomb")
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """A direct bench measurement (SI value and one-standard-deviation uncertainty).
+
+    ``unit`` is the unit the user wrote, kept for display only.
+    """
+
+    value: float
+    sd: float
+    unit: str
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class OperatingPoint:
+    """A steady operating point, e.g. the chopper point of equation (20).
+
+    Attributes: ``supply_voltage`` (V), ``duty`` (1, in (0, 1]), ``current`` (A, or
+    None if not measured), ``speed`` (rad/s), ``load_torque`` (N·m).  The mean armature
+    voltage is ``duty * supply_voltage``.
+    """
+
+    name: str
+    supply_voltage: float
+    duty: float
+    current: float | None
+    speed: float
+    load_torque: float = 0.0
+
+    @property
+    def voltage(self) -> float:
+        """Mean armature voltage d·Vs (V)."""
+        return self.duty * self.supply_voltage
+
+
+@dataclass(frozen=True)
+class SteadyTable:
+    """Steady-state points: voltage (V), speed (rad/s), current (A or None), load (N·m)."""
+
+    name: str
+    file: Path
+    voltage: np.ndarray
+    speed: np.ndarray
+    current: np.ndarray | None
+    load_torque: np.ndarray
+
+
+@dataclass(frozen=True)
+class StepReading:
+    """A step response read off a plot when no trace was logged (the paper's Figure 4).
+
+    ``voltage`` (V) applied from ``initial_speed`` (rad/s), settling at ``final_speed``
+    (rad/s), with the 63.2 % time constant ``tau`` (s).
+    """
+
+    name: str
+    voltage: float
+    final_speed: float
+    tau: float
+    initial_speed: float = 0.0
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """A piecewise-constant input: ``values[i]`` holds on ``[times[i], times[i+1])``.
+
+    The last value holds to the end of the trace.  A logged input column is a
+    schedule with one breakpoint per sample (zero-order hold).
+    """
+
+    times: np.ndarray
+    values: np.ndarray
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """Value of the input at times ``t`` (right-continuous)."""
+        idx = np.searchsorted(self.times, np.asarray(t), side="right") - 1
+        return self.values[np.clip(idx, 0, len(self.values) - 1)]
+
+
+@dataclass(frozen=True)
+class Trace:
+    """One logged time series: samples of speed (and current) under known inputs.
+
+    Attributes
+    ----------
+    time : sample times (s), strictly increasing.
+    speed : measured speed (rad/s).
+    current : measured armature current (A), or None.
+    voltage, load_torque : the inputs as piecewise-constant schedules (V, N·m).
+    voltage_logged, load_logged : whether the input came from a column (True) or a
+        schedule written in ``session.toml`` (False).
+    initial : ``"rest"``, ``"steady"`` (steady state of the inputs at the first
+        sample) or a tuple ``(current A, speed rad/s)``.
+    """
+
+    name: str
+    kind: str
+    file: Path
+    time: np.ndarray
+    speed: np.ndarray
+    current: np.ndarray | None
+    voltage: Schedule
+    load_torque: Schedule
+    voltage_logged: bool = False
+    load_logged: bool = False
+    initial: str | tuple[float, float] = "rest"
+
+    @property
+    def n(self) -> int:
+        return int(self.time.shape[0])
+
+    @property
+    def dt(self) -> float:
+        """Median sampling interval (s)."""
+        return float(np.median(np.diff(self.time)))
+
+
+@dataclass(frozen=True)
+class Session:
+    """One motor's bench work, every number in SI.
+
+    ``closed_form_options`` carries settings for the paper's method (e.g.
+    ``{"K_decimals": 3}`` to carry Kb rounded as the paper printed it).
+    ``truth`` holds the true parameters of a simulated session (from ``truth.json``).
+    """
+
+    name: str
+    root: Path
+    motor: str
+    Ra: Measurement
+    La: Measurement
+    friction: str = "viscous"
+    operating_points: tuple[OperatingPoint, ...] = ()
+    steady_tables: tuple[SteadyTable, ...] = ()
+    step_readings: tuple[StepReading, ...] = ()
+    traces: tuple[Trace, ...] = ()
+    closed_form_options: dict = field(default_factory=dict)
+    truth: dict | None = None
+
+    def trace(self, name: str) -> Trace:
+        for tr in self.traces:
+            if tr.name == name:
+                return tr
+        names = ", ".join(t.name for t in self.traces) or "none"
+        raise KeyError(f"no trace named {name!r} (traces: {names})")
+
+    def without_traces(self, names) -> Session:
+        """A copy without the named traces (for hold-out validation)."""
+        import dataclasses
+
+        keep = tuple(t for t in self.traces if t.name not in set(names))
+        return dataclasses.replace(self, traces=keep)

@@ -1,0 +1,262 @@
+"""The reference paper's closed-form identification method (Section III).
+
+Pure functions, one per equation, with the paper's equation numbers; then
+:func:`closed_form`, which picks the inputs it needs from a session and says which
+it used.  Everything is SI: Ra (Ω), La (H), K = Kt = Kb (V·s/rad = N·m/A),
+B (N·m·s/rad), J (kg·m²), τ (s), G (rad/s per V).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._errors import SessionError
+from ..io.session import Session, Trace
+
+__all__ = [
+    "kb_from_chopper",
+    "b_from_steady",
+    "j_from_tau",
+    "time_constant",
+    "gain",
+    "tf_full",
+    "tf_first_order",
+    "tf_normalised",
+    "state_space",
+    "steady_state",
+    "read_time_constant",
+    "TimeConstantReading",
+    "ClosedForm",
+    "closed_form",
+]
+
+
+def kb_from_chopper(supply_voltage, duty, current, speed, Ra):
+    """Back-emf constant from a chopper steady state.
+
+    Notes
+    -----
+    Equation (20): ``Kb = (d·Va − Ia·Ra) / ω`` (V·s/rad).
+    """
+    return (duty * supply_voltage - current * Ra) / speed
+
+
+def b_from_steady(K, current, speed):
+    """Viscous friction from one no-load steady state.
+
+    Notes
+    -----
+    Equation (19): ``B = Kt·Ia / ω`` (N·m·s/rad).  All friction at that operating
+    point, whatever its kind, is lumped into this one viscous coefficient.
+    """
+    return K * current / speed
+
+
+def time_constant(Ra, K, B, J):
+    """Mechanical time constant with La neglected, equation (9): ``τ = J·Ra/(B·Ra + K²)``."""
+    return J * Ra / (B * Ra + K * K)
+
+
+def j_from_tau(tau, Ra, B, K):
+    """Inertia from a measured time constant, equation (9) solved for J."""
+    return tau * (B * Ra + K * K) / Ra
+
+
+def gain(Ra, K, B):
+    """Steady-state gain in rad/s per V, equation (10): ``G = Kt/(B·Ra + Kb·Kt)``."""
+    return K / (B * Ra + K * K)
+
+
+def tf_full(Ra, La, K, B, J):
+    """Equation (7): ω/Va = K / ((La·s + Ra)(J·s + B) + K²), as (num, den), highest power first."""
+    return np.array([K]), np.array([La * J, La * B + Ra * J, Ra * B + K * K])
+
+
+def tf_first_order(Ra, K, B, J):
+    """Equation (8): ω/Va = G / (τ·s + 1), as (num, den)."""
+    return np.array([gain(Ra, K, B)]), np.array([time_constant(Ra, K, B, J), 1.0])
+
+
+def tf_normalised(Ra, La, K, B, J):
+    """Equation (22): equation (7) with numerator and denominator divided by J."""
+    num, den = tf_full(Ra, La, K, B, J)
+    return num / J, den / J
+
+
+def state_space(Ra, La, K, B, J):
+    """State-space matrices (11)–(14); x = [ω, ia], u = [TL, Va], y = ω."""
+    A = np.array([[-B / J, K / J], [-K / La, -Ra / La]])
+    Bu = np.array([[-1.0 / J, 0.0], [0.0, 1.0 / La]])
+    C = np.array([[1.0, 0.0]])
+    D = np.zeros((1, 2))
+    return A, Bu, C, D
+
+
+def steady_state(Ra, K, B, Va, TL=0.0):
+    """Steady speed and current, equations (15)–(18), with load torque.
+
+    Notes
+    -----
+    Solving A·x + Bu·u = 0: ``ω = (K·Va − Ra·TL)/(K² + Ra·B)`` and
+    ``Ia = (B·Va + K·TL)/(K² + Ra·B)``; with TL = 0 these are (17) and (18).
+    """
+    den = K * K + Ra * B
+    return (K * Va - Ra * TL) / den, (B * Va + K * TL) / den
+
+
+@dataclass(frozen=True)
+class TimeConstantReading:
+    """A 63.2 % reading of a step: levels, step time, crossing time and τ (SI)."""
+
+    tau: float
+    t_step: float
+    t_cross: float
+    initial: float
+    final: float
+    threshold: float
+    dt: float
+
+
+def read_time_constant(t, y, *, t_step=None, tail_fraction=0.1) -> TimeConstantReading:
+    """Read the time constant of a step response at 63.2 % of the change.
+
+    The initial level is the mean of the samples before the step (the first sample
+    if the step is at the start), so a step from a non-zero speed works; the final
+    level is the mean of the last ``tail_fraction`` of the samples.  The crossing
+    is interpolated linearly between the samples on either side; with noise the
+    reading is the mean of the first up-crossing and the last down-crossing.
+    The result is uncertain by about one sampling interval (quantisation of the
+    reading) plus noise/slope at the crossing.
+    """
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if t_step is None:
+        t_step = float(t[0])
+    before = y[t < t_step]
+    initial = float(np.mean(before)) if before.size else float(y[0])
+    n_tail = max(3, int(round(tail_fraction * y.size)))
+    final = float(np.mean(y[-n_tail:]))
+    threshold = initial + (1.0 - np.exp(-1.0)) * (final - initial)
+    sign = 1.0 if final >= initial else -1.0
+    after = t >= t_step
+    ta, ya = t[after], sign * (y[after] - threshold)
+    above = ya >= 0.0
+    if not above.any() or above.all():
+        raise ValueError("the trace never crosses 63.2 % of its change after the step")
+    first = int(np.argmax(above))
+    crossings = [first]
+    below_idx = np.nonzero(~above)[0]
+    last_below = int(below_idx[-1])
+    if last_below + 1 < ya.size and last_below + 1 != first:
+        crossings.append(last_below + 1)
+
+    def _interp(k):
+        if k == 0:
+            return float(ta[0])
+        y0, y1 = ya[k - 1], ya[k]
+        return float(ta[k - 1] + (0.0 - y0) * (ta[k] - ta[k - 1]) / (y1 - y0))
+
+    t_cross = float(np.mean([_interp(k) for k in crossings]))
+    dt = float(np.median(np.diff(t)))
+    return TimeConstantReading(t_cross - t_step, t_step, t_cross, initial, final, threshold, dt)
+
+
+@dataclass(frozen=True)
+class ClosedForm:
+    """The closed-form estimates (SI) and where each input came from."""
+
+    Ra: float
+    La: float
+    K: float
+    B: float
+    J: float
+    tau: float
+    G: float
+    used: dict = field(default_factory=dict)
+
+    def params(self) -> dict:
+        return {"Ra": self.Ra, "La": self.La, "K": self.K, "B": self.B, "J": self.J}
+
+    def tf22(self):
+        return tf_normalised(self.Ra, self.La, self.K, self.B, self.J)
+
+    def as_json(self) -> dict:
+        num, den = self.tf22()
+        out = dict(self.params(), tau=self.tau, G=self.G)
+        out["tf22"] = {"num": [float(v) for v in num], "den": [float(v) for v in den]}
+        out["used"] = dict(self.used)
+        return out
+
+
+def _step_of(trace: Trace) -> tuple[float, float, float]:
+    """(time of the largest voltage change, voltage before, voltage after)."""
+    v = trace.voltage.values
+    times = trace.voltage.times
+    if v.size < 2:
+        return float(trace.time[0]), float(v[0]), float(v[0])
+    jumps = np.abs(np.diff(v))
+    k = int(np.argmax(jumps))
+    return float(max(times[k + 1], trace.time[0])), float(v[k]), float(v[k + 1])
+
+
+def closed_form(session: Session) -> ClosedForm:
+    """Apply the paper's method to a session, choosing its inputs.
+
+    Kb comes from the first operating point with a current (20), else from the
+    settled end of a step trace with current (20) with d = 1; Kt = Kb; B from (19)
+    at the same point; τ from a step reading or the 63.2 % point of the first step
+    trace; J from (9); G from (10).  ``session.closed_form_options["K_decimals"]``
+    rounds K before it is used in (19) and (9), as the paper did.
+    """
+    Ra, La = session.Ra.value, session.La.value
+    used = {"Ra": "bench measurement", "La": "bench measurement"}
+    steps = [t for t in session.traces if t.kind == "step"]
+
+    op = next((p for p in session.operating_points if p.current is not None), None)
+    if op is not None:
+        Va, Ia, w = op.voltage, op.current, op.speed
+        K = kb_from_chopper(op.supply_voltage, op.duty, Ia, w, Ra)
+        used["K"] = f"equation (20) at operating point {op.name!r}"
+    else:
+        with_current = [t for t in steps if t.current is not None]
+        if not with_current:
+            raise SessionError(session.root / "session.toml",
+                               "the closed-form method needs a steady current: add an "
+                               "[[operating_point]] with a current, or a step trace with a "
+                               "current column", where="operating_point")
+        tr = with_current[0]
+        n_tail = max(3, tr.n // 10)
+        Va = float(tr.voltage.at(tr.time[-n_tail:]).mean())
+        Ia = float(tr.current[-n_tail:].mean())
+        w = float(tr.speed[-n_tail:].mean())
+        K = kb_from_chopper(Va, 1.0, Ia, w, Ra)
+        used["K"] = f"equation (20) at the settled end of trace {tr.name!r}"
+    digits = session.closed_form_options.get("K_decimals")
+    if digits is not None:
+        K = round(K, int(digits))
+        used["K"] += f", rounded to {int(digits)} decimals as published"
+    B = b_from_steady(K, Ia, w)
+    used["B"] = "equation (19) at the same point"
+
+    if session.step_readings:
+        sr = session.step_readings[0]
+        tau = sr.tau
+        used["tau"] = f"step reading {sr.name!r}"
+    elif steps:
+        tr = max(steps, key=lambda s: abs(_step_of(s)[2] - _step_of(s)[1]))
+        t_step, _, _ = _step_of(tr)
+        try:
+            tau = read_time_constant(tr.time, tr.speed, t_step=t_step).tau
+        except ValueError as exc:
+            raise SessionError(tr.file, f"cannot read a time constant from trace {tr.name!r}: "
+                               f"{exc}; log the step until the speed settles") from None
+        used["tau"] = f"63.2 % point of trace {tr.name!r}"
+    else:
+        raise SessionError(session.root / "session.toml",
+                           "the closed-form method needs a step: add a [[trace]] with "
+                           "kind = \"step\" or a [[step_reading]]", where="trace")
+    J = j_from_tau(tau, Ra, B, K)
+    used["J"] = "equation (9) from tau"
+    return ClosedForm(Ra, La, K, B, J, tau, gain(Ra, K, B), used)

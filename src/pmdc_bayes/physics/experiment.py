@@ -1,0 +1,194 @@
+"""Experiments prepared for the model: input segments and a padded sample layout.
+
+A trace's piecewise-constant inputs split its time axis into constant segments; its
+samples are laid out in equal-length chunks, each inside one segment, so that the
+model can evaluate every sample of every trace at once without gathers.  Everything
+here is NumPy, done once per session.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..io.session import Trace
+
+__all__ = [
+    "INITIAL_MODES",
+    "Experiment",
+    "make_experiment",
+    "stack_experiments",
+    "experiment_from_trace",
+    "experiment_from_traces",
+]
+
+INITIAL_MODES = {"rest": 0, "steady": 1, "given": 2}
+
+
+class Experiment(NamedTuple):
+    """Inputs and sample times of one or more traces, prepared for :func:`simulate` (SI).
+
+    The inputs are split into constant segments (``seg_*``): voltage ``seg_va``, load
+    ``seg_tl``, starting at ``seg_t0`` and lasting ``seg_len`` (to the next segment, or
+    the trace's last sample).  ``seg_first`` marks the first segment of each trace,
+    where the state restarts from that trace's initial condition (``seg_mode``: 0 rest,
+    1 steady, 2 given ``seg_x0``).  The samples are laid out in ``C`` chunks of ``L``
+    (padded): chunk ``c`` lies in segment ``chunk_seg[c]`` of trace ``chunk_trace[c]``,
+    its samples ``tau[c]`` seconds after the segment's start, real where ``mask``.
+    ``index`` maps the samples, trace after trace and in time order, into the flattened
+    ``(C, L)`` layout; ``counts`` holds each trace's number of samples.  The layout lets
+    every sample of every trace be evaluated at once, without gathers.
+    """
+
+    seg_t0: jax.Array
+    seg_len: jax.Array
+    seg_va: jax.Array
+    seg_tl: jax.Array
+    seg_first: jax.Array
+    seg_mode: jax.Array
+    seg_x0: jax.Array
+    chunk_seg: jax.Array
+    chunk_trace: jax.Array
+    tau: jax.Array
+    mask: jax.Array
+    index: jax.Array
+    counts: jax.Array
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times of all traces, concatenated (s)."""
+        t = np.asarray(self.seg_t0)[np.asarray(self.chunk_seg)][:, None] + np.asarray(self.tau)
+        return t.reshape(-1)[np.asarray(self.index)]
+
+    def pad(self, values) -> jax.Array:
+        """Place per-sample values (traces concatenated) into the padded layout."""
+        flat = jnp.zeros(self.tau.size).at[self.index].set(jnp.asarray(values))
+        return flat.reshape(self.tau.shape)
+
+    def unpad(self, padded) -> jax.Array:
+        """Per-sample values (traces concatenated, time order) from the padded layout."""
+        return padded.reshape(padded.shape[:-2] + (-1,))[..., self.index]
+
+    def split(self, values) -> list:
+        """Split concatenated per-sample values into one array per trace."""
+        edges = np.cumsum(np.asarray(self.counts))[:-1]
+        return np.split(np.asarray(values), edges, axis=-1)
+
+
+def _chunk_length(counts: np.ndarray) -> int:
+    """Chunk length that keeps padding plus per-chunk overhead small."""
+    best, best_cost = 1, None
+    length = 1
+    while length <= max(1, int(counts.max())) * 2:
+        chunks = np.ceil(counts / length).sum()
+        cost = chunks * length + 16 * chunks
+        if best_cost is None or cost < best_cost:
+            best, best_cost = length, cost
+        length *= 2
+    return best
+
+
+def _segments(t, va_t, va_v, tl_t, tl_v):
+    inner = np.concatenate([va_t, tl_t])
+    inner = inner[(inner > t[0]) & (inner < t[-1])]
+    seg_t0 = np.unique(np.concatenate([[t[0]], inner]))
+
+    def held(bt, bv, at):
+        idx = np.searchsorted(bt, at, side="right") - 1
+        return bv[np.clip(idx, 0, len(bv) - 1)]
+
+    seg_va = held(va_t, va_v, seg_t0)
+    seg_tl = held(tl_t, tl_v, seg_t0)
+    keep = np.ones(seg_t0.size, dtype=bool)
+    keep[1:] = (np.diff(seg_va) != 0) | (np.diff(seg_tl) != 0)
+    seg_t0, seg_va, seg_tl = seg_t0[keep], seg_va[keep], seg_tl[keep]
+    seg_len = np.append(seg_t0[1:], t[-1]) - seg_t0
+    sample_seg = np.searchsorted(seg_t0, t, side="right") - 1
+    return seg_t0, seg_len, seg_va, seg_tl, sample_seg
+
+
+def stack_experiments(specs) -> Experiment:
+    """One :class:`Experiment` for several traces.
+
+    ``specs`` is a sequence of ``(time, va_times, va_values, tl_times, tl_values,
+    initial)``; ``initial`` is ``"rest"``, ``"steady"`` or a pair ``(ia, ω)``.
+    """
+    segs, per_trace = [], []
+    for time, va_t, va_v, tl_t, tl_v, initial in specs:
+        t = np.asarray(time, dtype=np.float64)
+        if tl_t is None:
+            tl_t, tl_v = np.array([t[0]]), np.array([0.0])
+        parts = _segments(t, *(np.asarray(a, dtype=np.float64) for a in (va_t, va_v, tl_t, tl_v)))
+        segs.append(parts)
+        per_trace.append((t, initial))
+    all_counts = np.concatenate([np.bincount(p[4], minlength=p[0].size) for p in segs])
+    length = _chunk_length(all_counts[all_counts > 0])
+    cols = {k: [] for k in ("t0", "len", "va", "tl", "first", "mode", "x0")}
+    chunk_seg, chunk_trace, taus, masks, index = [], [], [], [], []
+    seg_offset = 0
+    for k, ((seg_t0, seg_len, seg_va, seg_tl, sample_seg), (t, initial)) in enumerate(
+            zip(segs, per_trace)):
+        if isinstance(initial, str):
+            mode, x0 = INITIAL_MODES[initial], (0.0, 0.0)
+        else:
+            mode, x0 = INITIAL_MODES["given"], tuple(float(v) for v in initial)
+        n_seg = seg_t0.size
+        cols["t0"].append(seg_t0), cols["len"].append(seg_len)
+        cols["va"].append(seg_va), cols["tl"].append(seg_tl)
+        cols["first"].append(np.arange(n_seg) == 0)
+        cols["mode"].append(np.full(n_seg, mode)), cols["x0"].append(np.tile(x0, (n_seg, 1)))
+        counts = np.bincount(sample_seg, minlength=n_seg)
+        start = 0
+        for s, n in enumerate(counts):
+            if n == 0:
+                continue
+            tau_s = t[start:start + n] - seg_t0[s]
+            n_chunks = -(-n // length)
+            padded = np.concatenate([tau_s, np.full(n_chunks * length - n, tau_s[-1])])
+            index.append(len(chunk_seg) * length + np.arange(n))
+            chunk_seg.extend([seg_offset + s] * n_chunks)
+            chunk_trace.extend([k] * n_chunks)
+            taus.append(padded.reshape(n_chunks, length))
+            masks.append((np.arange(n_chunks * length) < n).reshape(n_chunks, length))
+            start += n
+        seg_offset += n_seg
+    cat = {k: np.concatenate(v) for k, v in cols.items()}
+    return Experiment(
+        jnp.asarray(cat["t0"]), jnp.asarray(cat["len"]), jnp.asarray(cat["va"]),
+        jnp.asarray(cat["tl"]), jnp.asarray(cat["first"]),
+        jnp.asarray(cat["mode"].astype(np.int32)), jnp.asarray(cat["x0"]),
+        jnp.asarray(np.array(chunk_seg, dtype=np.int32)),
+        jnp.asarray(np.array(chunk_trace, dtype=np.int32)),
+        jnp.asarray(np.concatenate(taus)), jnp.asarray(np.concatenate(masks)),
+        jnp.asarray(np.concatenate(index)),
+        jnp.asarray(np.array([p[0].size for p in per_trace], dtype=np.int64)),
+    )
+
+
+def make_experiment(time, va_times, va_values, tl_times=None, tl_values=None, *,
+                    initial="rest") -> Experiment:
+    """Build an :class:`Experiment` from sample times and piecewise-constant inputs.
+
+    ``initial`` is ``"rest"``, ``"steady"`` (steady state of the inputs at the first
+    sample) or a pair ``(ia, ω)``.
+    """
+    return stack_experiments([(time, va_times, va_values, tl_times, tl_values, initial)])
+
+
+def _trace_spec(trace: Trace, delay: float = 0.0):
+    init = trace.initial if isinstance(trace.initial, str) else tuple(trace.initial)
+    return (trace.time - delay, trace.voltage.times, trace.voltage.values,
+            trace.load_torque.times, trace.load_torque.values, init)
+
+
+def experiment_from_trace(trace: Trace, *, delay: float = 0.0) -> Experiment:
+    """The :class:`Experiment` of a session trace (inputs, sample times, initial state)."""
+    return stack_experiments([_trace_spec(trace, delay)])
+
+
+def experiment_from_traces(traces) -> Experiment:
+    """One stacked :class:`Experiment` for all of a session's traces."""
+    return stack_experiments([_trace_spec(tr) for tr in traces])

@@ -1,0 +1,309 @@
+"""Read and check a simulation plan: the true motor, the bench and the experiments.
+
+A plan is a TOML file read by :func:`load_plan` into a plain dict; :func:`check_plan`
+validates it once and returns a frozen :class:`Plan` whose numbers are SI (except
+the bench uncertainties, kept in the unit the bench value is written in).  Every
+problem raises a one-line :class:`~pmdc_bayes.SessionError` naming the plan file,
+the key and the fix.  ``data/demo/plan.toml`` is a complete, commented example.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._errors import SessionError
+from ..io.session import FRICTION_MODELS
+from ..io.units import unit_factor
+
+__all__ = ["Plan", "BenchSpec", "PointSpec", "TableSpec", "TraceSpec", "load_plan",
+           "check_plan"]
+
+TRUTH_KEYS = ("Ra", "La", "K", "B", "J", "Tc")
+TRACE_KINDS = ("step", "load_change", "free-form")
+MAX_SAMPLES = 1_000_000
+_BENCH = {"Ra": "resistance", "La": "inductance"}
+_SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+
+
+@dataclass(frozen=True)
+class BenchSpec:
+    """A bench measurement to draw: ``sd`` in ``unit`` (a resistance or inductance unit)."""
+
+    key: str
+    sd: float
+    unit: str
+
+
+@dataclass(frozen=True)
+class PointSpec:
+    """A steady operating point: Vs (V), duty (1), TL (N·m), noise sds (rad/s, A)."""
+
+    name: str
+    supply_voltage: float
+    duty: float
+    load_torque: float
+    speed_sd: float
+    current_sd: float
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    """A steady table: voltages (V), loads (N·m or None), noise sds (rad/s, A or None)."""
+
+    name: str
+    voltages: tuple[float, ...]
+    load_torques: tuple[float, ...] | None
+    speed_sd: float
+    current_sd: float | None
+
+
+@dataclass(frozen=True)
+class TraceSpec:
+    """A logged trace: ``duration`` (s) at ``rate`` (Hz), inputs as ``(time s, value)``
+    pairs (V, N·m), and the sensor models (noise sds, quanta in rad/s and A, delay s)."""
+
+    name: str
+    kind: str
+    duration: float
+    rate: float
+    voltage: tuple[tuple[float, float], ...]
+    load_torque: tuple[tuple[float, float], ...] | None
+    initial: str | tuple[float, float]
+    speed_unit: str
+    record_current: bool
+    speed_noise: float
+    speed_quantum: float
+    current_noise: float
+    current_quantum: float
+    delay: float
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times ``k / rate`` (s), from 0 to ``duration``."""
+        return np.arange(int(math.floor(self.duration * self.rate + 1e-9)) + 1) / self.rate
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A checked plan; ``source`` is the plan file (None for a plan built in Python)."""
+
+    source: Path | None
+    seed: int | None
+    motor: str
+    friction: str
+    truth: dict[str, float]
+    bench: tuple[BenchSpec, ...]
+    operating_points: tuple[PointSpec, ...]
+    steady_tables: tuple[TableSpec, ...]
+    traces: tuple[TraceSpec, ...]
+
+
+def load_plan(path) -> dict:
+    """Read a plan TOML file into a dict (checked later by :func:`check_plan`)."""
+    path = Path(path)
+    if not path.is_file():
+        raise SessionError(path, "plan file not found; pass the path of a plan TOML file "
+                           "(see data/demo/plan.toml)")
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise SessionError(path, f"TOML syntax error: {exc}; fix the syntax there") from None
+    except UnicodeDecodeError:
+        raise SessionError(path, "not UTF-8 text; save the file as UTF-8") from None
+
+
+class _T:
+    """Typed, checked access to one table of the plan; errors name the key path."""
+
+    def __init__(self, file, data, where=""):
+        self.file, self.data, self.where = file, data, where
+
+    def fail(self, key, message):
+        raise SessionError(self.file, message, where=f"{self.where}.{key}" if self.where
+                           else key)
+
+    def keys(self, allowed):
+        for key in self.data:
+            if key not in allowed:
+                self.fail(key, f"unknown key {key!r}; use one of: {', '.join(allowed)}")
+
+    def get(self, key, default, what):
+        if key not in self.data:
+            if default is None and what:
+                self.fail(key, f"missing required key; add {key} = <{what}>")
+            return default
+        return self.data[key]
+
+    def table(self, key):
+        value = self.get(key, None, "table")
+        if not isinstance(value, dict):
+            self.fail(key, f"expected a table, got {value!r}; write [{key}] and its keys")
+        return _T(self.file, value, f"{self.where}.{key}" if self.where else key)
+
+    def tables(self, key):
+        value = self.data.get(key, [])
+        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+            self.fail(key, f"expected an array of tables; write each entry as [[{key}]]")
+        out = []
+        for i, item in enumerate(value, start=1):
+            t = _T(self.file, item, f"{key}[{i}]")
+            name = t.string("name")
+            if not _SAFE_NAME.fullmatch(name):
+                t.fail("name", f"{name!r} cannot be a file name; use letters, digits, _ . -")
+            out.append(_T(self.file, item, f"{key}[{name!r}]"))
+        return out
+
+    def string(self, key, default=None, choices=None):
+        value = self.get(key, default, "text in quotes")
+        if not isinstance(value, str) or not value.strip():
+            self.fail(key, f'expected a non-empty string, got {value!r}; write {key} = "..."')
+        if choices and value not in choices:
+            self.fail(key, f"unknown value {value!r}; use one of: {', '.join(choices)}")
+        return value
+
+    def number(self, key, default=None, *, low=None, positive=False):
+        value = self.get(key, default, "number")
+        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
+                value):
+            self.fail(key, f"expected a finite number, got {value!r}; write it without quotes")
+        if positive and not value > 0:
+            self.fail(key, f"must be positive, got {value}; check the value")
+        if low is not None and value < low:
+            self.fail(key, f"must be >= {low}, got {value}; check the value")
+        return float(value)
+
+    def numbers(self, key, required=True):
+        if key not in self.data and not required:
+            return None
+        value = self.get(key, None, "[number, ...]")
+        if not isinstance(value, list) or not value:
+            self.fail(key, f"expected a non-empty list of numbers, got {value!r}")
+        return tuple(_T(self.file, {key: v}, self.where).number(key) for v in value)
+
+    def schedule(self, key, required):
+        value = self.get(key, None, "[[time s, value], ...]" if required else "")
+        if value is None:
+            return None
+        example = f"write e.g. {key} = [[0.0, 0.0], [0.5, 12.0]]"
+        if not isinstance(value, list) or not value or not all(
+                isinstance(p, list) and len(p) == 2 for p in value):
+            self.fail(key, f"expected a list of [time s, value] pairs; {example}")
+        pairs = tuple((_T(self.file, {"time": p[0]}).number("time"),
+                       _T(self.file, {"value": p[1]}).number("value")) for p in value)
+        times = [p[0] for p in pairs]
+        if times[0] > 0.0 or any(b <= a for a, b in zip(times, times[1:])):
+            self.fail(key, f"times must start at or before 0 and increase strictly; {example}")
+        return pairs
+
+
+def _trace(t: _T) -> TraceSpec:
+    t.keys(("name", "kind", "duration", "rate", "voltage", "load_torque", "initial",
+            "speed_unit", "record_current", "speed_noise", "speed_quantum", "current_noise",
+            "current_quantum", "delay"))
+    initial = t.get("initial", "rest", "")
+    if isinstance(initial, dict):
+        sub = _T(t.file, initial, f"{t.where}.initial")
+        sub.keys(("current", "speed"))
+        initial = (sub.number("current"), sub.number("speed"))
+    elif initial not in ("rest", "steady"):
+        t.fail("initial", f'expected "rest", "steady" or {{ current = A, speed = rad/s }}, '
+               f"got {initial!r}")
+    speed_unit = t.string("speed_unit", "rad/s")
+    try:
+        unit_factor("speed", speed_unit)
+    except ValueError as exc:
+        t.fail("speed_unit", str(exc))
+    record_current = t.get("record_current", True, "")
+    if not isinstance(record_current, bool):
+        t.fail("record_current", f"expected true or false, got {record_current!r}")
+    spec = TraceSpec(
+        name=t.string("name"), kind=t.string("kind", choices=TRACE_KINDS),
+        duration=t.number("duration", positive=True), rate=t.number("rate", positive=True),
+        voltage=t.schedule("voltage", True), load_torque=t.schedule("load_torque", False),
+        initial=initial, speed_unit=speed_unit, record_current=record_current,
+        **{k: t.number(k, 0.0, low=0.0) for k in ("speed_noise", "speed_quantum",
+                                                  "current_noise", "current_quantum",
+                                                  "delay")},
+    )
+    if spec.delay >= spec.duration:
+        t.fail("delay", f"delay {spec.delay} s is not shorter than the trace "
+               f"({spec.duration} s); give the sensor delay in seconds")
+    n = spec.time.size
+    if not 3 <= n <= MAX_SAMPLES:
+        t.fail("duration", f"duration x rate gives {n} samples; choose them so a trace has "
+               f"3 to {MAX_SAMPLES} samples")
+    return spec
+
+
+def check_plan(data: dict, source=None) -> Plan:
+    """Validate a plan dict (from :func:`load_plan`) and return it as a :class:`Plan`.
+
+    Raises
+    ------
+    SessionError
+        One line naming ``source`` (the plan file), the key, the problem and the fix.
+    """
+    source = None if source is None else Path(source)
+    top = _T(source, data)
+    top.keys(("seed", "motor", "truth", "bench", "operating_point", "steady_table", "trace"))
+    seed = top.get("seed", None, "")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
+        top.fail("seed", f"expected a whole number >= 0, got {seed!r}; write e.g. seed = 1")
+    motor = top.table("motor")
+    motor.keys(("name", "friction"))
+    friction = motor.string("friction", "viscous", FRICTION_MODELS)
+    tt = top.table("truth")
+    tt.keys(TRUTH_KEYS)
+    truth = {k: tt.number(k, 0.0 if k == "Tc" else None, low=0.0, positive=k != "Tc")
+             for k in TRUTH_KEYS}
+    if friction == "viscous" and truth["Tc"] > 0:
+        tt.fail("Tc", 'friction "viscous" has no Coulomb torque; set Tc = 0 or set '
+                'motor.friction = "coulomb"')
+    bt = top.table("bench")
+    bt.keys(tuple(_BENCH))
+    bench = []
+    for key, kind in _BENCH.items():
+        b = bt.table(key)
+        b.keys(("sd", "unit"))
+        unit = b.string("unit")
+        try:
+            unit_factor(kind, unit)
+        except ValueError as exc:
+            b.fail("unit", str(exc))
+        bench.append(BenchSpec(key, b.number("sd", positive=True), unit))
+    points = []
+    for t in top.tables("operating_point"):
+        t.keys(("name", "supply_voltage", "duty", "load_torque", "speed_sd", "current_sd"))
+        duty = t.number("duty", positive=True)
+        if duty > 1.0:
+            t.fail("duty", f"duty {duty} is above 1; give the duty cycle as a fraction, e.g. 0.7")
+        points.append(PointSpec(t.string("name"), t.number("supply_voltage", positive=True),
+                                duty, t.number("load_torque", 0.0),
+                                t.number("speed_sd", 0.0, low=0.0),
+                                t.number("current_sd", 0.0, low=0.0)))
+    tables = []
+    for t in top.tables("steady_table"):
+        t.keys(("name", "voltages", "load_torques", "speed_sd", "current_sd"))
+        volts, loads = t.numbers("voltages"), t.numbers("load_torques", False)
+        if loads and len(loads) != len(volts):
+            t.fail("load_torques", f"has {len(loads)} values for {len(volts)} voltages; give "
+                   "one load torque per voltage")
+        cur = t.get("current_sd", None, "")
+        tables.append(TableSpec(t.string("name"), volts, loads or None,
+                                t.number("speed_sd", 0.0, low=0.0),
+                                None if cur is None else t.number("current_sd", low=0.0)))
+    traces = tuple(_trace(t) for t in top.tables("trace"))
+    names = [s.name for s in (*points, *tables, *traces)]
+    for name in names:
+        if names.count(name) > 1:
+            top.fail("name", f"the name {name!r} is used twice; give every operating point, "
+                     "steady table and trace its own name")
+    return Plan(source, seed, motor.string("name"), friction, truth, tuple(bench),
+                tuple(points), tuple(tables), traces)

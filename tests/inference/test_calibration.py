@@ -1,0 +1,89 @@
+"""Calibration of the posterior (issue 5): do 90 % intervals cover the truth 90 % of
+the time?
+
+Twenty synthetic motors are drawn from a prior around the reference paper's motor
+(each parameter log-uniform within a factor 2 of its value); for each, a session of
+one fixed structure is simulated (so the fit and the sampler compile once), fitted
+(MAP, then emcee from the MAP), and the central 90 % interval of each parameter's
+draws is checked against the truth.  The pooled count of covering intervals must lie
+in the central 99 % binomial band around 0.90.
+
+The pooled intervals of one motor are not independent (its parameters' errors are
+correlated), so the binomial band is, if anything, a little narrow; the check is
+still a strong one: a posterior ~2x too narrow covers ~55 %, far outside the band.
+"""
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from recovery_cases import Motor, plan_for  # noqa: E402
+from scipy import stats  # noqa: E402
+
+from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
+from pmdc_bayes.inference.fit import fit_map  # noqa: E402
+from pmdc_bayes.io.loader import load_session  # noqa: E402
+from pmdc_bayes.inference.objective import build_model  # noqa: E402
+from pmdc_bayes.inference.sampling import sample_posterior  # noqa: E402
+from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
+
+PAPER = {"Ra": 8.5, "La": 5.6e-3, "K": 0.062, "B": 4.5e-5, "J": 5.9e-4, "Tc": 2.5e-3}
+VOLTAGE = 12.97  # V, the paper's top step
+N_MOTORS = 20
+FACTOR = 2.0
+STRUCTURE = "viscous+current"
+LEVEL = 0.90  # nominal coverage of the central intervals
+BAND = 0.99  # probability of the acceptance band under Binomial(n, LEVEL)
+MAX_STEPS = 1500  # emcee steps per motor (32 walkers); τ is a few to ~20 steps here
+
+
+def prior_motors(n: int, seed: int = 20240611) -> list[Motor]:
+    """``n`` motors, each parameter log-uniform in [x/FACTOR, x·FACTOR] around PAPER."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        values = {k: v * FACTOR ** rng.uniform(-1.0, 1.0) for k, v in PAPER.items()}
+        out.append(Motor(f"prior-{i:02d}", V=VOLTAGE, structure=STRUCTURE, **values))
+    return out
+
+
+def binomial_band(n: int, p: float = LEVEL, mass: float = BAND) -> tuple[int, int]:
+    """Counts ``[lo, hi]`` holding at least ``mass`` of Binomial(n, p), split evenly
+    between the tails (scipy.stats.binom quantiles)."""
+    tail = (1.0 - mass) / 2.0
+    return int(stats.binom.ppf(tail, n, p)), int(stats.binom.ppf(1.0 - tail, n, p))
+
+
+def test_binomial_band():
+    lo, hi = binomial_band(100)
+    assert (lo, hi) == (82, 97)
+    # At least 99 % of the mass inside, by construction of the quantiles.
+    assert stats.binom.cdf(hi, 100, 0.9) - stats.binom.cdf(lo - 1, 100, 0.9) >= 0.99
+
+
+@pytest.mark.slow
+def test_central_90_percent_intervals_cover_the_truth(tmp_path):
+    tail = (1.0 - LEVEL) / 2.0
+    hits: dict[str, list[bool]] = {}
+    for i, motor in enumerate(prior_motors(N_MOTORS)):
+        session = load_session(simulate_session(plan_for(motor, seed=1000 + i),
+                                                tmp_path / motor.name))
+        model = build_model(session, closed_form(session))
+        fit = fit_map(model)
+        assert fit.ok, f"{motor.name}: {fit.message}"
+        post = sample_posterior(model, fit, seed=i, max_steps=MAX_STEPS, progress=False)
+        for name, draws in post.draws_si().items():
+            lo, hi = np.quantile(draws, [tail, 1.0 - tail])
+            hits.setdefault(name, []).append(bool(lo <= session.truth[name] <= hi))
+    per_parameter = {k: float(np.mean(v)) for k, v in hits.items()}
+    covered = sum(sum(v) for v in hits.values())
+    n = sum(len(v) for v in hits.values())
+    lo, hi = binomial_band(n)
+    print(f"coverage of {LEVEL:.0%} intervals: {covered}/{n} = {covered / n:.3f}, 99 % band "
+          f"[{lo}, {hi}]; per parameter {per_parameter}")  # shown with pytest -s
+    assert n == N_MOTORS * len(model.names)
+    assert lo <= covered <= hi, (
+        f"{covered} of {n} intervals cover the truth ({covered / n:.3f}); the 99 % band "
+        f"for {LEVEL:.0%} is [{lo}, {hi}]; per parameter: {per_parameter}")

@@ -1,0 +1,156 @@
+"""The uncertainty report: every figure embedded, every table present, the paper's
+disagreements stated in numbers, hold-out errors per method, controller export."""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+
+import numpy as np
+import pytest
+
+from pmdc_bayes.io.bundled import bundled_session_dir
+from pmdc_bayes.cli import main
+from pmdc_bayes.report import to_control, write_report
+from pmdc_bayes.report.tables import TABLE_TITLES
+from pmdc_bayes.pipeline import run_fit
+
+pytestmark = pytest.mark.slow
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+IMG = re.compile(r'<img alt="[^"]*" src="data:image/png;base64,([A-Za-z0-9+/=]*)">')
+ALWAYS = ("parameters", "derived", "diagnostics", "transfer", "comparison")
+
+
+@pytest.fixture(scope="module")
+def demo_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report") / "demo"
+    run_fit(bundled_session_dir("demo"), out=out, mcmc=True, seed=0)
+    return out
+
+
+@pytest.fixture(scope="module")
+def paper_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report") / "paper"
+    run_fit(bundled_session_dir("paper"), out=out, mcmc=True, seed=0)
+    return out
+
+
+@pytest.fixture(scope="module")
+def holdout_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report") / "holdout"
+    run_fit(bundled_session_dir("demo"), out=out, mcmc=True, seed=0, holdout=["load_change"])
+    return out
+
+
+def _images(html: str) -> list[bytes]:
+    return [base64.b64decode(m, validate=True) for m in IMG.findall(html)]
+
+
+def _table_rows(md: str, title: str) -> list[list[str]]:
+    block = md.split(f"### {title}\n", 1)[1].strip("\n").split("\n\n", 1)[0]
+    return [[c.strip() for c in line.strip("|").split("|")] for line in block.splitlines()[2:]]
+
+
+def test_demo_report_files_figures_and_tables(demo_run):
+    html = (demo_run / "report.html").read_text(encoding="utf-8")
+    assert "http://" not in html and "https://" not in html  # nothing fetched to view it
+    assert html.count("<img") == len(_images(html)) > 0  # every <img> is an embedded PNG
+    for png in _images(html):
+        assert png.startswith(PNG_MAGIC) and len(png) > 1024
+    figures = sorted(p.stem for p in (demo_run / "figures").glob("*.png"))
+    assert len(figures) == html.count("<img")
+    for name in ("forest", "corner", "steady", "chains", "ranks", "trace_step_12v97",
+                 "trace_load_change", "trace_current_capture"):
+        assert name in figures
+        assert f'id="fig-{name}"' in html
+    md = (demo_run / "report.md").read_text(encoding="utf-8")
+    for key in ALWAYS + ("rms",):
+        assert f"<h3>{TABLE_TITLES[key]}</h3>" in html
+        assert f"### {TABLE_TITLES[key]}" in md
+    for name in figures:
+        assert f"(figures/{name}.png)" in md
+    assert "posterior mean ± sd" in html and "No posterior was sampled" not in html
+    summary = json.loads((demo_run / "summary.json").read_text())
+    assert summary["diagnostics"]["wall_s"]["report"] > 0.0
+
+
+def test_demo_report_explains_closed_form_bias(demo_run):
+    md = (demo_run / "report.md").read_text(encoding="utf-8")
+    rows = {r[0]: r for r in _table_rows(md, TABLE_TITLES["comparison"])}
+    assert set(rows) == {"Ra", "La", "K", "B", "J", "Tc"}
+    assert "Tc/ω" in md  # Coulomb friction lumped into B at the operating point
+    assert "La is neglected in the first-order τ" in md
+    assert "quantised by the sampling interval 10 ms" in md
+    assert "started from rest" in md
+
+
+def test_report_command_regenerates_and_rejects_other_dirs(demo_run, tmp_path, capsys):
+    html = demo_run / "report.html"
+    html.unlink()
+    assert main(["report", str(demo_run)]) == 0
+    assert html.is_file() and html.stat().st_size > 10_000
+    capsys.readouterr()
+    assert main(["report", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "summary.json" in err[0]
+
+
+def test_paper_report_states_the_published_disagreements(paper_run):
+    md = (paper_run / "report.md").read_text(encoding="utf-8")
+    html = (paper_run / "report.html").read_text(encoding="utf-8")
+    line = next(x for x in md.splitlines() if "Table I does not reproduce" in x)
+    assert "G = K/(B·Ra + K²) = 14.3 rad/s per V" in line
+    assert "simulated column rises at 13.3 rad/s per V" in line
+    line = next(x for x in md.splitlines() if "torque sensitivity is" in x and "Table I" in x)
+    assert "2.3 times what Table I predicts" in line
+    assert "The session has no traces" in md
+    for key in ALWAYS:
+        assert f"<h3>{TABLE_TITLES[key]}</h3>" in html
+    assert all(p.startswith(PNG_MAGIC) and len(p) > 1024 for p in _images(html))
+
+
+def test_holdout_table_has_every_method(holdout_run):
+    md = (holdout_run / "report.md").read_text(encoding="utf-8")
+    header = md.split(f"### {TABLE_TITLES['holdout']}\n\n", 1)[1].splitlines()[0]
+    for col in ("RMS closed form", "RMS MAP", "RMS posterior predictive"):
+        assert col in header
+    rows = _table_rows(md, TABLE_TITLES["holdout"])
+    assert {r[0] for r in rows} == {"load_change"}
+    assert {r[1] for r in rows} == {"speed (rad/s)", "current (A)"}
+    for r in rows:  # the fitted parameters predict the unseen trace to the noise level
+        noise, cf, map_, pp = (float(x) for x in r[2:6])
+        assert map_ < 1.2 * noise and pp < 1.2 * noise and cf > map_
+    assert "figures/heldout_load_change.png" in md
+    assert "load_change" not in {r[0] for r in _table_rows(md, TABLE_TITLES["rms"])}
+
+
+def test_controller_export_matches_posterior_mean(demo_run):
+    model = json.loads((demo_run / "controller.json").read_text())
+    summary = json.loads((demo_run / "summary.json").read_text())
+    n = len(model["names"])
+    assert np.shape(model["A"]) == (2, 2) and np.shape(model["B"]) == (2, 2)
+    assert np.shape(model["C"]) == (1, 2) and np.shape(model["D"]) == (1, 2)
+    cov = np.asarray(model["covariance"])
+    assert cov.shape == (n, n) and np.allclose(cov, cov.T, rtol=0, atol=0)
+    p = model["parameters"]
+    for k, name in enumerate(model["names"]):
+        assert p[name] == pytest.approx(summary["parameters"][name]["mean"], rel=1e-6)
+        assert np.sqrt(cov[k, k]) == pytest.approx(summary["parameters"][name]["sd"], rel=1e-3)
+    pytest.importorskip("control")
+    ss, tf = to_control(model)
+    g = p["K"] / (p["B"] * p["Ra"] + p["K"] ** 2)
+    assert float(np.real(tf.dcgain())) == pytest.approx(g, rel=1e-9)
+    assert float(np.real(ss.dcgain()[0, 1])) == pytest.approx(g, rel=1e-9)
+
+
+def test_no_posterior_report_says_so(tmp_path):
+    out = tmp_path / "nomcmc"
+    run_fit(bundled_session_dir("paper"), out=out, mcmc=False)
+    assert not (out / "posterior.nc").exists()
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert "No posterior was sampled" in html and "chains" not in {
+        p.stem for p in (out / "figures").glob("*.png")}
+    paths = write_report(out)
+    assert paths["html"] == out / "report.html"
