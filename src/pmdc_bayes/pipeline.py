@@ -25,6 +25,7 @@ from .inference.fit import fit_map
 from .inference.identifiability import identifiability
 from .io.loader import load_session
 from .inference.objective import build_model
+from ._x64 import x64
 
 __all__ = ["run_fit", "default_out_dir", "UNITS", "versions"]
 
@@ -69,6 +70,7 @@ def _closed_form_theta(model, cf):
     return np.log(np.maximum([vals[n] for n in model.names], 1e-300))
 
 
+@x64
 def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             mcmc: bool = True, friction: str | None = None, seed: int = 0,
             holdout=(), compare_friction: bool = False,

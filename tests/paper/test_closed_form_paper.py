@@ -17,10 +17,10 @@ from pmdc_bayes.paper.closed_form import (
     j_from_tau,
     read_time_constant,
     state_space,
-    steady_state,
     tf_full,
     time_constant,
 )
+from pmdc_bayes.physics.motor import steady_state
 from pmdc_bayes.io.loader import load_session
 
 
@@ -105,7 +105,7 @@ PARAMS = [  # (Ra ohm, La H, K V*s/rad, B N*m*s/rad, J kg*m^2)
 def test_steady_state_solves_the_state_space(Ra, La, K, B, J, Va, TL):
     A, Bu, _, _ = state_space(Ra, La, K, B, J)
     x = np.linalg.solve(A, -Bu @ np.array([TL, Va]))  # equations (15)-(16)
-    w, ia = steady_state(Ra, K, B, Va, TL)
+    ia, w = steady_state(Ra, K, B, Va, TL)
     np.testing.assert_allclose([w, ia], x, rtol=1e-10, atol=0.0)
     if TL == 0.0:
         assert w == pytest.approx(gain(Ra, K, B) * Va, rel=1e-12)  # (10) and (17)

@@ -13,8 +13,8 @@ import pytest
 from scipy import signal
 from scipy.integrate import solve_ivp
 
-from pmdc_bayes.paper.closed_form import gain, state_space, tf_full, time_constant
-from pmdc_bayes.paper.closed_form import steady_state as steady_state_18
+from pmdc_bayes.physics.motor import gain, state_space, tf_full, time_constant
+from pmdc_bayes.physics.motor import steady_state as steady_state_18
 from pmdc_bayes.physics.solution import (
     Params,
     make_experiment,
@@ -72,10 +72,10 @@ def test_steady_state_without_and_with_load():
     ia, w = simulate(P, exp)
     # Just before the load step at 50 s, 40 mechanical time constants after the voltage step.
     k0 = int(np.searchsorted(exp.time, 49.9))
-    w17, i18 = steady_state_18(P.Ra, P.K, P.B, 12.97)
+    i18, w17 = steady_state_18(P.Ra, P.K, P.B, 12.97)
     assert w17 == pytest.approx(P.K * 12.97 / (P.K**2 + P.Ra * P.B), rel=1e-15)
     np.testing.assert_allclose([w[k0], ia[k0]], [w17, i18], rtol=1e-9)
-    wl, il = steady_state_18(P.Ra, P.K, P.B, 12.97, 0.01)
+    il, wl = steady_state_18(P.Ra, P.K, P.B, 12.97, 0.01)
     np.testing.assert_allclose([w[-1], ia[-1]], [wl, il], rtol=1e-9)
     # The same via the state-space matrices (15)-(16).
     A, Bu, _, _ = state_space(P.Ra, P.La, P.K, P.B, P.J)

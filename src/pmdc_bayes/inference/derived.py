@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..physics import motor
 from .diagnostics import HDI_PROB, az
 
 __all__ = ["derived_quantities", "derived_draws"]
@@ -32,13 +33,13 @@ def derived_draws(draws_si: dict[str, np.ndarray], *, voltage: float) -> dict:
     Ra, La, K, B, J = (np.asarray(draws_si[k], dtype=float) for k in ("Ra", "La", "K", "B", "J"))
     Tc = np.asarray(draws_si.get("Tc", np.zeros_like(Ra)), dtype=float)
     V = float(voltage)
-    D = B * Ra + K * K
+    i0, w0 = motor.steady_state(Ra, K, B, V, 0.0, Tc)
     return {
-        "tau_m": ("s", J * Ra / D),
-        "tau_e": ("s", La / Ra),
-        "gain": ("rad/s/V", K / D),
-        "no_load_speed": ("rad/s", (K * V - Ra * Tc) / D),
-        "no_load_current": ("A", (B * V + K * Tc) / D),
+        "tau_m": ("s", motor.time_constant(Ra, K, B, J)),
+        "tau_e": ("s", motor.electrical_time_constant(Ra, La)),
+        "gain": ("rad/s/V", motor.gain(Ra, K, B)),
+        "no_load_speed": ("rad/s", w0),
+        "no_load_current": ("A", i0),
         "stall_torque": ("N*m", K * V / Ra - Tc),
         "stall_current": ("A", V / Ra),
         "Kv": ("rpm/V", 60.0 / (2.0 * np.pi * K)),

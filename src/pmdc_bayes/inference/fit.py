@@ -20,6 +20,7 @@ import optimistix as optx
 
 from ..physics.solution import real_modes
 from .objective import NU0, SessionModel
+from .._x64 import x64
 
 __all__ = ["FitResult", "fit_map", "laplace"]
 
@@ -113,6 +114,7 @@ def _initial_weights(model: SessionModel, n: int) -> np.ndarray:
     return np.tile(1.0 / np.asarray(model.s0) ** 2, (n, 1))
 
 
+@x64
 def laplace(model: SessionModel, theta, weights):
     """Covariance in log space from the Gauss–Newton Hessian at ``theta``.
 
@@ -141,6 +143,7 @@ def laplace(model: SessionModel, theta, weights):
     return cov, H
 
 
+@x64
 def fit_map(model: SessionModel, *, theta0=None, n_starts: int = N_STARTS, seed: int = 0,
             solve=None) -> FitResult:
     """Maximise the log-posterior from the closed-form seed and perturbed copies of it.

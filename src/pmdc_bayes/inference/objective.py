@@ -23,8 +23,10 @@ import numpy as np
 from . import cache as _cache
 from .noise import Channel, noise_scale, typical_level
 from ..paper.closed_form import ClosedForm
+from ..physics import motor
 from ..physics.solution import Params, experiment_from_traces, real_modes, simulate, simulate_padded
 from ..io.session import Session
+from .._x64 import x64
 
 __all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "PARAM_NAMES", "noise_scale"]
 
@@ -191,20 +193,13 @@ class SessionModel:
 
     # -- predictions --------------------------------------------------------------------
     def steady_prediction(self, p: Params, v, tl):
-        den = p.K * p.K + p.Ra * p.B
-        drive = p.K * v / p.Ra - tl
-        if self.coulomb:
-            d = jnp.where(drive >= 0, 1.0, -1.0)
-            t_eff = tl + d * p.Tc
-            stuck = jnp.abs(drive) <= p.Tc
-            w = jnp.where(stuck, 0.0, (p.K * v - p.Ra * t_eff) / den)
-            i = jnp.where(stuck, v / p.Ra, (p.B * v + p.K * t_eff) / den)
-            return w, i
-        return (p.K * v - p.Ra * tl) / den, (p.B * v + p.K * tl) / den
+        """Steady ``(ω, ia)`` at voltages ``v`` and loads ``tl`` (equations (15)–(18))."""
+        i, w = motor.steady_state(p.Ra, p.K, p.B, v, tl, p.Tc if self.coulomb else None)
+        return w, i
 
     def tau_prediction(self, p: Params):
         """First-order time constant (9): what a 63.2 % reading measures when La/Ra ≪ τ."""
-        return p.J * p.Ra / (p.B * p.Ra + p.K * p.K)
+        return motor.time_constant(p.Ra, p.K, p.B, p.J)
 
     def _d(self, data):
         return self.data if data is None else data
@@ -315,6 +310,7 @@ class SessionModel:
         bench, z = self._prior_terms(theta, d)
         return jnp.concatenate(parts + [bench, z])
 
+    @x64
     def predict(self, theta, *, coulomb: bool | None = None):
         """Per trace ``(ia, ω)`` in time order (A, rad/s), as NumPy arrays."""
         if self.exp is None:
@@ -336,6 +332,7 @@ class SessionModel:
         return out
 
 
+@x64
 def build_model(session: Session, seed: ClosedForm, *, coulomb: bool | None = None) -> SessionModel:
     """The objective of a session; ``coulomb`` defaults to the session's friction model."""
     if coulomb is None:

@@ -23,6 +23,7 @@ from tqdm.auto import tqdm
 
 from .diagnostics import az, compare_laplace, format_loo, gates, loo_compare, summarize
 from .idata import LL_DRAWS, to_inference_data
+from .._x64 import x64
 
 __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
            "compare_laplace", "loo_compare", "format_loo", "default_moves",
@@ -181,6 +182,7 @@ def _gates_met(sampler, burn: int, *, r_hat_max: float = 1.01, ess_min: float = 
                and float(ess_tail[v]) >= ess_min for v in data)
 
 
+@x64
 def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                      max_steps: int = 20_000, min_tau_multiple: float = 50,
                      progress: bool | None = None, moves=None,

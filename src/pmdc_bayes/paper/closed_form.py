@@ -1,8 +1,10 @@
 """The reference paper's closed-form identification method (Section III).
 
-Pure functions, one per equation, with the paper's equation numbers; then
-:func:`closed_form`, which picks the inputs it needs from a session and says which
-it used.  Everything is SI: Ra (Ω), La (H), K = Kt = Kb (V·s/rad = N·m/A),
+Pure functions, one per equation of the method, with the paper's equation
+numbers; then :func:`closed_form`, which picks the inputs it needs from a session
+and says which it used.  The motor's own equations (steady state, τ, G, transfer
+functions, state space) live in :mod:`pmdc_bayes.physics.motor` and are re-exported
+here because the method is stated in their terms.  Everything is SI: Ra (Ω), La (H), K = Kt = Kb (V·s/rad = N·m/A),
 B (N·m·s/rad), J (kg·m²), τ (s), G (rad/s per V).
 """
 
@@ -14,6 +16,15 @@ import numpy as np
 
 from .._errors import SessionError
 from ..io.session import Session, Trace
+from ..physics.motor import (
+    gain,
+    state_space,
+    steady_state,
+    tf_first_order,
+    tf_full,
+    tf_normalised,
+    time_constant,
+)
 
 __all__ = [
     "kb_from_chopper",
@@ -54,56 +65,9 @@ def b_from_steady(K, current, speed):
     return K * current / speed
 
 
-def time_constant(Ra, K, B, J):
-    """Mechanical time constant with La neglected, equation (9): ``τ = J·Ra/(B·Ra + K²)``."""
-    return J * Ra / (B * Ra + K * K)
-
-
 def j_from_tau(tau, Ra, B, K):
     """Inertia from a measured time constant, equation (9) solved for J."""
     return tau * (B * Ra + K * K) / Ra
-
-
-def gain(Ra, K, B):
-    """Steady-state gain in rad/s per V, equation (10): ``G = Kt/(B·Ra + Kb·Kt)``."""
-    return K / (B * Ra + K * K)
-
-
-def tf_full(Ra, La, K, B, J):
-    """Equation (7): ω/Va = K / ((La·s + Ra)(J·s + B) + K²), as (num, den), highest power first."""
-    return np.array([K]), np.array([La * J, La * B + Ra * J, Ra * B + K * K])
-
-
-def tf_first_order(Ra, K, B, J):
-    """Equation (8): ω/Va = G / (τ·s + 1), as (num, den)."""
-    return np.array([gain(Ra, K, B)]), np.array([time_constant(Ra, K, B, J), 1.0])
-
-
-def tf_normalised(Ra, La, K, B, J):
-    """Equation (22): equation (7) with numerator and denominator divided by J."""
-    num, den = tf_full(Ra, La, K, B, J)
-    return num / J, den / J
-
-
-def state_space(Ra, La, K, B, J):
-    """State-space matrices (11)–(14); x = [ω, ia], u = [TL, Va], y = ω."""
-    A = np.array([[-B / J, K / J], [-K / La, -Ra / La]])
-    Bu = np.array([[-1.0 / J, 0.0], [0.0, 1.0 / La]])
-    C = np.array([[1.0, 0.0]])
-    D = np.zeros((1, 2))
-    return A, Bu, C, D
-
-
-def steady_state(Ra, K, B, Va, TL=0.0):
-    """Steady speed and current, equations (15)–(18), with load torque.
-
-    Notes
-    -----
-    Solving A·x + Bu·u = 0: ``ω = (K·Va − Ra·TL)/(K² + Ra·B)`` and
-    ``Ia = (B·Va + K·TL)/(K² + Ra·B)``; with TL = 0 these are (17) and (18).
-    """
-    den = K * K + Ra * B
-    return (K * Va - Ra * TL) / den, (B * Va + K * TL) / den
 
 
 @dataclass(frozen=True)

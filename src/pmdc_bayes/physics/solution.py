@@ -22,6 +22,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import motor
+from .motor import state_space
 from .experiment import (
     INITIAL_MODES,
     Experiment,
@@ -71,20 +73,20 @@ class Params(NamedTuple):
 
 
 def system_matrices(p: Params):
-    """``A`` and the input matrix for ``x = (ia, ω)``, ``u = (Va, TL)``: equations (5)–(6)."""
-    A = jnp.array([[-p.Ra / p.La, -p.K / p.La], [p.K / p.J, -p.B / p.J]])
-    Bu = jnp.array([[1.0 / p.La, 0.0], [0.0, -1.0 / p.J]])
+    """``A`` and the input matrix in the documented order x = (ω, ia), u = (TL, Va):
+    equations (11)–(14) (:func:`pmdc_bayes.physics.motor.state_space`)."""
+    A, Bu, _, _ = state_space(p.Ra, p.La, p.K, p.B, p.J)
     return A, Bu
 
 
 def steady_state(p: Params, va, tl=0.0):
     """Steady ``(ia, ω)`` of the viscous model under constant inputs, equations (15)–(18)."""
-    den = p.K * p.K + p.Ra * p.B
-    return (p.B * va + p.K * tl) / den, (p.K * va - p.Ra * tl) / den
+    return motor.steady_state(p.Ra, p.K, p.B, va, tl)
 
 
 def _steady_coulomb(p: Params, va, tl, direction):
-    return steady_state(p, va, tl + direction * p.Tc)
+    """Steady state of the moving phase, friction ``Tc`` opposing ``direction``."""
+    return motor.steady_state(p.Ra, p.K, p.B, va, tl + direction * p.Tc)
 
 
 def _eigen(p: Params):
@@ -140,8 +142,7 @@ def _propagator(p: Params, tau):
 def _apply(p: Params, alpha, beta, d):
     """``(α·I + β·A)·d`` for d = (d_ia, d_ω) (arrays broadcast)."""
     di, dw = d
-    ai = -(p.Ra * di + p.K * dw) / p.La
-    aw = (p.K * di - p.B * dw) / p.J
+    ai, aw = motor.derivatives(p.Ra, p.La, p.K, p.B, p.J, di, dw)
     return alpha * di + beta * ai, alpha * dw + beta * aw
 
 
@@ -212,7 +213,8 @@ def _segment_info(p: Params, x, va, tl, length, coulomb: bool, fast: bool) -> _S
     t_root = jax.lax.stop_gradient(jnp.where(stops, 0.5 * (lo + hi), 0.0))
     for _ in range(2):  # Newton steps carry the root's dependence on the parameters
         i_r, w_r = _moving(p, seg, t_root, fast)
-        dw_dt = (p.K * i_r - p.B * w_r - tl - direction * p.Tc) / p.J
+        _, dw_dt = motor.derivatives(p.Ra, p.La, p.K, p.B, p.J, i_r, w_r, tl=tl,
+                                     tc=direction * p.Tc)
         # Only where the motor stops: elsewhere the step would run off to huge times,
         # whose overflowing exponentials poison reverse-mode derivatives.
         t_root = jnp.where(stops, t_root - w_r / jnp.where(dw_dt == 0, 1.0, dw_dt), 0.0)
@@ -240,14 +242,7 @@ def _state_in_segment(p: Params, seg: _Segment, va, tau, coulomb: bool, fast: bo
 
 
 def _initial_for(p: Params, va, tl, mode, x0, coulomb: bool):
-    if coulomb:
-        drive = p.K * va / p.Ra - tl
-        direction = jnp.where(drive >= 0, 1.0, -1.0)
-        ss_i, ss_w = _steady_coulomb(p, va, tl, direction)
-        stuck = jnp.abs(drive) <= p.Tc
-        ss_i, ss_w = jnp.where(stuck, va / p.Ra, ss_i), jnp.where(stuck, 0.0, ss_w)
-    else:
-        ss_i, ss_w = steady_state(p, va, tl)
+    ss_i, ss_w = motor.steady_state(p.Ra, p.K, p.B, va, tl, p.Tc if coulomb else None)
     given = mode == INITIAL_MODES["given"]
     steady = mode == INITIAL_MODES["steady"]
     ia = jnp.where(given, x0[0], jnp.where(steady, ss_i, 0.0))
@@ -321,12 +316,14 @@ def simulate_scan(p: Params, exp: Experiment):
     dts = jnp.asarray(np.diff(grid))
     va = exp.seg_va[seg_of]
     tl = exp.seg_tl[seg_of]
-    A, Bu = system_matrices(p)
-    x0 = jnp.stack(initial_state(p, exp, False))
+    A, Bu = system_matrices(p)  # x = (ω, ia), u = (TL, Va)
+    A, Bu = jnp.asarray(A), jnp.asarray(Bu)
+    ia0, w0 = initial_state(p, exp, False)
+    x0 = jnp.stack([w0, ia0])
 
     def step(x, inp):
         dt, v, load = inp
-        b = Bu @ jnp.stack([v, load])
+        b = Bu @ jnp.stack([load, v])
         M = jnp.zeros((3, 3)).at[:2, :2].set(A).at[:2, 2].set(b)
         E = jax.scipy.linalg.expm(M * dt)
         x_new = E[:2, :2] @ x + E[:2, 2]
@@ -335,4 +332,4 @@ def simulate_scan(p: Params, exp: Experiment):
     _, xs = jax.lax.scan(step, x0, (dts, va, tl))
     xs = jnp.concatenate([x0[None], xs])
     idx = np.searchsorted(grid, t)
-    return xs[idx, 0], xs[idx, 1]
+    return xs[idx, 1], xs[idx, 0]

@@ -20,6 +20,7 @@ from .build import CONTROLLER_FILE, build_sections
 from .export import controller_model, to_control
 from .html import render_html
 from .markdown import render_markdown
+from .._x64 import x64
 
 __all__ = ["write_report", "report_stage", "controller_model", "to_control"]
 
@@ -43,6 +44,7 @@ def _figures(sections):
     return [b for s in sections for b in s.blocks if type(b).__name__ == "Figure"]
 
 
+@x64
 def write_report(run_dir) -> dict[str, Path]:
     """Write the report of the run in ``run_dir``; return the paths written.
 
@@ -69,6 +71,7 @@ def write_report(run_dir) -> dict[str, Path]:
     return paths
 
 
+@x64
 def report_stage(run_dir, summary: dict) -> dict[str, Path]:
     """The report stage of ``pmdc-bayes fit``: write the report, record its wall time in
     ``summary["diagnostics"]["wall_s"]`` (``report`` and ``total``) and rewrite

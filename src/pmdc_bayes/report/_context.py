@@ -20,6 +20,7 @@ from ..io.loader import load_session
 from ..inference.objective import SessionModel, build_model
 from ..io.session import Session
 from .predictive import TracePrediction, predict_traces
+from .._x64 import x64
 
 __all__ = ["ReportContext", "load_context", "N_PREDICTIVE_DRAWS"]
 
@@ -114,9 +115,9 @@ def _read_posterior(run_dir: Path, names) -> tuple:
     return draws, idata
 
 
+@x64
 def load_context(run_dir) -> ReportContext:
     """Read a run directory and compute the simulations the report shows."""
-    jax.config.update("jax_enable_x64", True)
     run_dir = Path(run_dir)
     summary = _read_summary(run_dir)
     info = summary["session"]

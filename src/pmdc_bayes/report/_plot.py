@@ -1,17 +1,26 @@
-"""Matplotlib set-up for the report (non-interactive backend) and shared helpers."""
+"""Figures for the report, drawn without touching the caller's matplotlib state.
+
+Each figure is a :class:`matplotlib.figure.Figure` with its own Agg canvas (no pyplot
+figure manager, so nothing is shown in a notebook and the backend is never switched),
+and every figure function runs inside :func:`styled`, a ``matplotlib.rc_context`` with
+the report's style, so the caller's ``rcParams`` are left as they were.
+"""
 
 from __future__ import annotations
 
+import functools
 import io
 import math
 import warnings
 
 import matplotlib
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.ticker import NullLocator
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-__all__ = ["plt", "png", "COLORS", "LABELS", "scale_of", "UNIT_TEXT", "arviz_plot"]
+__all__ = ["subplots", "styled", "png", "COLORS", "LABELS", "scale_of", "UNIT_TEXT",
+           "arviz_plot", "Line2D", "NullLocator", "STYLE"]
 
 COLORS = {"measured": "0.35", "closed_form": "tab:orange", "map": "tab:blue",
           "mean": "tab:green", "truth": "tab:purple", "published": "tab:red"}
@@ -20,16 +29,32 @@ LABELS = {"closed_form": "closed form", "map": "MAP", "mean": "posterior predict
 UNIT_TEXT = {"Ra": "Ω", "La": "H", "K": "V·s/rad", "B": "N·m·s/rad", "J": "kg·m²",
              "Tc": "N·m"}
 
-plt.rcParams.update({"figure.dpi": 110, "savefig.dpi": 110, "font.size": 9,
-                     "axes.titlesize": 10, "legend.fontsize": 8, "axes.grid": True,
-                     "grid.alpha": 0.3})
+STYLE = {"figure.dpi": 110, "savefig.dpi": 110, "font.size": 9, "axes.titlesize": 10,
+         "legend.fontsize": 8, "axes.grid": True, "grid.alpha": 0.3}
+
+
+def styled(fn):
+    """Run a figure function inside ``rc_context(STYLE)``."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with matplotlib.rc_context(STYLE):
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+def subplots(nrows: int = 1, ncols: int = 1, *, figsize=None, **kwargs):
+    """``(figure, axes)`` like ``pyplot.subplots``, on a figure of its own (Agg canvas)."""
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
 def png(fig) -> bytes:
-    """The figure as PNG bytes; the figure is closed."""
+    """The figure as PNG bytes."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", bbox_inches="tight")
-    plt.close(fig)
     return buf.getvalue()
 
 

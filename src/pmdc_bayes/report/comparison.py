@@ -17,7 +17,8 @@ The decompositions are exact sums (the listed parts plus a stated remainder).
 
 from __future__ import annotations
 
-from ..paper.closed_form import kb_from_chopper, time_constant
+from ..paper.closed_form import kb_from_chopper
+from ..physics.motor import time_constant
 
 __all__ = ["compare_closed_form"]
 

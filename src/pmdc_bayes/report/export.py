@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..paper.closed_form import gain, state_space, tf_full, time_constant
+from ..physics.motor import gain, state_space, tf_full, time_constant
 
 __all__ = ["controller_model", "to_control"]
 

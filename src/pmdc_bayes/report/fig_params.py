@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._plot import COLORS, UNIT_TEXT, arviz_plot, plt, png, scale_of
+from ._plot import COLORS, Line2D, NullLocator, UNIT_TEXT, arviz_plot, png, scale_of, styled, subplots
 
 __all__ = ["corner_figure", "forest_figure", "chains_figure", "ranks_figure", "CORNER_NAMES"]
 
@@ -50,6 +50,7 @@ def _mark(ax, x, y, lims, style, label):
                 arrowprops={"arrowstyle": "->", "color": style["color"], "lw": 1.6})
 
 
+@styled
 def corner_figure(ctx) -> bytes:
     """PNG: pair plot of J, B, K (and Tc) with the closed form, MAP and truth."""
     names = [n for n in CORNER_NAMES if n in ctx.names]
@@ -67,7 +68,7 @@ def corner_figure(ctx) -> bytes:
     labels = {"closed_form": "closed form (arrow: off the axes)", "map": "MAP",
               "truth": "truth (simulated session)"}
     n = len(names)
-    fig, axes = plt.subplots(n, n, figsize=(2.3 * n + 0.8, 2.3 * n + 0.6), squeeze=False)
+    fig, axes = subplots(n, n, figsize=(2.3 * n + 0.8, 2.3 * n + 0.6), squeeze=False)
     lims = [_limits(ds[:, k], [pts.get("truth", [None] * n)[k]]) for k in range(n)]
     for i in range(n):
         for j in range(n):
@@ -101,10 +102,10 @@ def corner_figure(ctx) -> bytes:
                 ax.set_ylabel(scales[i][1])
             elif i != j:
                 ax.set_yticklabels([])
-    handles = [plt.Line2D([], [], ls="", marker=".", ms=8, color=COLORS["mean"])]
+    handles = [Line2D([], [], ls="", marker=".", ms=8, color=COLORS["mean"])]
     text = [source]
     for k in pts:
-        handles.append(plt.Line2D([], [], ls="", marker=styles[k]["marker"], ms=8,
+        handles.append(Line2D([], [], ls="", marker=styles[k]["marker"], ms=8,
                                   color=styles[k]["color"], mec="k", mew=0.6))
         text.append(labels[k])
     fig.legend(handles, text, loc="upper right", bbox_to_anchor=(0.98, 0.98), frameon=False)
@@ -113,6 +114,7 @@ def corner_figure(ctx) -> bytes:
     return png(fig)
 
 
+@styled
 def forest_figure(ctx, rows) -> bytes:
     """PNG: every parameter relative to the reference (posterior mean, else MAP), in %:
     closed form, MAP ± 2 sd, posterior 94 % HDI and truth.  The axis is symmetric-log,
@@ -121,7 +123,7 @@ def forest_figure(ctx, rows) -> bytes:
     ref = ctx.best
     params = ctx.summary["parameters"]
     names = list(ctx.names)
-    fig, ax = plt.subplots(figsize=(8.5, 0.75 * len(names) + 1.6))
+    fig, ax = subplots(figsize=(8.5, 0.75 * len(names) + 1.6))
     lin = 0.0
     for k, n in enumerate(names):
         y = len(names) - 1 - k
@@ -149,7 +151,7 @@ def forest_figure(ctx, rows) -> bytes:
     ticks += [sg * 10.0**e for e in range(-3, 4) for sg in (-1, 1) if 10.0**e > 3 * lin]
     ax.set_xticks(sorted(t for t in ticks if lo <= t <= hi))
     ax.xaxis.set_major_formatter(lambda v, _: f"{v:+g} %" if v else "0")
-    ax.xaxis.set_minor_locator(plt.NullLocator())
+    ax.xaxis.set_minor_locator(NullLocator())
     ax.axvline(0.0, color="k", lw=0.7)
     ax.set_yticks(range(len(names)))
     ax.set_yticklabels([f"{n} ({UNIT_TEXT[n]})\n{ref[n]:.4g}" for n in reversed(names)])
@@ -177,6 +179,7 @@ def _grouped(ctx, groups: int):
     return az.from_dict(posterior=out)
 
 
+@styled
 def chains_figure(ctx) -> bytes:
     """PNG: ArviZ trace plot of every walker (marginal density and draws against step),
     each parameter in a power-of-ten unit so the ticks stay short."""
@@ -190,11 +193,10 @@ def chains_figure(ctx) -> bytes:
         f, labels[name] = scale_of(name, float(np.mean(x)))
         scaled[name] = x * f
     n = len(ctx.names)
-    axes = arviz_plot(az.plot_trace, az.from_dict(posterior=scaled), var_names=list(ctx.names),
-                         combined=True, compact=True,
-                         backend_kwargs={"figsize": (9, 1.6 * n + 0.5)},
-                         trace_kwargs={"alpha": 0.25, "linewidth": 0.4})
-    fig = axes.ravel()[0].figure
+    fig, axes = subplots(n, 2, figsize=(9, 1.6 * n + 0.5), squeeze=False)
+    arviz_plot(az.plot_trace, az.from_dict(posterior=scaled), var_names=list(ctx.names),
+               combined=True, compact=True, axes=axes,
+               trace_kwargs={"alpha": 0.25, "linewidth": 0.4})
     for row, name in zip(axes, ctx.names):
         row[0].set_title(f"{labels[name]}: marginal, all walkers", fontsize=9)
         row[1].set_title(f"{labels[name]} against step (thinned), one line per walker",
@@ -210,6 +212,7 @@ def chains_figure(ctx) -> bytes:
     return png(fig)
 
 
+@styled
 def ranks_figure(ctx, groups: int = 4) -> bytes:
     """PNG: ArviZ rank plots, the walkers pooled into ``groups`` sets; bars near uniform
     (the dashed line) mean the sets sample the same distribution."""
@@ -218,7 +221,7 @@ def ranks_figure(ctx, groups: int = 4) -> bytes:
     n = len(ctx.names)
     cols = 3
     rows = -(-n // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(9, 2.2 * rows + 0.5), squeeze=False)
+    fig, axes = subplots(rows, cols, figsize=(9, 2.2 * rows + 0.5), squeeze=False)
     arviz_plot(az.plot_rank, _grouped(ctx, groups), var_names=list(ctx.names), kind="bars",
                  ax=axes.ravel()[:n])
     walkers = ctx.idata.posterior.sizes["chain"]

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..paper.closed_form import time_constant
-from ._plot import COLORS, plt, png
+from ..physics.motor import steady_state, time_constant
+from ._plot import COLORS, png, styled, subplots
 from .predictive import BAND
 from .published import FIGURE6_SIMULATED, PAPER_SESSION, TABLE2_SIMULATED
 
@@ -58,21 +58,16 @@ def _predict(ctx, vals, v, tl, *, viscous=False):
 
     Notes
     -----
-    NumPy transcription of :meth:`SessionModel.steady_prediction` (equations (15)–(16)
-    with a Coulomb torque ``Tc·sign`` and the rotor stuck while ``|K·V/Ra − TL| ≤ Tc``),
+    :func:`pmdc_bayes.physics.motor.steady_state` (equations (15)–(16) with a Coulomb
+    torque ``Tc·sign`` and the rotor stuck while ``|K·V/Ra − TL| ≤ Tc``) in NumPy,
     evaluated for many draws at once without JAX dispatch.
     """
     v, tl = np.broadcast_arrays(np.atleast_1d(np.asarray(v, float)),
                                 np.atleast_1d(np.asarray(tl, float)))
     p = {n: np.asarray(vals.get(n, 0.0), dtype=float)[..., None]
          for n in ("Ra", "K", "B", "Tc")}
-    den = p["K"] ** 2 + p["Ra"] * p["B"]
-    if viscous or not ctx.model.coulomb:
-        w = (p["K"] * v - p["Ra"] * tl) / den
-    else:
-        drive = p["K"] * v / p["Ra"] - tl
-        t_eff = tl + np.where(drive >= 0, 1.0, -1.0) * p["Tc"]
-        w = np.where(np.abs(drive) <= p["Tc"], 0.0, (p["K"] * v - p["Ra"] * t_eff) / den)
+    tc = None if viscous or not ctx.model.coulomb else p["Tc"]
+    _, w = steady_state(p["Ra"], p["K"], p["B"], v, tl, tc)
     return np.atleast_2d(w)
 
 
@@ -100,6 +95,7 @@ _MARKERS = {"steady tables and operating points": "o", "step readings (final spe
             "settled stretches of the traces": "^"}
 
 
+@styled
 def steady_figure(ctx) -> bytes:
     """PNG: 2×2 panels, speed–voltage and speed–torque lines (top) and residuals of the
     measured points against the closed form and the MAP (bottom)."""
@@ -108,7 +104,7 @@ def steady_figure(ctx) -> bytes:
     loaded = allp[allp[:, 1] != 0]
     v_load = float(loaded[0, 0]) if loaded.size else float(
         ctx.summary.get("derived", {}).get("voltage", allp[:, 0].max() if allp.size else 12.0))
-    fig, axes = plt.subplots(2, 2, figsize=(10, 6.6), sharex="col",
+    fig, axes = subplots(2, 2, figsize=(10, 6.6), sharex="col",
                              gridspec_kw={"height_ratios": [3, 1.3]})
     vmax = 1.1 * max(allp[:, 0].max() if allp.size else 12.0, v_load)
     v = np.linspace(0.0, vmax, 200)

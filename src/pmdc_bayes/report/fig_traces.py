@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._plot import COLORS, LABELS, plt, png
+from ._plot import COLORS, LABELS, png, styled, subplots
 from .predictive import TracePrediction
 
 __all__ = ["trace_figure"]
@@ -47,11 +47,12 @@ def _channel(ax, rax, tp: TracePrediction, c: str, t):
     rax.set_title(txt, loc="right", fontsize=7.5, pad=2)
 
 
+@styled
 def trace_figure(tp: TracePrediction) -> bytes:
     """PNG: speed (and current) with closed form, MAP and predictive band, residuals."""
     chans = tp.channels
     ratios = [3, 1.4] * len(chans)
-    fig, axes = plt.subplots(2 * len(chans), 1, sharex=True, figsize=(8.5, 2.6 * len(chans) + 1.4),
+    fig, axes = subplots(2 * len(chans), 1, sharex=True, figsize=(8.5, 2.6 * len(chans) + 1.4),
                              gridspec_kw={"height_ratios": ratios})
     t, tlabel = _time_axis(tp.trace.time)
     for k, c in enumerate(chans):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..paper.closed_form import gain, tf_full, time_constant
+from ..physics.motor import gain, tf_full, time_constant
 from ..inference.derived import derived_draws
 from ._doc import Table, fmt, pm
 from ._plot import UNIT_TEXT

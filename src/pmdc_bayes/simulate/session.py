@@ -15,23 +15,23 @@ with a fixed format and ``\\n`` line endings, so a seed gives byte-identical fil
 
 from __future__ import annotations
 
+import json
+import os
+import shutil
+import tomllib
+import zlib
+from pathlib import Path
+
 import jax
+import numpy as np
 
-jax.config.update("jax_enable_x64", True)
+from .._errors import SessionError, UsageError
+from .._x64 import x64
+from ..io.units import from_si, to_si
+from ..physics import motor
+from ..physics.solution import Params, make_experiment, simulate
+from .plan import Plan, TraceSpec, check_plan, load_plan
 
-import json  # noqa: E402
-import os  # noqa: E402
-import shutil  # noqa: E402
-import tomllib  # noqa: E402
-import zlib  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from .._errors import SessionError, UsageError  # noqa: E402
-from .plan import Plan, TraceSpec, check_plan, load_plan  # noqa: E402
-from ..physics.solution import Params, make_experiment, simulate, steady_state  # noqa: E402
-from ..io.units import from_si, to_si  # noqa: E402
 
 __all__ = ["simulate_session", "load_plan", "render_session", "true_steady", "true_trace",
            "sample_trace"]
@@ -68,12 +68,10 @@ def true_steady(truth: dict, va, tl=0.0):
     """
     p = _params(truth)
     va, tl = np.asarray(va, dtype=float), np.asarray(tl, dtype=float)
-    drive = p.K * va / p.Ra - tl
-    ia, w = steady_state(p, va, tl + np.sign(drive) * p.Tc)
-    turns = np.abs(drive) > p.Tc
-    return np.where(turns, ia, va / p.Ra), np.where(turns, w, 0.0)
+    return motor.steady_state(p.Ra, p.K, p.B, va, tl, p.Tc)
 
 
+@x64
 def true_trace(truth: dict, spec: TraceSpec):
     """Noise-free ``(t, ia, ω)`` of a trace (s, A, rad/s), with the sensor delay.
 
@@ -130,6 +128,7 @@ def _inline(table: dict[str, str]) -> str:
     return "{ " + ", ".join(f"{k} = {v}" for k, v in table.items()) + " }"
 
 
+@x64
 def render_session(plan: Plan, seed: int) -> dict[str, str]:
     """The generated files, name -> text: ``session.toml``, ``truth.json`` and the CSVs."""
     truth, files = plan.truth, {}
@@ -265,6 +264,7 @@ def _write(files: dict[str, str], out: Path, force: bool) -> None:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+@x64
 def simulate_session(plan, out_dir, *, seed: int | None = None, force: bool = False) -> Path:
     """Simulate the session a plan describes and write it to ``out_dir``.
 

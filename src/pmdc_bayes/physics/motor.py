@@ -1,0 +1,127 @@
+"""The motor's equations, written once: every other module calls these.
+
+Equations (1)–(22) of the reference paper (``docs/architecture.md`` lists who uses
+what).  Everything is SI: Ra (Ω), La (H), K = Kt = Kb (V·s/rad = N·m/A),
+B (N·m·s/rad), J (kg·m²), Tc (N·m), Va (V), TL (N·m), ia (A), ω (rad/s).
+
+The functions are plain arithmetic, so they accept Python floats, NumPy arrays
+(e.g. posterior draws) and JAX arrays or tracers alike; where a branch is needed
+(Coulomb friction) the array library of the arguments is used.
+
+State order
+-----------
+The documented state-space order is the paper's, equations (11)–(14):
+``x = (ω, ia)``, ``u = (TL, Va)``, ``y = ω`` (:data:`STATE`, :data:`INPUT`).  Functions
+returning a pair of signals return them as ``(ia, ω)`` (the order of equations
+(5)–(6)) and say so.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = [
+    "STATE",
+    "INPUT",
+    "OUTPUT",
+    "derivatives",
+    "steady_state",
+    "time_constant",
+    "electrical_time_constant",
+    "gain",
+    "tf_full",
+    "tf_first_order",
+    "tf_normalised",
+    "state_space",
+]
+
+STATE = ("omega", "ia")
+INPUT = ("TL", "Va")
+OUTPUT = ("omega",)
+
+
+def _xp(*args):
+    """NumPy, or jax.numpy when any argument is a JAX array (or tracer)."""
+    return jnp if any(isinstance(a, jax.Array) for a in args) else np
+
+
+def derivatives(Ra, La, K, B, J, ia, w, va=0.0, tl=0.0, tc=0.0):
+    """``(dia/dt, dω/dt)``, equations (5)–(6), with a friction torque ``tc`` (N·m) opposing
+    the motion (pass ``Tc·sign(ω)``; 0 for the viscous model).
+
+    With ``va = tl = tc = 0`` this is the state matrix applied to ``(ia, ω)``.
+    """
+    return (va - Ra * ia - K * w) / La, (K * ia - B * w - tl - tc) / J
+
+
+def steady_state(Ra, K, B, va, tl=0.0, tc=None):
+    """Steady ``(ia, ω)`` under constant Va and TL, equations (15)–(18).
+
+    Parameters
+    ----------
+    Ra, K, B : motor parameters (SI).
+    va, tl : armature voltage (V) and load torque (N·m); arrays broadcast.
+    tc : Coulomb friction torque (N·m), or None for the viscous model.
+
+    Notes
+    -----
+    Solving A·x + Bu·u = 0: ``ω = (K·Va − Ra·TL)/(K² + Ra·B)`` and
+    ``ia = (B·Va + K·TL)/(K² + Ra·B)``; with TL = 0 these are (17) and (18).  With
+    Coulomb friction the motor turns in the direction of the driving torque
+    ``K·Va/Ra − TL`` when it exceeds Tc, and the friction adds ``Tc`` to the load in that
+    direction; otherwise it is held at rest, ``ω = 0`` and ``ia = Va/Ra``.
+    """
+    den = K * K + Ra * B
+    if tc is None:
+        return (B * va + K * tl) / den, (K * va - Ra * tl) / den
+    xp = _xp(Ra, K, B, va, tl, tc)
+    drive = K * va / Ra - tl
+    t_eff = tl + xp.where(drive >= 0, 1.0, -1.0) * tc
+    stuck = xp.abs(drive) <= tc
+    ia = xp.where(stuck, va / Ra, (B * va + K * t_eff) / den)
+    w = xp.where(stuck, 0.0, (K * va - Ra * t_eff) / den)
+    return ia, w
+
+
+def time_constant(Ra, K, B, J):
+    """Mechanical time constant with La neglected, equation (9): ``τ = J·Ra/(B·Ra + K²)`` (s)."""
+    return J * Ra / (B * Ra + K * K)
+
+
+def electrical_time_constant(Ra, La):
+    """``τe = La/Ra`` (s)."""
+    return La / Ra
+
+
+def gain(Ra, K, B):
+    """Steady-state gain in rad/s per V, equation (10): ``G = Kt/(B·Ra + Kb·Kt)``."""
+    return K / (B * Ra + K * K)
+
+
+def tf_full(Ra, La, K, B, J):
+    """Equation (7): ω/Va = K / ((La·s + Ra)(J·s + B) + K²), as (num, den), highest power first."""
+    return np.array([K]), np.array([La * J, La * B + Ra * J, Ra * B + K * K])
+
+
+def tf_first_order(Ra, K, B, J):
+    """Equation (8): ω/Va = G / (τ·s + 1), as (num, den)."""
+    return np.array([gain(Ra, K, B)]), np.array([time_constant(Ra, K, B, J), 1.0])
+
+
+def tf_normalised(Ra, La, K, B, J):
+    """Equation (22): equation (7) with numerator and denominator divided by J."""
+    num, den = tf_full(Ra, La, K, B, J)
+    return num / J, den / J
+
+
+def state_space(Ra, La, K, B, J):
+    """State-space matrices (11)–(14) in the documented order: x = (ω, ia), u = (TL, Va),
+    y = ω."""
+    xp = _xp(Ra, La, K, B, J)
+    A = xp.array([[-B / J, K / J], [-K / La, -Ra / La]])
+    Bu = xp.array([[-1.0 / J, 0.0], [0.0, 1.0 / La]])
+    C = np.array([[1.0, 0.0]])
+    D = np.zeros((1, 2))
+    return A, Bu, C, D
