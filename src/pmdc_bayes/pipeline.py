@@ -1,4 +1,4 @@
-"""The ``pmdc-bayes fit`` pipeline: closed form → MAP (→ MCMC), written atomically.
+"""The ``pmdc-bayes fit`` pipeline: closed form → MAP (→ MCMC) → report, written atomically.
 
 A run directory is built beside its destination under a temporary name and renamed
 into place only when complete, so a crash never leaves a half-written run and never
@@ -25,11 +25,12 @@ from .inference.fit import fit_map
 from .inference.identifiability import identifiability
 from .io.loader import load_session
 from .inference.objective import build_model
+from .inference.result import RunResult
+from .io.session import Session
 from ._x64 import x64
 
-__all__ = ["run_fit", "default_out_dir", "UNITS", "versions"]
+__all__ = ["fit_session", "run_fit", "write_run", "default_out_dir", "versions"]
 
-UNITS = {"Ra": "ohm", "La": "H", "K": "V*s/rad", "B": "N*m*s/rad", "J": "kg*m^2", "Tc": "N*m"}
 _LIBRARIES = ("pmdc-bayes", "jax", "jaxlib", "diffrax", "optimistix", "emcee", "arviz", "numpy")
 
 
@@ -71,25 +72,18 @@ def _closed_form_theta(model, cf):
 
 
 @x64
-def run_fit(session_path, *, out: Path | None = None, force: bool = False,
-            mcmc: bool = True, friction: str | None = None, seed: int = 0,
-            holdout=(), compare_friction: bool = False,
-            progress=None) -> tuple[Path, dict]:
-    """Run the pipeline and write ``summary.json`` (and ``posterior.nc``) into ``out``.
+def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | None = None,
+                seed: int = 0, holdout=(), compare_friction: bool = False,
+                progress=None) -> RunResult:
+    """Every stage of a fit, in memory: closed form → MAP → (MCMC); the run's result.
 
-    Returns the run directory and the summary.  Raises :class:`UsageError` for an
-    existing ``out`` without ``force``.
+    ``summary`` of the result is what ``summary.json`` holds; nothing is written.
     """
     t_start = time.perf_counter()
-    session_full = load_session(session_path)
     for name in holdout:
-        session_full.trace(name) if name in {t.name for t in session_full.traces} else _no_trace(
-            session_full, name)
+        if name not in {t.name for t in session_full.traces}:
+            _no_trace(session_full, name)
     session = session_full.without_traces(holdout) if holdout else session_full
-    out = Path(out) if out is not None else default_out_dir(session.name)
-    if out.exists() and not force:
-        raise UsageError(f"{out}: already exists; choose another --out or pass --force to "
-                         "replace it")
     wall = {}
     t0 = time.perf_counter()
     cf = closed_form(session)
@@ -104,8 +98,8 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
 
     cf_theta = _closed_form_theta(model, cf)
     params = {}
-    for k, name in enumerate(model.names):
-        params[name] = {"unit": UNITS[name],
+    for name in model.names:
+        params[name] = {"unit": model.registry[name].unit,
                         "closed_form": float(getattr(cf, name)) if name != "Tc" else None,
                         "map": fit.values[name], "map_sd": fit.sd[name]}
     summary = {
@@ -127,7 +121,7 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     if session.truth:
         summary["truth"] = {k: session.truth.get(k) for k in model.names}
     summary["diagnostics"] = {"gates_passed": None, "failures": []}
-    extra = None
+    post = None
     wall["mcmc"] = 0.0
     if mcmc:
         t0 = time.perf_counter()
@@ -141,16 +135,51 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             summary["model_comparison"] = _compare_friction(session, cf, model, post,
                                                             seed=seed, progress=progress)
         wall["mcmc"] = time.perf_counter() - t0
-        extra = lambda tmp: post.idata.to_netcdf(tmp / "posterior.nc")  # noqa: E731
     wall["report"] = 0.0
     wall["total"] = time.perf_counter() - t_start
     summary["diagnostics"]["wall_s"] = wall
-    _write_atomically(out, {"summary.json": dumps(summary)},
-                      force=force, extra=extra)
-    from .report import report_stage  # the report (issue 6); records its wall time
+    draws = None if post is None else post.draws.reshape(-1, len(model.names))
+    return RunResult(summary, session, session_full, cf, model, fit, draws,
+                     None if post is None else post.idata)
 
-    report_stage(out, summary)
-    return out, summary
+
+@x64
+def run_fit(session_path, *, out: Path | None = None, force: bool = False,
+            mcmc: bool = True, friction: str | None = None, seed: int = 0,
+            holdout=(), compare_friction: bool = False,
+            progress=None) -> tuple[Path, dict]:
+    """Fit a session directory and write the run directory ``out``: ``summary.json``,
+    ``posterior.nc`` (with MCMC) and the report, all built beside ``out`` and moved into
+    place in one rename once complete.
+
+    Returns the run directory and the summary.  Raises :class:`UsageError` for an
+    existing ``out`` without ``force``.
+    """
+    session_full = load_session(session_path)
+    name = session_full.name
+    out = Path(out) if out is not None else default_out_dir(name)
+    if out.exists() and not force:
+        raise UsageError(f"{out}: already exists; choose another --out or pass --force to "
+                         "replace it")
+    result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
+                         holdout=holdout, compare_friction=compare_friction, progress=progress)
+    write_run(result, out, force=force)
+    return out, result.summary
+
+
+def write_run(result: RunResult, out: Path, *, force: bool = False) -> Path:
+    """Write a run directory (summary, posterior, report) atomically: everything is
+    built in a temporary sibling and renamed into place only when complete."""
+    from .report import report_stage
+
+    def fill(tmp: Path):
+        (tmp / "summary.json").write_text(dumps(result.summary))
+        if result.idata is not None:
+            result.idata.to_netcdf(tmp / "posterior.nc")
+        report_stage(result, out, tmp)
+
+    _write_atomically(Path(out), fill, force=force)
+    return Path(out)
 
 
 def _reference_voltage(session) -> float:
@@ -206,14 +235,11 @@ def _no_trace(session, name):
                      f"traces are: {names}")
 
 
-def _write_atomically(out: Path, files: dict, *, force: bool, extra=None):
+def _write_atomically(out: Path, fill, *, force: bool):
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        for name, text in files.items():
-            (tmp / name).write_text(text)
-        if extra is not None:
-            extra(tmp)
+        fill(tmp)
         if out.exists():
             if not force:
                 raise UsageError(f"{out}: already exists; pass --force to replace it")

@@ -22,17 +22,16 @@ import numpy as np
 
 from . import cache as _cache
 from .noise import Channel, noise_scale, typical_level
+from .params import PRIOR_FACTOR, motor_registry
 from ..paper.closed_form import ClosedForm
 from ..physics import motor
 from ..physics.solution import Params, experiment_from_traces, real_modes, simulate, simulate_padded
 from ..io.session import Session
 from .._x64 import x64
 
-__all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "PARAM_NAMES", "noise_scale"]
+__all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale"]
 
 NU0 = 2.0
-PRIOR_FACTOR = 10.0
-PARAM_NAMES = ("Ra", "La", "K", "B", "J", "Tc")
 STEADY_RELATIVE_NOISE = 0.01
 BATCH_CHUNK = 4  # parameter vectors evaluated together inside a batch (see benchmarks/)
 
@@ -48,8 +47,12 @@ class SessionModel:
     def __init__(self, session: Session, seed: ClosedForm, *, coulomb: bool):
         self.session = session
         self.coulomb = coulomb
-        self.names = PARAM_NAMES if coulomb else PARAM_NAMES[:5]
         self.seed = seed
+        self._steady = self._steady_arrays(session)
+        K, B, J = self.physical_seed()
+        self.registry = motor_registry(session, {"K": K, "B": B, "J": J, "Tc": self.tc_seed()},
+                                       coulomb=coulomb)
+        self.names = self.registry.names
         self.channels: list[Channel] = []
         self.exp = experiment_from_traces(session.traces) if session.traces else None
         speed_ch, current_ch = [], []
@@ -72,8 +75,7 @@ class SessionModel:
             cur = np.asarray(current_ch)[ct]
             self._current_mask = np.asarray(self.exp.mask) & (cur >= 0)[:, None]
             self._current_ch = np.where(cur >= 0, cur, 0)
-        st = self._steady_arrays(session)
-        self._steady = st
+        st = self._steady
         self._steady_w = self._add("steady: speed", "rad/s", st["w_mask"].sum(),
                                    STEADY_RELATIVE_NOISE * typical_level(st["w"], st["w_mask"]))
         self._steady_i = self._add("steady: current", "A", st["i_mask"].sum(),
@@ -84,7 +86,7 @@ class SessionModel:
                                  STEADY_RELATIVE_NOISE * (np.mean([s.tau for s in sr]) if sr else 1.0))
         self.n_obs = np.array([c.n for c in self.channels], dtype=float)
         self.s0 = np.array([c.s0 for c in self.channels], dtype=float)
-        self.prior_mean, self.prior_sd = self._priors(session, seed)
+        self.prior_sd = self.registry.prior_width_log()
         self.data = self._collect_data()
 
     # -- construction helpers ---------------------------------------------------------
@@ -94,10 +96,8 @@ class SessionModel:
         st = self._steady
         d = {"steady_v": st["v"], "steady_tl": st["tl"], "steady_w": st["w"],
              "steady_i": st["i"], "steady_w_mask": st["w_mask"], "steady_i_mask": st["i_mask"],
-             "tau_obs": self._tau_obs, "n_obs": self.n_obs, "s0": self.s0,
-             "ra": [self.session.Ra.value, self.session.Ra.sd],
-             "la": [self.session.La.value, self.session.La.sd],
-             "prior_mean": self.prior_mean, "prior_sd": self.prior_sd}
+             "tau_obs": self._tau_obs, "n_obs": self.n_obs, "s0": self.s0}
+        d["prior_centre"], d["prior_scale"] = self.registry.prior_arrays()
         if self.exp is not None:
             d.update(exp=self.exp, speed=self._speed, current=self._current,
                      current_mask=self._current_mask, speed_ch=self._speed_ch,
@@ -130,16 +130,6 @@ class SessionModel:
         arr["i_mask"] = np.asarray(im, dtype=bool)
         return arr
 
-    def _priors(self, session: Session, seed: ClosedForm):
-        """Prior means and sds in θ space (Ra, La: Gaussian in value, linearised here
-        only for the seed spread; their exact Gaussian terms are in :meth:`log_prior`)."""
-        tc_seed = self.tc_seed()
-        mean = np.log([session.Ra.value, session.La.value, *self.physical_seed(), tc_seed])
-        sd = np.array([session.Ra.sd / session.Ra.value, session.La.sd / session.La.value]
-                      + [np.log(PRIOR_FACTOR)] * 4)
-        n = len(self.names)
-        return mean[:n], sd[:n]
-
     def physical_seed(self) -> tuple[float, float, float]:
         """K, B, J to start from and centre the priors on: the closed form's, except
         where it gave a non-physical value (B ≤ 0 when the no-load current is within
@@ -167,7 +157,8 @@ class SessionModel:
         """Everything compiled code depends on besides ``data``'s values: sessions with
         the same key share compiled functions."""
         leaves, treedef = jax.tree_util.tree_flatten(self.data)
-        return (self.coulomb, self.names, len(self.channels), self.exp is None, treedef,
+        return (self.coulomb, self.registry.structure(), len(self.channels), self.exp is None,
+                treedef,
                 tuple((x.shape, str(x.dtype)) for x in leaves))
 
     def compiled(self, name: str, build):
@@ -180,16 +171,15 @@ class SessionModel:
 
     # -- parameters ----------------------------------------------------------------------
     def params(self, theta) -> Params:
-        """The one place θ (log space) becomes physical parameters (SI)."""
-        vals = jnp.exp(theta)
-        tc = vals[5] if self.coulomb else 0.0
-        return Params(vals[0], vals[1], vals[2], vals[3], vals[4], tc)
+        """The motor parameters (SI) at θ, through the registry's transforms."""
+        v = self.registry.values(theta)
+        return Params(v["Ra"], v["La"], v["K"], v["B"], v["J"], v.get("Tc", 0.0))
 
     def theta(self, values: dict) -> jax.Array:
-        return jnp.log(jnp.asarray([values[k] for k in self.names], dtype=jnp.float64))
+        return jnp.asarray(self.registry.to_theta(values))
 
     def theta_seed(self) -> jax.Array:
-        return jnp.asarray(self.prior_mean)
+        return jnp.asarray(self.registry.seed_theta())
 
     # -- predictions --------------------------------------------------------------------
     def steady_prediction(self, p: Params, v, tl):
@@ -244,17 +234,10 @@ class SessionModel:
                 for r, m in self._steady_and_tau_residuals(self.params(theta), data=d)]
         return ss.at[n_ch - 3:].add(jnp.stack(tail))
 
-    def _prior_terms(self, theta, d):
-        p = self.params(theta)
-        bench = jnp.stack([(p.Ra - d["ra"][0]) / d["ra"][1], (p.La - d["la"][0]) / d["la"][1]])
-        z = (theta[2:] - d["prior_mean"][2:]) / d["prior_sd"][2:]
-        return bench, z
-
     def log_prior(self, theta, *, data=None):
-        """Gaussian bench priors on Ra, La (in value); log-normal on K, B, J, Tc."""
-        bench, z = self._prior_terms(theta, self._d(data))
-        # Ra, La are Gaussian in value: add the log-Jacobian of θ = log(value).
-        return -0.5 * jnp.sum(bench * bench) - 0.5 * jnp.sum(z * z) + theta[0] + theta[1]
+        """The registry's priors (bench Gaussians in value, log-normal elsewhere)."""
+        d = self._d(data)
+        return self.registry.log_prior(theta, d["prior_centre"], d["prior_scale"])
 
     def log_likelihood(self, theta, *, fast: bool = False, data=None):
         """Σ_c −(n_c + ν0)/2 · log(ν0·s0_c² + SS_c): Gaussian noise, σ_c integrated out."""
@@ -307,8 +290,8 @@ class SessionModel:
         n_ch = len(self.channels)
         for k, (r, m) in enumerate(self._steady_and_tau_residuals(self.params(theta), data=d)):
             parts.append(jnp.where(m, r, 0.0) * sw[n_ch - 3 + k])
-        bench, z = self._prior_terms(theta, d)
-        return jnp.concatenate(parts + [bench, z])
+        prior = self.registry.prior_residuals(theta, d["prior_centre"], d["prior_scale"])
+        return jnp.concatenate(parts + [prior])
 
     @x64
     def predict(self, theta, *, coulomb: bool | None = None):

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-__all__ = ["KINDS", "SI_UNIT", "to_si", "from_si", "unit_factor"]
+__all__ = ["KINDS", "SI_UNIT", "DISPLAY", "display_unit", "to_si", "from_si", "unit_factor"]
 
 _TORQUE = {"N*m": 1.0, "N.m": 1.0, "N·m": 1.0, "Nm": 1.0, "mN*m": 1e-3, "mN.m": 1e-3,
            "mN·m": 1e-3, "mNm": 1e-3}
@@ -36,6 +36,19 @@ SI_UNIT: dict[str, str] = {
     "inductance": "H", "resistance": "ohm", "inertia": "kg*m^2", "damping": "N*m*s/rad",
     "motor_constant": "V*s/rad", "duty": "1",
 }
+
+# How each SI unit name (as written in summary.json) is shown to people: the one table
+# every report, figure and printed table uses.
+DISPLAY: dict[str, str] = {
+    "ohm": "Ω", "H": "H", "V*s/rad": "V·s/rad", "N*m/A": "N·m/A", "N*m*s/rad": "N·m·s/rad",
+    "kg*m^2": "kg·m²", "N*m": "N·m", "s": "s", "rad/s": "rad/s", "A": "A", "V": "V",
+    "rad/s/V": "rad/s per V", "rpm/V": "rpm/V", "1": "", "rad": "rad",
+}
+
+
+def display_unit(unit: str) -> str:
+    """The unit as shown to people (``"N*m"`` → ``"N·m"``); unknown names unchanged."""
+    return DISPLAY.get(unit, unit)
 
 
 def unit_factor(kind: str, unit: str) -> float:

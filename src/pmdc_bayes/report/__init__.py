@@ -14,7 +14,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from ._context import load_context
+from ._context import context_from_result, load_context
 from ..io._jsonio import dumps
 from .build import CONTROLLER_FILE, build_sections
 from .export import controller_model, to_control
@@ -45,43 +45,49 @@ def _figures(sections):
 
 
 @x64
-def write_report(run_dir) -> dict[str, Path]:
-    """Write the report of the run in ``run_dir``; return the paths written.
+def write_report(run_dir, *, result=None, into=None) -> dict[str, Path]:
+    """Write the report of a run; return the paths written.
 
-    Keys: ``html``, ``markdown``, ``controller`` and ``figures`` (a list).  Raises
-    :class:`pmdc_bayes.UsageError` when ``run_dir`` holds no ``summary.json``.
+    Parameters
+    ----------
+    run_dir : the run directory (read when ``result`` is not given; named in the report).
+    result : the run's :class:`~pmdc_bayes.inference.result.RunResult`, when in memory.
+    into : where to write (default ``run_dir``), e.g. a run directory still being built.
+
+    Keys of the result: ``html``, ``markdown``, ``controller`` and ``figures`` (a list).
+    Raises :class:`pmdc_bayes.UsageError` when ``run_dir`` holds no usable run.
     """
-    ctx = load_context(run_dir)
-    run_dir = ctx.run_dir
+    ctx = load_context(run_dir) if result is None else context_from_result(result, run_dir)
+    dest = Path(run_dir if into is None else into)
     sections, model = build_sections(ctx)
     s = ctx.summary["session"]
     title = f"pmdc-bayes report: {s['motor']} (session {s['name']!r})"
-    figdir = run_dir / FIGURES
+    figdir = dest / FIGURES
     figdir.mkdir(exist_ok=True)
     figs = []
     for fig in _figures(sections):
         path = figdir / f"{fig.name}.png"
         _write(path, fig.png)
         figs.append(path)
-    paths = {"html": run_dir / "report.html", "markdown": run_dir / "report.md",
-             "controller": run_dir / CONTROLLER_FILE, "figures": figs}
+    paths = {"html": dest / "report.html", "markdown": dest / "report.md",
+             "controller": dest / CONTROLLER_FILE, "figures": figs}
     _write(paths["controller"], json.dumps(model, indent=2))
     _write(paths["markdown"], render_markdown(title, sections, figdir=FIGURES))
     _write(paths["html"], render_html(title, sections))
     return paths
 
 
-@x64
-def report_stage(run_dir, summary: dict) -> dict[str, Path]:
-    """The report stage of ``pmdc-bayes fit``: write the report, record its wall time in
+def report_stage(result, run_dir, into) -> dict[str, Path]:
+    """The report stage of ``pmdc-bayes fit``: write the report of ``result`` into the run
+    directory being built (``into``), record its wall time in
     ``summary["diagnostics"]["wall_s"]`` (``report`` and ``total``) and rewrite
-    ``summary.json`` atomically."""
+    ``summary.json`` there."""
     t0 = time.perf_counter()
-    paths = write_report(run_dir)
+    paths = write_report(run_dir, result=result, into=into)
+    summary = result.summary
     wall = summary.setdefault("diagnostics", {}).setdefault("wall_s", {})
     dt = time.perf_counter() - t0
     wall["report"] = dt
     wall["total"] = wall.get("total", 0.0) + dt
-    _write(Path(run_dir) / "summary.json", dumps(summary))
+    _write(Path(into) / "summary.json", dumps(summary))
     return paths
-

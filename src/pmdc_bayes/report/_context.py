@@ -1,28 +1,25 @@
 """Everything a report needs from a finished run, loaded once.
 
-A run directory holds ``summary.json`` and, when the sampler ran, ``posterior.nc``;
-the session is re-read from the path the summary records, so simulations for the
-figures use exactly the data of the fit.
+The report is built from a :class:`~pmdc_bayes.inference.result.RunResult`: the one a
+run just produced, or one read back from a run directory (``summary.json``,
+``posterior.nc`` and the session at the path the summary records).
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
-import jax
 import numpy as np
 
-from .._errors import UsageError
-from ..paper.closed_form import ClosedForm, closed_form
-from ..io.loader import load_session
 from ..inference.objective import SessionModel, build_model
+from ..inference.result import RunResult, read_run
 from ..io.session import Session
+from ..paper.closed_form import ClosedForm
 from .predictive import TracePrediction, predict_traces
 from .._x64 import x64
 
-__all__ = ["ReportContext", "load_context", "N_PREDICTIVE_DRAWS"]
+__all__ = ["ReportContext", "load_context", "context_from_result", "N_PREDICTIVE_DRAWS"]
 
 N_PREDICTIVE_DRAWS = 100  # posterior draws simulated for the predictive bands
 
@@ -76,6 +73,10 @@ class ReportContext:
     def best_label(self) -> str:
         return "posterior mean" if self.has_posterior else "MAP"
 
+    def unit(self, name: str) -> str:
+        """A parameter's SI unit as written in ``summary.json`` (from the registry)."""
+        return self.summary["parameters"][name]["unit"]
+
     def sd(self, name: str) -> float:
         """Posterior sd of a parameter (SI), else its Laplace sd at the MAP."""
         row = self.summary["parameters"][name]
@@ -91,49 +92,14 @@ class ReportContext:
         return corr * np.outer(sd, sd)
 
 
-def _read_summary(run_dir: Path) -> dict:
-    path = run_dir / "summary.json"
-    if not path.is_file():
-        raise UsageError(f"{run_dir}: no summary.json here; give the directory a "
-                         "'pmdc-bayes fit' run wrote")
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise UsageError(f"{path}: not valid JSON ({exc}); rerun 'pmdc-bayes fit'") from None
-
-
-def _read_posterior(run_dir: Path, names) -> tuple:
-    path = run_dir / "posterior.nc"
-    if not path.is_file():
-        return None, None
-    from ..inference.diagnostics import az
-
-    idata = az.from_netcdf(path)
-    post = idata.posterior
-    draws = np.stack([np.asarray(post[n].values, dtype=float).reshape(-1) for n in names],
-                     axis=1)
-    return draws, idata
-
-
 @x64
-def load_context(run_dir) -> ReportContext:
-    """Read a run directory and compute the simulations the report shows."""
-    run_dir = Path(run_dir)
-    summary = _read_summary(run_dir)
-    info = summary["session"]
-    session_full = load_session(info["path"])
-    held = list(info.get("holdout") or [])
-    session = session_full.without_traces(held) if held else session_full
-    cf = closed_form(session)
-    coulomb = info.get("friction") == "coulomb"
-    model = build_model(session, cf, coulomb=coulomb)
-    names = tuple(model.names)
-    params = summary["parameters"]
-    values = {"closed_form": dict(cf.params(), Tc=0.0),
-              "map": {n: float(params[n]["map"]) for n in names}}
-    draws, idata = _read_posterior(run_dir, names)
-    if draws is not None:
-        values["mean"] = {n: float(np.mean(draws[:, k])) for k, n in enumerate(names)}
+def context_from_result(result: RunResult, run_dir) -> ReportContext:
+    """The report's view of a run result, with the simulations the report shows;
+    ``run_dir`` is where the run lives (named in the report)."""
+    summary, session, model, cf = result.summary, result.session, result.model, result.closed_form
+    names = result.names
+    values = result.values()
+    draws = result.draws
     truth = summary.get("truth") or session.truth
     if truth:
         truth = {n: truth.get(n) for n in names}
@@ -145,9 +111,16 @@ def load_context(run_dir) -> ReportContext:
     seed = int(summary.get("seed", 0))
     preds = predict_traces(model, values, sub, noise, seed=seed)
     holdout = []
+    held = list(summary["session"].get("holdout") or [])
     if held:
-        others = [t.name for t in session_full.traces if t.name not in held]
-        ho_model = build_model(session_full.without_traces(others), cf, coulomb=coulomb)
+        full = result.session_full
+        others = [t.name for t in full.traces if t.name not in held]
+        ho_model = build_model(full.without_traces(others), cf, coulomb=model.coulomb)
         holdout = predict_traces(ho_model, values, sub, noise, seed=seed + 1, held_out=True)
-    return ReportContext(run_dir, summary, session_full, session, cf, model, names, values,
-                         truth, draws, idata, preds, holdout)
+    return ReportContext(Path(run_dir), summary, result.session_full, session, cf, model, names,
+                         values, truth, draws, result.idata, preds, holdout)
+
+
+def load_context(run_dir) -> ReportContext:
+    """Read a run directory and compute the simulations the report shows."""
+    return context_from_result(read_run(run_dir), run_dir)

@@ -19,15 +19,15 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import NullLocator
 
-__all__ = ["subplots", "styled", "png", "COLORS", "LABELS", "scale_of", "UNIT_TEXT",
+from ..io.units import display_unit
+
+__all__ = ["subplots", "styled", "png", "COLORS", "LABELS", "scale_of",
            "arviz_plot", "Line2D", "NullLocator", "STYLE"]
 
 COLORS = {"measured": "0.35", "closed_form": "tab:orange", "map": "tab:blue",
           "mean": "tab:green", "truth": "tab:purple", "published": "tab:red"}
 LABELS = {"closed_form": "closed form", "map": "MAP", "mean": "posterior predictive mean",
           "truth": "truth (simulated session)"}
-UNIT_TEXT = {"Ra": "Ω", "La": "H", "K": "V·s/rad", "B": "N·m·s/rad", "J": "kg·m²",
-             "Tc": "N·m"}
 
 STYLE = {"figure.dpi": 110, "savefig.dpi": 110, "font.size": 9, "axes.titlesize": 10,
          "legend.fontsize": 8, "axes.grid": True, "grid.alpha": 0.3}
@@ -58,9 +58,10 @@ def png(fig) -> bytes:
     return buf.getvalue()
 
 
-def scale_of(name: str, value: float) -> tuple[float, str]:
-    """A power-of-ten factor and an axis label for a parameter, e.g. ``J (10⁻⁴ kg·m²)``."""
-    unit = UNIT_TEXT.get(name, "")
+def scale_of(name: str, value: float, unit: str) -> tuple[float, str]:
+    """A power-of-ten factor and an axis label for a parameter, e.g. ``J (10⁻⁴ kg·m²)``;
+    ``unit`` is the SI unit as written in ``summary.json``."""
+    unit = display_unit(unit)
     if value == 0 or not math.isfinite(value):
         return 1.0, f"{name} ({unit})"
     e = math.floor(math.log10(abs(value)))

@@ -4,7 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._plot import COLORS, Line2D, NullLocator, UNIT_TEXT, arviz_plot, png, scale_of, styled, subplots
+from ..io.units import display_unit
+from ._plot import (
+    COLORS,
+    Line2D,
+    NullLocator,
+    arviz_plot,
+    png,
+    scale_of,
+    styled,
+    subplots,
+)
 
 __all__ = ["corner_figure", "forest_figure", "chains_figure", "ranks_figure", "CORNER_NAMES"]
 
@@ -55,7 +65,7 @@ def corner_figure(ctx) -> bytes:
     """PNG: pair plot of J, B, K (and Tc) with the closed form, MAP and truth."""
     names = [n for n in CORNER_NAMES if n in ctx.names]
     d, source = _samples(ctx, names)
-    scales = [scale_of(n, float(np.mean(d[:, k]))) for k, n in enumerate(names)]
+    scales = [scale_of(n, float(np.mean(d[:, k])), ctx.unit(n)) for k, n in enumerate(names)]
     ds = d * np.array([s for s, _ in scales])
     pts = {"closed_form": ctx.values["closed_form"], "map": ctx.values["map"]}
     if ctx.truth:
@@ -154,7 +164,8 @@ def forest_figure(ctx, rows) -> bytes:
     ax.xaxis.set_minor_locator(NullLocator())
     ax.axvline(0.0, color="k", lw=0.7)
     ax.set_yticks(range(len(names)))
-    ax.set_yticklabels([f"{n} ({UNIT_TEXT[n]})\n{ref[n]:.4g}" for n in reversed(names)])
+    ax.set_yticklabels([f"{n} ({display_unit(ctx.unit(n))})\n{ref[n]:.4g}"
+                        for n in reversed(names)])
     ax.set_ylim(-0.7, len(names) - 0.3)
     ax.set_xlabel(f"difference from the {ctx.best_label} (%, linear within ±{lin:.2g} %, "
                   "logarithmic beyond)")
@@ -190,7 +201,7 @@ def chains_figure(ctx) -> bytes:
     for name in ctx.names:
         x = np.asarray(post[name].values)
         x = x[:, :: max(1, x.shape[1] // 500)]  # at most ~500 steps per walker drawn
-        f, labels[name] = scale_of(name, float(np.mean(x)))
+        f, labels[name] = scale_of(name, float(np.mean(x)), ctx.unit(name))
         scaled[name] = x * f
     n = len(ctx.names)
     fig, axes = subplots(n, 2, figsize=(9, 1.6 * n + 0.5), squeeze=False)

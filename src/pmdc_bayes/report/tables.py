@@ -7,7 +7,7 @@ import numpy as np
 from ..physics.motor import gain, tf_full, time_constant
 from ..inference.derived import derived_draws
 from ._doc import Table, fmt, pm
-from ._plot import UNIT_TEXT
+from ..io.units import display_unit
 from .predictive import METHODS
 
 __all__ = ["parameter_table", "derived_table", "diagnostics_table", "rms_table",
@@ -34,7 +34,7 @@ def parameter_table(ctx) -> Table:
     rows = []
     for n in ctx.names:
         r = ctx.summary["parameters"][n]
-        cells = [n, UNIT_TEXT[n], fmt(r["closed_form"]) if r["closed_form"] is not None
+        cells = [n, display_unit(r["unit"]), fmt(r["closed_form"]) if r["closed_form"] is not None
                  else "— (none)", pm(r["map"], r["map_sd"])]
         if post:
             cells += [pm(r.get("mean"), r.get("sd")),

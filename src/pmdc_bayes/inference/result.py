@@ -1,0 +1,124 @@
+"""The result of a run, handed from stage to stage, and read back from a run directory.
+
+:class:`RunResult` carries what each stage produced: the session, the closed form,
+the model (with its parameter registry), the MAP fit, the posterior draws and their
+ArviZ record, and ``summary`` (its serialisation, written as ``summary.json``).  The
+report is built from a :class:`RunResult`, either the one a run just produced or one
+read back from disk by :func:`read_run`.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._errors import SessionError, UsageError
+from .._x64 import x64
+from ..io.loader import load_session
+from ..io.session import Session
+from ..paper.closed_form import ClosedForm, closed_form
+from .fit import FitResult
+from .objective import SessionModel, build_model
+
+__all__ = ["RunResult", "read_run", "read_summary"]
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """A finished run.
+
+    Attributes
+    ----------
+    summary : the JSON-ready record of the run (``summary.json``).
+    session : the session the fit saw (hold-out traces removed).
+    session_full : the session with every trace.
+    closed_form : the paper's closed form of ``session``, or None where it cannot run.
+    model : the objective (its ``registry`` lists the parameters).
+    fit : the MAP fit, or None for a run read back from disk (``summary`` has it).
+    draws : posterior draws ``(N, P)`` in SI in the registry's order, or None.
+    idata : the ArviZ record of the posterior, or None.
+    """
+
+    summary: dict
+    session: Session
+    session_full: Session
+    closed_form: ClosedForm | None
+    model: SessionModel
+    fit: FitResult | None = None
+    draws: np.ndarray | None = None
+    idata: object = None
+
+    @property
+    def names(self) -> tuple:
+        return tuple(self.model.names)
+
+    @property
+    def has_posterior(self) -> bool:
+        return self.draws is not None
+
+    def values(self) -> dict:
+        """``{"closed_form" | "map" | "mean": {name: SI value}}`` (``closed_form`` only when
+        the method ran, with ``Tc = 0``; ``mean`` only with a posterior)."""
+        params = self.summary["parameters"]
+        out = {"map": {n: float(params[n]["map"]) for n in self.names}}
+        if self.closed_form is not None:
+            out["closed_form"] = dict(self.closed_form.params(), Tc=0.0)
+        if self.draws is not None:
+            out["mean"] = {n: float(np.mean(self.draws[:, k])) for k, n in enumerate(self.names)}
+        return out
+
+
+def read_summary(run_dir: Path) -> dict:
+    """``summary.json`` of a run directory, or a :class:`UsageError` saying what is wrong."""
+    path = Path(run_dir) / "summary.json"
+    if not path.is_file():
+        raise UsageError(f"{run_dir}: no summary.json here; give the directory a "
+                         "'pmdc-bayes fit' run wrote")
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise UsageError(f"{path}: not valid JSON ({exc}); rerun 'pmdc-bayes fit'") from None
+    if not isinstance(summary, dict) or not {"session", "parameters", "fit"} <= set(summary):
+        raise UsageError(f"{path}: not a summary written by 'pmdc-bayes fit' (keys session, "
+                         "parameters and fit are missing); rerun 'pmdc-bayes fit'")
+    return summary
+
+
+def _read_posterior(run_dir: Path, names) -> tuple:
+    path = run_dir / "posterior.nc"
+    if not path.is_file():
+        return None, None
+    from .diagnostics import az
+
+    try:
+        idata = az.from_netcdf(path)
+        post = idata.posterior
+        draws = np.stack([np.asarray(post[n].values, dtype=float).reshape(-1) for n in names],
+                         axis=1)
+    except Exception as exc:  # any unreadable or foreign file: one line, not a traceback
+        raise UsageError(f"{path}: cannot be read as this run's posterior ({type(exc).__name__}:"
+                         f" {exc}); rerun 'pmdc-bayes fit'") from None
+    return draws, idata
+
+
+@x64
+def read_run(run_dir) -> RunResult:
+    """The :class:`RunResult` of a finished run directory (the session is re-read from
+    the path its summary records)."""
+    run_dir = Path(run_dir)
+    summary = read_summary(run_dir)
+    info = summary["session"]
+    session_full = load_session(info["path"])
+    held = list(info.get("holdout") or [])
+    session = session_full.without_traces(held) if held else session_full
+    try:
+        cf = closed_form(session)
+    except SessionError:
+        cf = None
+    coulomb = info.get("friction") == "coulomb"
+    model = build_model(session, cf, coulomb=coulomb)
+    draws, idata = _read_posterior(run_dir, model.names)
+    return RunResult(summary, session, session_full, cf, model, None, draws, idata)
