@@ -1,9 +1,52 @@
-"""pmdc-bayes: identify permanent-magnet DC motor parameters with honest uncertainty."""
+"""pmdc-bayes: identify permanent-magnet DC motor parameters with honest uncertainty.
+
+The public names below are imported on first use, so that ``import pmdc_bayes`` (and the
+command line's start-up) stays light.
+"""
 
 from ._errors import SessionError, UsageError
-from .paper.closed_form import ClosedForm, closed_form
-from .io.session import Session
 
-__all__ = ["ClosedForm", "Session", "SessionError", "UsageError", "closed_form", "__version__"]
+__all__ = [
+    "ClosedForm",
+    "RunResult",
+    "Session",
+    "SessionError",
+    "UsageError",
+    "closed_form",
+    "fit_session",
+    "load_session",
+    "read_run",
+    "run_fit",
+    "simulate_session",
+    "write_report",
+    "__version__",
+]
 
 __version__ = "0.1.0"
+
+_LAZY = {
+    "ClosedForm": ".paper.closed_form",
+    "closed_form": ".paper.closed_form",
+    "Session": ".io.session",
+    "load_session": ".io.loader",
+    "RunResult": ".inference.result",
+    "read_run": ".inference.result",
+    "fit_session": ".pipeline",
+    "run_fit": ".pipeline",
+    "simulate_session": ".simulate.session",
+    "write_report": ".report",
+}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'pmdc_bayes' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -100,7 +100,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     params = {}
     for name in model.names:
         params[name] = {"unit": model.registry[name].unit,
-                        "closed_form": float(getattr(cf, name)) if name != "Tc" else None,
+                        "closed_form": cf.params().get(name),
                         "map": fit.values[name], "map_sd": fit.sd[name]}
     summary = {
         "session": {"name": session.name, "path": str(session.root), "motor": session.motor,

@@ -16,10 +16,12 @@ with warnings.catch_warnings():
     warnings.filterwarnings("ignore", message=r"\s*ArviZ is undergoing", category=FutureWarning)
     import arviz as az
 
-__all__ = ["summarize", "gates", "compare_laplace", "loo_compare", "format_loo", "az"]
+__all__ = ["R_HAT_MAX", "ESS_MIN", "summarize", "gates", "compare_laplace", "loo_compare", "format_loo", "az"]
 
 HDI_PROB = 0.94
 LAPLACE_TOLERANCE = 0.2
+R_HAT_MAX = 1.01  # the convergence gates: rank-normalised split R-hat at most this,
+ESS_MIN = 400  # and bulk and tail ESS at least this, for every parameter
 _PARETO_WARNING = r"Estimated shape parameter of Pareto distribution"
 
 
@@ -34,8 +36,8 @@ def summarize(posterior) -> dict[str, dict[str, float]]:
     return {name: {c: float(table.loc[name, c]) for c in cols} for name in posterior.names}
 
 
-def gates(summary: dict, *, posterior=None, r_hat_max: float = 1.01,
-          ess_min: float = 400) -> tuple[bool, list[str]]:
+def gates(summary: dict, *, posterior=None, r_hat_max: float = R_HAT_MAX,
+          ess_min: float = ESS_MIN) -> tuple[bool, list[str]]:
     """Whether the sample may be trusted, and why not in words, one message per failure.
 
     ``posterior`` (optional) adds a failure when the run stopped at its step cap.

@@ -11,7 +11,6 @@ import numpy as np
 import xarray as xr
 
 from .diagnostics import az
-from .objective import NU0
 
 __all__ = ["to_inference_data", "LL_DRAWS"]
 
@@ -20,64 +19,26 @@ _LL_BATCH = 50
 
 
 def _pointwise_fn(model):
-    """Compiled (once per session structure) Gaussian log-density of every padded
-    sample, at the noise level σ_c² = (ν0·s0_c² + SS_c)/(n_c + ν0) of its channel."""
-
-    def one(theta, data):
-        ss = model.sums_of_squares(theta, data=data)
-        var = (NU0 * data["s0"] ** 2 + ss) / (data["n_obs"] + NU0)
-
-        def dens(r, v):
-            return -0.5 * (jnp.log(2 * jnp.pi * v) + r * r / v)
-
-        out = []
-        if model.exp is not None:
-            rw, ri = model.trace_residuals(theta, data=data)
-            out += [dens(rw, var[data["speed_ch"]][:, None]),
-                    dens(ri, var[data["current_ch"]][:, None])]
-        n_ch = len(model.channels)
-        for k, (r, _) in enumerate(model._steady_and_tau_residuals(model.params(theta),
-                                                                   data=data)):
-            # lax.map cannot batch an empty output: an empty channel gets a dummy entry
-            # that its (empty) selection never reads.
-            out.append(dens(r if r.shape[0] else jnp.zeros(1), var[n_ch - 3 + k]))
-        return out
-
+    """:meth:`SessionModel.padded_log_density` over a batch of θ, compiled once per
+    session structure."""
     fn = model.compiled("pointwise", lambda: jax.jit(
-        lambda thetas, data: jax.lax.map(lambda t: one(t, data), thetas, batch_size=4)))
+        lambda thetas, data: jax.lax.map(lambda t: model.padded_log_density(t, data=data),
+                                         thetas, batch_size=4)))
     return lambda thetas: fn(thetas, model.data)
 
 
-def _selection(model):
-    """Per channel, (which output of :func:`_pointwise_fn`, flat indices of its
-    observations), in channel order."""
-    n_ch = len(model.channels)
-    sel = []
-    if model.exp is not None:
-        mask = np.asarray(model.exp.mask)
-        for c in range(n_ch - 3):
-            m_w = (mask & (model._speed_ch == c)[:, None]).reshape(-1)
-            m_i = (model._current_mask & (model._current_ch == c)[:, None]).reshape(-1)
-            sel.append((0, np.nonzero(m_w)[0]) if m_w.any() else (1, np.nonzero(m_i)[0]))
-    base = 2 if model.exp is not None else 0
-    st = model._steady
-    sel.append((base, np.nonzero(st["w_mask"])[0]))
-    sel.append((base + 1, np.nonzero(st["i_mask"])[0]))
-    sel.append((base + 2, np.arange(len(model.session.step_readings))))
-    return sel
-
-
 def _padded_pointwise(model, theta):
-    """Per channel the log-density of every (padded) sample and the masks (independent
-    of θ) that select the observations (kept for the tests, which check it against
+    """Per channel the log-density of every padded sample of its output, and the mask
+    that selects the channel's observations (checked in the tests against
     :meth:`SessionModel.pointwise_log_likelihood`)."""
-    ss = model.sums_of_squares(theta)
-    var = (NU0 * jnp.asarray(model.s0) ** 2 + ss) / (jnp.asarray(model.n_obs) + NU0)
+    outs = model.padded_log_density(theta)
     dens, masks = [], []
-    for c, (r, m) in enumerate(model.channel_residuals(theta)):
-        r = jnp.asarray(r).reshape(-1)
-        dens.append(-0.5 * (jnp.log(2 * jnp.pi * var[c]) + r * r / var[c]))
-        masks.append(jnp.asarray(m, dtype=bool).reshape(-1))
+    for k, idx in model.observation_selection():
+        flat = jnp.asarray(outs[k]).reshape(-1)
+        mask = np.zeros(flat.shape[0], dtype=bool)
+        mask[idx] = True
+        dens.append(flat)
+        masks.append(mask)
     return dens, masks
 
 
@@ -124,7 +85,7 @@ def _observed(model) -> list[np.ndarray]:
 def _pointwise(model, chain_log: np.ndarray, thin: int) -> np.ndarray:
     """Pointwise log-likelihood ``(chains, kept, n_obs)`` at every ``thin``-th draw."""
     fn = _pointwise_fn(model)
-    sel = _selection(model)
+    sel = model.observation_selection()
     sub = chain_log[:, ::thin]
     flat = sub.reshape(-1, sub.shape[-1])
     m = math.ceil(flat.shape[0] / _LL_BATCH) * _LL_BATCH

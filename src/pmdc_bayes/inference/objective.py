@@ -15,19 +15,18 @@ a factor ``PRIOR_FACTOR`` wide (one standard deviation), which do not bind.
 
 from __future__ import annotations
 
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import cache as _cache
-from .noise import Channel, noise_scale, typical_level
-from .params import PRIOR_FACTOR, motor_registry
+from .._x64 import x64
+from ..io.session import Session
 from ..paper.closed_form import ClosedForm
 from ..physics import motor
 from ..physics.solution import Params, experiment_from_traces, real_modes, simulate, simulate_padded
-from ..io.session import Session
-from .._x64 import x64
+from . import cache as _cache
+from .noise import Channel, noise_scale, typical_level
+from .params import PRIOR_FACTOR, motor_registry
 
 __all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale"]
 
@@ -208,15 +207,16 @@ class SessionModel:
 
     def channel_residuals(self, theta, *, fast: bool = False, data=None):
         """Residuals per channel (observed − model) with their masks, in channel order."""
+        d = self._d(data)
         out = []
         if self.exp is not None:
-            rw, ri = self.trace_residuals(theta, fast=fast)
+            rw, ri = self.trace_residuals(theta, fast=fast, data=d)
             mask = np.asarray(self.exp.mask)
             for c in range(len(self.channels) - 3):
                 m_w = mask & (self._speed_ch == c)[:, None]
                 m_i = self._current_mask & (self._current_ch == c)[:, None]
                 out.append((rw, m_w) if m_w.any() else (ri, m_i))
-        return out + self._steady_and_tau_residuals(self.params(theta))
+        return out + self._steady_and_tau_residuals(self.params(theta), data=d)
 
     def sums_of_squares(self, theta, *, fast: bool = False, data=None):
         """Sum of squared residuals per channel."""
@@ -304,15 +304,53 @@ class SessionModel:
         ia, w = fn(jnp.asarray(theta), self.data)
         return list(zip(self.exp.split(ia), self.exp.split(w)))
 
-    def pointwise_log_likelihood(self, theta, *, data=None):
-        """Gaussian log-density of every observation at σ_c² = SS_c/n_c (for LOO)."""
-        ss = self.sums_of_squares(theta)
-        var = (NU0 * jnp.asarray(self.s0) ** 2 + ss) / (jnp.asarray(self.n_obs) + NU0)
+    def padded_log_density(self, theta, *, data=None) -> list:
+        """Gaussian log-density of every observation, padded, at its channel's noise level
+        ``σ_c² = (ν0·s0_c² + SS_c)/(n_c + ν0)`` (for LOO): the traces' speed and current in
+        the ``(C, L)`` layout, then the steady speeds, steady currents and τ readings.
+        :meth:`observation_selection` picks each channel's observations out of it."""
+        d = self._d(data)
+        ss = self.sums_of_squares(theta, data=d)
+        var = (NU0 * d["s0"] ** 2 + ss) / (d["n_obs"] + NU0)
+
+        def dens(r, v):
+            return -0.5 * (jnp.log(2 * jnp.pi * v) + r * r / v)
+
         out = []
-        for c, (r, m) in enumerate(self.channel_residuals(theta)):
-            r = jnp.asarray(r).reshape(-1)[np.asarray(m).reshape(-1)]
-            out.append(-0.5 * (jnp.log(2 * jnp.pi * var[c]) + r * r / var[c]))
+        if self.exp is not None:
+            rw, ri = self.trace_residuals(theta, data=d)
+            out += [dens(rw, var[d["speed_ch"]][:, None]),
+                    dens(ri, var[d["current_ch"]][:, None])]
+        n_ch = len(self.channels)
+        for k, (r, _) in enumerate(self._steady_and_tau_residuals(self.params(theta), data=d)):
+            # lax.map cannot batch an empty output: an empty channel gets a dummy entry
+            # that its (empty) selection never reads.
+            out.append(dens(r if r.shape[0] else jnp.zeros(1), var[n_ch - 3 + k]))
         return out
+
+    def observation_selection(self) -> list:
+        """Per channel, in channel order: (which output of :meth:`padded_log_density`,
+        flat indices of its observations)."""
+        n_ch = len(self.channels)
+        sel = []
+        if self.exp is not None:
+            mask = np.asarray(self.exp.mask)
+            for c in range(n_ch - 3):
+                m_w = (mask & (self._speed_ch == c)[:, None]).reshape(-1)
+                m_i = (self._current_mask & (self._current_ch == c)[:, None]).reshape(-1)
+                sel.append((0, np.nonzero(m_w)[0]) if m_w.any() else (1, np.nonzero(m_i)[0]))
+        base = 2 if self.exp is not None else 0
+        st = self._steady
+        sel.append((base, np.nonzero(st["w_mask"])[0]))
+        sel.append((base + 1, np.nonzero(st["i_mask"])[0]))
+        sel.append((base + 2, np.arange(len(self.session.step_readings))))
+        return sel
+
+    def pointwise_log_likelihood(self, theta, *, data=None) -> list:
+        """Per channel, the log-density of each of its observations (see
+        :meth:`padded_log_density`)."""
+        outs = self.padded_log_density(theta, data=data)
+        return [jnp.asarray(outs[k]).reshape(-1)[idx] for k, idx in self.observation_selection()]
 
 
 @x64

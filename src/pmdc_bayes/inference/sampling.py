@@ -21,9 +21,18 @@ import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
-from .diagnostics import az, compare_laplace, format_loo, gates, loo_compare, summarize
-from .idata import LL_DRAWS, to_inference_data
 from .._x64 import x64
+from .diagnostics import (
+    ESS_MIN,
+    R_HAT_MAX,
+    az,
+    compare_laplace,
+    format_loo,
+    gates,
+    loo_compare,
+    summarize,
+)
+from .idata import LL_DRAWS, to_inference_data
 
 __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
            "compare_laplace", "loo_compare", "format_loo", "default_moves",
@@ -170,7 +179,8 @@ def _initial(fit, log_prob, n_walkers, rng, scale=1.0):
                      "density around the MAP; check that fit_map converged (fit.message)")
 
 
-def _gates_met(sampler, burn: int, *, r_hat_max: float = 1.01, ess_min: float = 400) -> bool:
+def _gates_met(sampler, burn: int, *, r_hat_max: float = R_HAT_MAX,
+               ess_min: float = ESS_MIN) -> bool:
     """Whether the chain so far (after ``burn``) already passes the convergence gates,
     so that stopping now will not fail them (walkers count as chains)."""
     chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)

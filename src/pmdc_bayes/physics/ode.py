@@ -11,10 +11,10 @@ a discontinuity.
 from __future__ import annotations
 
 import diffrax
-import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import motor
 from .solution import Experiment, Params, initial_state
 
 __all__ = ["vector_field", "simulate_ode"]
@@ -35,14 +35,11 @@ def vector_field(t, y, args):
     ia, w = y
     va = _held(seg_t0, seg_va, t)
     tl = _held(seg_t0, seg_tl, t)
-    dia = (va - p.Ra * ia - p.K * w) / p.La
-    net = p.K * ia - tl - p.B * w
+    friction = 0.0
     if coulomb:
-        friction = jnp.where(w != 0.0, p.Tc * jnp.sign(w),
-                             jnp.clip(net, -p.Tc, p.Tc))
-        dw = (net - friction) / p.J
-    else:
-        dw = net / p.J
+        net = p.K * ia - tl - p.B * w  # the torque friction must hold while at rest
+        friction = jnp.where(w != 0.0, p.Tc * jnp.sign(w), jnp.clip(net, -p.Tc, p.Tc))
+    dia, dw = motor.derivatives(p.Ra, p.La, p.K, p.B, p.J, ia, w, va, tl, friction)
     return jnp.stack([dia, dw])
 
 
