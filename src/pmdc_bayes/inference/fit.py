@@ -18,15 +18,17 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from ..physics.solution import real_modes
-from .objective import NU0, SessionModel
 from .._x64 import x64
+from ..physics.solution import Params, real_modes
+from .objective import NU0, SessionModel
 
 __all__ = ["FitResult", "fit_map", "laplace"]
 
 N_STARTS = 8
 START_SPREAD = 0.3
 REWEIGHT_ITERATIONS = 40
+RELEVANT = 10.0
+WIDE_SPREAD = 1.0  # least log spread of the starts over the prior's range
 
 
 @dataclass(frozen=True)
@@ -39,7 +41,9 @@ class FitResult:
     values, sd : MAP and Laplace standard deviation per parameter (SI).
     cov_log : Laplace covariance in log space; ``corr`` its correlation matrix.
     status : ``"converged"`` or ``"failed"``; ``message`` says why in words.
-    starts : per start, its final log-posterior and whether it agreed with the best.
+    starts : per start, where it began, its final log-posterior and whether it agreed
+        with the best.
+    n_modes : how many distinct optima the starts reached (the best is the MAP).
     weights : per-channel 1/σ² at the MAP; ``noise_sd`` the matching σ.
     """
 
@@ -56,6 +60,7 @@ class FitResult:
     weights: np.ndarray | None = None
     noise_sd: dict = field(default_factory=dict)
     iterations: int = 0
+    n_modes: int = 1
 
     @property
     def ok(self) -> bool:
@@ -93,20 +98,34 @@ def _make_solve(model: SessionModel, *, fast: bool):
     return lambda thetas, weights: jitted(thetas, weights, model.data)
 
 
-def _starts(model: SessionModel, theta0, n: int, rng: np.random.Generator):
+def _starts(model: SessionModel, theta0, n: int, rng: np.random.Generator, alternatives=()):
+    """``(starts, origins)``: ``theta0``; the ``alternatives`` (other seeds); then half of
+    the rest within ``START_SPREAD`` (log) of ``theta0`` and half drawn over the prior's
+    plausible range (its centre ± one prior width, at least ``WIDE_SPREAD`` in log, clipped
+    at two), so that a better
+    optimum away from the seed is found rather than assumed away."""
     theta0 = np.asarray(theta0, dtype=float)
-    spread = np.minimum(model.prior_sd, START_SPREAD)
-    pert = rng.standard_normal((n - 1, theta0.size)) * spread
-    return np.concatenate([theta0[None, :], theta0[None, :] + pert])
+    rows, origins = [theta0], ["seed"]
+    for alt in alternatives:
+        if len(rows) < n:
+            rows.append(np.asarray(alt, dtype=float))
+            origins.append("alternative seed")
+    rest = n - len(rows)
+    n_near = rest - rest // 2
+    width = np.asarray(model.prior_sd, dtype=float)
+    near = theta0 + rng.standard_normal((n_near, theta0.size)) * np.minimum(width, START_SPREAD)
+    centre = np.asarray(model.registry.seed_theta(), dtype=float)
+    wide = centre + np.clip(rng.standard_normal((rest - n_near, theta0.size)), -2.0, 2.0) \
+        * np.maximum(width, WIDE_SPREAD)
+    rows += list(near) + list(wide)
+    origins += ["near the seed"] * n_near + ["over the prior's range"] * (rest - n_near)
+    return np.asarray(rows), origins
 
 
-def _real_modes(theta) -> bool:
-    """NumPy twin of :func:`pmdc_bayes.physics.solution.real_modes` for a log-space θ."""
-    Ra, La, K, B, J = np.exp(np.asarray(theta, dtype=float)[:5])
-    a11, a22 = -Ra / La, -B / J
-    m = 0.5 * (a11 + a22)
-    z = (0.5 * (a11 - a22)) ** 2 - K * K / (La * J)
-    return bool(z > (1e-3 * m) ** 2)
+def _real_modes(model: SessionModel, theta) -> bool:
+    """:func:`pmdc_bayes.physics.solution.real_modes` at θ, evaluated in NumPy."""
+    v = dict(zip(model.names, model.registry.to_values(theta)))
+    return bool(real_modes(Params(v["Ra"], v["La"], v["K"], v["B"], v["J"])))
 
 
 def _initial_weights(model: SessionModel, n: int) -> np.ndarray:
@@ -145,7 +164,7 @@ def laplace(model: SessionModel, theta, weights):
 
 @x64
 def fit_map(model: SessionModel, *, theta0=None, n_starts: int = N_STARTS, seed: int = 0,
-            solve=None) -> FitResult:
+            solve=None, alternatives=()) -> FitResult:
     """Maximise the log-posterior from the closed-form seed and perturbed copies of it.
 
     Parameters
@@ -155,17 +174,32 @@ def fit_map(model: SessionModel, *, theta0=None, n_starts: int = N_STARTS, seed:
     n_starts : number of starts solved together (the first is ``theta0`` itself).
     seed : seed of the perturbations.
     solve : a compiled step from a previous call with the same session shapes.
+    alternatives : other starting points in θ space (e.g. a seed from the data when
+        ``theta0`` is the closed form's), solved together with the rest.
     """
     theta0 = np.asarray(model.theta_seed() if theta0 is None else theta0, dtype=float)
     rng = np.random.default_rng(seed)
-    starts = _starts(model, theta0, n_starts, rng)
-    fast = _real_modes(theta0)
+    starts, origins = _starts(model, theta0, n_starts, rng, alternatives)
+    fast = _real_modes(model, theta0)
     result = _solve_starts(model, starts, fast=fast, solve=solve)
-    if fast and not _real_modes(result[0]):
+    if fast and not _real_modes(model, result[0]):
         # The optimum left the region where the fast propagator is valid: redo it with
         # the general one.
         result = _solve_starts(model, starts, fast=False, solve=None)
-    return _finish(model, *result)
+    return _finish(model, *result, origins=origins)
+
+
+def _settled(logp, prev) -> bool:
+    """Whether the reweighting has settled for every start that matters: those within
+    ``RELEVANT`` log-posterior units of the best (a start stuck far below it is a poor
+    local optimum whose weights need not settle for the MAP to be exact)."""
+    logp, prev = np.asarray(logp), np.asarray(prev)
+    finite = np.isfinite(logp)
+    if not finite.any():
+        return False
+    top = float(np.max(logp[finite]))
+    near = finite & (logp >= top - max(RELEVANT, 1e-3 * abs(top)))
+    return bool(np.all(np.abs(logp[near] - prev[near]) <= 1e-9 * np.abs(logp[near]) + 1e-9))
 
 
 def _solve_starts(model: SessionModel, starts, *, fast: bool, solve=None):
@@ -179,7 +213,7 @@ def _solve_starts(model: SessionModel, starts, *, fast: bool, solve=None):
     for it in range(1, REWEIGHT_ITERATIONS + 1):
         thetas, ok, steps, weights, logp = solve(thetas, weights)
         logp = np.asarray(logp)
-        if logp_prev is not None and np.all(np.abs(logp - logp_prev) <= 1e-9 * np.abs(logp) + 1e-9):
+        if logp_prev is not None and _settled(logp, logp_prev):
             settled = True
             break
         logp_prev = logp
@@ -190,12 +224,28 @@ def _solve_starts(model: SessionModel, starts, *, fast: bool, solve=None):
         settled, it
 
 
-def _finish(model, theta, thetas, logp, ok, weights, settled, it) -> FitResult:
+def _modes(thetas, logp, ok) -> list[int]:
+    """Indices of the distinct optima the starts reached (best first): finals more than
+    1e-3 apart in θ (0.1 % in a log parameter) or 1e-6 apart in log-posterior are
+    different optima."""
+    order = [int(i) for i in np.argsort(-logp) if np.isfinite(logp[i]) and ok[i]]
+    modes: list[int] = []
+    for i in order:
+        if not any(np.all(np.abs(thetas[i] - thetas[j]) < 1e-3)
+                   and abs(logp[i] - logp[j]) < 1e-6 * max(1.0, abs(logp[j])) for j in modes):
+            modes.append(i)
+    return modes
+
+
+def _finish(model, theta, thetas, logp, ok, weights, settled, it, origins=None) -> FitResult:
     best = int(np.argmax(logp))
-    agree = np.all(np.abs(np.asarray(thetas) - theta) < 1e-4, axis=1) & (
+    thetas = np.asarray(thetas)
+    origins = origins or ["seed"] + ["near the seed"] * (len(logp) - 1)
+    agree = np.all(np.abs(thetas - theta) < 1e-4, axis=1) & (
         np.abs(logp - logp[best]) < 1e-6 * max(1.0, abs(logp[best])))
-    starts = [{"start": i, "log_posterior": float(logp[i]), "agrees": bool(agree[i]),
-               "solver_ok": bool(ok[i])} for i in range(len(logp))]
+    modes = _modes(thetas, logp, np.asarray(ok))
+    starts = [{"start": i, "origin": origins[i], "log_posterior": float(logp[i]),
+               "agrees": bool(agree[i]), "solver_ok": bool(ok[i])} for i in range(len(logp))]
     w = np.asarray(weights[best])
     cov, _ = laplace(model, jnp.asarray(theta), jnp.asarray(w))
     sd_log = np.sqrt(np.clip(np.diag(cov), 0.0, None))
@@ -218,7 +268,11 @@ def _finish(model, theta, thetas, logp, ok, weights, settled, it) -> FitResult:
         reasons.append("the curvature at the optimum is singular")
     status = "failed" if reasons else "converged"
     n_agree = int(agree.sum())
+    n_wide = sum(o == "over the prior's range" for o in origins)
+    found = (f"{len(modes)} distinct optimum" if len(modes) == 1
+             else f"{len(modes)} distinct optima, the best chosen")
     message = "; ".join(reasons) if reasons else (
-        f"converged in {it} reweighting rounds; {n_agree} of {len(logp)} starts agree")
+        f"converged in {it} reweighting rounds; {n_agree} of {len(logp)} starts agree "
+        f"({n_wide} started over the prior's range; {found})")
     return FitResult(tuple(model.names), theta, values, sd, cov, corr, float(logp[best]),
-                     status, message, starts, w, noise, it)
+                     status, message, starts, w, noise, it, len(modes))
