@@ -10,12 +10,15 @@ import json
 import sys
 from pathlib import Path
 
-from .io.bundled import DEFAULT_SESSION, bundled_session_dir
 from ._errors import SessionError, UsageError
+from .io.bundled import DEFAULT_SESSION, bundled_session_dir
 
 __all__ = ["main"]
 
+EXIT_FAILED = 1
 EXIT_USAGE = 2
+EXIT_INADEQUATE = 3
+EXIT_INTERNAL = 4
 
 
 def _session_path(arg: str | None) -> Path:
@@ -28,8 +31,8 @@ def _session_path(arg: str | None) -> Path:
 
 
 def _cmd_closed_form(args) -> int:
-    from .paper.closed_form import closed_form
     from .io.loader import load_session
+    from .paper.closed_form import closed_form
 
     session = load_session(_session_path(args.session))
     cf = closed_form(session)
@@ -75,14 +78,17 @@ def _cmd_fit(args) -> int:
     out, summary = run_fit(
         _session_path(args.session), out=args.out, force=args.force, mcmc=not args.no_mcmc,
         friction=args.friction, seed=args.seed, holdout=args.holdout or (),
-        compare_friction=args.compare_friction,
+        compare_friction=args.compare_friction, allow_inadequate=args.allow_inadequate,
     )
+    adequate = _print_adequacy(summary["adequacy"])
     print(f"Fit of {summary['session']['motor']} ({summary['session']['friction']} friction): "
           f"{summary['fit']['message']}")
     has_post = "mean" in next(iter(summary["parameters"].values()))
     head = f"{'parameter':<6}{'closed form':>13}{'MAP':>13}{'± sd':>11}"
     if has_post:
         head += f"{'mean':>13}{'± sd':>11}{'94 % HDI':>26}{'R-hat':>7}{'ESS':>7}"
+    if not adequate:
+        print("Values CONDITIONAL on a model the data reject:")
     print(head + "  unit")
     for name, row in summary["parameters"].items():
         cf = "—" if row["closed_form"] is None else f"{row['closed_form']:.5g}"
@@ -100,17 +106,42 @@ def _cmd_fit(args) -> int:
                   f"({row['note']}).")
     print(f"Wrote {out}")
     status = 0
+    if not adequate:
+        first = next(f for f in summary["adequacy"]["findings"] if f["severity"] == "fail")
+        print(f"pmdc-bayes: error: model inadequate: {first['where']}: {first['message']}"
+              + ("" if args.allow_inadequate else " (see the report; rerun with "
+                 "--allow-inadequate to go on)"), file=sys.stderr)
+        if not args.allow_inadequate:
+            return EXIT_INADEQUATE
     if summary["fit"]["status"] != "converged" and not args.allow_unconverged:
         print(f"pmdc-bayes: error: the fit did not converge: {summary['fit']['message']}",
               file=sys.stderr)
-        status = 1
+        status = EXIT_FAILED
     diag = summary["diagnostics"]
     if diag.get("gates_passed") is False and not args.allow_unconverged:
         print("pmdc-bayes: error: the posterior failed its convergence gates: "
               + "; ".join(diag["failures"]) + " (rerun with --allow-unconverged to accept)",
               file=sys.stderr)
-        status = 1
+        status = EXIT_FAILED
     return status
+
+
+def _print_adequacy(adequacy: dict) -> bool:
+    """The verdict, before any number; for an inadequate model, what failed and what
+    the pattern suggests.  Returns whether the model is adequate."""
+    fails = [f for f in adequacy["findings"] if f["severity"] == "fail"]
+    if not fails:
+        n = len(adequacy["findings"])
+        print("Model adequate: the data do not reject the fitted model"
+              + (f" ({n} warning{'s' * (n != 1)} in the report)." if n else "."))
+        return True
+    print("MODEL INADEQUATE: the data reject the fitted model.")
+    for f in fails:
+        print(f"  {f['where']}: {f['message']} [{f['check']}]")
+    print("What to add:")
+    for line in adequacy["diagnosis"]:
+        print(f"  - {line}")
+    return False
 
 
 def _cmd_report(args) -> int:
@@ -201,6 +232,9 @@ def _parser() -> argparse.ArgumentParser:
                     "by PSIS-LOO (ArviZ)")
     ft.add_argument("--allow-unconverged", action="store_true",
                     help="exit 0 even if the fit or the sampler fails its checks")
+    ft.add_argument("--allow-inadequate", action="store_true",
+                    help="go on (sample the posterior, exit 0) even when the adequacy checks "
+                    "reject the model; every value stays labelled as conditional on it")
     ft.set_defaults(func=_cmd_fit)
     rp = sub.add_parser(
         "report",
@@ -224,6 +258,24 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("pmdc-bayes: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # a fault of the tool, not of the user's input
+        log = _save_traceback()
+        print(f"pmdc-bayes: internal error ({type(exc).__name__}: {exc}); traceback saved "
+              f"to {log}", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
+def _save_traceback() -> str:
+    """Write the current exception's traceback to a new log file; its path."""
+    import tempfile
+    import time
+    import traceback
+
+    fd, path = tempfile.mkstemp(prefix=time.strftime("pmdc-bayes-error-%Y%m%d-%H%M%S-"),
+                                suffix=".log")
+    with open(fd, "w", encoding="utf-8") as fh:
+        fh.write(" ".join(sys.argv) + "\n\n" + traceback.format_exc())
+    return path
 
 
 if __name__ == "__main__":

@@ -18,16 +18,17 @@ from pathlib import Path
 import numpy as np
 
 from ._errors import UsageError
-from .io._jsonio import dumps
-from .paper.closed_form import closed_form
-from .paper.consistency import consistency_checks
+from ._x64 import x64
+from .inference.adequacy import assess
 from .inference.fit import fit_map
 from .inference.identifiability import identifiability
-from .io.loader import load_session
 from .inference.objective import build_model
 from .inference.result import RunResult
+from .io._jsonio import dumps
+from .io.loader import load_session
 from .io.session import Session
-from ._x64 import x64
+from .paper.closed_form import closed_form
+from .paper.consistency import consistency_checks
 
 __all__ = ["fit_session", "run_fit", "write_run", "default_out_dir", "versions"]
 
@@ -74,10 +75,13 @@ def _closed_form_theta(model, cf):
 @x64
 def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | None = None,
                 seed: int = 0, holdout=(), compare_friction: bool = False,
-                progress=None) -> RunResult:
-    """Every stage of a fit, in memory: closed form → MAP → (MCMC); the run's result.
+                progress=None, allow_inadequate: bool = False) -> RunResult:
+    """Every stage of a fit, in memory: closed form → MAP → adequacy → (MCMC); the
+    run's result.
 
-    ``summary`` of the result is what ``summary.json`` holds; nothing is written.
+    ``summary`` of the result is what ``summary.json`` holds; nothing is written.  When
+    the adequacy checks reject the model the posterior is not sampled (it would only
+    describe the misfit) unless ``allow_inadequate``.
     """
     t_start = time.perf_counter()
     for name in holdout:
@@ -95,6 +99,9 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     fit = fit_map(model, seed=seed)
     ident = identifiability(model, fit)
     wall["map"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    adequacy = assess(model, fit, cf)
+    wall["adequacy"] = time.perf_counter() - t0
 
     cf_theta = _closed_form_theta(model, cf)
     params = {}
@@ -106,6 +113,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
         "session": {"name": session.name, "path": str(session.root), "motor": session.motor,
                     "friction": "coulomb" if model.coulomb else "viscous",
                     "holdout": list(holdout)},
+        "adequacy": adequacy.as_json(),
         "seed": seed,
         "parameters": params,
         "closed_form": cf.as_json(),
@@ -123,6 +131,10 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     summary["diagnostics"] = {"gates_passed": None, "failures": []}
     post = None
     wall["mcmc"] = 0.0
+    if mcmc and not adequacy.ok and not allow_inadequate:
+        mcmc = False
+        summary["diagnostics"]["sampler_message"] = (
+            "not sampled: the data reject the model (pass --allow-inadequate to sample it)")
     if mcmc:
         t0 = time.perf_counter()
         post, stats = _posterior_stage(model, fit, seed=seed, progress=progress)
@@ -140,14 +152,14 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     summary["diagnostics"]["wall_s"] = wall
     draws = None if post is None else post.draws.reshape(-1, len(model.names))
     return RunResult(summary, session, session_full, cf, model, fit, draws,
-                     None if post is None else post.idata)
+                     None if post is None else post.idata, adequacy)
 
 
 @x64
 def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             mcmc: bool = True, friction: str | None = None, seed: int = 0,
             holdout=(), compare_friction: bool = False,
-            progress=None) -> tuple[Path, dict]:
+            progress=None, allow_inadequate: bool = False) -> tuple[Path, dict]:
     """Fit a session directory and write the run directory ``out``: ``summary.json``,
     ``posterior.nc`` (with MCMC) and the report, all built beside ``out`` and moved into
     place in one rename once complete.
@@ -162,7 +174,8 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
         raise UsageError(f"{out}: already exists; choose another --out or pass --force to "
                          "replace it")
     result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
-                         holdout=holdout, compare_friction=compare_friction, progress=progress)
+                         holdout=holdout, compare_friction=compare_friction, progress=progress,
+                         allow_inadequate=allow_inadequate)
     write_run(result, out, force=force)
     return out, result.summary
 

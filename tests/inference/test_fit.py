@@ -106,7 +106,8 @@ def test_demo_identifiability_does_not_flag_la(demo_fit):
 @pytest.mark.slow
 def test_fit_command_writes_summary_and_refuses_to_overwrite(tmp_path):
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "pmdc_bayes", "fit", "paper", "--no-mcmc", "--out", str(out)]
+    cmd = [sys.executable, "-m", "pmdc_bayes", "fit", "paper", "--no-mcmc", "--out", str(out),
+           "--allow-inadequate"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "summary.json").read_text())
@@ -154,8 +155,13 @@ def test_friction_option_reports_goodness_of_fit_and_tc(tmp_path):
         proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", "demo", "--no-mcmc",
                                "--friction", friction, "--out", str(out)],
                               capture_output=True, text=True)
-        assert proc.returncode == 0, proc.stderr
         runs[friction] = json.loads((out / "summary.json").read_text())
+        # The demo motor has Coulomb friction: the data reject the viscous model.
+        verdict = runs[friction]["adequacy"]["verdict"]
+        assert (proc.returncode, verdict) == ((0, "adequate") if friction == "coulomb"
+                                              else (3, "inadequate")), proc.stderr
+        assert proc.stdout.splitlines()[0].startswith(
+            "Model adequate" if friction == "coulomb" else "MODEL INADEQUATE")
     assert "Tc" not in runs["viscous"]["parameters"]
     assert runs["coulomb"]["parameters"]["Tc"]["map"] > 0
     # The demo motor has Coulomb friction: the viscous model fits no trace better, and

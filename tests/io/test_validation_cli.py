@@ -224,3 +224,23 @@ def test_cli_reports_one_line(session_dir, mutate, expected):
 def test_case_ids_are_unique():
     ids = [c[0] for c in CASES]
     assert len(ids) == len(set(ids))
+
+
+def test_an_internal_fault_exits_4_with_one_line_and_a_saved_traceback(
+        session_dir, monkeypatch, capsys, tmp_path):
+    from pmdc_bayes import cli, pipeline
+
+    def broken(*args, **kwargs):
+        raise ZeroDivisionError("float division by zero")
+
+    monkeypatch.setattr(pipeline, "run_fit", broken)
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    import tempfile
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    code = cli.main(["fit", str(session_dir), "--no-mcmc", "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == cli.EXIT_INTERNAL == 4
+    assert len(err) == 1 and "internal error" in err[0] and "ZeroDivisionError" in err[0]
+    (log,) = tmp_path.glob("pmdc-bayes-error-*.log")
+    assert "Traceback" in log.read_text() and "float division by zero" in log.read_text()
+    assert not (tmp_path / "run").exists()

@@ -43,7 +43,8 @@ class FitResult:
     status : ``"converged"`` or ``"failed"``; ``message`` says why in words.
     starts : per start, where it began, its final log-posterior and whether it agreed
         with the best.
-    n_modes : how many distinct optima the starts reached (the best is the MAP).
+    n_modes : how many distinct optima the starts reached (the best is the MAP);
+        ``mode_gaps`` how far below the MAP's log-posterior each of the others is.
     weights : per-channel 1/σ² at the MAP; ``noise_sd`` the matching σ.
     """
 
@@ -61,6 +62,7 @@ class FitResult:
     noise_sd: dict = field(default_factory=dict)
     iterations: int = 0
     n_modes: int = 1
+    mode_gaps: tuple = ()
 
     @property
     def ok(self) -> bool:
@@ -275,4 +277,5 @@ def _finish(model, theta, thetas, logp, ok, weights, settled, it, origins=None) 
         f"converged in {it} reweighting rounds; {n_agree} of {len(logp)} starts agree "
         f"({n_wide} started over the prior's range; {found})")
     return FitResult(tuple(model.names), theta, values, sd, cov, corr, float(logp[best]),
-                     status, message, starts, w, noise, it, len(modes))
+                     status, message, starts, w, noise, it, len(modes),
+                     tuple(float(logp[best] - logp[i]) for i in modes[1:]))

@@ -40,6 +40,8 @@ class RunResult:
     fit : the MAP fit, or None for a run read back from disk (``summary`` has it).
     draws : posterior draws ``(N, P)`` in SI in the registry's order, or None.
     idata : the ArviZ record of the posterior, or None.
+    adequacy : the adequacy checks at the MAP (:class:`~.adequacy.Adequacy`), or None for
+        a run read back from disk (``summary["adequacy"]`` has them).
     """
 
     summary: dict
@@ -50,10 +52,16 @@ class RunResult:
     fit: FitResult | None = None
     draws: np.ndarray | None = None
     idata: object = None
+    adequacy: object = None
 
     @property
     def names(self) -> tuple:
         return tuple(self.model.names)
+
+    @property
+    def adequate(self) -> bool:
+        """Whether the data do not reject the fitted model (True for old runs)."""
+        return self.summary.get("adequacy", {}).get("verdict", "adequate") == "adequate"
 
     @property
     def has_posterior(self) -> bool:

@@ -79,7 +79,9 @@ def diagnostics_table(ctx) -> Table:
     rows.append(("posterior gates", {True: "passed", False: "FAILED", None: "not run"}[gp],
                  "; ".join(diag.get("failures", [])) or ("R-hat ≤ 1.01, bulk and tail ESS ≥ 400"
                                                          if gp is not None else "--no-mcmc")))
-    if "sampler_message" in diag:
+    if "sampler_message" in diag and "n_walkers" not in diag:
+        rows.append(("sampler", "not run", diag["sampler_message"]))
+    elif "sampler_message" in diag:
         rows.append(("sampler", f"{diag['n_walkers']} walkers, {diag['n_steps']} steps, "
                      f"burn-in {diag['burn_in']}", diag["sampler_message"]))
         rows.append(("acceptance fraction", fmt(diag.get("acceptance_fraction"), 3), ""))

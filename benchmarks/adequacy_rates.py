@@ -1,0 +1,107 @@
+"""Detection and false-alarm rates of the adequacy checks, per case and per check.
+
+Fits the ideal motor (MAP with the global search, then every adequacy check) to
+
+* each misspecified bench of ``pmdc_bayes.simulate.cases.CASES`` under several noise
+  seeds: how often the verdict is "inadequate" (detection) and how often the diagnosis
+  names the cause (diagnosis);
+* motors drawn by ``random_motor`` that the ideal model describes exactly: how often
+  the verdict is "inadequate" (false alarm), and which checks raise the failures and
+  warnings.
+
+Prints the tables and replaces the section ``## Adequacy checks`` of
+``reports/benchmarks.md`` (``--no-report`` to print only).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections import Counter
+from datetime import UTC, datetime
+
+import numpy as np
+from _common import REPORT, replace_section
+
+from pmdc_bayes.inference.adequacy import assess
+from pmdc_bayes.inference.fit import fit_map
+from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.paper.closed_form import closed_form
+from pmdc_bayes.simulate.bench import bench_session
+from pmdc_bayes.simulate.cases import CASES, case_session, random_motor
+
+
+def _assess(session, seed):
+    t0 = time.perf_counter()
+    cf = closed_form(session)
+    model = build_model(session, cf)
+    fit = fit_map(model, seed=seed)
+    a = assess(model, fit, cf)
+    return a, time.perf_counter() - t0
+
+
+def _says(a, words):
+    text = " ".join(a.diagnosis).lower()
+    return all(w in text for w in words)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    ap.add_argument("--seeds", type=int, default=5, help="noise seeds per case")
+    ap.add_argument("--motors", type=int, default=60, help="in-class random motors")
+    ap.add_argument("--no-report", action="store_true")
+    args = ap.parse_args(argv)
+
+    rows, times = [], []
+    for case in [None, *CASES]:
+        hits = named = 0
+        for seed in range(args.seeds):
+            a, dt = _assess(case_session(case, seed=seed), seed)
+            times.append(dt)
+            flagged = a.verdict == "inadequate"
+            hits += flagged
+            named += flagged and case is not None and _says(a, CASES[case][1])
+        label = case or "ideal (false alarm)"
+        rows.append((label, hits, named if case else None))
+        print(f"{label:24s} inadequate {hits}/{args.seeds}"
+              + (f", diagnosis named {named}/{args.seeds}" if case else ""), flush=True)
+
+    rng = np.random.default_rng(2026)
+    fails, warns, alarms = Counter(), Counter(), 0
+    for k in range(args.motors):
+        motor, steps = random_motor(rng)
+        a, dt = _assess(bench_session(motor, steps, seed=k), k)
+        times.append(dt)
+        alarms += a.verdict != "adequate"
+        for f in a.findings:
+            (fails if f.severity == "fail" else warns)[f.check] += 1
+    print(f"in-class motors: {alarms}/{args.motors} inadequate; failures by check "
+          f"{dict(fails)}; warnings by check {dict(warns)}")
+
+    when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
+    n = args.motors
+    lines = ["## Adequacy checks", "",
+             f"Measured {when} by `python benchmarks/adequacy_rates.py --seeds {args.seeds} "
+             f"--motors {n}`.  Each row fits the ideal motor (MAP, global search) and runs "
+             "every adequacy check; the benches come from `pmdc_bayes.simulate.cases`.", "",
+             "| bench | verdict inadequate | diagnosis names the cause |", "|---|---:|---:|"]
+    for label, hits, named in rows:
+        lines.append(f"| {label} | {hits}/{args.seeds} | "
+                     f"{'' if named is None else f'{named}/{args.seeds}'} |")
+    lines += ["", f"In-class motors (`random_motor`, the ideal model is right): "
+              f"**{alarms}/{n} inadequate ({100 * alarms / n:.1f} % false alarms)**.", "",
+              "| check | motors failing it | motors warned by it |", "|---|---:|---:|"]
+    for check in sorted(set(fails) | set(warns)):
+        lines.append(f"| {check} | {fails[check]}/{n} | {warns[check]}/{n} |")
+    lines += ["", f"Fit + checks per session: median {np.median(times):.2f} s, "
+              f"max {np.max(times):.1f} s (the first includes compilation)."]
+    section = "\n".join(lines) + "\n"
+    print(section)
+    if not args.no_report:
+        replace_section(REPORT, "Adequacy checks", section)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,185 @@
+"""What an inadequate fit's pattern suggests, in words a bench user can act on.
+
+Each rule reads the data and the MAP prediction:
+
+* the **start** of each step whose trace fails a check: a channel that leaves rest
+  clearly later than the model's, or a rise that a delayed or lagged shape fits far
+  better on the data than on the model, means dead time or a sensor lag; a rise that
+  is a ramp on the data but not on the model means a current-limited driver;
+* a logged current with a **flat top** well below the model's peak: a current limit;
+* the **steady levels** (:mod:`.levels`): a trace off the line the other levels draw
+  means an unmeasured load on it; a speed-voltage line crossing zero speed well above
+  0 V means a voltage drop (brushes, driver), a current left at zero speed means
+  Coulomb friction;
+* **anti-correlated noise** on a speed: a speed differenced from encoder counts;
+* a **bench resistance** below or above the fitted one; and unit slips (a ratio of
+  2π, 60/2π or 1000 between the data and the model).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .checks import step_time
+from .levels import LEVEL_MISS, friction_offset, level_outliers, voltage_intercept
+from .onset import departure, onset_shape
+
+__all__ = ["diagnose"]
+
+BETTER = 0.6  # a shape explains the onset when its error is below this share of the plain one
+LATE_SAMPLES = 2  # a start later than the model's by at least this many samples ...
+LATE_SHARE = 0.03  # ... and this share of the rise time counts as late
+DEPART = 5.0  # a channel has left rest when it is this many noise sd from its level ...
+DEPART_SPAN = 0.01  # ... and this share of its span
+UNIT_RATIOS = {"rpm given as rad/s": 2 * np.pi / 60, "rad/s given as rpm": 60 / (2 * np.pi),
+               "rev/s given as rad/s": 2 * np.pi, "rad/s given as rev/s": 1 / (2 * np.pi),
+               "mA given as A": 1000.0, "A given as mA": 1e-3}
+
+
+def _late_start(tr, y, yhat, s0, t_step, t_rise):
+    """How much later than the model (s) the channel leaves rest, or None."""
+    span = float(np.max(y) - np.min(y))
+    threshold = max(DEPART * s0, DEPART_SPAN * span)
+    d_obs = departure(tr.time, y, t_step, threshold)
+    d_mod = departure(tr.time, yhat, t_step, threshold)
+    if d_obs is None or d_mod is None:
+        return None
+    dt = float(np.median(np.diff(tr.time)))
+    late = d_obs - d_mod
+    return late if late >= LATE_SAMPLES * dt and late > LATE_SHARE * t_rise else None
+
+
+def _start_rules(model, tr, pred, t_step):
+    """Sentences on the start of a failing trace."""
+    ia, w = pred
+    s0 = {c.name: c.s0 for c in model.channels}
+    out = []
+    data, fitted = onset_shape(tr.time, tr.speed, t_step), onset_shape(tr.time, w, t_step)
+    t_rise = fitted["t90"] if fitted else float(tr.time[-1] - t_step)
+    lates = {}
+    for what, y, yhat in (("speed", tr.speed, w), ("current", tr.current, ia)):
+        if y is not None:
+            late = _late_start(tr, np.asarray(y), np.asarray(yhat),
+                               s0[f"{tr.name}: {what}"], t_step, t_rise)
+            if late is not None:
+                lates[what] = late
+    lagged = ramp = False
+    if data and fitted:
+        dt = float(np.median(np.diff(tr.time)))
+        lag_d = min(data["delayed"], data["lagged"])
+        lagged = (lag_d < BETTER and lag_d < data["ramp"]
+                  and data["dead_time"] - fitted["dead_time"] > max(LATE_SAMPLES * dt,
+                                                                    LATE_SHARE * data["t90"]))
+        ramp = (data["ramp"] < BETTER and data["ramp"] < lag_d
+                and data["ramp"] < BETTER * fitted["ramp"])
+    if lates or lagged:
+        late = max(lates.values()) if lates else data["dead_time"] - fitted["dead_time"]
+        if "current" in lates:
+            out.append(f"{tr.name}: the current and speed start about {1e3 * late:.2g} ms "
+                       "later than the model allows: add a dead time between the command "
+                       "and the motion (driver, PWM start, logging trigger)")
+        elif tr.current is not None:
+            out.append(f"{tr.name}: the speed starts about {1e3 * late:.2g} ms later than "
+                       "the model allows while the current starts on time: a lag in the "
+                       "speed sensor or its filter")
+        else:
+            out.append(f"{tr.name}: the speed starts about {1e3 * late:.2g} ms later than "
+                       "the model allows: add a dead time between the command and the "
+                       "motion, or a speed-sensor/filter lag")
+    if ramp:
+        out.append(f"{tr.name}: the speed ramps up at a constant rate for "
+                   f"{1e3 * data['ramp_time']:.3g} ms before turning exponential: a "
+                   "current-limited driver (a ramp instead of an exponential at the start)")
+    return out
+
+
+def _flat_top(tr, ia):
+    if tr.current is None:
+        return []
+    top = float(np.max(np.abs(tr.current)))
+    near = np.abs(np.abs(tr.current) - top) < 0.03 * top
+    peak = float(np.max(np.abs(ia)))
+    if near.sum() >= 5 and peak > 1.2 * top:
+        return [f"{tr.name}: the logged current is flat at about {top:.3g} A while the model "
+                f"would draw {peak:.3g} A: a current-limited driver; declare its limit or "
+                "log the terminal voltage"]
+    return []
+
+
+def _level_rules(model, preds):
+    """Sentences on the steady levels: unmeasured loads, unit slips, an offset."""
+    session, out = model.session, []
+    ratios = {}
+    for tr, (_, w) in zip(session.traces, preds, strict=True):
+        n_end = max(3, tr.n // 10)
+        mod = float(np.mean(w[-n_end:]))
+        if abs(mod) > 0:
+            ratios[tr.name] = float(np.mean(tr.speed[-n_end:])) / mod
+    outliers = level_outliers(session)
+    if outliers is None:  # too few levels for a line: compare with the model instead
+        misses = {k: r - 1 for k, r in ratios.items() if abs(r - 1) > LEVEL_MISS}
+        outliers = misses if len(misses) < len(ratios) else {}
+        alt = ", or a voltage drop the other traces hide"
+    else:
+        alt = ""
+    for name, m in outliers.items():
+        out.append(f"{name}: settles {100 * abs(m):.2g} % {'below' if m < 0 else 'above'} "
+                   "the speed the other levels imply: an unmeasured load on this trace "
+                   f"(a brake, a generator, a rubbing coupling){alt}; declare its load "
+                   "torque")
+    for label, ratio in UNIT_RATIOS.items():
+        if ratios and all(abs(r / ratio - 1) < 0.03 for r in ratios.values()):
+            out.append(f"the logged speeds are {ratio:.4g} x what the rest of the session "
+                       f"implies: a unit slip ({label}); check the units in session.toml")
+    icpt, offset = voltage_intercept(session), friction_offset(session)
+    coulomb = (offset is not None and offset["current"] > 3 * offset["se"]
+               and offset["current"] > 0.05 * offset["mean_current"])
+    if coulomb and not model.coulomb:
+        out.append(f"the steady current extrapolates to {offset['current']:.3g} A at zero "
+                   "speed: a friction torque that does not grow with speed (Coulomb "
+                   "friction); fit with --friction coulomb")
+    elif (icpt and icpt["voltage"] > 3 * icpt["se"]
+            and icpt["voltage"] > 0.01 * icpt["largest_voltage"]):
+        why = ("" if model.coulomb or offset is not None
+               else ", or Coulomb friction (try --friction coulomb)")
+        out.append(f"the steady speed-voltage line crosses zero speed at "
+                   f"{icpt['voltage']:.3g} V, not 0 V: a voltage drop at the brushes or "
+                   f"driver{why}")
+    return out
+
+
+def _finding_rules(model, fit, findings):
+    out = []
+    for f in findings:
+        if f.severity != "fail":
+            continue
+        if f.check == "residual whiteness" and f.where.endswith("speed"):
+            out.append(f"{f.where}: {f.message}: a speed differenced from encoder counts or a "
+                       "quantised position; fit the position instead, or average over "
+                       "more samples")
+        if f.where == "Ra" and f.check in ("bench conflict", "plausibility"):
+            if fit.values["Ra"] > model.registry["Ra"].prior.centre:
+                out.append("the fitted resistance exceeds the bench Ra: a supply source "
+                           "resistance, leads or a driver in the loop; log the terminal "
+                           "voltage or declare the source resistance")
+            else:
+                out.append("the fitted resistance is far below the bench Ra: the ideal motor "
+                           "is absorbing something it lacks (a current limit, a voltage "
+                           "drop, a lag); see the trace findings")
+    return out
+
+
+def diagnose(model, fit, preds, findings) -> list[str]:
+    """Sentences naming what the data suggest the model lacks, most specific first."""
+    failing = {f.where for f in findings if f.severity == "fail"}
+    out = []
+    for tr, pred in zip(model.session.traces, preds, strict=True):
+        out += _flat_top(tr, pred[0])
+        if any(w.startswith(f"{tr.name}: ") for w in failing):
+            out += _start_rules(model, tr, pred, step_time(tr))
+    out += _level_rules(model, preds)
+    out += _finding_rules(model, fit, findings)
+    if not out:
+        out.append("no single known pattern explains the misfit; look at the residual "
+                   "figures of the failing channels")
+    return list(dict.fromkeys(out))

@@ -1,0 +1,98 @@
+"""The session's steady levels, model-free: where the speed-voltage line crosses zero
+speed, the current left at zero speed, and traces whose level sits off the line the
+rest of the session draws."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["settled", "unloaded_levels", "voltage_intercept", "friction_offset", "level_outliers"]
+
+LEVEL_MISS = 0.03  # a level off the others' line by more than this fraction of itself
+LINE_FIT = 0.01  # the others must sit on their line within this fraction (rms)
+
+
+def settled(y) -> bool:
+    """Whether a trace has reached its steady level: the means of its last two tenths
+    agree within 0.5 % of the level plus what the noise allows."""
+    from .noise import noise_scale
+
+    y = np.asarray(y, float)
+    n = max(3, y.size // 10)
+    a, b = float(np.mean(y[-2 * n:-n])), float(np.mean(y[-n:]))
+    return abs(b - a) <= 0.005 * abs(b) + 4 * noise_scale(y) / np.sqrt(n)
+
+
+def unloaded_levels(session) -> tuple[np.ndarray, list]:
+    """Every unloaded steady level (rows of voltage, speed, current or NaN) and, per
+    row, the trace it ends (None for tables and operating points); traces that end
+    before they settle give none."""
+    rows, names = [], []
+    for tab in session.steady_tables:
+        cur = tab.current if tab.current is not None else np.full(tab.voltage.size, np.nan)
+        for v, w, i, tl in zip(tab.voltage, tab.speed, cur, tab.load_torque, strict=True):
+            if tl == 0:
+                rows.append((v, w, i))
+                names.append(None)
+    for op in session.operating_points:
+        if op.load_torque == 0:
+            rows.append((op.voltage, op.speed, np.nan if op.current is None else op.current))
+            names.append(None)
+    for tr in session.traces:
+        if np.all(tr.load_torque.values == 0) and settled(tr.speed):
+            n = max(3, tr.n // 10)
+            i = np.nan if tr.current is None else float(np.mean(tr.current[-n:]))
+            rows.append((float(tr.voltage.values[-1]), float(np.mean(tr.speed[-n:])), i))
+            names.append(tr.name)
+    return np.asarray(rows, float).reshape(-1, 3), names
+
+
+def voltage_intercept(session) -> dict | None:
+    """The line of steady speed against voltage over every unloaded steady level: the
+    voltage where it crosses zero speed, with its standard error (None with fewer than
+    three distinct voltages or a line that does not rise)."""
+    rows, _ = unloaded_levels(session)
+    if rows.shape[0] < 3 or np.unique(np.round(rows[:, 0], 9)).size < 3:
+        return None
+    (slope, icpt), cov = np.polyfit(rows[:, 0], rows[:, 1], 1, cov=True)
+    if slope <= 0:
+        return None
+    g = np.array([icpt / slope**2, -1 / slope])
+    return {"voltage": float(-icpt / slope), "se": float(np.sqrt(max(g @ cov @ g, 0.0))),
+            "largest_voltage": float(np.max(np.abs(rows[:, 0])))}
+
+
+def friction_offset(session) -> dict | None:
+    """The line of steady current against speed: the current left at zero speed
+    (friction torque that does not scale with speed, over K), with its standard error."""
+    rows, _ = unloaded_levels(session)
+    rows = rows[np.isfinite(rows[:, 2])]
+    if rows.shape[0] < 3 or np.unique(np.round(rows[:, 1], 6)).size < 3:
+        return None
+    (_, icpt), cov = np.polyfit(rows[:, 1], rows[:, 2], 1, cov=True)
+    return {"current": float(icpt), "se": float(np.sqrt(max(cov[1, 1], 0.0))),
+            "mean_current": float(np.mean(np.abs(rows[:, 2])))}
+
+
+def level_outliers(session) -> dict | None:
+    """Traces whose final speed sits off the speed-voltage line of the other levels
+    (left out one at a time) by more than :data:`LEVEL_MISS` of itself, while those
+    others lie on their line: trace name -> relative miss (negative: below).  None when
+    the session has too few levels to draw a line without the trace."""
+    rows, names = unloaded_levels(session)
+    out, judged = {}, False
+    for k, name in enumerate(names):
+        if name is None:
+            continue
+        rest = np.delete(rows, k, axis=0)
+        if rest.shape[0] < 3 or np.unique(np.round(rest[:, 0], 9)).size < 2:
+            continue
+        judged = True
+        slope, icpt = np.polyfit(rest[:, 0], rest[:, 1], 1)
+        scale = max(float(np.max(np.abs(rest[:, 1]))), 1e-300)
+        spread = np.sqrt(np.mean((rest[:, 1] - (slope * rest[:, 0] + icpt)) ** 2)) / scale
+        expected = slope * rows[k, 0] + icpt
+        miss = (rows[k, 1] - expected) / max(abs(expected), 1e-300)
+        if abs(miss) > LEVEL_MISS and spread < LINE_FIT:
+            out[name] = float(miss)
+    return out if judged else None

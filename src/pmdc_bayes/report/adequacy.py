@@ -1,0 +1,62 @@
+"""The report's first section: does the session reject the fitted model?"""
+
+from __future__ import annotations
+
+from ._doc import Bullets, Paragraph, Section, Table, fmt
+
+__all__ = ["adequacy_section", "CONDITIONAL"]
+
+CONDITIONAL = ("Every value and interval below is CONDITIONAL on a model the data reject "
+               "(see 'Model adequacy'): treat them as a description of the misfit, not as "
+               "the motor's parameters.")
+
+
+def _p(x) -> str:
+    return "—" if x is None else (f"{x:.2g}" if x >= 1e-4 else "< 1e-4")
+
+
+def adequacy_section(ctx) -> Section | None:
+    """Verdict, findings, diagnosis and the per-channel figures (None for a run written
+    before the checks existed)."""
+    a = ctx.summary.get("adequacy")
+    if not a:
+        return None
+    sec = Section("Model adequacy")
+    fails = [f for f in a["findings"] if f["severity"] == "fail"]
+    warns = [f for f in a["findings"] if f["severity"] != "fail"]
+    if fails:
+        sec.add(Paragraph("VERDICT: MODEL INADEQUATE. The data reject the fitted model; "
+                          "the numbers in this report describe a misfit. What failed:"))
+        sec.add(Bullets(tuple(f"{f['where']}: {f['message']} ({f['check']}; {f['size']})"
+                              for f in fails)))
+        sec.add(Paragraph("What the pattern suggests the model lacks:"))
+        sec.add(Bullets(tuple(a["diagnosis"])))
+    else:
+        sec.add(Paragraph("Verdict: adequate. The checks below do not reject the fitted model "
+                          "(residuals white or immaterial, noise levels as the data's own, "
+                          "bench values and logged levels respected)."))
+    if warns:
+        sec.add(Paragraph("Warnings:"))
+        sec.add(Bullets(tuple(f"{f['where']}: {f['message']}" for f in warns)))
+    rows = []
+    for name, c in a["channels"].items():
+        if "whiteness" not in c:
+            rows.append((name, "—", "—", "—", "—",
+                         f"{100 * c['rms_miss_fraction']:.2g} (rms miss)", "—", "—"))
+            continue
+        rows.append((name, fmt(c["fitted_sd"], 2), fmt(c["model_free_sd"], 2),
+                     f"{c['inflation']:.2f}", _p(c["whiteness"]["p_value"]),
+                     f"{100 * c['systematic_fraction']:.2g}",
+                     fmt(c["fit_percent_closed_form"], 3), fmt(c["fit_percent_map"], 3)))
+    sec.add(Table("Per channel", ("channel", "fitted noise sd", "model-free sd", "ratio",
+                                  "Ljung-Box p", "systematic misfit (% span)",
+                                  "fit % closed form", "fit % MAP"), tuple(rows),
+                  "Fit % is MATLAB's compare figure, 100·(1 − ‖y − ŷ‖/‖y − ȳ‖). A channel "
+                  "fails when its misfit is both detectable (noise ratio above its limit or "
+                  "Ljung-Box p < 0.001) and material (systematic part above 1.5 % of the span)."))
+    bench = a.get("bench", {})
+    if bench:
+        sec.add(Table("Bench values", ("parameter", "bench", "fitted", "bench sd away"),
+                      tuple((k, f"{fmt(b['bench'])} ± {fmt(b['bench_sd'], 2)} {b['unit']}",
+                             fmt(b["fitted"]), f"{b['z']:+.1f}") for k, b in bench.items())))
+    return sec

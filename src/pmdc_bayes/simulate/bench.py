@@ -1,0 +1,306 @@
+"""A non-ideal bench: in-memory sessions from a motor richer than the fitted model.
+
+The motor (state ``ia`` A, ``ω`` rad/s; inputs ``Va`` V, ``TL`` N·m)::
+
+    La·dia/dt = Va − Ra·ia − K·ω
+    J·dω/dt   = K·ia − B·ω − Tc·sign(ω) − TL
+
+is integrated with :func:`scipy.integrate.solve_ivp` (LSODA, ``rtol=1e-8``), independently
+of :mod:`pmdc_bayes.physics`, with the non-idealities of real benches switched on one by
+one in :class:`BenchMotor`: dead time, sensor lag, brush drop, supply source
+resistance, a current-limited driver, undeclared load, speed-sensor gain error and an
+encoder-based speed estimate.  Because
+the session declares only the ideal inputs, a fit of the package's model to such a
+session is misspecified in a known way.
+
+Smoothing: ``sign(ω)`` is ``tanh(ω/ω_eps)`` with ``ω_eps`` = 1e-3 × the no-load speed at
+the largest voltage of the session, blended with static friction so that a motor at rest
+whose driving torque ``|K·ia − TL|`` is below the Coulomb torque stays exactly at rest;
+``sign(ia)`` of the brush drop is ``tanh(ia/i_eps)`` with ``i_eps`` = 1e-4 × the stall
+current ``V/Ra`` (small against the no-load current, so the full drop acts in steady
+state).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from ..io.session import Measurement, Schedule, Session, SteadyTable, Trace
+
+__all__ = ["BenchMotor", "StepSpec", "bench_session", "steady_point"]
+
+_RTOL = 1e-8
+_LOOP = 1e-3  # time constant of the driver's current loop, in units of La/Ra
+
+
+@dataclass(frozen=True)
+class BenchMotor:
+    """A motor on a bench: true parameters, non-idealities and sensor noise (SI).
+
+    Attributes
+    ----------
+    Ra, La, K, B, J, Tc : float
+        Armature resistance (Ω), inductance (H), torque/back-emf constant (N·m/A),
+        viscous friction (N·m·s/rad), inertia (kg·m²) and Coulomb friction (N·m).
+    dead_time : float
+        The motor sees the commanded voltage step this late (s).
+    sensor_lag : float
+        Time constant (s) of a first-order low-pass between the true and logged speed.
+    brush_drop : float
+        A constant voltage drop opposing the current (V): ``Va − brush_drop·sign(ia)``.
+    source_resistance : float
+        Resistance of the supply (Ω): the logged voltage is the supply's open-circuit
+        voltage, the motor sees ``Va − source_resistance·ia``.
+    current_limit : float or None
+        The driver lowers its output voltage so that ``|ia|`` never exceeds this (A):
+        a current loop that pulls ``ia`` to the limit with time constant 1e-3·La/Ra.
+    speed_gain : float
+        Multiplicative calibration error of the speed sensor.
+    encoder_counts_per_rev : int or None
+        If set, the logged speed is the backward difference of the angle quantised to
+        ``2π/counts`` (counted down with ``floor``), divided by the sample interval.
+        The encoder replaces the analogue sensor: no speed noise is added.
+    extra_load : dict
+        Trace name -> ``(constant N·m, viscous N·m·s/rad)``: load the session does not
+        declare.  The constant part is a drag opposing the motion (it acts like extra
+        Coulomb friction, so it cannot turn a motor at rest); the viscous part adds to B.
+    speed_noise, current_noise : float
+        Standard deviations of white Gaussian noise on the logged speed (rad/s) and
+        current (A).
+    """
+
+    Ra: float
+    La: float
+    K: float
+    B: float
+    J: float
+    Tc: float = 0.0
+    dead_time: float = 0.0
+    sensor_lag: float = 0.0
+    brush_drop: float = 0.0
+    source_resistance: float = 0.0
+    current_limit: float | None = None
+    speed_gain: float = 1.0
+    encoder_counts_per_rev: int | None = None
+    extra_load: dict = field(default_factory=dict)
+    speed_noise: float = 0.05
+    current_noise: float = 0.002
+
+
+@dataclass(frozen=True)
+class StepSpec:
+    """One logged voltage step from rest.
+
+    Attributes
+    ----------
+    name : str
+        Trace name (also its nominal file name, ``name + ".csv"``).
+    voltage : float
+        Commanded voltage after the step (V); 0 V before ``t_step``.
+    duration, dt : float
+        Length of the record and sample interval (s); samples at ``0, dt, …``.
+    t_step : float
+        Time of the commanded step within the trace (s).
+    load : float
+        Declared constant load torque (N·m), signed as in the fitted model.
+    log_current : bool
+        Whether the trace has a current channel.
+    """
+
+    name: str
+    voltage: float
+    duration: float
+    dt: float
+    t_step: float = 0.0
+    load: float = 0.0
+    log_current: bool = True
+
+
+def steady_point(motor: BenchMotor, voltage: float, load: float = 0.0,
+                 drag: tuple[float, float] = (0.0, 0.0)) -> tuple[float, float]:
+    """True steady ``(ω, ia)`` (rad/s, A) of the motor at a constant voltage.
+
+    Parameters
+    ----------
+    motor : BenchMotor
+    voltage : float
+        Commanded voltage (V).
+    load : float
+        Signed load torque (N·m).
+    drag : (float, float)
+        Extra ``(constant, viscous)`` drag, as in ``BenchMotor.extra_load``.
+
+    Returns
+    -------
+    (float, float)
+        Speed and current, with the brush drop, Coulomb friction and current limit
+        (the smoothing of ``sign`` neglected).
+
+    Notes
+    -----
+    Turning forward: ``ω = (K·(Va − drop) − R·(TL + Tc)) / (R·B + K²)`` and
+    ``ia = (B·(Va − drop) + K·(TL + Tc)) / (R·B + K²)``, with ``R = Ra + source_resistance``
+    and ``Tc`` and ``B`` including the drag; the reverse by symmetry; held at rest
+    (``ω = 0``, ``ia = (Va − drop·sign Va)/R``, or 0 if ``|Va| ≤ drop``) when
+    ``|K·ia − TL| ≤ Tc``.
+    A current above the limit is held at it, with ``ω`` from the torque balance.
+    """
+    m = motor
+    tc, b, r = m.Tc + drag[0], m.B + drag[1], m.Ra + m.source_resistance
+    den = r * b + m.K**2
+    w, ia = 0.0, math.copysign(max(abs(voltage) - m.brush_drop, 0.0), voltage) / r
+    if abs(m.K * ia - load) > tc:  # it turns: take the direction of the driving torque
+        s = math.copysign(1.0, m.K * ia - load)
+        v = voltage - s * m.brush_drop
+        w, ia = (m.K * v - r * (load + s * tc)) / den, (b * v + m.K * (load + s * tc)) / den
+    lim = m.current_limit
+    if lim is not None and abs(ia) > lim:
+        ia = math.copysign(lim, ia)
+        net = m.K * ia - load
+        w = 0.0 if abs(net) <= tc or b == 0 else (net - math.copysign(tc, net)) / b
+    return w, ia
+
+
+def _rhs(m: BenchMotor, spec: StepSpec, va: float, w_eps: float, i_eps: float):
+    """Right-hand side for state ``(ia, ω, ω_sensor, θ_sensor)`` at constant ``va``."""
+    tc_extra, b_extra = m.extra_load.get(spec.name, (0.0, 0.0))
+    tc, b, tl = m.Tc + tc_extra, m.B + b_extra, spec.load
+    lim, gain = m.current_limit, m.Ra / (m.La * _LOOP)  # near the limit, dia/dt = gain·Δi
+    lag = m.sensor_lag
+
+    def f(t, x):
+        ia, w, ws, _ = x
+        v = va - m.brush_drop * math.tanh(ia / i_eps) - m.source_resistance * ia
+        if lim is not None:  # the driver's current loop: it can only lower |voltage|
+            emf = m.Ra * ia + m.K * w
+            v = min(max(v, emf + m.La * gain * (-lim - ia)), emf + m.La * gain * (lim - ia))
+        dia = (v - m.Ra * ia - m.K * w) / m.La
+        drive = m.K * ia - tl
+        s = math.tanh(w / w_eps)
+        friction = tc * s + min(max(drive, -tc), tc) * (1.0 - s * s)  # slip, or stick
+        dw = (drive - b * w - friction) / m.J
+        dws = (w - ws) / lag if lag > 0 else dw
+        return [dia, dw, dws, ws]
+
+    return f
+
+
+def _integrate(m: BenchMotor, spec: StepSpec, t: np.ndarray, w_eps: float, i_eps: float):
+    """States ``(ia, ω, ω_sensor, θ_sensor)`` at the samples ``t`` (4 × n).
+
+    Integrated from rest in two pieces, before and after the voltage reaches the motor
+    (``t_step + dead_time``), so the solver never steps across the discontinuity.
+    """
+    t_on, t_end = spec.t_step + m.dead_time, float(t[-1])
+    atol = 1e-6 * np.array([i_eps, w_eps, w_eps, w_eps * spec.dt])
+    x0, out = np.zeros(4), np.zeros((4, t.size))
+    for lo, hi, va in ((0.0, min(t_on, t_end), 0.0), (t_on, t_end, float(spec.voltage))):
+        if hi <= lo:
+            continue
+        sel = (t > lo) & (t <= hi)
+        t_eval = np.append(t[sel], hi) if not sel.any() or t[sel][-1] < hi else t[sel]
+        sol = solve_ivp(_rhs(m, spec, va, w_eps, i_eps), (lo, hi), x0, method="LSODA",
+                        t_eval=t_eval, rtol=_RTOL, atol=atol, max_step=spec.dt)
+        if not sol.success:
+            raise RuntimeError(f"trace {spec.name!r}: integration failed: {sol.message}")
+        out[:, sel] = sol.y[:, :int(sel.sum())]
+        x0 = sol.y[:, -1]
+    return out
+
+
+def _trace(m: BenchMotor, spec: StepSpec, rng: np.random.Generator, w_eps: float,
+           i_eps: float) -> Trace:
+    n = int(round(spec.duration / spec.dt)) + 1
+    if n < 3 or not 0 <= spec.t_step < spec.duration:
+        raise ValueError(f"trace {spec.name!r}: need duration >= 2·dt and "
+                         "0 <= t_step < duration")
+    t = np.arange(n) * spec.dt
+    ia, _, ws, th = _integrate(m, spec, t, w_eps, i_eps)
+    speed_noise = rng.standard_normal(n)
+    current_noise = rng.standard_normal(n)
+    if m.encoder_counts_per_rev:
+        q = 2.0 * np.pi / m.encoder_counts_per_rev
+        counts = np.floor(th / q + 1e-9)
+        speed = m.speed_gain * np.concatenate([[0.0], np.diff(counts)]) * (q / spec.dt)
+    else:
+        speed = m.speed_gain * ws + m.speed_noise * speed_noise
+    current = ia + m.current_noise * current_noise if spec.log_current else None
+    volts = (Schedule(np.array([0.0, spec.t_step]), np.array([0.0, float(spec.voltage)]))
+             if spec.t_step > 0 else Schedule(np.array([0.0]), np.array([float(spec.voltage)])))
+    return Trace(spec.name, "step", Path(spec.name + ".csv"), t, speed,
+                 current, volts, Schedule(np.array([0.0]), np.array([float(spec.load)])),
+                 initial="rest")
+
+
+def bench_session(motor: BenchMotor, steps: Sequence[StepSpec], *, seed: int = 0,
+                  Ra_bench: tuple[float, float] | None = None,
+                  La_bench: tuple[float, float] | None = None,
+                  steady_voltages: Sequence[float] = (),
+                  friction: str = "viscous", name: str = "bench") -> Session:
+    """A session logged on a non-ideal bench.
+
+    Parameters
+    ----------
+    motor : BenchMotor
+        The true motor, its non-idealities and the sensor noise.
+    steps : sequence of StepSpec
+        The logged step traces (at least one with a current for the closed form).
+    seed : int
+        Seed of all the noise: ``numpy.random.default_rng(seed)`` spawns one stream for
+        the bench values, one per trace and one for the steady table.
+    Ra_bench, La_bench : (value, sd) or None
+        The session's bench measurements of Ra (Ω) and La (H).  By default the true
+        value plus Gaussian noise of 3 % (Ra) or 10 % (La), with that sd.
+    steady_voltages : sequence of float
+        If given, a steady table ``"steady"`` of unloaded speed and current at these
+        voltages (brush drop, Coulomb friction, current limit and speed gain applied;
+        extra load, lag and encoder not), each value with 0.3 % relative noise.
+    friction : str
+        The session's friction model, ``"viscous"`` or ``"coulomb"``.
+    name : str
+        Session name.
+
+    Returns
+    -------
+    Session
+        With ``truth`` = the true ``Ra, La, K, B, J, Tc``; traces declare only the
+        commanded voltage and the declared load.
+
+    Raises
+    ------
+    ValueError
+        For duplicate trace names, ``extra_load`` naming no trace, or a bad step.
+    """
+    m, steps = motor, tuple(steps)
+    names = [s.name for s in steps]
+    if len(set(names)) != len(names):
+        raise ValueError(f"duplicate trace names in {names}")
+    if unknown := set(m.extra_load) - set(names):
+        raise ValueError(f"extra_load names no trace: {sorted(unknown)}")
+    v_ref = max([abs(s.voltage) for s in steps] + [abs(v) for v in steady_voltages] + [1e-9])
+    w_eps = 1e-3 * m.K * v_ref / (m.Ra * m.B + m.K**2)
+    i_eps = 1e-4 * v_ref / m.Ra
+    bench_rng, table_rng, *trace_rngs = np.random.default_rng(seed).spawn(2 + len(steps))
+    z_ra, z_la = bench_rng.standard_normal(2)
+    ra = Ra_bench or (m.Ra * (1 + 0.03 * z_ra), 0.03 * m.Ra)
+    la = La_bench or (m.La * (1 + 0.10 * z_la), 0.10 * m.La)
+    traces = tuple(_trace(m, s, r, w_eps, i_eps) for s, r in zip(steps, trace_rngs,
+                                                                  strict=True))
+    tables = ()
+    if len(steady_voltages):
+        v = np.asarray(steady_voltages, dtype=float)
+        w, ia = np.array([steady_point(m, float(x)) for x in v]).T
+        w = m.speed_gain * w * (1 + 0.003 * table_rng.standard_normal(v.size))
+        ia = ia * (1 + 0.003 * table_rng.standard_normal(v.size))
+        tables = (SteadyTable("steady", Path("steady.csv"), v, w, ia, np.zeros(v.size)),)
+    truth = {k: float(getattr(m, k)) for k in ("Ra", "La", "K", "B", "J", "Tc")}
+    return Session(name=name, root=Path("."), motor="simulated bench motor",
+                   Ra=Measurement(float(ra[0]), float(ra[1]), "ohm", "bench"),
+                   La=Measurement(float(la[0]), float(la[1]), "H", "bench"),
+                   friction=friction, steady_tables=tables, traces=traces, truth=truth)

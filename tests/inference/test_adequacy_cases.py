@@ -1,0 +1,75 @@
+"""The adequacy verdict on sessions from a richer simulator than the fitted model.
+
+Each misspecified bench of :mod:`pmdc_bayes.simulate.cases` (dead time, sensor lag,
+brush drop, source resistance, current limit, an unknown load on one trace, speed
+differenced from an encoder) is fitted with the ideal motor: the verdict must be
+"inadequate" with the matching diagnosis.  Motors the ideal model describes must come
+out "adequate" (the false-alarm rate is measured over many of them in the slow test;
+``benchmarks/adequacy_rates.py`` measures it per check over more).
+"""
+
+import numpy as np
+import pytest
+
+from pmdc_bayes.inference.adequacy import assess
+from pmdc_bayes.inference.fit import fit_map
+from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.paper.closed_form import closed_form
+from pmdc_bayes.simulate.bench import bench_session
+from pmdc_bayes.simulate.cases import CASES, case_session, random_motor
+
+
+def _verdict(session, seed=0):
+    cf = closed_form(session)
+    model = build_model(session, cf)
+    return assess(model, fit_map(model, seed=seed), cf)
+
+
+def _says(adequacy, *words):
+    text = " ".join(adequacy.diagnosis).lower()
+    return all(w in text for w in words)
+
+
+@pytest.mark.slow
+def test_the_ideal_motor_is_adequate():
+    a = _verdict(case_session())
+    assert a.verdict == "adequate", [f.message for f in a.findings]
+    assert a.diagnosis == ()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", list(CASES))
+def test_each_bench_non_ideality_is_flagged_with_its_diagnosis(case):
+    a = _verdict(case_session(case))
+    assert a.verdict == "inadequate", case
+    assert _says(a, *CASES[case][1]), (case, a.diagnosis, [f.message for f in a.findings])
+
+
+@pytest.mark.slow
+def test_the_diagnosis_tells_dead_time_from_a_sensor_lag():
+    """Dead time delays the current too; a speed-sensor lag leaves it on time."""
+    dead, lag = _verdict(case_session("dead time")), _verdict(case_session("sensor lag"))
+    assert not _says(dead, "lag in the speed sensor")
+    assert not _says(lag, "dead time")
+
+
+@pytest.mark.slow
+def test_a_voltage_drop_is_not_taken_for_an_unknown_load_or_a_delay():
+    a = _verdict(case_session("brush drop"))
+    assert not _says(a, "unmeasured load")
+    assert not _says(a, "later than the model")
+
+
+N_MOTORS = 20
+
+
+@pytest.mark.slow
+def test_false_alarm_rate_over_motors_the_model_describes():
+    rng = np.random.default_rng(2026)
+    verdicts = []
+    for k in range(N_MOTORS):
+        motor, steps = random_motor(rng)
+        a = _verdict(bench_session(motor, steps, seed=k), seed=k)
+        verdicts.append((a.verdict, [f.message for f in a.failures()]))
+    alarms = [v for v in verdicts if v[0] != "adequate"]
+    assert len(alarms) <= 0.05 * N_MOTORS, alarms

@@ -1,0 +1,90 @@
+"""The adequacy statistics and the onset diagnosis on signals whose answer is known."""
+
+import numpy as np
+import pytest
+
+from pmdc_bayes.inference.adequacy import fit_percent, inflation_limit, systematic_misfit, whiteness
+from pmdc_bayes.inference.onset import onset_shape
+
+
+def test_white_noise_passes_and_a_slow_wave_fails_the_whiteness_test():
+    rng = np.random.default_rng(1)
+    e = rng.standard_normal(2000)
+    w = whiteness(e)
+    assert w["p_value"] > 1e-3 and w["max_abs_rho"] < 0.1
+    wave = e + 3 * np.sin(np.linspace(0, 6 * np.pi, 2000))
+    assert whiteness(wave)["p_value"] < 1e-10
+    assert whiteness(wave)["rho1"] > 0.8
+
+
+def test_differenced_noise_is_anti_correlated_at_lag_one():
+    rng = np.random.default_rng(2)
+    d = np.diff(rng.standard_normal(3001))
+    assert whiteness(d)["rho1"] == pytest.approx(-0.5, abs=0.05)
+
+
+def test_input_cross_correlation_sees_a_residual_that_follows_the_input():
+    rng = np.random.default_rng(3)
+    u = np.repeat(rng.choice([0.0, 1.0], 40), 50)
+    r = rng.standard_normal(u.size)
+    assert whiteness(r, u)["input_xcorr"] < 0.1
+    assert whiteness(r + 2 * u, u)["input_xcorr"] > 0.5
+    assert whiteness(r, np.ones(u.size))["input_xcorr"] is None
+
+
+def test_fit_percent_is_matlab_compare():
+    y = np.linspace(0, 10, 101)
+    assert fit_percent(y, y) == 100.0
+    assert fit_percent(y, np.full_like(y, y.mean())) == pytest.approx(0.0)
+    assert fit_percent(y, y + 0.1 * (y - y.mean())) == pytest.approx(90.0)
+
+
+def test_systematic_misfit_ignores_white_noise_and_measures_a_wave():
+    rng = np.random.default_rng(4)
+    noise = 0.5 * rng.standard_normal(4000)
+    assert systematic_misfit(noise, 0.5) < 0.03
+    wave = 0.2 * np.sin(np.linspace(0, 4 * np.pi, 4000))
+    assert systematic_misfit(noise + wave, 0.5) == pytest.approx(0.2 / np.sqrt(2), rel=0.15)
+
+
+def test_inflation_limit_shrinks_with_more_samples_but_not_below_one_and_a_half():
+    assert inflation_limit(50) > inflation_limit(500) >= 1.5
+    assert inflation_limit(10**6) == 1.5
+
+
+@pytest.mark.parametrize("kind", ["plain", "delayed", "lagged", "ramp"])
+def test_onset_shape_tells_a_delay_or_lag_from_a_ramp(kind):
+    t = np.arange(0, 0.5, 1e-3)
+    tau, d = 0.05, 0.02
+    if kind == "plain":
+        y = 1 - np.exp(-t / tau)
+    elif kind == "delayed":
+        y = np.where(t > d, 1 - np.exp(-(t - d) / tau), 0.0)
+    elif kind == "lagged":  # exponential seen through a first-order sensor of 20 ms
+        y = 1 - (tau * np.exp(-t / tau) - d * np.exp(-t / d)) / (tau - d)
+    else:  # acceleration limited for 40 ms, then exponential with matching slope
+        tc, T = 0.04, 0.09
+        y = np.where(t <= tc, t / T, 1 - (1 - tc / T) * np.exp(-(t - tc) / (T - tc)))
+    y = 100 * y + 0.2 * np.random.default_rng(5).standard_normal(t.size)
+    s = onset_shape(t, y, 0.0)
+    if kind == "plain":
+        assert min(s["delayed"], s["lagged"], s["ramp"]) > 0.6
+    elif kind == "ramp":
+        assert s["ramp"] < 0.6 and s["ramp"] < min(s["delayed"], s["lagged"])
+        assert s["ramp_time"] == pytest.approx(0.04, rel=0.25)
+    else:
+        assert min(s["delayed"], s["lagged"]) < 0.6
+        assert min(s["delayed"], s["lagged"]) < s["ramp"]
+        if kind == "delayed":
+            assert s["dead_time"] == pytest.approx(d, rel=0.25)
+
+
+def test_only_optima_close_to_the_map_raise_a_search_warning():
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.checks import search_checks
+
+    assert search_checks(SimpleNamespace(mode_gaps=())) == []
+    assert search_checks(SimpleNamespace(mode_gaps=(40.0, 900.0))) == []
+    (w,) = search_checks(SimpleNamespace(mode_gaps=(2.5, 40.0)))
+    assert w.severity == "warn" and w.check == "global search" and "2.5" in w.message

@@ -1,0 +1,57 @@
+"""The model-free rules the diagnosis reads, on sessions whose cause is known."""
+
+import numpy as np
+import pytest
+
+from pmdc_bayes.inference.levels import friction_offset, level_outliers, voltage_intercept
+from pmdc_bayes.inference.onset import departure
+from pmdc_bayes.simulate.bench import BenchMotor, bench_session
+from pmdc_bayes.simulate.cases import MOTOR, STEPS, case_session
+
+
+def test_the_speed_voltage_line_crosses_zero_at_the_brush_drop():
+    icpt = voltage_intercept(case_session("brush drop"))
+    assert icpt["voltage"] == pytest.approx(1.0, abs=max(3 * icpt["se"], 0.02))
+    ideal = voltage_intercept(case_session())
+    assert abs(ideal["voltage"]) < max(3 * ideal["se"], 0.02)
+
+
+def test_a_loaded_trace_sits_off_the_line_of_the_other_levels():
+    out = level_outliers(case_session("unknown load"))
+    assert list(out) == ["step_6v"] and out["step_6v"] == pytest.approx(-0.10, abs=0.02)
+    assert level_outliers(case_session("brush drop")) == {}
+    assert level_outliers(case_session()) == {}
+
+
+def test_without_enough_levels_no_trace_is_judged():
+    session = bench_session(BenchMotor(**MOTOR), STEPS)
+    assert level_outliers(session) is None
+
+
+def test_coulomb_friction_leaves_a_current_at_zero_speed():
+    tc = 2e-3
+    coulomb = bench_session(BenchMotor(**MOTOR, Tc=tc), STEPS, steady_voltages=(4.0, 8.0, 12.0))
+    off = friction_offset(coulomb)
+    assert off["current"] == pytest.approx(tc / MOTOR["K"], rel=0.1)
+    ideal = friction_offset(case_session())
+    assert abs(ideal["current"]) < max(3 * ideal["se"], 0.05 * tc / MOTOR["K"])
+
+
+def test_departure_finds_when_a_signal_leaves_rest():
+    t = np.arange(0, 0.1, 1e-3)
+    rng = np.random.default_rng(0)
+    y = np.where(t > 0.02, 1 - np.exp(-(t - 0.02) / 0.01), 0.0) + 1e-3 * rng.standard_normal(t.size)
+    assert departure(t, y, 0.0, 5e-3) == pytest.approx(0.021, abs=2e-3)
+    assert departure(t, np.zeros_like(t), 0.0, 5e-3) is None
+
+
+def test_a_trace_cut_before_it_settles_gives_no_steady_level():
+    from pmdc_bayes.inference.levels import settled, unloaded_levels
+
+    t = np.linspace(0, 1, 500)
+    assert not settled(1 - np.exp(-t / 0.5))
+    assert settled(1 - np.exp(-t / 0.05))
+    session = bench_session(BenchMotor(**MOTOR), [s.__class__(s.name, s.voltage, 0.01, s.dt)
+                                                  for s in STEPS])
+    rows, names = unloaded_levels(session)
+    assert rows.shape[0] == 0 and names == []
