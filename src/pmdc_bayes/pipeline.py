@@ -109,6 +109,8 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
         params[name] = {"unit": model.registry[name].unit,
                         "closed_form": cf.params().get(name),
                         "map": fit.values[name], "map_sd": fit.sd[name]}
+        if not adequacy.ok:
+            params[name]["note"] = "conditional on a model the data reject"
     summary = {
         "session": {"name": session.name, "path": str(session.root), "motor": session.motor,
                     "friction": "coulomb" if model.coulomb else "viscous",

@@ -55,3 +55,25 @@ def test_a_trace_cut_before_it_settles_gives_no_steady_level():
                                                   for s in STEPS])
     rows, names = unloaded_levels(session)
     assert rows.shape[0] == 0 and names == []
+
+
+def test_a_no_load_speed_the_session_contradicts_fails_the_plausibility_check():
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.checks import plausibility_checks
+    from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.paper.closed_form import closed_form
+
+    session = case_session()
+    model = build_model(session, closed_form(session))
+    truth = dict(session.truth)
+    preds = [(np.asarray(tr.current), np.asarray(tr.speed)) for tr in session.traces]
+    _, found = plausibility_checks(model, SimpleNamespace(values=truth), preds)
+    assert not [f for f in found if f.where == "no-load speed"]
+    wrong = dict(truth, K=0.6 * truth["K"])  # no-load speed ~ 1/K: 1.6x the logged one
+    out, found = plausibility_checks(model, SimpleNamespace(values=wrong), preds)
+    (f,) = [f for f in found if f.where == "no-load speed"]
+    assert f.severity == "fail"
+    # the steady table's 12 V row (0.3 % reading noise) is the level compared
+    assert out["no_load_speed"]["logged_speed"] == pytest.approx(
+        session.steady_tables[0].speed[-1], rel=1e-12)

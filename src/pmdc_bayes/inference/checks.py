@@ -7,11 +7,13 @@ import numpy as np
 
 from ..physics import motor
 from .adequacy import BENCH_FAIL_Z, BENCH_WARN_Z, PEAK_RATIO, RISE_RATIO, Finding, _g
+from .levels import unloaded_levels
 
 __all__ = ["bench_checks", "plausibility_checks", "search_checks", "rise_time", "step_time"]
 
 COLLAPSE = 0.1  # a bench quantity fitted below this fraction of its bench value
 PRIOR_PULL = 3.0  # a seeded parameter this many prior widths (log) from its seed
+NO_LOAD_RATIO = 1.2  # model's steady speed against the logged one, either way
 COMPETING = 5.0  # another optimum within this many log-posterior units of the MAP
 
 
@@ -101,6 +103,7 @@ def plausibility_checks(model, fit, preds) -> tuple[dict, list]:
         i_nl, w_nl = motor.steady_state(p["Ra"], p["K"], p["B"], v_max, 0.0,
                                         p.get("Tc") if model.coulomb else None)
         out["no_load_speed"] = {"voltage": v_max, "value": float(w_nl)}
+        found += _no_load_check(model, p, out)
     rises = {}
     for tr, (ia, w) in zip(session.traces, preds, strict=True):
         t_step = step_time(tr)
@@ -127,6 +130,26 @@ def plausibility_checks(model, fit, preds) -> tuple[dict, list]:
                     f"passes {_g(peak_obs - 3 * noise)} A"))
     out["rise_time"] = rises
     return out, found
+
+
+def _no_load_check(model, p, out) -> list:
+    """The model's steady speed at the session's largest settled unloaded voltage
+    against the speed logged there."""
+    rows, _ = unloaded_levels(model.session)
+    if not rows.size:
+        return []
+    v, w_obs, _ = rows[int(np.argmax(np.abs(rows[:, 0])))]
+    _, w_mod = motor.steady_state(p["Ra"], p["K"], p["B"], float(v), 0.0,
+                                  p.get("Tc") if model.coulomb else None)
+    w_mod = float(w_mod)
+    out["no_load_speed"].update(logged_voltage=float(v), logged_speed=float(w_obs),
+                                model_at_logged_voltage=w_mod)
+    if w_obs == 0 or not 1 / NO_LOAD_RATIO < w_mod / w_obs < NO_LOAD_RATIO:
+        return [Finding("plausibility", "no-load speed", "fail",
+                        f"x{w_mod / w_obs:.2g}" if w_obs else "logged 0",
+                        f"the model's no-load speed at {_g(float(v))} V is {_g(w_mod)} rad/s "
+                        f"where the session settles at {_g(float(w_obs))} rad/s")]
+    return []
 
 
 def search_checks(fit) -> list:

@@ -25,6 +25,8 @@ CASES = {
     "current limit": (dict(current_limit=2.0), ("current-limited",)),
     "unknown load": (dict(extra_load={"step_6v": (1.5e-2, 0.0)}),
                      ("step_6v", "unmeasured load")),
+    "unknown viscous load": (dict(extra_load={"step_6v": (0.0, 1.5e-4)}),
+                             ("step_6v", "unmeasured load")),
     "encoder speed": (dict(encoder_counts_per_rev=200), ("encoder",)),
 }
 
