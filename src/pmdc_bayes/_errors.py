@@ -27,3 +27,9 @@ class SessionError(ValueError):
 
 class UsageError(ValueError):
     """A command-line option or output location is unusable (exit code 2)."""
+
+
+class NotApplicable(SessionError):
+    """The paper's closed-form method cannot run on this session (it lacks a steady
+    current or a step).  A fit seeds itself from the data instead; the closed-form
+    command alone reports it as bad input."""

@@ -27,7 +27,7 @@ from .inference.result import RunResult
 from .io._jsonio import dumps
 from .io.loader import load_session
 from .io.session import Session
-from .paper.closed_form import closed_form
+from .inference.seed import fit_seed
 from .paper.consistency import consistency_checks
 
 __all__ = ["fit_session", "run_fit", "write_run", "default_out_dir", "versions"]
@@ -90,7 +90,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     session = session_full.without_traces(holdout) if holdout else session_full
     wall = {}
     t0 = time.perf_counter()
-    cf = closed_form(session)
+    cf = fit_seed(session)
     wall["closed_form"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -107,7 +107,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     params = {}
     for name in model.names:
         params[name] = {"unit": model.registry[name].unit,
-                        "closed_form": cf.params().get(name),
+                        "closed_form": cf.params().get(name) if cf.applicable else None,
                         "map": fit.values[name], "map_sd": fit.sd[name]}
         if not adequacy.ok:
             params[name]["note"] = "conditional on a model the data reject"

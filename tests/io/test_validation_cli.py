@@ -87,8 +87,8 @@ CASES = [
     # missing required keys
     ("missing-bench-Ra-sd", _sub(RA_SD, RA_SD.replace("sd = 0.05\n", "")),
      [f"{TOML}:bench.Ra.sd", "missing required key", "add sd ="]),
-    ("missing-bench-La", _sub('[bench.La]\nvalue = 1.5\nunit = "mH"\nsd = 0.04\n', ""),
-     [f"{TOML}:bench.La", "missing required table", "add a [bench.La] section"]),
+    ("missing-bench-Ra", _sub('[bench.Ra]\nvalue = 2.0\nunit = "ohm"\nsd = 0.05\n', ""),
+     [f"{TOML}:bench.Ra", "missing required table", "add a [bench.Ra] section"]),
     ("missing-trace-columns", _sub(STEP_COLUMNS + "\n", ""),
      [f"{TOML}:trace['step'].columns", "missing required table", "add columns = { ... }"]),
     ("missing-motor-name", _sub('name = "Test motor"\n', ""),

@@ -160,3 +160,21 @@ def test_read_time_constant_needs_a_crossing():
     t = np.linspace(0.0, 1.0, 50)
     with pytest.raises(ValueError, match="never crosses"):
         read_time_constant(t, np.full(50, 3.0))
+
+
+def test_steady_table_currents_give_k_and_b_when_no_other_current_exists():
+    import dataclasses
+
+    from pmdc_bayes._errors import NotApplicable
+    from pmdc_bayes.paper.closed_form import closed_form
+    from pmdc_bayes.simulate.cases import MOTOR, case_session
+
+    full = case_session(speed_only=True)  # steps without current, steady table with it
+    cf = closed_form(full)
+    assert "steady table 'steady'" in cf.used["K"]
+    # (20) per row with the bench Ra (3 % off) leaves K within a percent or two
+    assert cf.K == pytest.approx(MOTOR["K"], rel=0.03)
+    bare = dataclasses.replace(full, steady_tables=tuple(
+        dataclasses.replace(t, current=None) for t in full.steady_tables))
+    with pytest.raises(NotApplicable, match="needs a steady current"):
+        closed_form(bare)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
-from ..io.session import Session
+from ..io.session import LA_ASSUMED, Session
 
 __all__ = ["Prior", "ParamSpec", "Registry", "motor_registry", "PRIOR_FACTOR", "BLOCKS"]
 
@@ -191,7 +191,9 @@ def motor_registry(session: Session, seed: dict, *, coulomb: bool) -> Registry:
     specs = [
         ParamSpec("Ra", "ohm", "motor", Prior("normal", ra.value, ra.sd, "bench"), ra.value,
                   description="armature resistance"),
-        ParamSpec("La", "H", "motor", Prior("normal", la.value, la.sd, "bench"), la.value,
+        ParamSpec("La", "H", "motor",
+                  Prior("lognormal", la.value, la.sd, "physical range") if la.source == LA_ASSUMED
+                  else Prior("normal", la.value, la.sd, "bench"), la.value,
                   description="armature inductance"),
     ]
     for name, unit, block, words in (

@@ -15,13 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .._errors import SessionError, UsageError
+from .._errors import UsageError
 from .._x64 import x64
 from ..io.loader import load_session
 from ..io.session import Session
-from ..paper.closed_form import ClosedForm, closed_form
+from ..paper.closed_form import ClosedForm
 from .fit import FitResult
 from .objective import SessionModel, build_model
+from .seed import fit_seed
 
 __all__ = ["RunResult", "read_run", "read_summary"]
 
@@ -122,10 +123,7 @@ def read_run(run_dir) -> RunResult:
     session_full = load_session(info["path"])
     held = list(info.get("holdout") or [])
     session = session_full.without_traces(held) if held else session_full
-    try:
-        cf = closed_form(session)
-    except SessionError:
-        cf = None
+    cf = fit_seed(session)
     coulomb = info.get("friction") == "coulomb"
     model = build_model(session, cf, coulomb=coulomb)
     draws, idata = _read_posterior(run_dir, model.names)

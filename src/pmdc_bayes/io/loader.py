@@ -16,12 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ._csv import read_columns
 from .._errors import SessionError
+from ._csv import read_columns
 from ._toml import Table as _Table
 from ._toml import describe as _describe
 from .session import (
     FRICTION_MODELS,
+    LA_ASSUMED,
+    LA_PRIOR_LOG_SD,
+    LA_TIME_CONSTANT,
     Measurement,
     OperatingPoint,
     Schedule,
@@ -47,6 +50,7 @@ _STEP_KINDS = {"voltage": "voltage", "final_speed": "speed", "tau": "time",
 _TRACE_KINDS = {"time": "time", "speed": "speed", "current": "current", "voltage": "voltage",
                 "load_torque": "torque"}
 _TRUTH_KEYS = ("Ra", "La", "K", "B", "J", "Tc")
+
 
 
 def _locate(path) -> Path:
@@ -274,7 +278,10 @@ def load_session(path) -> Session:
     bench = top.table("bench")
     bench.check_keys(_BENCH_KINDS)
     measured = {key: _measurement(bench.table(key), kind) for key, kind in _BENCH_KINDS.items()
-                if key in ("Ra", "La") or key in bench.data}
+                if key == "Ra" or key in bench.data}
+    if "La" not in measured:  # no LCR meter: a wide prior on the electrical time constant
+        ra = measured["Ra"].value
+        measured["La"] = Measurement(ra * LA_TIME_CONSTANT, LA_PRIOR_LOG_SD, "H", LA_ASSUMED)
     options = {}
     cf = top.table("closed_form", required=False)
     if cf is not None:

@@ -26,11 +26,17 @@ __all__ = [
 FRICTION_MODELS = ("viscous", "coulomb")
 
 
+LA_TIME_CONSTANT = 1e-3  # s: La/Ra assumed when La was not measured ...
+LA_PRIOR_LOG_SD = float(np.log(10.0)) / 2  # ... give or take a factor 10 at 2 sd (log)
+LA_ASSUMED = "not measured: La/Ra = 1 ms, a factor 10 either way at 2 sd"
+
+
 @dataclass(frozen=True)
 class Measurement:
     """A direct bench measurement (SI value and one-standard-deviation uncertainty).
 
-    ``unit`` is the unit the user wrote, kept for display only.
+    ``unit`` is the unit the user wrote, kept for display only.  An La the user did
+    not measure is :data:`LA_ASSUMED` in ``source``, ``sd`` then a log-scale width.
     """
 
     value: float

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._errors import SessionError
-from ..io.session import Session, Trace
+from .._errors import NotApplicable, SessionError
+from ..io.session import LA_ASSUMED, Session, Trace
 from ..physics.motor import (
     gain,
     state_space,
@@ -129,7 +129,11 @@ def read_time_constant(t, y, *, t_step=None, tail_fraction=0.1) -> TimeConstantR
 
 @dataclass(frozen=True)
 class ClosedForm:
-    """The closed-form estimates (SI) and where each input came from."""
+    """The closed-form estimates (SI) and where each input came from.
+
+    ``applicable`` is False for a seed built from the data when the method cannot run
+    on the session (``reason`` says why); its values then only start the fit.
+    """
 
     Ra: float
     La: float
@@ -139,6 +143,8 @@ class ClosedForm:
     tau: float
     G: float
     used: dict = field(default_factory=dict)
+    applicable: bool = True
+    reason: str = ""
 
     def params(self) -> dict:
         return {"Ra": self.Ra, "La": self.La, "K": self.K, "B": self.B, "J": self.J}
@@ -151,6 +157,9 @@ class ClosedForm:
         out = dict(self.params(), tau=self.tau, G=self.G)
         out["tf22"] = {"num": [float(v) for v in num], "den": [float(v) for v in den]}
         out["used"] = dict(self.used)
+        out["applicable"] = self.applicable
+        if not self.applicable:
+            out["reason"] = self.reason
         return out
 
 
@@ -165,17 +174,37 @@ def _step_of(trace: Trace) -> tuple[float, float, float]:
     return float(max(times[k + 1], trace.time[0])), float(v[k]), float(v[k + 1])
 
 
+def _steady_rows_with_current(session: Session):
+    """(table name, V, I, ω arrays) of the first steady table's unloaded, turning rows
+    with a current, or None."""
+    for tab in session.steady_tables:
+        if tab.current is None:
+            continue
+        keep = (tab.load_torque == 0) & (tab.speed != 0) & np.isfinite(tab.current)
+        if keep.any():
+            return tab.name, tab.voltage[keep], tab.current[keep], tab.speed[keep]
+    return None
+
+
 def closed_form(session: Session) -> ClosedForm:
     """Apply the paper's method to a session, choosing its inputs.
 
     Kb comes from the first operating point with a current (20), else from the
-    settled end of a step trace with current (20) with d = 1; Kt = Kb; B from (19)
-    at the same point; τ from a step reading or the 63.2 % point of the first step
+    settled end of a step trace with current (20) with d = 1, else from (20) at every
+    unloaded row of a steady table with currents (averaged); Kt = Kb; B from (19)
+    at the same point(s); τ from a step reading or the 63.2 % point of the first step
     trace; J from (9); G from (10).  ``session.closed_form_options["K_decimals"]``
     rounds K before it is used in (19) and (9), as the paper did.
+
+    Raises
+    ------
+    NotApplicable
+        When the session has no steady current or no step: the method cannot run.
     """
     Ra, La = session.Ra.value, session.La.value
-    used = {"Ra": "bench measurement", "La": "bench measurement"}
+    used = {"Ra": "bench measurement",
+            "La": ("assumed, not measured (La/Ra = 1 ms)" if session.La.source == LA_ASSUMED
+                   else "bench measurement")}
     steps = [t for t in session.traces if t.kind == "step"]
 
     op = next((p for p in session.operating_points if p.current is not None), None)
@@ -185,24 +214,31 @@ def closed_form(session: Session) -> ClosedForm:
         used["K"] = f"equation (20) at operating point {op.name!r}"
     else:
         with_current = [t for t in steps if t.current is not None]
-        if not with_current:
-            raise SessionError(session.root / "session.toml",
-                               "the closed-form method needs a steady current: add an "
-                               "[[operating_point]] with a current, or a step trace with a "
-                               "current column", where="operating_point")
-        tr = with_current[0]
-        n_tail = max(3, tr.n // 10)
-        Va = float(tr.voltage.at(tr.time[-n_tail:]).mean())
-        Ia = float(tr.current[-n_tail:].mean())
-        w = float(tr.speed[-n_tail:].mean())
-        K = kb_from_chopper(Va, 1.0, Ia, w, Ra)
-        used["K"] = f"equation (20) at the settled end of trace {tr.name!r}"
+        rows = _steady_rows_with_current(session)
+        if with_current:
+            tr = with_current[0]
+            n_tail = max(3, tr.n // 10)
+            Va = float(tr.voltage.at(tr.time[-n_tail:]).mean())
+            Ia = float(tr.current[-n_tail:].mean())
+            w = float(tr.speed[-n_tail:].mean())
+            K = kb_from_chopper(Va, 1.0, Ia, w, Ra)
+            used["K"] = f"equation (20) at the settled end of trace {tr.name!r}"
+        elif rows is not None:
+            name, Va, Ia, w = rows
+            K = float(np.mean(kb_from_chopper(Va, 1.0, Ia, w, Ra)))
+            used["K"] = f"equation (20) per row of steady table {name!r}, averaged"
+        else:
+            raise NotApplicable(session.root / "session.toml",
+                                "the closed-form method needs a steady current: add an "
+                                "[[operating_point]] with a current, a step trace with a "
+                                "current column or a steady table with a current column",
+                                where="operating_point")
     digits = session.closed_form_options.get("K_decimals")
     if digits is not None:
         K = round(K, int(digits))
         used["K"] += f", rounded to {int(digits)} decimals as published"
-    B = b_from_steady(K, Ia, w)
-    used["B"] = "equation (19) at the same point"
+    B = float(np.mean(b_from_steady(K, Ia, w)))
+    used["B"] = "equation (19) at the same point" + ("s, averaged" if np.size(Ia) > 1 else "")
 
     if session.step_readings:
         sr = session.step_readings[0]
@@ -218,9 +254,9 @@ def closed_form(session: Session) -> ClosedForm:
                                f"{exc}; log the step until the speed settles") from None
         used["tau"] = f"63.2 % point of trace {tr.name!r}"
     else:
-        raise SessionError(session.root / "session.toml",
-                           "the closed-form method needs a step: add a [[trace]] with "
-                           "kind = \"step\" or a [[step_reading]]", where="trace")
+        raise NotApplicable(session.root / "session.toml",
+                            "the closed-form method needs a step: add a [[trace]] with "
+                            "kind = \"step\" or a [[step_reading]]", where="trace")
     J = j_from_tau(tau, Ra, B, K)
     used["J"] = "equation (9) from tau"
     return ClosedForm(Ra, La, K, B, J, tau, gain(Ra, K, B), used)

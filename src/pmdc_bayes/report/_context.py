@@ -70,6 +70,12 @@ class ReportContext:
         return self.values.get("mean") or self.values["map"]
 
     @property
+    def cf_label(self) -> str:
+        """What the closed-form curves and points are: the paper's method, or the
+        data's seed when the method cannot run on the session."""
+        return "closed form" if self.cf.applicable else "seed (closed form n/a)"
+
+    @property
     def best_label(self) -> str:
         return "posterior mean" if self.has_posterior else "MAP"
 

@@ -79,8 +79,15 @@ def _parameters(ctx) -> Section:
 
 
 def _comparison(ctx) -> Section:
-    rows = compare_closed_form(ctx)
     sec = Section("Comparison with the closed-form method")
+    if not ctx.cf.applicable:
+        sec.add(Paragraph(f"The closed-form method does not apply to this session: "
+                          f"{ctx.cf.reason}. The fit started from values read from the data "
+                          "instead (" + "; ".join(f"{k}: {v}" for k, v in ctx.cf.used.items())
+                          + "); the curves marked 'seed' show that start, not the paper's "
+                          "method."))
+        return sec
+    rows = compare_closed_form(ctx)
     sec.add(Paragraph(f"How far the paper's closed-form values lie from the {ctx.best_label}, "
                       "in its standard deviations, and which known weakness of the method "
                       "accounts for the difference (each part with its number; the parts add "
@@ -113,7 +120,7 @@ def _traces(ctx) -> Section:
                           + " (rad/s for speed, A for current)."))
     for tp in ctx.predictions:
         sec.add(Figure(f"trace_{_safe(tp.trace.name)}", f"Trace {tp.trace.name!r}: measured "
-                       "against the models, residuals underneath.", trace_figure(tp)))
+                       "against the models, residuals underneath.", trace_figure(tp, ctx.cf_label)))
     return sec
 
 
@@ -128,7 +135,7 @@ def _holdout(ctx):
             sec.add(Paragraph(f"Held-out {tp.trace.name!r} {c}: RMS prediction error "
                               + ", ".join(parts) + f" (noise level {fmt(tp.noise[c], 3)})."))
         sec.add(Figure(f"heldout_{_safe(tp.trace.name)}", f"Held-out trace {tp.trace.name!r} "
-                       "predicted by each parameter set.", trace_figure(tp)))
+                       "predicted by each parameter set.", trace_figure(tp, ctx.cf_label)))
     return sec
 
 

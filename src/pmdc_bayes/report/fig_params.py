@@ -75,7 +75,7 @@ def corner_figure(ctx) -> bytes:
     styles = {"closed_form": {"marker": "s", "color": COLORS["closed_form"]},
               "map": {"marker": "P", "color": COLORS["map"]},
               "truth": {"marker": "*", "color": COLORS["truth"]}}
-    labels = {"closed_form": "closed form (arrow: off the axes)", "map": "MAP",
+    labels = {"closed_form": f"{ctx.cf_label} (arrow: off the axes)", "map": "MAP",
               "truth": "truth (simulated session)"}
     n = len(names)
     fig, axes = subplots(n, n, figsize=(2.3 * n + 0.8, 2.3 * n + 0.6), squeeze=False)

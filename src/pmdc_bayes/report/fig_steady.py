@@ -74,7 +74,7 @@ def _predict(ctx, vals, v, tl, *, viscous=False):
 def _lines(ax, ctx, x, v, tl):
     """Closed form, MAP and posterior band of the steady speed along ``x``."""
     cf = _predict(ctx, ctx.values["closed_form"], v, tl, viscous=True)[0]
-    ax.plot(x, cf, "--", color=COLORS["closed_form"], lw=1.5, label="closed form")
+    ax.plot(x, cf, "--", color=COLORS["closed_form"], lw=1.5, label=ctx.cf_label)
     ax.plot(x, _predict(ctx, ctx.values["map"], v, tl)[0], color=COLORS["map"], lw=1.2,
             label="MAP")
     if ctx.draws is not None:
@@ -139,7 +139,7 @@ def steady_figure(ctx) -> bytes:
     for ax in axes[0]:
         ax.legend(loc="upper left" if ax is axes[0, 0] else "upper right", fontsize=7)
     axes[1, 1].plot([], [], "s", color=COLORS["closed_form"], mec="k", mew=0.4,
-                    label="measured − closed form")
+                    label=f"measured − {ctx.cf_label}")
     axes[1, 1].plot([], [], "P", color=COLORS["map"], mec="k", mew=0.4, label="measured − MAP")
     axes[1, 1].legend(loc="lower left", fontsize=7, ncol=1)
     fig.tight_layout()

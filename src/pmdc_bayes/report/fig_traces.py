@@ -19,7 +19,7 @@ def _time_axis(t):
     return (t * 1e3, "time (ms)") if t[-1] - t[0] < 0.5 else (t, "time (s)")
 
 
-def _channel(ax, rax, tp: TracePrediction, c: str, t):
+def _channel(ax, rax, tp: TracePrediction, c: str, t, cf_label: str):
     y = tp.measured(c)
     s = tp.sims
     ax.plot(t, y, ".", ms=1.5, color=COLORS["measured"], alpha=0.5, label="measured",
@@ -28,7 +28,7 @@ def _channel(ax, rax, tp: TracePrediction, c: str, t):
         ax.fill_between(t, *tp.band[c], color=COLORS["mean"], alpha=0.25, lw=0,
                         label="posterior predictive 94 % band")
     ax.plot(t, s["closed_form"][c], "--", color=COLORS["closed_form"], lw=1.4,
-            label=LABELS["closed_form"])
+            label=cf_label)
     ax.plot(t, s["map"][c], "-", color=COLORS["map"], lw=1.0, label=LABELS["map"])
     ax.set_ylabel(_YLABEL[c])
     ref = s["map"][c]
@@ -38,25 +38,26 @@ def _channel(ax, rax, tp: TracePrediction, c: str, t):
     rax.plot(t, y - ref, ".", ms=1.2, color=COLORS["map"], alpha=0.5, rasterized=True,
              label="measured − MAP")
     rax.plot(t, s["closed_form"][c] - ref, "--", color=COLORS["closed_form"], lw=1.4,
-             label="closed form − MAP")
+             label=f"{cf_label} − MAP")
     rax.axhline(0.0, color="k", lw=0.6)
     rax.set_ylabel(_RLABEL[c])
     rms = tp.rms
-    txt = (f"RMS: closed form {rms['closed_form'][c]:.3g}, MAP {rms['map'][c]:.3g}"
+    txt = (f"RMS: {cf_label} {rms['closed_form'][c]:.3g}, MAP {rms['map'][c]:.3g}"
            + (f", 94 % band covers {100 * tp.coverage[c]:.0f} %" if tp.coverage else ""))
     rax.set_title(txt, loc="right", fontsize=7.5, pad=2)
 
 
 @styled
-def trace_figure(tp: TracePrediction) -> bytes:
-    """PNG: speed (and current) with closed form, MAP and predictive band, residuals."""
+def trace_figure(tp: TracePrediction, cf_label: str = LABELS["closed_form"]) -> bytes:
+    """PNG: speed (and current) with the closed form (or the seed, named by ``cf_label``),
+    MAP and predictive band, residuals."""
     chans = tp.channels
     ratios = [3, 1.4] * len(chans)
     fig, axes = subplots(2 * len(chans), 1, sharex=True, figsize=(8.5, 2.6 * len(chans) + 1.4),
                              gridspec_kw={"height_ratios": ratios})
     t, tlabel = _time_axis(tp.trace.time)
     for k, c in enumerate(chans):
-        _channel(axes[2 * k], axes[2 * k + 1], tp, c, t)
+        _channel(axes[2 * k], axes[2 * k + 1], tp, c, t, cf_label)
     axes[-1].set_xlabel(tlabel)
     held = " — held out of the fit" if tp.held_out else ""
     fig.suptitle(f"Trace {tp.trace.name!r} ({tp.trace.kind}){held}", y=0.995)

@@ -1,0 +1,92 @@
+"""Where a fit starts: the paper's closed form when it applies, else a seed read from
+the data (speed-only sessions, sessions without a step's steady current)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._errors import NotApplicable, SessionError
+from ..io.session import LA_ASSUMED
+from ..paper.closed_form import ClosedForm, closed_form, j_from_tau, read_time_constant
+from ..physics.motor import gain
+from .levels import unloaded_levels
+
+__all__ = ["fit_seed", "seed_from_data", "FRICTION_SHARE"]
+
+FRICTION_SHARE = 0.1  # without a current, viscous friction is taken as this share of Ra·B + K²
+
+
+def fit_seed(session) -> ClosedForm:
+    """The closed form of ``session``, or, when the method cannot run on it, a seed
+    from the data (``applicable`` False, the reason kept)."""
+    try:
+        return closed_form(session)
+    except NotApplicable as exc:
+        return seed_from_data(session, exc.message)
+
+
+def _largest_step(session):
+    best, size = None, 0.0
+    for tr in session.traces:
+        v = tr.voltage.values
+        jump = float(np.max(np.abs(np.diff(v)))) if v.size > 1 else abs(float(v[0]))
+        if tr.kind == "step" and jump > size:
+            best, size = tr, jump
+    return best
+
+
+def seed_from_data(session, reason: str = "") -> ClosedForm:
+    """Starting values from the session's own numbers, for when the closed form
+    cannot run.
+
+    The steady gain G comes from the unloaded steady levels (a line through the origin
+    of speed against voltage).  With currents at those levels, K and B follow from (20)
+    and (19); without, K = 1/(G·(1 + f)) and B = f·K²/Ra with f =
+    :data:`FRICTION_SHARE` (speed alone cannot split the damping between friction and
+    back-emf; the fit's priors are wide and the identifiability section says what the
+    data decide).  τ is the 63.2 % time of the largest step (or a step reading), and J
+    follows from (9).
+    """
+    toml = session.root / "session.toml"
+    Ra, La = session.Ra.value, session.La.value
+    used = {"Ra": "bench measurement",
+            "La": ("assumed, not measured (La/Ra = 1 ms)" if session.La.source == LA_ASSUMED
+                   else "bench measurement")}
+    rows, _ = unloaded_levels(session)
+    rows = rows[(rows[:, 0] != 0) & (rows[:, 1] != 0)] if rows.size else rows
+    if not rows.size:
+        raise SessionError(toml, "no steady speed to start the fit from: log a step until "
+                           "the speed settles, or add a [[steady_table]]", where="trace")
+    G = float(np.sum(rows[:, 0] * rows[:, 1]) / np.sum(rows[:, 0] ** 2))
+    cur = rows[np.isfinite(rows[:, 2])]
+    if cur.size:
+        K = float(np.mean((cur[:, 0] - cur[:, 2] * Ra) / cur[:, 1]))
+        B = float(np.mean(K * cur[:, 2] / cur[:, 1]))
+        used["K"] = "equation (20) at the session's steady levels with a current"
+        used["B"] = "equation (19) at the same levels"
+    else:
+        K = 1.0 / (G * (1.0 + FRICTION_SHARE))
+        B = FRICTION_SHARE * K**2 / Ra
+        used["K"] = (f"steady gain {G:.4g} rad/s/V of the unloaded levels, viscous friction "
+                     f"assumed {100 * FRICTION_SHARE:.0f} % of the damping (no current)")
+        used["B"] = "the same assumption"
+    if session.step_readings:
+        tau = session.step_readings[0].tau
+        used["tau"] = f"step reading {session.step_readings[0].name!r}"
+    else:
+        tr = _largest_step(session)
+        if tr is None:
+            raise SessionError(toml, "no step to read a time constant from: add a [[trace]] "
+                               "with kind = \"step\" or a [[step_reading]]", where="trace")
+        try:
+            tau = read_time_constant(tr.time, tr.speed,
+                                     t_step=float(tr.voltage.times[-1])).tau
+        except ValueError as exc:
+            raise SessionError(tr.file, f"cannot read a time constant from trace "
+                               f"{tr.name!r}: {exc}; log the step until the speed "
+                               "settles") from None
+        used["tau"] = f"63.2 % point of trace {tr.name!r}"
+    J = j_from_tau(tau, Ra, B, K)
+    used["J"] = "equation (9) from tau"
+    return ClosedForm(Ra, La, K, B, J, tau, gain(Ra, K, B), used, applicable=False,
+                      reason=reason)

@@ -1,0 +1,99 @@
+"""A speed-only session (no current anywhere, no chopper point, no bench La) fits end
+to end through the command line: the closed form says why it does not apply, the fit
+seeds itself from the data, recovers what speed can tell, and says what it cannot."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.io.session import LA_ASSUMED
+from pmdc_bayes.simulate.session import simulate_session
+
+RA, LA, K, B, J = 2.0, 2e-3, 0.05, 2e-5, 2e-5
+DEN = RA * B + K**2
+
+PLAN = f"""\
+seed = 3
+[motor]
+name = "speed-only motor"
+[truth]
+Ra = {RA}
+La = {LA}
+K = {K}
+B = {B}
+J = {J}
+[bench.Ra]
+sd = 0.06
+unit = "ohm"
+[[steady_table]]
+name = "sweep"
+voltages = [3.0, 6.0, 9.0, 12.0]
+speed_sd = 0.2
+[[trace]]
+name = "step_12v"
+kind = "step"
+duration = 0.15
+rate = 4000.0
+voltage = [[0.0, 0.0], [0.01, 12.0]]
+record_current = false
+speed_noise = 0.2
+[[trace]]
+name = "step_6v"
+kind = "step"
+duration = 0.15
+rate = 4000.0
+voltage = [[0.0, 0.0], [0.01, 6.0]]
+record_current = false
+speed_noise = 0.2
+"""
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("speed_only")
+    plan = root / "plan.toml"
+    plan.write_text(PLAN)
+    session = simulate_session(plan, root / "session")
+    loaded = load_session(session)
+    assert loaded.La.source == LA_ASSUMED
+    assert all(tr.current is None for tr in loaded.traces)
+    assert all(t.current is None for t in loaded.steady_tables) and not loaded.operating_points
+    out = root / "run"
+    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(session),
+                           "--no-mcmc", "--out", str(out)],
+                          capture_output=True, text=True, timeout=900)
+    return proc, out
+
+
+@pytest.mark.slow
+def test_a_speed_only_session_fits_end_to_end(run):
+    proc, out = run
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[0].startswith("Model adequate")
+    summary = json.loads((out / "summary.json").read_text())
+    cf = summary["closed_form"]
+    assert cf["applicable"] is False and "steady current" in cf["reason"]
+    assert all(summary["parameters"][n]["closed_form"] is None for n in ("K", "B", "J"))
+    assert "does not apply" in (out / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_speed_alone_determines_the_gain_and_time_constant_not_the_split(run):
+    _, out = run
+    summary = json.loads((out / "summary.json").read_text())
+    p = {n: summary["parameters"][n]["map"] for n in ("Ra", "K", "B", "J")}
+    den = p["Ra"] * p["B"] + p["K"] ** 2
+    assert p["K"] / den == pytest.approx(K / DEN, rel=0.01)  # steady gain
+    assert p["Ra"] * p["J"] / den == pytest.approx(RA * J / DEN, rel=0.03)  # time constant
+    # the data cannot split the damping between back-emf and friction: the fit says so
+    ident = summary["identifiability"]
+    assert "B" in ident["prior_dominated"]
+    assert any("K and B" in f for f in ident["findings"])
+    k = summary["parameters"]["K"]
+    assert k["map_sd"] / k["map"] > 0.1  # no false precision on K
+    # La was not measured; the onset of fast-sampled steps still determines it
+    assert ident["posterior_to_prior_width"]["La"] < 0.2
+    assert summary["parameters"]["La"]["map"] == pytest.approx(LA, rel=0.2)
