@@ -79,12 +79,14 @@ def _cmd_fit(args) -> int:
         _session_path(args.session), out=args.out, force=args.force, mcmc=not args.no_mcmc,
         friction=args.friction, seed=args.seed, holdout=args.holdout or (),
         compare_friction=args.compare_friction, allow_inadequate=args.allow_inadequate,
+        add=tuple(a.replace("-", "_") for a in args.add or ()),
     )
     adequate = _print_adequacy(summary["adequacy"])
     print(f"Fit of {summary['session']['motor']} ({summary['session']['friction']} friction): "
           f"{summary['fit']['message']}")
     has_post = "mean" in next(iter(summary["parameters"].values()))
-    head = f"{'parameter':<6}{'closed form':>13}{'MAP':>13}{'± sd':>11}"
+    width = max([9] + [len(n) for n in summary["parameters"]]) + 1
+    head = f"{'parameter':<{width}}{'closed form':>13}{'MAP':>13}{'± sd':>11}"
     if has_post:
         head += f"{'mean':>13}{'± sd':>11}{'94 % HDI':>26}{'R-hat':>7}{'ESS':>7}"
     if not adequate:
@@ -92,7 +94,7 @@ def _cmd_fit(args) -> int:
     print(head + "  unit")
     for name, row in summary["parameters"].items():
         cf = "—" if row["closed_form"] is None else f"{row['closed_form']:.5g}"
-        line = f"{name:<6}{cf:>13}{row['map']:>13.6g}{row['map_sd']:>11.3g}"
+        line = f"{name:<{width}}{cf:>13}{row['map']:>13.6g}{row['map_sd']:>11.3g}"
         if has_post:
             hdi = f"[{row['hdi_3%']:.5g}, {row['hdi_97%']:.5g}]"
             line += (f"{row['mean']:>13.6g}{row['sd']:>11.3g}{hdi:>26}{row['r_hat']:>7.3f}"
@@ -232,6 +234,11 @@ def _parser() -> argparse.ArgumentParser:
                     "by PSIS-LOO (ArviZ)")
     ft.add_argument("--allow-unconverged", action="store_true",
                     help="exit 0 even if the fit or the sampler fails its checks")
+    ft.add_argument("--add", action="append", metavar="NUISANCE",
+                    choices=("dead-time", "voltage-drop", "dead_time", "voltage_drop"),
+                    help="also fit this non-ideality of the rig (repeatable): dead-time (one "
+                    "per trace), voltage-drop (brushes and driver); same as [model] in "
+                    "session.toml")
     ft.add_argument("--allow-inadequate", action="store_true",
                     help="go on (sample the posterior, exit 0) even when the adequacy checks "
                     "reject the model; every value stays labelled as conditional on it")

@@ -24,10 +24,10 @@ from .inference.fit import fit_map
 from .inference.identifiability import identifiability
 from .inference.objective import build_model
 from .inference.result import RunResult
+from .inference.seed import fit_seed
 from .io._jsonio import dumps
 from .io.loader import load_session
-from .io.session import Session
-from .inference.seed import fit_seed
+from .io.session import NUISANCES, Session
 from .paper.consistency import consistency_checks
 
 __all__ = ["fit_session", "run_fit", "write_run", "default_out_dir", "versions"]
@@ -68,8 +68,7 @@ def trace_rms(model, theta, *, coulomb=None) -> dict:
 
 
 def _closed_form_theta(model, cf):
-    vals = dict(cf.params(), Tc=0.0)
-    return np.log(np.maximum([vals[n] for n in model.names], 1e-300))
+    return np.asarray(model.theta(dict(cf.params(), Tc=0.0)))
 
 
 @x64
@@ -161,15 +160,23 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
 def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             mcmc: bool = True, friction: str | None = None, seed: int = 0,
             holdout=(), compare_friction: bool = False,
-            progress=None, allow_inadequate: bool = False) -> tuple[Path, dict]:
+            progress=None, allow_inadequate: bool = False,
+            add=()) -> tuple[Path, dict]:
     """Fit a session directory and write the run directory ``out``: ``summary.json``,
     ``posterior.nc`` (with MCMC) and the report, all built beside ``out`` and moved into
     place in one rename once complete.
 
     Returns the run directory and the summary.  Raises :class:`UsageError` for an
-    existing ``out`` without ``force``.
+    existing ``out`` without ``force``.  ``add`` names rig non-idealities to fit on top
+    of those the session declares (``io.session.NUISANCES``).
     """
     session_full = load_session(session_path)
+    if add:
+        import dataclasses
+
+        wanted = set(session_full.nuisances) | set(add)
+        session_full = dataclasses.replace(
+            session_full, nuisances=tuple(n for n in NUISANCES if n in wanted))
     name = session_full.name
     out = Path(out) if out is not None else default_out_dir(name)
     if out.exists() and not force:

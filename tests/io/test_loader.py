@@ -175,3 +175,17 @@ def test_paper_session():
     assert fig4.final_speed == pytest.approx(166.5, abs=0.05)
     again = load_session(path / TOML)  # the session.toml path works as well as the directory
     assert again.name == "paper" and again.root == s.root and again.Ra == s.Ra
+
+
+def test_model_table_declares_the_nuisances_to_fit(session_dir):
+    assert load_session(session_dir).nuisances == ()
+    toml = session_dir / "session.toml"
+    text = toml.read_text(encoding="utf-8")
+    toml.write_text(text + "\n[model]\nvoltage_drop = true\ndead_time = true\n", encoding="utf-8")
+    assert load_session(session_dir).nuisances == ("dead_time", "voltage_drop")
+    toml.write_text(text + "\n[model]\ndead_time = 1\n", encoding="utf-8")
+    with pytest.raises(SessionError, match=r"model\.dead_time: expected true or false"):
+        load_session(session_dir)
+    toml.write_text(text + "\n[model]\nbrush_drop = true\n", encoding="utf-8")
+    with pytest.raises(SessionError, match="unknown key 'brush_drop'"):
+        load_session(session_dir)

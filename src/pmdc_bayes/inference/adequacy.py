@@ -208,8 +208,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     preds = model.predict(fit.theta)
     preds_cf = None
     if closed_form is not None and session.traces:
-        vals = dict(closed_form.params(), Tc=1e-12)
-        theta_cf = np.log(np.maximum([vals.get(n, 1e-12) for n in model.names], 1e-300))
+        theta_cf = np.asarray(model.theta(dict(closed_form.params(), Tc=1e-12)))
         try:
             preds_cf = model.predict(theta_cf, coulomb=False)
         except (ValueError, FloatingPointError):
@@ -249,7 +248,7 @@ def _steady_pairs(model, fit):
     """(channel name, observed, predicted) for the steady speeds and currents."""
     st = model._steady
     p = model.params(np.asarray(fit.theta))
-    w, i = model.steady_prediction(p, st["v"], st["tl"])
+    w, i = model.steady_prediction(p, st["v"], st["tl"], model.drop(np.asarray(fit.theta)))
     out = []
     for name, obs, pred, mask in (("steady: speed", st["w"], w, st["w_mask"]),
                                   ("steady: current", st["i"], i, st["i_mask"])):

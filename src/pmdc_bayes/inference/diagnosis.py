@@ -77,7 +77,8 @@ def _start_rules(model, tr, pred, t_step):
         if "current" in lates:
             out.append(f"{tr.name}: the current and speed start about {1e3 * late:.2g} ms "
                        "later than the model allows: add a dead time between the command "
-                       "and the motion (driver, PWM start, logging trigger)")
+                       "and the motion (driver, PWM start, logging trigger): --add dead-time, "
+                       "or dead_time = true under [model] in session.toml")
         elif tr.current is not None:
             out.append(f"{tr.name}: the speed starts about {1e3 * late:.2g} ms later than "
                        "the model allows while the current starts on time: a lag in the "
@@ -85,7 +86,7 @@ def _start_rules(model, tr, pred, t_step):
         else:
             out.append(f"{tr.name}: the speed starts about {1e3 * late:.2g} ms later than "
                        "the model allows: add a dead time between the command and the "
-                       "motion, or a speed-sensor/filter lag")
+                       "motion (--add dead-time), or a speed-sensor/filter lag")
     if ramp:
         out.append(f"{tr.name}: the speed ramps up at a constant rate for "
                    f"{1e3 * data['ramp_time']:.3g} ms before turning exponential: a "
@@ -144,7 +145,7 @@ def _level_rules(model, preds):
                else ", or Coulomb friction (try --friction coulomb)")
         out.append(f"the steady speed-voltage line crosses zero speed at "
                    f"{icpt['voltage']:.3g} V, not 0 V: a voltage drop at the brushes or "
-                   f"driver{why}")
+                   f"driver (--add voltage-drop){why}")
     return out
 
 

@@ -28,6 +28,7 @@ N_STARTS = 8
 START_SPREAD = 0.3
 REWEIGHT_ITERATIONS = 40
 RELEVANT = 10.0
+SAME_OPTIMUM = 0.05  # log-posterior units: nearby finals closer than this are one optimum
 WIDE_SPREAD = 1.0  # least log spread of the starts over the prior's range
 
 
@@ -115,10 +116,13 @@ def _starts(model: SessionModel, theta0, n: int, rng: np.random.Generator, alter
     rest = n - len(rows)
     n_near = rest - rest // 2
     width = np.asarray(model.prior_sd, dtype=float)
-    near = theta0 + rng.standard_normal((n_near, theta0.size)) * np.minimum(width, START_SPREAD)
+    is_log = model.registry.is_log()  # untransformed parameters spread by their prior sd
+    near_sd = np.where(is_log, np.minimum(width, START_SPREAD), START_SPREAD * width)
+    wide_sd = np.where(is_log, np.maximum(width, WIDE_SPREAD), width)
+    near = theta0 + rng.standard_normal((n_near, theta0.size)) * near_sd
     centre = np.asarray(model.registry.seed_theta(), dtype=float)
     wide = centre + np.clip(rng.standard_normal((rest - n_near, theta0.size)), -2.0, 2.0) \
-        * np.maximum(width, WIDE_SPREAD)
+        * wide_sd
     rows += list(near) + list(wide)
     origins += ["near the seed"] * n_near + ["over the prior's range"] * (rest - n_near)
     return np.asarray(rows), origins
@@ -227,14 +231,21 @@ def _solve_starts(model: SessionModel, starts, *, fast: bool, solve=None):
 
 
 def _modes(thetas, logp, ok) -> list[int]:
-    """Indices of the distinct optima the starts reached (best first): finals more than
-    1e-3 apart in θ (0.1 % in a log parameter) or 1e-6 apart in log-posterior are
-    different optima."""
+    """Indices of the distinct optima the starts reached (best first): two finals are
+    the same optimum when they lie within 1e-3 in θ (0.1 % in a log parameter) with
+    log-posteriors within 1e-6 (relative), or within 0.1 in θ with log-posteriors within
+    :data:`SAME_OPTIMUM` (one optimum where the solver stopped early along a flat
+    direction)."""
     order = [int(i) for i in np.argsort(-logp) if np.isfinite(logp[i]) and ok[i]]
     modes: list[int] = []
+
+    def same(i, j):
+        gap, dlp = np.max(np.abs(thetas[i] - thetas[j])), abs(logp[i] - logp[j])
+        return ((gap < 1e-3 and dlp < 1e-6 * max(1.0, abs(logp[j])))
+                or (gap < 0.1 and dlp < SAME_OPTIMUM))
+
     for i in order:
-        if not any(np.all(np.abs(thetas[i] - thetas[j]) < 1e-3)
-                   and abs(logp[i] - logp[j]) < 1e-6 * max(1.0, abs(logp[j])) for j in modes):
+        if not any(same(i, j) for j in modes):
             modes.append(i)
     return modes
 
@@ -252,9 +263,9 @@ def _finish(model, theta, thetas, logp, ok, weights, settled, it, origins=None) 
     cov, _ = laplace(model, jnp.asarray(theta), jnp.asarray(w))
     sd_log = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     corr = cov / np.outer(sd_log, sd_log)
-    vals = np.exp(theta)
+    vals = model.registry.to_values(theta)
     values = dict(zip(model.names, map(float, vals)))
-    sd = dict(zip(model.names, map(float, vals * sd_log)))
+    sd = dict(zip(model.names, map(float, model.registry.sd_values(theta, sd_log))))
     noise = {c.name: float(1.0 / np.sqrt(w[k])) for k, c in enumerate(model.channels) if c.n > 0}
     reasons = []
     if not np.isfinite(logp[best]):

@@ -115,7 +115,7 @@ def to_inference_data(model, chain_log: np.ndarray, log_prob: np.ndarray,
     taken: set = set()
     obs_names = [_identifier(c.name, taken) for c in model.channels]
     observed = {nm: o for nm, o in zip(obs_names, _observed(model)) if o.size}
-    values = np.exp(chain_log)
+    values = model.registry.to_values(chain_log)
     idata = az.from_dict(
         posterior={n: values[..., k] for k, n in enumerate(model.names)},
         sample_stats={"lp": log_prob},

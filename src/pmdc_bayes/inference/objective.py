@@ -26,7 +26,7 @@ from ..physics import motor
 from ..physics.solution import Params, experiment_from_traces, real_modes, simulate, simulate_padded
 from . import cache as _cache
 from .noise import Channel, noise_scale, typical_level
-from .params import PRIOR_FACTOR, motor_registry
+from .params import PRIOR_FACTOR, Registry, dead_time_name, motor_registry, nuisance_specs
 
 __all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale"]
 
@@ -49,8 +49,10 @@ class SessionModel:
         self.seed = seed
         self._steady = self._steady_arrays(session)
         K, B, J = self.physical_seed()
-        self.registry = motor_registry(session, {"K": K, "B": B, "J": J, "Tc": self.tc_seed()},
-                                       coulomb=coulomb)
+        motor_specs = motor_registry(session, {"K": K, "B": B, "J": J, "Tc": self.tc_seed()},
+                                     coulomb=coulomb).specs
+        self.registry = Registry(motor_specs + tuple(nuisance_specs(session,
+                                                                    self._drop_seed())))
         self.names = self.registry.names
         self.channels: list[Channel] = []
         self.exp = experiment_from_traces(session.traces) if session.traces else None
@@ -175,15 +177,53 @@ class SessionModel:
         return Params(v["Ra"], v["La"], v["K"], v["B"], v["J"], v.get("Tc", 0.0))
 
     def theta(self, values: dict) -> jax.Array:
-        return jnp.asarray(self.registry.to_theta(values))
+        """θ of ``values`` (SI); a parameter missing from them is held at its prior's
+        centre when untransformed (a nuisance: none), else at a negligible 1e-300
+        (Tc of a viscous parameter set); positive values are floored there too."""
+        full = {}
+        for s in self.registry.specs:
+            x = values.get(s.name)
+            if s.transform == "identity":
+                full[s.name] = s.prior.centre if x is None else float(x)
+            else:
+                full[s.name] = max(1e-300 if x is None else float(x), 1e-300)
+        return jnp.asarray(self.registry.to_theta(full))
 
     def theta_seed(self) -> jax.Array:
         return jnp.asarray(self.registry.seed_theta())
 
+    def _drop_seed(self) -> float:
+        """Where a fitted voltage drop starts: the zero-speed intercept of the session's
+        steady speed-voltage line when it has one, else 0 V."""
+        from .levels import voltage_intercept
+
+        icpt = voltage_intercept(self.session) if "voltage_drop" in self.session.nuisances \
+            else None
+        return float(icpt["voltage"]) if icpt and icpt["voltage"] > 0 else 0.0
+
+    def drop(self, theta):
+        """The fitted voltage drop at θ (V), 0 when the model has none."""
+        return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else 0.0
+
+    def inputs(self, theta, exp):
+        """The experiment as the motor sees it at θ: voltages less the fitted drop, and
+        each trace's samples taken its fitted dead time earlier (before the response
+        starts, the state at the segment's start: exact when the preceding segment is at
+        rest or steady)."""
+        if "Vdrop" in self.registry:
+            exp = exp._replace(seg_va=motor.terminal_voltage(exp.seg_va, self.drop(theta)))
+        if "dead_time" in self.session.nuisances:
+            v = self.registry.values(theta)
+            delay = jnp.stack([v[dead_time_name(tr.name)] for tr in self.session.traces])
+            exp = exp._replace(tau=jnp.maximum(exp.tau - delay[exp.chunk_trace][:, None], 0.0))
+        return exp
+
     # -- predictions --------------------------------------------------------------------
-    def steady_prediction(self, p: Params, v, tl):
-        """Steady ``(ω, ia)`` at voltages ``v`` and loads ``tl`` (equations (15)–(18))."""
-        i, w = motor.steady_state(p.Ra, p.K, p.B, v, tl, p.Tc if self.coulomb else None)
+    def steady_prediction(self, p: Params, v, tl, drop=0.0):
+        """Steady ``(ω, ia)`` at voltages ``v`` and loads ``tl`` (equations (15)–(18)),
+        with ``drop`` volts lost at the brushes and driver."""
+        i, w = motor.steady_state(p.Ra, p.K, p.B, motor.terminal_voltage(v, drop), tl,
+                                  p.Tc if self.coulomb else None)
         return w, i
 
     def tau_prediction(self, p: Params):
@@ -193,16 +233,17 @@ class SessionModel:
     def _d(self, data):
         return self.data if data is None else data
 
-    def _steady_and_tau_residuals(self, p: Params, *, data=None):
+    def _steady_and_tau_residuals(self, p: Params, *, data=None, drop=0.0):
         d = self._d(data)
-        w, i = self.steady_prediction(p, d["steady_v"], d["steady_tl"])
+        w, i = self.steady_prediction(p, d["steady_v"], d["steady_tl"], drop)
         return [(d["steady_w"] - w, d["steady_w_mask"]), (d["steady_i"] - i, d["steady_i_mask"]),
                 (d["tau_obs"] - self.tau_prediction(p), jnp.ones(d["tau_obs"].shape, bool))]
 
     def trace_residuals(self, theta, *, fast: bool = False, data=None):
         """Padded speed and current residuals (observed − model) of all traces."""
         d = self._d(data)
-        ia, w = simulate_padded(self.params(theta), d["exp"], coulomb=self.coulomb, fast=fast)
+        ia, w = simulate_padded(self.params(theta), self.inputs(theta, d["exp"]),
+                                coulomb=self.coulomb, fast=fast)
         return d["speed"] - w, d["current"] - ia
 
     def channel_residuals(self, theta, *, fast: bool = False, data=None):
@@ -216,7 +257,8 @@ class SessionModel:
                 m_w = mask & (self._speed_ch == c)[:, None]
                 m_i = self._current_mask & (self._current_ch == c)[:, None]
                 out.append((rw, m_w) if m_w.any() else (ri, m_i))
-        return out + self._steady_and_tau_residuals(self.params(theta), data=d)
+        return out + self._steady_and_tau_residuals(self.params(theta), data=d,
+                                                       drop=self.drop(theta))
 
     def sums_of_squares(self, theta, *, fast: bool = False, data=None):
         """Sum of squared residuals per channel."""
@@ -231,7 +273,8 @@ class SessionModel:
         else:
             ss = jnp.zeros(n_ch)
         tail = [jnp.sum(jnp.where(m, r, 0.0) ** 2)
-                for r, m in self._steady_and_tau_residuals(self.params(theta), data=d)]
+                for r, m in self._steady_and_tau_residuals(self.params(theta), data=d,
+                                                       drop=self.drop(theta))]
         return ss.at[n_ch - 3:].add(jnp.stack(tail))
 
     def log_prior(self, theta, *, data=None):
@@ -288,7 +331,8 @@ class SessionModel:
             parts.append((jnp.where(d["current_mask"], ri, 0.0)
                           * sw[d["current_ch"]][:, None]).reshape(-1))
         n_ch = len(self.channels)
-        for k, (r, m) in enumerate(self._steady_and_tau_residuals(self.params(theta), data=d)):
+        for k, (r, m) in enumerate(self._steady_and_tau_residuals(self.params(theta), data=d,
+                                                       drop=self.drop(theta))):
             parts.append(jnp.where(m, r, 0.0) * sw[n_ch - 3 + k])
         prior = self.registry.prior_residuals(theta, d["prior_centre"], d["prior_scale"])
         return jnp.concatenate(parts + [prior])
@@ -300,7 +344,7 @@ class SessionModel:
             return []
         c = self.coulomb if coulomb is None else coulomb
         fn = self.compiled(f"predict-coulomb={c}", lambda: jax.jit(
-            lambda t, d: simulate(self.params(t), d["exp"], coulomb=c)))
+            lambda t, d: simulate(self.params(t), self.inputs(t, d["exp"]), coulomb=c)))
         ia, w = fn(jnp.asarray(theta), self.data)
         return list(zip(self.exp.split(ia), self.exp.split(w)))
 
@@ -322,7 +366,8 @@ class SessionModel:
             out += [dens(rw, var[d["speed_ch"]][:, None]),
                     dens(ri, var[d["current_ch"]][:, None])]
         n_ch = len(self.channels)
-        for k, (r, _) in enumerate(self._steady_and_tau_residuals(self.params(theta), data=d)):
+        for k, (r, _) in enumerate(self._steady_and_tau_residuals(self.params(theta), data=d,
+                                                       drop=self.drop(theta))):
             # lax.map cannot batch an empty output: an empty channel gets a dummy entry
             # that its (empty) selection never reads.
             out.append(dens(r if r.shape[0] else jnp.zeros(1), var[n_ch - 3 + k]))

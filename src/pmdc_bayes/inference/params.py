@@ -24,8 +24,11 @@ import numpy as np
 
 from ..io.session import LA_ASSUMED, Session
 
-__all__ = ["Prior", "ParamSpec", "Registry", "motor_registry", "PRIOR_FACTOR", "BLOCKS"]
+__all__ = ["Prior", "ParamSpec", "Registry", "motor_registry", "nuisance_specs",
+           "PRIOR_FACTOR", "BLOCKS", "DEAD_TIME_PRIOR", "DROP_PRIOR"]
 
+DEAD_TIME_PRIOR = 0.05  # sd of a trace's dead time, as a share of the trace's length
+DROP_PRIOR = 0.1  # sd of the voltage drop, as a share of the session's largest voltage
 PRIOR_FACTOR = 10.0  # one-sd width of the log-normal priors on K, B, J, Tc (a factor)
 BLOCKS = ("motor", "friction", "trace", "sensor", "driver")
 PRIOR_KINDS = ("normal", "lognormal")
@@ -155,8 +158,19 @@ class Registry:
         return centre, scale
 
     def prior_width_log(self) -> np.ndarray:
-        """Per parameter, the prior sd in θ space (linearised for Gaussians in value)."""
-        return np.array([s.prior.width_in_log() for s in self.specs], dtype=float)
+        """Per parameter, the prior sd in θ space (linearised for Gaussians in value of a
+        log-transformed parameter; the sd itself for an untransformed one)."""
+        return np.array([s.prior.scale if s.transform == "identity" else s.prior.width_in_log()
+                         for s in self.specs], dtype=float)
+
+    def is_log(self) -> np.ndarray:
+        """Per parameter, whether θ holds its logarithm."""
+        return self._is_log()
+
+    def sd_values(self, theta, sd_theta) -> np.ndarray:
+        """Standard deviations in value (SI) from those in θ at θ (linearised)."""
+        return np.where(self._is_log(), self.to_values(theta) * np.asarray(sd_theta),
+                        np.asarray(sd_theta))
 
     def prior_residuals(self, theta, centre, scale):
         """Standardised prior residuals, one per parameter (their half squared norm is the
@@ -206,3 +220,46 @@ def motor_registry(session: Session, seed: dict, *, coulomb: bool) -> Registry:
         specs.append(ParamSpec("Tc", "N*m", "friction", _lognormal(seed["Tc"], "seed"),
                                seed["Tc"], description="Coulomb friction torque"))
     return Registry(specs)
+
+
+def _identifier(text: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in text)
+
+
+def dead_time_name(trace_name: str) -> str:
+    """The parameter name of a trace's dead time."""
+    return f"dead_time_{_identifier(trace_name)}"
+
+
+def nuisance_specs(session: Session, drop_seed: float = 0.0) -> list[ParamSpec]:
+    """The rig's non-idealities the session asks to fit (``session.nuisances``):
+
+    * ``voltage_drop`` — ``Vdrop`` (V), a constant drop at the brushes and driver
+      opposing the voltage; prior normal, centre 0, sd :data:`DROP_PRIOR` × the largest
+      voltage; seeded at ``drop_seed``;
+    * ``dead_time`` — per trace ``dead_time_<trace>`` (s), the delay between the
+      logged command and the response; prior normal, centre 0, sd
+      :data:`DEAD_TIME_PRIOR` × the trace's length (a negative value is a response that
+      leads its logged command: a clock or trigger offset).
+
+    Both are untransformed (they may be zero or of either sign).
+    """
+    specs = []
+    if "voltage_drop" in session.nuisances:
+        volts = [abs(float(v)) for tr in session.traces for v in tr.voltage.values]
+        volts += [abs(float(v)) for tab in session.steady_tables for v in tab.voltage]
+        volts += [abs(op.voltage) for op in session.operating_points]
+        v_max = max(volts + [1.0])
+        specs.append(ParamSpec("Vdrop", "V", "driver",
+                               Prior("normal", 0.0, DROP_PRIOR * v_max, "nuisance"),
+                               float(drop_seed), transform="identity",
+                               description="voltage drop at brushes and driver"))
+    if "dead_time" in session.nuisances:
+        for tr in session.traces:
+            length = float(tr.time[-1] - tr.time[0])
+            specs.append(ParamSpec(dead_time_name(tr.name), "s", "trace",
+                                   Prior("normal", 0.0, DEAD_TIME_PRIOR * length, "nuisance"),
+                                   0.0, transform="identity",
+                                   description=f"dead time of trace {tr.name!r}",
+                                   trace=tr.name))
+    return specs

@@ -271,5 +271,6 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     acc = np.asarray(sampler.acceptance_fraction, dtype=float)
     idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws)
     idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged))
-    return Posterior(names, np.exp(chain), chain, lp, acc, dict(zip(names, map(float, tau))),
-                     steps, burn, not converged, message, time.perf_counter() - t_start, idata)
+    return Posterior(names, model.registry.to_values(chain), chain, lp, acc,
+                     dict(zip(names, map(float, tau), strict=True)), steps, burn,
+                     not converged, message, time.perf_counter() - t_start, idata)

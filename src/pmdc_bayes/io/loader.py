@@ -25,6 +25,7 @@ from .session import (
     LA_ASSUMED,
     LA_PRIOR_LOG_SD,
     LA_TIME_CONSTANT,
+    NUISANCES,
     Measurement,
     OperatingPoint,
     Schedule,
@@ -37,7 +38,7 @@ from .units import to_si
 
 __all__ = ["load_session"]
 
-_TOP_KEYS = ("motor", "bench", "closed_form", "operating_point", "steady_table",
+_TOP_KEYS = ("motor", "bench", "closed_form", "model", "operating_point", "steady_table",
              "step_reading", "trace")
 _BENCH_KINDS = {"Ra": "resistance", "La": "inductance", "J": "inertia", "K": "motor_constant",
                 "B": "damping"}
@@ -292,8 +293,19 @@ def load_session(path) -> Session:
                 cf.fail("K_decimals", f"expected a whole number >= 0, got {_describe(d)}; "
                         "write e.g. K_decimals = 3")
             options["K_decimals"] = d
+    nuisances = ()
+    mt = top.table("model", required=False)
+    if mt is not None:
+        mt.check_keys(NUISANCES)
+        for key in NUISANCES:
+            flag = mt.data.get(key, False)
+            if not isinstance(flag, bool):
+                mt.fail(key, f"expected true or false, got {_describe(flag)}; write e.g. "
+                        f"{key} = true")
+        nuisances = tuple(k for k in NUISANCES if mt.data.get(k, False))
     return Session(
         name=root.name,
+        nuisances=nuisances,
         root=root,
         motor=motor.string("name"),
         Ra=measured["Ra"],

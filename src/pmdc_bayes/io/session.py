@@ -26,6 +26,7 @@ __all__ = [
 FRICTION_MODELS = ("viscous", "coulomb")
 
 
+NUISANCES = ("dead_time", "voltage_drop")
 LA_TIME_CONSTANT = 1e-3  # s: La/Ra assumed when La was not measured ...
 LA_PRIOR_LOG_SD = float(np.log(10.0)) / 2  # ... give or take a factor 10 at 2 sd (log)
 LA_ASSUMED = "not measured: La/Ra = 1 ms, a factor 10 either way at 2 sd"
@@ -156,6 +157,8 @@ class Session:
     ``closed_form_options`` carries settings for the paper's method (e.g.
     ``{"K_decimals": 3}`` to carry Kb rounded as the paper printed it).
     ``truth`` holds the true parameters of a simulated session (from ``truth.json``).
+    ``nuisances`` names the rig's non-idealities to fit with the motor
+    (:data:`NUISANCES`: ``"dead_time"`` per trace, ``"voltage_drop"``).
     """
 
     name: str
@@ -170,6 +173,7 @@ class Session:
     traces: tuple[Trace, ...] = ()
     closed_form_options: dict = field(default_factory=dict)
     truth: dict | None = None
+    nuisances: tuple[str, ...] = ()
 
     def trace(self, name: str) -> Trace:
         for tr in self.traces:

@@ -27,6 +27,7 @@ __all__ = [
     "INPUT",
     "OUTPUT",
     "derivatives",
+    "terminal_voltage",
     "steady_state",
     "time_constant",
     "electrical_time_constant",
@@ -54,6 +55,12 @@ def derivatives(Ra, La, K, B, J, ia, w, va=0.0, tl=0.0, tc=0.0):
     With ``va = tl = tc = 0`` this is the state matrix applied to ``(ia, ω)``.
     """
     return (va - Ra * ia - K * w) / La, (K * ia - B * w - tl - tc) / J
+
+
+def terminal_voltage(va, drop):
+    """The voltage across the armature when a constant ``drop`` (brushes, driver)
+    opposes the applied ``va``: ``va − drop·sign(va)`` (0 V stays 0 V)."""
+    return va - drop * _xp(va, drop).sign(va)
 
 
 def steady_state(Ra, K, B, va, tl=0.0, tc=None):

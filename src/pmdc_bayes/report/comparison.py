@@ -151,7 +151,7 @@ def compare_closed_form(ctx) -> list[dict]:
     ref, label = ctx.best, ctx.best_label
     rows = []
     units = {"Ra": "Ω", "La": "H"}
-    for name in ctx.names:
+    for name in [n for n in ctx.names if n in ctx.values["closed_form"]]:
         cf = ctx.values["closed_form"][name]
         sd = ctx.sd(name)
         z = (cf - ref[name]) / sd if sd > 0 else float("nan")

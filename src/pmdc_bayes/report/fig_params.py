@@ -129,10 +129,12 @@ def forest_figure(ctx, rows) -> bytes:
     """PNG: every parameter relative to the reference (posterior mean, else MAP), in %:
     closed form, MAP ± 2 sd, posterior 94 % HDI and truth.  The axis is symmetric-log,
     linear within the widest ± 2 sd interval, so narrow intervals and far closed-form
-    values are both visible."""
+    values are both visible.  Only the positive (log-transformed) parameters: a
+    nuisance that may be zero (a dead time, a voltage drop) has no relative scale and
+    is in the tables."""
     ref = ctx.best
     params = ctx.summary["parameters"]
-    names = list(ctx.names)
+    names = [n for n in ctx.names if ctx.model.registry[n].transform == "log"]
     fig, ax = subplots(figsize=(8.5, 0.75 * len(names) + 1.6))
     lin = 0.0
     for k, n in enumerate(names):
@@ -148,9 +150,10 @@ def forest_figure(ctx, rows) -> bytes:
             ax.plot([lo, hi], [y - 0.05] * 2, "-", color=COLORS["mean"], lw=4,
                     label="posterior 94 % HDI" if k == 0 else None)
             ax.plot(0.0, y - 0.05, "o", color="white", mec=COLORS["mean"], ms=5)
-        cf = ctx.values["closed_form"][n]
-        ax.plot(rel(cf), y - 0.22, "s", color=COLORS["closed_form"], ms=6, mec="k", mew=0.5,
-                label="closed form" if k == 0 else None)
+        cf = ctx.values["closed_form"].get(n)
+        if cf is not None:
+            ax.plot(rel(cf), y - 0.22, "s", color=COLORS["closed_form"], ms=6, mec="k",
+                    mew=0.5, label=ctx.cf_label if k == 0 else None)
         if ctx.truth and ctx.truth.get(n) is not None:
             ax.plot(rel(ctx.truth[n]), y, "*", color=COLORS["truth"], ms=10, mec="k", mew=0.5,
                     label="truth" if k == 0 else None)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..physics.motor import steady_state, time_constant
+from ..physics.motor import steady_state, terminal_voltage, time_constant
 from ._plot import COLORS, png, styled, subplots
 from .predictive import BAND
 from .published import FIGURE6_SIMULATED, PAPER_SESSION, TABLE2_SIMULATED
@@ -65,9 +65,10 @@ def _predict(ctx, vals, v, tl, *, viscous=False):
     v, tl = np.broadcast_arrays(np.atleast_1d(np.asarray(v, float)),
                                 np.atleast_1d(np.asarray(tl, float)))
     p = {n: np.asarray(vals.get(n, 0.0), dtype=float)[..., None]
-         for n in ("Ra", "K", "B", "Tc")}
+         for n in ("Ra", "K", "B", "Tc", "Vdrop")}
     tc = None if viscous or not ctx.model.coulomb else p["Tc"]
-    _, w = steady_state(p["Ra"], p["K"], p["B"], v, tl, tc)
+    va = terminal_voltage(v, p["Vdrop"])
+    _, w = steady_state(p["Ra"], p["K"], p["B"], va, tl, tc)
     return np.atleast_2d(w)
 
 

@@ -54,7 +54,7 @@ class TracePrediction:
 
 
 def _theta(model, values: dict):
-    return model.theta({n: max(float(values[n]), 1e-300) for n in model.names})
+    return model.theta(values)
 
 
 def _rms(x) -> float:
@@ -80,7 +80,7 @@ def predict_traces(model, values: dict, draws, noise_sd: dict, *, seed: int = 0,
             "map": model.predict(_theta(model, values["map"]))}
     per_draw = None
     if draws is not None:
-        sims = [model.predict(np.log(np.maximum(d, 1e-300))) for d in draws]
+        sims = [model.predict(model.theta(dict(zip(model.names, d)))) for d in draws]
         per_draw = [(np.stack([s[k][0] for s in sims]), np.stack([s[k][1] for s in sims]))
                     for k in range(len(model.session.traces))]
     rng = np.random.default_rng(seed)

@@ -1,0 +1,53 @@
+"""Nuisance parameters fitted with the motor on benches that have them (the richer
+simulator of :mod:`pmdc_bayes.simulate.bench`, not the package's own model), and on
+the ideal bench where they must come out zero."""
+
+import dataclasses
+
+import pytest
+
+from pmdc_bayes.inference.adequacy import assess
+from pmdc_bayes.inference.fit import fit_map
+from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.simulate.cases import CASES, MOTOR, case_session
+
+
+def _fit(case, nuisances):
+    session = dataclasses.replace(case_session(case), nuisances=nuisances)
+    cf = fit_seed(session)
+    model = build_model(session, cf)
+    fit = fit_map(model)
+    return fit, assess(model, fit, cf)
+
+
+def _within(fit, name, truth, n_sd=4.0, floor=0.0):
+    return abs(fit.values[name] - truth) <= n_sd * fit.sd[name] + floor
+
+
+@pytest.mark.slow
+def test_a_fitted_dead_time_recovers_the_bench_delay_and_the_motor():
+    fit, a = _fit("dead time", ("dead_time",))
+    delay = CASES["dead time"][0]["dead_time"]
+    assert a.verdict == "adequate", a.headline()
+    for name in ("dead_time_step_12v", "dead_time_step_6v"):
+        assert fit.values[name] == pytest.approx(delay, rel=0.02)
+    for name in ("K", "J", "La"):
+        assert fit.values[name] == pytest.approx(MOTOR[name], rel=0.02)
+
+
+@pytest.mark.slow
+def test_a_fitted_voltage_drop_recovers_the_brush_drop():
+    fit, a = _fit("brush drop", ("voltage_drop",))
+    assert a.verdict == "adequate", a.headline()
+    assert fit.values["Vdrop"] == pytest.approx(CASES["brush drop"][0]["brush_drop"], rel=0.02)
+    assert fit.values["K"] == pytest.approx(MOTOR["K"], rel=0.02)
+
+
+@pytest.mark.slow
+def test_nuisances_the_bench_lacks_come_out_zero():
+    fit, a = _fit(None, ("dead_time", "voltage_drop"))
+    assert a.verdict == "adequate", a.headline()
+    assert _within(fit, "Vdrop", 0.0)
+    for name in ("dead_time_step_12v", "dead_time_step_6v"):
+        assert _within(fit, name, 0.0, floor=1e-6)

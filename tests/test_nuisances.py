@@ -1,0 +1,97 @@
+"""Rig non-idealities fitted as parameters, end to end through the command line: a
+session whose responses lag the logged command is rejected by the ideal model with
+the diagnosis "dead time", and fitted with ``--add dead-time`` it passes, with the
+dead time recovered and sampled."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from pmdc_bayes.simulate.session import simulate_session
+
+DELAY = 3e-3
+
+PLAN = f"""\
+seed = 5
+[motor]
+name = "delayed motor"
+[truth]
+Ra = 2.0
+La = 2e-3
+K = 0.05
+B = 2e-5
+J = 2e-5
+[bench.Ra]
+sd = 0.06
+unit = "ohm"
+[bench.La]
+sd = 0.2
+unit = "mH"
+[[steady_table]]
+name = "sweep"
+voltages = [4.0, 8.0, 12.0]
+speed_sd = 0.2
+current_sd = 0.001
+[[trace]]
+name = "step_12v"
+kind = "step"
+duration = 0.12
+rate = 5000.0
+voltage = [[0.0, 0.0], [0.01, 12.0]]
+speed_noise = 0.05
+current_noise = 0.002
+delay = {DELAY}
+[[trace]]
+name = "step_6v"
+kind = "step"
+duration = 0.12
+rate = 5000.0
+voltage = [[0.0, 0.0], [0.01, 6.0]]
+speed_noise = 0.05
+current_noise = 0.002
+delay = {DELAY}
+"""
+
+
+def _fit(session, out, *extra):
+    return subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(session), "--out",
+                           str(out), "--seed", "1", *extra],
+                          capture_output=True, text=True, timeout=1500)
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    root = tmp_path_factory.mktemp("delayed")
+    (root / "plan.toml").write_text(PLAN)
+    return simulate_session(root / "plan.toml", root / "session")
+
+
+@pytest.mark.slow
+def test_the_ideal_model_is_rejected_and_told_to_add_a_dead_time(session, tmp_path):
+    proc = _fit(session, tmp_path / "ideal", "--no-mcmc")
+    assert proc.returncode == 3, proc.stderr
+    assert proc.stdout.startswith("MODEL INADEQUATE")
+    assert "dead time" in proc.stdout and "--add dead-time" in proc.stdout
+
+
+@pytest.mark.slow
+def test_with_the_dead_time_fitted_the_model_passes_and_recovers_it(session, tmp_path):
+    out = tmp_path / "delayed"
+    proc = _fit(session, out, "--add", "dead-time")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["adequacy"]["verdict"] == "adequate"
+    for name in ("dead_time_step_12v", "dead_time_step_6v"):
+        row = summary["parameters"][name]
+        assert row["unit"] == "s" and row["closed_form"] is None
+        assert abs(row["mean"] - DELAY) < 3 * row["sd"] + 1e-5, row
+        assert row["hdi_3%"] < DELAY < row["hdi_97%"] or abs(row["mean"] - DELAY) < 1e-5
+        assert row["r_hat"] < 1.01
+    truth = json.loads((session / "truth.json").read_text())
+    for name in ("Ra", "K", "B", "J"):
+        row = summary["parameters"][name]
+        assert abs(row["mean"] - truth[name]) < 4 * row["sd"], (name, row, truth[name])
+    assert (out / "posterior.nc").exists() and (out / "report.html").exists()
+    assert "dead_time_step_12v" in (out / "report.md").read_text()
