@@ -77,3 +77,40 @@ def test_fit_command_refuses_existing_run_without_force(demo_run):
     assert proc.returncode == 2
     assert "already exists" in proc.stderr and "Traceback" not in proc.stderr
     assert (out / "posterior.nc").is_file()  # the earlier run is untouched
+
+
+def _fit_cli(*args):
+    return subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", *map(str, args)],
+                          capture_output=True, text=True, timeout=600)
+
+
+def _snapshot(root):
+    return {p.relative_to(root): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_force_never_replaces_a_session_a_file_or_a_foreign_folder(session_dir, tmp_path):
+    """--force replaces only an earlier run: the checks come before any fitting."""
+    before = _snapshot(session_dir)
+    proc = _fit_cli(session_dir, "--no-mcmc", "--out", session_dir, "--force")
+    assert proc.returncode == 2, proc.stderr
+    assert "session directory" in proc.stderr and "Traceback" not in proc.stderr
+    assert _snapshot(session_dir) == before
+    note = tmp_path / "notes.txt"
+    note.write_text("mine")
+    proc = _fit_cli(session_dir, "--no-mcmc", "--out", note, "--force")
+    assert proc.returncode == 2 and note.read_text() == "mine"
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    (folder / "a.jpg").write_bytes(b"\xff\xd8")
+    proc = _fit_cli(session_dir, "--no-mcmc", "--out", folder, "--force")
+    assert proc.returncode == 2 and "not a pmdc-bayes run" in proc.stderr
+    assert (folder / "a.jpg").read_bytes() == b"\xff\xd8"
+
+
+@pytest.mark.slow
+def test_force_replaces_an_earlier_run(demo_run):
+    out, _ = demo_run
+    assert (out / ".pmdc-bayes-run").is_file()
+    proc = _fit_cli("demo", "--no-mcmc", "--out", out, "--force")
+    assert proc.returncode == 0, proc.stderr
+    assert not (out / "posterior.nc").exists() and (out / "summary.json").is_file()

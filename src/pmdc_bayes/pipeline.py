@@ -179,9 +179,7 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             session_full, nuisances=tuple(n for n in NUISANCES if n in wanted))
     name = session_full.name
     out = Path(out) if out is not None else default_out_dir(name)
-    if out.exists() and not force:
-        raise UsageError(f"{out}: already exists; choose another --out or pass --force to "
-                         "replace it")
+    _check_replaceable(out, force)
     result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
                          holdout=holdout, compare_friction=compare_friction, progress=progress,
                          allow_inadequate=allow_inadequate)
@@ -257,14 +255,41 @@ def _no_trace(session, name):
                      f"traces are: {names}")
 
 
+RUN_MARKER = ".pmdc-bayes-run"
+
+
+def is_run_dir(path: Path) -> bool:
+    """Whether ``path`` is a directory this tool wrote as a run (its marker file, or the
+    summary.json of a run written before the marker existed, and no session.toml)."""
+    path = Path(path)
+    return path.is_dir() and not path.is_symlink() and not (path / "session.toml").exists() \
+        and ((path / RUN_MARKER).is_file() or (path / "summary.json").is_file())
+
+
+def _check_replaceable(out: Path, force: bool) -> None:
+    """Refuse, before any work, an ``out`` that exists unless ``force`` is given and it
+    is a previous run: never a session, a regular file or a folder of the user's."""
+    if not (out.exists() or out.is_symlink()):
+        return
+    if not force:
+        raise UsageError(f"{out}: already exists; choose another --out or pass --force to "
+                         "replace it")
+    if not is_run_dir(out):
+        what = ("a session directory" if (out / "session.toml").exists()
+                else "not a directory" if not out.is_dir() else "not a pmdc-bayes run directory")
+        raise UsageError(f"{out}: {what}; --force only replaces an earlier run, so choose "
+                         "another --out")
+
+
 def _write_atomically(out: Path, fill, *, force: bool):
+    _check_replaceable(out, force)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
+        (tmp / RUN_MARKER).write_text("a run directory written by pmdc-bayes fit\n")
         fill(tmp)
         if out.exists():
-            if not force:
-                raise UsageError(f"{out}: already exists; pass --force to replace it")
+            _check_replaceable(out, force)
             old = out.with_name(f".{out.name}.old")
             os.replace(out, old)
             os.replace(tmp, out)
