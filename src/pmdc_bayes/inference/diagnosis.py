@@ -107,7 +107,7 @@ def _flat_top(tr, ia):
     return []
 
 
-def _level_rules(model, preds):
+def _level_rules(model, fit, preds, findings):
     """Sentences on the steady levels: unmeasured loads, unit slips, an offset."""
     session, out = model.session, []
     ratios = {}
@@ -139,6 +139,13 @@ def _level_rules(model, preds):
         out.append(f"the steady current extrapolates to {offset['current']:.3g} A at zero "
                    "speed: a friction torque that does not grow with speed (Coulomb "
                    "friction); fit with --friction coulomb")
+    elif (icpt and "Vdrop" in model.registry and any(
+            f.where.startswith("steady") or f.where == "no-load speed"
+            for f in findings if f.severity == "fail")):
+        out.append("the steady levels miss the model even with a fitted voltage drop "
+                   f"({float(fit.values['Vdrop']):.3g} V): the session's steady numbers "
+                   "disagree with each other or with the traces (see the consistency "
+                   "checks), or friction or load differ between them")
     elif (icpt and icpt["voltage"] > 3 * icpt["se"]
             and icpt["voltage"] > 0.01 * icpt["largest_voltage"]):
         why = ("" if model.coulomb or offset is not None
@@ -178,7 +185,7 @@ def diagnose(model, fit, preds, findings) -> list[str]:
         out += _flat_top(tr, pred[0])
         if any(w.startswith(f"{tr.name}: ") for w in failing):
             out += _start_rules(model, tr, pred, step_time(tr))
-    out += _level_rules(model, preds)
+    out += _level_rules(model, fit, preds, findings)
     out += _finding_rules(model, fit, findings)
     if not out:
         out.append("no single known pattern explains the misfit; look at the residual "

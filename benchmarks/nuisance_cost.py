@@ -1,0 +1,85 @@
+"""What fitting the rig's non-idealities costs: log-posterior evaluations per second and
+compile time of the ideal model against the model with every nuisance on (a dead time
+per trace and a voltage drop), on the bundled demo and on a two-step bench session.
+
+Prints the table and replaces the section ``## Cost of the rig nuisances`` of
+``reports/benchmarks.md`` (``--no-report`` to print only).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from datetime import datetime, timezone
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from _common import REPORT, replace_section
+
+from pmdc_bayes._x64 import x64
+from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.io.bundled import bundled_session_dir
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.io.session import NUISANCES
+from pmdc_bayes.simulate.cases import case_session
+
+
+@x64
+def _measure(session):
+    model = build_model(session, fit_seed(session))
+    theta = jnp.asarray(model.theta_seed())
+    fn = jax.jit(lambda t, d: model.log_posterior(t, data=d))
+    t0 = time.perf_counter()
+    compiled = fn.lower(theta, model.data).compile()
+    compile_s = time.perf_counter() - t0
+    compiled(theta, model.data).block_until_ready()
+    times, start = [], time.perf_counter()
+    while time.perf_counter() - start < 1.0 or len(times) < 20:
+        t1 = time.perf_counter()
+        compiled(theta, model.data).block_until_ready()
+        times.append(time.perf_counter() - t1)
+    return len(model.names), compile_s, float(np.median(times))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    ap.add_argument("--no-report", action="store_true")
+    args = ap.parse_args(argv)
+    sessions = {"demo (4 traces, 10,204 samples)": load_session(bundled_session_dir("demo")),
+                "bench (2 traces, 1,202 samples)": case_session()}
+    rows = []
+    for label, session in sessions.items():
+        base = None
+        for which, nuis in (("ideal", ()), ("+ dead time per trace + voltage drop", NUISANCES)):
+            n, comp, per = _measure(dataclasses.replace(session, nuisances=nuis))
+            base = base or per
+            rows.append((label, which, n, comp, per, per / base))
+            print(f"{label:34s} {which:38s} P={n:2d} compile {comp:5.2f} s  "
+                  f"{1e3 * per:7.3f} ms/eval  x{per / base:.2f}", flush=True)
+    when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    lines = ["## Cost of the rig nuisances", "",
+             f"Measured {when} by `python benchmarks/nuisance_cost.py`: one jit-compiled "
+             "log-posterior evaluation (one parameter vector, the exact solution), median "
+             "over at least 1 s of calls, compile time from `jit(...).lower(...).compile()`.",
+             "", "| session | model | parameters | compile (s) | time per evaluation (ms) | "
+             "evaluations/s | relative cost |", "|---|---|---:|---:|---:|---:|---:|"]
+    for label, which, n, comp, per, rel in rows:
+        lines.append(f"| {label} | {which} | {n} | {comp:.2f} | {1e3 * per:.3f} | "
+                     f"{1 / per:,.0f} | x{rel:.2f} |")
+    lines += ["", "A dead time shifts each sample's time within its segment and a voltage drop "
+              "shifts the segment voltages: neither adds work per sample, so differences of a "
+              "few tens of per cent either way are timing noise on this shared machine."]
+    section = "\n".join(lines) + "\n"
+    print(section)
+    if not args.no_report:
+        replace_section(REPORT, "Cost of the rig nuisances", section)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
