@@ -154,3 +154,18 @@ def test_no_posterior_report_says_so(tmp_path):
         p.stem for p in (out / "figures").glob("*.png")}
     paths = write_report(out)
     assert paths["html"] == out / "report.html"
+
+
+@pytest.mark.slow
+def test_the_report_leads_with_the_verdict(demo_run, paper_run):
+    """Before any number: 'adequate' on the demo; on the paper (viscous, steady line
+    off zero) the rejection, its reason and the conditional label."""
+    for run, word in ((demo_run, "adequate"), (paper_run, "INADEQUATE")):
+        md = (run / "report.md").read_text(encoding="utf-8")
+        body = md.split("\n## ", 1)[1]
+        first = body.split("\n## ", 1)[0]
+        assert word in first, first[:400]
+        assert md.index(word) < md.find("|")  # before the first table
+    paper = (paper_run / "report.md").read_text(encoding="utf-8")
+    assert "conditional" in paper.lower()
+    assert "voltage drop" in paper
