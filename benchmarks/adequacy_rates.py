@@ -5,7 +5,9 @@ Fits the ideal motor (MAP with the global search, then every adequacy check) to
 * each misspecified bench of ``pmdc_bayes.simulate.cases.CASES`` under several noise
   seeds: how often the verdict is "inadequate" (detection) and how often the diagnosis
   names the cause (diagnosis);
-* motors drawn by ``random_motor`` that the ideal model describes exactly: how often
+* the same benches with no current anywhere (speed only);
+* motors drawn by ``random_motor`` that the ideal model describes exactly (two steps;
+  with Coulomb friction; speed only with a steady table): how often
   the verdict is "inadequate" (false alarm), and which checks raise the failures and
   warnings.
 
@@ -16,6 +18,7 @@ Prints the tables and replaces the section ``## Adequacy checks`` of
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from collections import Counter
@@ -27,14 +30,14 @@ from _common import REPORT, replace_section
 from pmdc_bayes.inference.adequacy import assess
 from pmdc_bayes.inference.fit import fit_map
 from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.paper.closed_form import closed_form
+from pmdc_bayes.inference.seed import fit_seed
 from pmdc_bayes.simulate.bench import bench_session
 from pmdc_bayes.simulate.cases import CASES, case_session, random_motor
 
 
 def _assess(session, seed):
     t0 = time.perf_counter()
-    cf = closed_form(session)
+    cf = fit_seed(session)
     model = build_model(session, cf)
     fit = fit_map(model, seed=seed)
     a = assess(model, fit, cf)
@@ -54,30 +57,54 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     rows, times = [], []
-    for case in [None, *CASES]:
-        hits = named = 0
-        for seed in range(args.seeds):
-            a, dt = _assess(case_session(case, seed=seed), seed)
-            times.append(dt)
-            flagged = a.verdict == "inadequate"
-            hits += flagged
-            named += flagged and case is not None and _says(a, CASES[case][1])
-        label = case or "ideal (false alarm)"
-        rows.append((label, hits, named if case else None))
-        print(f"{label:24s} inadequate {hits}/{args.seeds}"
-              + (f", diagnosis named {named}/{args.seeds}" if case else ""), flush=True)
+    for speed_only in (False, True):
+        for case in [None, *CASES]:
+            hits = named = 0
+            for seed in range(args.seeds):
+                session = case_session(case, seed=seed, speed_only=speed_only,
+                                       steady_current=not speed_only)
+                a, dt = _assess(session, seed)
+                times.append(dt)
+                flagged = a.verdict == "inadequate"
+                hits += flagged
+                named += flagged and case is not None and _says(a, CASES[case][1])
+            label = (case or "ideal (false alarm)") + (", speed only" if speed_only else "")
+            rows.append((label, hits, named if case else None))
+            print(f"{label:36s} inadequate {hits}/{args.seeds}"
+                  + (f", diagnosis named {named}/{args.seeds}" if case else ""), flush=True)
 
     rng = np.random.default_rng(2026)
-    fails, warns, alarms = Counter(), Counter(), 0
-    for k in range(args.motors):
-        motor, steps = random_motor(rng)
-        a, dt = _assess(bench_session(motor, steps, seed=k), k)
-        times.append(dt)
-        alarms += a.verdict != "adequate"
-        for f in a.findings:
-            (fails if f.severity == "fail" else warns)[f.check] += 1
-    print(f"in-class motors: {alarms}/{args.motors} inadequate; failures by check "
-          f"{dict(fails)}; warnings by check {dict(warns)}")
+    variants = {"two steps, viscous": args.motors, "two steps, Coulomb friction": args.motors // 3,
+                "speed only, steady table without current": args.motors // 3}
+    in_class = []
+    fails, warns = Counter(), Counter()
+    for variant, n in variants.items():
+        alarms = 0
+        for k in range(n):
+            motor, steps = random_motor(rng)
+            kw = {}
+            if "Coulomb" in variant:
+                w_final = motor.K * 12.0 / (motor.Ra * motor.B + motor.K**2)
+                motor = dataclasses.replace(motor, Tc=float(rng.uniform(0.05, 0.3)) * motor.B
+                                            * w_final)
+                kw = dict(friction="coulomb")
+            if "speed only" in variant:
+                steps = tuple(dataclasses.replace(s, log_current=False) for s in steps)
+                kw = dict(steady_voltages=(3.0, 6.0, 9.0, 12.0))
+            session = bench_session(motor, steps, seed=k, **kw)
+            if "speed only" in variant:
+                session = dataclasses.replace(session, steady_tables=tuple(
+                    dataclasses.replace(t, current=None) for t in session.steady_tables))
+            a, dt = _assess(session, k)
+            times.append(dt)
+            alarms += a.verdict != "adequate"
+            for f in a.findings:
+                (fails if f.severity == "fail" else warns)[f.check] += 1
+        in_class.append((variant, alarms, n))
+        print(f"in-class motors, {variant}: {alarms}/{n} inadequate", flush=True)
+    n = sum(v for v in variants.values())
+    alarms = sum(a for _, a, _ in in_class)
+    print(f"failures by check {dict(fails)}; warnings by check {dict(warns)}")
 
     when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     n = args.motors
@@ -89,8 +116,11 @@ def main(argv=None) -> int:
     for label, hits, named in rows:
         lines.append(f"| {label} | {hits}/{args.seeds} | "
                      f"{'' if named is None else f'{named}/{args.seeds}'} |")
-    lines += ["", f"In-class motors (`random_motor`, the ideal model is right): "
-              f"**{alarms}/{n} inadequate ({100 * alarms / n:.1f} % false alarms)**.", "",
+    lines += ["", "In-class motors (`random_motor`, the ideal model is right):", "",
+              "| motors | inadequate (false alarm) |", "|---|---:|"]
+    for variant, a_k, n_k in in_class:
+        lines.append(f"| {variant} | {a_k}/{n_k} |")
+    lines += [f"| **all** | **{alarms}/{n} ({100 * alarms / n:.1f} %)** |", "",
               "| check | motors failing it | motors warned by it |", "|---|---:|---:|"]
     for check in sorted(set(fails) | set(warns)):
         lines.append(f"| {check} | {fails[check]}/{n} | {warns[check]}/{n} |")

@@ -14,13 +14,13 @@ import pytest
 from pmdc_bayes.inference.adequacy import assess
 from pmdc_bayes.inference.fit import fit_map
 from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.paper.closed_form import closed_form
+from pmdc_bayes.inference.seed import fit_seed
 from pmdc_bayes.simulate.bench import bench_session
 from pmdc_bayes.simulate.cases import CASES, case_session, random_motor
 
 
 def _verdict(session, seed=0):
-    cf = closed_form(session)
+    cf = fit_seed(session)
     model = build_model(session, cf)
     return assess(model, fit_map(model, seed=seed), cf)
 
@@ -58,6 +58,27 @@ def test_a_voltage_drop_is_not_taken_for_an_unknown_load_or_a_delay():
     a = _verdict(case_session("brush drop"))
     assert not _says(a, "unmeasured load")
     assert not _says(a, "later than the model")
+
+
+SPEED_ONLY = {"dead time": ("dead time",), "sensor lag": ("lag",),
+              "brush drop": ("voltage drop",), "unknown load": ("step_6v", "unmeasured load"),
+              "current limit": ("current-limited",)}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", list(SPEED_ONLY))
+def test_without_any_current_the_non_idealities_are_still_flagged(case):
+    """A speed-only bench: the model absorbs a delay in Ra and La rather than missing
+    the traces, and the diagnosis still names it."""
+    a = _verdict(case_session(case, speed_only=True, steady_current=False))
+    assert a.verdict == "inadequate", case
+    assert _says(a, *SPEED_ONLY[case]), (case, a.diagnosis, [f.message for f in a.findings])
+
+
+@pytest.mark.slow
+def test_a_speed_only_ideal_bench_is_adequate():
+    a = _verdict(case_session(speed_only=True, steady_current=False))
+    assert a.verdict == "adequate", [f.message for f in a.findings]
 
 
 N_MOTORS = 20

@@ -31,15 +31,21 @@ CASES = {
 }
 
 
-def case_session(case: str | None = None, *, seed: int = 0, speed_only: bool = False):
+def case_session(case: str | None = None, *, seed: int = 0, speed_only: bool = False,
+                 steady_current: bool = True):
     """The session of ``case`` (a key of :data:`CASES`; None for the ideal bench) on
-    :data:`MOTOR`: two steps and a steady table at 4, 8 and 12 V."""
+    :data:`MOTOR`: two steps and a steady table at 4, 8 and 12 V; ``speed_only`` drops
+    the steps' current channels, ``steady_current=False`` the table's currents."""
     extra = {} if case is None else CASES[case][0]
     steps = STEPS
     if speed_only:
         steps = tuple(dataclasses.replace(s, log_current=False) for s in steps)
-    return bench_session(BenchMotor(**MOTOR, **extra), steps, seed=seed,
-                         steady_voltages=STEADY_VOLTAGES)
+    session = bench_session(BenchMotor(**MOTOR, **extra), steps, seed=seed,
+                            steady_voltages=STEADY_VOLTAGES)
+    if not steady_current:
+        session = dataclasses.replace(session, steady_tables=tuple(
+            dataclasses.replace(t, current=None) for t in session.steady_tables))
+    return session
 
 
 def random_motor(rng: np.random.Generator) -> tuple[BenchMotor, tuple]:
