@@ -10,7 +10,7 @@ import numpy as np
 
 from .bench import BenchMotor, StepSpec, bench_session
 
-__all__ = ["MOTOR", "STEPS", "CASES", "case_session", "random_motor"]
+__all__ = ["MOTOR", "STEPS", "CASES", "SPEED_ONLY", "case_session", "random_motor"]
 
 MOTOR = dict(Ra=2.0, La=2e-3, K=0.05, B=2e-5, J=2e-5)  # tau ~ 15 ms, La/Ra = 1 ms
 STEPS = (StepSpec("step_12v", 12.0, 0.12, 2e-4), StepSpec("step_6v", 6.0, 0.12, 2e-4))
@@ -29,6 +29,17 @@ CASES = {
                              ("step_6v", "unmeasured load")),
     "encoder speed": (dict(encoder_counts_per_rev=200), ("encoder",)),
 }
+
+
+#: case -> words the diagnosis must contain when no current is logged anywhere; None
+#: where speed alone cannot reveal the case (a source resistance only adds to Ra, which
+#: speed data do not separate from the inertia)
+SPEED_ONLY = {"dead time": ("dead time",), "sensor lag": ("lag",),
+              "brush drop": ("voltage drop",), "source resistance": None,
+              "current limit": ("current-limited",),
+              "unknown load": ("step_6v", "unmeasured load"),
+              "unknown viscous load": ("step_6v", "unmeasured load"),
+              "encoder speed": ("encoder",)}
 
 
 def case_session(case: str | None = None, *, seed: int = 0, speed_only: bool = False,
