@@ -177,12 +177,33 @@ def _enable_compilation_cache() -> None:
         pass
 
 
+def _seed(text: str) -> int:
+    """A random seed: a whole number from 0 to 2**32 - 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 0 <= value < 2**32:
+        raise argparse.ArgumentTypeError(f"{value} is outside 0 .. 4294967295")
+    return value
+
+
+def _version() -> str:
+    from importlib import metadata
+
+    try:
+        return metadata.version("pmdc-bayes")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="pmdc-bayes",
         description="Identify a permanent-magnet DC motor's parameters (Ra, La, K, B, J, "
         "Coulomb friction) from bench experiments, with honest uncertainty.",
     )
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     cf = sub.add_parser(
@@ -207,7 +228,7 @@ def _parser() -> argparse.ArgumentParser:
     sim.add_argument("plan", help="the plan TOML file (see data/demo/plan.toml)")
     sim.add_argument("--out", metavar="DIR", help="session directory to write (default: the "
                      "plan's directory)")
-    sim.add_argument("--seed", type=int, metavar="N", help="random seed (default: the plan's "
+    sim.add_argument("--seed", type=_seed, metavar="N", help="random seed (default: the plan's "
                      "seed)")
     sim.add_argument("--force", action="store_true", help="replace the generated files of an "
                      "existing session in DIR (other files such as plan.toml are kept)")
@@ -226,7 +247,7 @@ def _parser() -> argparse.ArgumentParser:
     ft.add_argument("--no-mcmc", action="store_true", help="stop after the MAP fit")
     ft.add_argument("--friction", choices=("viscous", "coulomb"),
                     help="friction model (default: the session's)")
-    ft.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    ft.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     ft.add_argument("--holdout", action="append", metavar="TRACE",
                     help="fit without this trace (repeatable)")
     ft.add_argument("--compare-friction", action="store_true",

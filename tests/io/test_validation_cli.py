@@ -244,3 +244,16 @@ def test_an_internal_fault_exits_4_with_one_line_and_a_saved_traceback(
     (log,) = tmp_path.glob("pmdc-bayes-error-*.log")
     assert "Traceback" in log.read_text() and "float division by zero" in log.read_text()
     assert not (tmp_path / "run").exists()
+
+
+def test_a_negative_seed_is_bad_input_and_version_is_printed(capsys):
+    from pmdc_bayes import cli
+
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["fit", "demo", "--seed", "-1"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--seed: -1 is outside" in err and "Traceback" not in err
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.startswith("pmdc-bayes ")
