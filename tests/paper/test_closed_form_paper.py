@@ -178,3 +178,15 @@ def test_steady_table_currents_give_k_and_b_when_no_other_current_exists():
         dataclasses.replace(t, current=None) for t in full.steady_tables))
     with pytest.raises(NotApplicable, match="needs a steady current"):
         closed_form(bare)
+
+
+def test_a_trace_of_a_motor_that_never_moved_is_not_the_steady_point():
+    from pmdc_bayes.paper.closed_form import closed_form
+    from pmdc_bayes.simulate.bench import BenchMotor, StepSpec, bench_session
+    from pmdc_bayes.simulate.cases import MOTOR
+
+    session = bench_session(BenchMotor(**MOTOR), [StepSpec("still", 0.0, 0.12, 2e-4),
+                                                  StepSpec("step", 12.0, 0.12, 2e-4)])
+    cf = closed_form(session)
+    assert "'step'" in cf.used["K"]
+    assert cf.K == pytest.approx(MOTOR["K"], rel=0.05)

@@ -174,6 +174,15 @@ def _step_of(trace: Trace) -> tuple[float, float, float]:
     return float(max(times[k + 1], trace.time[0])), float(v[k]), float(v[k + 1])
 
 
+def _turns(trace: Trace) -> bool:
+    """Whether a trace ends turning: its settled speed is a fair share of its largest
+    (a motor that never moved shows only noise, whose mean is far below its peaks),
+    so it gives a steady point for (20)."""
+    n_tail = max(3, trace.n // 10)
+    w = abs(float(np.mean(trace.speed[-n_tail:])))
+    return w > 0.2 * float(np.max(np.abs(trace.speed))) and w > 0
+
+
 def _steady_rows_with_current(session: Session):
     """(table name, V, I, ω arrays) of the first steady table's unloaded, turning rows
     with a current, or None."""
@@ -213,7 +222,7 @@ def closed_form(session: Session) -> ClosedForm:
         K = kb_from_chopper(op.supply_voltage, op.duty, Ia, w, Ra)
         used["K"] = f"equation (20) at operating point {op.name!r}"
     else:
-        with_current = [t for t in steps if t.current is not None]
+        with_current = [t for t in steps if t.current is not None and _turns(t)]
         rows = _steady_rows_with_current(session)
         if with_current:
             tr = with_current[0]
