@@ -109,11 +109,11 @@ def main(argv=None) -> int:
     print(f"failures by check {dict(fails)}; warnings by check {dict(warns)}")
 
     when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
-    n = args.motors
     lines = ["## Adequacy checks", "",
              f"Measured {when} by `python benchmarks/adequacy_rates.py --seeds {args.seeds} "
-             f"--motors {n}`.  Each row fits the ideal motor (MAP, global search) and runs "
-             "every adequacy check; the benches come from `pmdc_bayes.simulate.cases`.", "",
+             f"--motors {args.motors}`.  Each row fits the ideal motor (MAP, global "
+             "search) and runs every adequacy check; the benches come from "
+             "`pmdc_bayes.simulate.cases`.", "",
              "| bench | verdict inadequate | diagnosis names the cause |", "|---|---:|---:|"]
     for label, hits, named in rows:
         lines.append(f"| {label} | {hits}/{args.seeds} | "
