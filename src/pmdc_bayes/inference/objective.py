@@ -23,10 +23,12 @@ from .._x64 import x64
 from ..io.session import Session
 from ..paper.closed_form import ClosedForm
 from ..physics import motor
+from ..physics.experiment import steady_points
 from ..physics.solution import Params, experiment_from_traces, real_modes, simulate, simulate_padded
 from . import cache as _cache
 from .noise import Channel, noise_scale, typical_level
 from .params import PRIOR_FACTOR, Registry, dead_time_name, motor_registry, nuisance_specs
+from .seed import drop_seed, motor_seed
 
 __all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale"]
 
@@ -47,12 +49,11 @@ class SessionModel:
         self.session = session
         self.coulomb = coulomb
         self.seed = seed
-        self._steady = self._steady_arrays(session)
-        K, B, J = self.physical_seed()
-        motor_specs = motor_registry(session, {"K": K, "B": B, "J": J, "Tc": self.tc_seed()},
+        self._steady = steady_points(session)
+        motor_specs = motor_registry(session, motor_seed(seed, session, self._steady),
                                      coulomb=coulomb).specs
         self.registry = Registry(motor_specs + tuple(nuisance_specs(session,
-                                                                    self._drop_seed())))
+                                                                    drop_seed(session))))
         self.names = self.registry.names
         self.channels: list[Channel] = []
         self.exp = experiment_from_traces(session.traces) if session.traces else None
@@ -83,8 +84,9 @@ class SessionModel:
                                    STEADY_RELATIVE_NOISE * typical_level(st["i"], st["i_mask"]))
         sr = session.step_readings
         self._tau_obs = jnp.asarray([s.tau for s in sr])
+        tau_level = float(np.mean([s.tau for s in sr])) if sr else 1.0
         self._tau_ch = self._add("step readings: tau", "s", len(sr),
-                                 STEADY_RELATIVE_NOISE * (np.mean([s.tau for s in sr]) if sr else 1.0))
+                                 STEADY_RELATIVE_NOISE * tau_level)
         self.n_obs = np.array([c.n for c in self.channels], dtype=float)
         self.s0 = np.array([c.s0 for c in self.channels], dtype=float)
         self.prior_sd = self.registry.prior_width_log()
@@ -109,51 +111,6 @@ class SessionModel:
         self.channels.append(Channel(name, unit, int(n), float(s0)))
         return len(self.channels) - 1
 
-    @staticmethod
-    def _steady_arrays(session: Session) -> dict:
-        v, tl, w, i, wm, im = [], [], [], [], [], []
-        for op in session.operating_points:
-            v.append(op.voltage), tl.append(op.load_torque), w.append(op.speed)
-            i.append(op.current if op.current is not None else 0.0)
-            wm.append(True), im.append(op.current is not None)
-        for tab in session.steady_tables:
-            for k in range(tab.voltage.size):
-                v.append(tab.voltage[k]), tl.append(tab.load_torque[k]), w.append(tab.speed[k])
-                has_i = tab.current is not None
-                i.append(tab.current[k] if has_i else 0.0)
-                wm.append(True), im.append(has_i)
-        for s in session.step_readings:
-            v.append(s.voltage), tl.append(0.0), w.append(s.final_speed), i.append(0.0)
-            wm.append(True), im.append(False)
-        arr = {k: np.asarray(x, dtype=float) for k, x in
-               dict(v=v, tl=tl, w=w, i=i).items()}
-        arr["w_mask"] = np.asarray(wm, dtype=bool)
-        arr["i_mask"] = np.asarray(im, dtype=bool)
-        return arr
-
-    def physical_seed(self) -> tuple[float, float, float]:
-        """K, B, J to start from and centre the priors on: the closed form's, except
-        where it gave a non-physical value (B ≤ 0 when the no-load current is within
-        its noise, say), which is replaced by a rough magnitude: B from a mechanical
-        time constant ten times the electrical damping's, J from a 0.1 s time constant."""
-        K, B, J = self.seed.K, self.seed.B, self.seed.J
-        Ra = self.session.Ra.value
-        if not (np.isfinite(K) and K > 0):
-            w = self._steady["w"]
-            K = float(np.median(self._steady["v"] / w)) if w.size else 0.05
-        if not (np.isfinite(B) and B > 0):
-            B = 0.1 * K * K / Ra
-        if not (np.isfinite(J) and J > 0):
-            J = 0.1 * (B * Ra + K * K) / Ra
-        return float(K), float(B), float(J)
-
-    def tc_seed(self) -> float:
-        """A Coulomb torque to start from: a third of the friction torque B_cf·ω that the
-        closed form attributes to viscous friction at its fastest steady point."""
-        w = self._steady["w"]
-        w_ref = float(w.max()) if w.size else 100.0
-        return max(self.physical_seed()[1] * w_ref / 3.0, 1e-9)
-
     def structure_key(self) -> tuple:
         """Everything compiled code depends on besides ``data``'s values: sessions with
         the same key share compiled functions."""
@@ -177,29 +134,15 @@ class SessionModel:
         return Params(v["Ra"], v["La"], v["K"], v["B"], v["J"], v.get("Tc", 0.0))
 
     def theta(self, values: dict) -> jax.Array:
-        """θ of ``values`` (SI); a parameter missing from them is held at its prior's
-        centre when untransformed (a nuisance: none), else at a negligible 1e-300
-        (Tc of a viscous parameter set); positive values are floored there too."""
-        full = {}
-        for s in self.registry.specs:
-            x = values.get(s.name)
-            if s.transform == "identity":
-                full[s.name] = s.prior.centre if x is None else float(x)
-            else:
-                full[s.name] = max(1e-300 if x is None else float(x), 1e-300)
+        """θ of ``values`` (SI); a missing untransformed parameter (a nuisance) sits at its
+        prior's centre, a missing or zero positive one (Tc of a viscous set) at 1e-300."""
+        full = {s.name: (float(values.get(s.name, s.prior.centre)) if s.transform == "identity"
+                         else max(float(values.get(s.name) or 0.0), 1e-300))
+                for s in self.registry.specs}
         return jnp.asarray(self.registry.to_theta(full))
 
     def theta_seed(self) -> jax.Array:
         return jnp.asarray(self.registry.seed_theta())
-
-    def _drop_seed(self) -> float:
-        """Where a fitted voltage drop starts: the zero-speed intercept of the session's
-        steady speed-voltage line when it has one, else 0 V."""
-        from .levels import voltage_intercept
-
-        icpt = voltage_intercept(self.session) if "voltage_drop" in self.session.nuisances \
-            else None
-        return float(icpt["voltage"]) if icpt and icpt["voltage"] > 0 else 0.0
 
     def drop(self, theta):
         """The fitted voltage drop at θ (V), 0 when the model has none."""

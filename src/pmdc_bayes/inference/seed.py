@@ -9,9 +9,9 @@ from .._errors import NotApplicable, SessionError
 from ..io.session import LA_ASSUMED
 from ..paper.closed_form import ClosedForm, closed_form, j_from_tau, read_time_constant
 from ..physics.motor import gain
-from .levels import unloaded_levels
+from .levels import unloaded_levels, voltage_intercept
 
-__all__ = ["fit_seed", "seed_from_data", "FRICTION_SHARE"]
+__all__ = ["fit_seed", "seed_from_data", "motor_seed", "drop_seed", "FRICTION_SHARE"]
 
 FRICTION_SHARE = 0.1  # without a current, viscous friction is taken as this share of Ra·B + K²
 
@@ -90,3 +90,35 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
     used["J"] = "equation (9) from tau"
     return ClosedForm(Ra, La, K, B, J, tau, gain(Ra, K, B), used, applicable=False,
                       reason=reason)
+
+
+def motor_seed(cf: ClosedForm, session, steady: dict) -> dict:
+    """K, B, J and Tc to start from and centre the priors on (SI).
+
+    K, B, J are the closed form's (or the data seed's), except where it gave a
+    non-physical value (B ≤ 0 when the no-load current is within its noise, say), which
+    is replaced by a rough magnitude: K from the steady speeds, B from a mechanical time
+    constant ten times the electrical damping's, J from a 0.1 s time constant.  Tc is a
+    third of the friction torque B·ω at the fastest steady point (``steady`` as
+    :func:`pmdc_bayes.physics.experiment.steady_points` gives it).
+    """
+    K, B, J = cf.K, cf.B, cf.J
+    Ra = session.Ra.value
+    w = steady["w"]
+    if not (np.isfinite(K) and K > 0):
+        K = float(np.median(steady["v"] / w)) if w.size else 0.05
+    if not (np.isfinite(B) and B > 0):
+        B = 0.1 * K * K / Ra
+    if not (np.isfinite(J) and J > 0):
+        J = 0.1 * (B * Ra + K * K) / Ra
+    w_ref = float(w.max()) if w.size else 100.0
+    return {"K": float(K), "B": float(B), "J": float(J), "Tc": max(float(B) * w_ref / 3.0, 1e-9)}
+
+
+def drop_seed(session) -> float:
+    """Where a fitted voltage drop starts: the zero-speed intercept of the session's
+    steady speed-voltage line when it has one, else 0 V."""
+    if "voltage_drop" not in session.nuisances:
+        return 0.0
+    icpt = voltage_intercept(session)
+    return float(icpt["voltage"]) if icpt and icpt["voltage"] > 0 else 0.0
