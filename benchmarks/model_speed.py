@@ -120,10 +120,11 @@ def _per_trace_log_posterior(model, simulate_trace):
             ss = ss.at[c_w].add(jnp.sum((speed - w) ** 2))
             if current is not None:
                 ss = ss.at[c_i].add(jnp.sum((current - ia) ** 2))
-        w, i = model.steady_prediction(p, d["steady_v"], d["steady_tl"])
-        tail = jnp.stack([jnp.sum(jnp.where(d["steady_w_mask"], d["steady_w"] - w, 0.0) ** 2),
-                          jnp.sum(jnp.where(d["steady_i_mask"], d["steady_i"] - i, 0.0) ** 2),
-                          jnp.sum((d["tau_obs"] - model.tau_prediction(p)) ** 2)])
+        st, tau = d["steady"], d["tau"]
+        w, i = model.steady_prediction(p, st["v"], st["tl"])
+        tail = jnp.stack([jnp.sum(jnp.where(st["w_mask"], st["w"] - w, 0.0) ** 2),
+                          jnp.sum(jnp.where(st["i_mask"], st["i"] - i, 0.0) ** 2),
+                          jnp.sum((tau["tau"] - model.tau_prediction(p)) ** 2)])
         ss = ss.at[n_ch - 3:].add(tail)
         n, s0 = d["n_obs"], d["s0"]
         ll = jnp.sum(jnp.where(n > 0, -0.5 * (n + NU0) * jnp.log(NU0 * s0**2 + ss), 0.0))

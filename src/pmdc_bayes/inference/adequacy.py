@@ -246,7 +246,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
 
 def _steady_pairs(model, fit):
     """(channel name, observed, predicted) for the steady speeds and currents."""
-    st = model._steady
+    st = model.steady
     p = model.params(np.asarray(fit.theta))
     w, i = model.steady_prediction(p, st["v"], st["tl"], model.drop(np.asarray(fit.theta)))
     out = []

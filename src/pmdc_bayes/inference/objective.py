@@ -24,69 +24,43 @@ from ..io.session import Session
 from ..paper.closed_form import ClosedForm
 from ..physics import motor
 from ..physics.experiment import steady_points
-from ..physics.solution import Params, experiment_from_traces, real_modes, simulate, simulate_padded
+from ..physics.solution import Params, experiment_from_traces, real_modes, simulate
 from . import cache as _cache
-from .noise import Channel, noise_scale, typical_level
+from .channels import SteadyBlock, blocks_for, entry_weights
+from .noise import Channel, noise_scale
 from .params import PRIOR_FACTOR, Registry, dead_time_name, motor_registry, nuisance_specs
 from .seed import drop_seed, motor_seed
 
 __all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale"]
 
 NU0 = 2.0
-STEADY_RELATIVE_NOISE = 0.01
 BATCH_CHUNK = 4  # parameter vectors evaluated together inside a batch (see benchmarks/)
 
 
 class SessionModel:
     """Predictions, residuals and log-posterior of a session as functions of θ.
 
-    Build with :func:`build_model`.  All methods are pure JAX functions of θ (shape
-    ``(P,)``) and can be jit-compiled and ``vmap``-ped; ``log_posterior_batch`` chooses
-    the fast real-eigenvalue path for a whole batch when it applies.
+    Build with :func:`build_model`.  The likelihood is composed of the blocks of
+    :mod:`.channels`; every method below treats their residual arrays alike.  All
+    methods are pure JAX functions of θ (shape ``(P,)``) and of the data pytree, and
+    can be jit-compiled and ``vmap``-ped; ``log_posterior_batch`` chooses the fast
+    real-eigenvalue path for a whole batch when it applies.
     """
 
     def __init__(self, session: Session, seed: ClosedForm, *, coulomb: bool):
         self.session = session
         self.coulomb = coulomb
         self.seed = seed
-        self._steady = steady_points(session)
-        motor_specs = motor_registry(session, motor_seed(seed, session, self._steady),
+        steady = steady_points(session)
+        motor_specs = motor_registry(session, motor_seed(seed, session, steady),
                                      coulomb=coulomb).specs
         self.registry = Registry(motor_specs + tuple(nuisance_specs(session,
                                                                     drop_seed(session))))
         self.names = self.registry.names
         self.channels: list[Channel] = []
         self.exp = experiment_from_traces(session.traces) if session.traces else None
-        speed_ch, current_ch = [], []
-        speeds, currents = [], []
-        for tr in session.traces:
-            speed_ch.append(self._add(f"{tr.name}: speed", "rad/s", tr.n, noise_scale(tr.speed)))
-            speeds.append(tr.speed)
-            if tr.current is not None:
-                current_ch.append(self._add(f"{tr.name}: current", "A", tr.n,
-                                            noise_scale(tr.current)))
-                currents.append(tr.current)
-            else:
-                current_ch.append(-1)
-                currents.append(np.zeros(tr.n))
-        if self.exp is not None:
-            ct = np.asarray(self.exp.chunk_trace)
-            self._speed = self.exp.pad(np.concatenate(speeds))
-            self._current = self.exp.pad(np.concatenate(currents))
-            self._speed_ch = np.asarray(speed_ch)[ct]
-            cur = np.asarray(current_ch)[ct]
-            self._current_mask = np.asarray(self.exp.mask) & (cur >= 0)[:, None]
-            self._current_ch = np.where(cur >= 0, cur, 0)
-        st = self._steady
-        self._steady_w = self._add("steady: speed", "rad/s", st["w_mask"].sum(),
-                                   STEADY_RELATIVE_NOISE * typical_level(st["w"], st["w_mask"]))
-        self._steady_i = self._add("steady: current", "A", st["i_mask"].sum(),
-                                   STEADY_RELATIVE_NOISE * typical_level(st["i"], st["i_mask"]))
-        sr = session.step_readings
-        self._tau_obs = jnp.asarray([s.tau for s in sr])
-        tau_level = float(np.mean([s.tau for s in sr])) if sr else 1.0
-        self._tau_ch = self._add("step readings: tau", "s", len(sr),
-                                 STEADY_RELATIVE_NOISE * tau_level)
+        self.blocks = blocks_for(session, self.exp, self._add)
+        self.steady = next(b for b in self.blocks if isinstance(b, SteadyBlock)).points
         self.n_obs = np.array([c.n for c in self.channels], dtype=float)
         self.s0 = np.array([c.s0 for c in self.channels], dtype=float)
         self.prior_sd = self.registry.prior_width_log()
@@ -96,15 +70,9 @@ class SessionModel:
     def _collect_data(self) -> dict:
         """Every array the objective reads, as one pytree: pass it as an argument to a
         compiled function so that sessions of the same shapes share the compilation."""
-        st = self._steady
-        d = {"steady_v": st["v"], "steady_tl": st["tl"], "steady_w": st["w"],
-             "steady_i": st["i"], "steady_w_mask": st["w_mask"], "steady_i_mask": st["i_mask"],
-             "tau_obs": self._tau_obs, "n_obs": self.n_obs, "s0": self.s0}
+        d = {b.key: b.data() for b in self.blocks}
+        d.update(n_obs=self.n_obs, s0=self.s0)
         d["prior_centre"], d["prior_scale"] = self.registry.prior_arrays()
-        if self.exp is not None:
-            d.update(exp=self.exp, speed=self._speed, current=self._current,
-                     current_mask=self._current_mask, speed_ch=self._speed_ch,
-                     current_ch=self._current_ch)
         return jax.tree_util.tree_map(jnp.asarray, d)
 
     def _add(self, name, unit, n, s0) -> int:
@@ -115,8 +83,8 @@ class SessionModel:
         """Everything compiled code depends on besides ``data``'s values: sessions with
         the same key share compiled functions."""
         leaves, treedef = jax.tree_util.tree_flatten(self.data)
-        return (self.coulomb, self.registry.structure(), len(self.channels), self.exp is None,
-                treedef,
+        return (self.coulomb, self.registry.structure(), len(self.channels),
+                tuple(b.key for b in self.blocks), treedef,
                 tuple((x.shape, str(x.dtype)) for x in leaves))
 
     def compiled(self, name: str, build):
@@ -161,7 +129,7 @@ class SessionModel:
             exp = exp._replace(tau=jnp.maximum(exp.tau - delay[exp.chunk_trace][:, None], 0.0))
         return exp
 
-    # -- predictions --------------------------------------------------------------------
+    # -- predictions and residuals -------------------------------------------------------
     def steady_prediction(self, p: Params, v, tl, drop=0.0):
         """Steady ``(ω, ia)`` at voltages ``v`` and loads ``tl`` (equations (15)–(18)),
         with ``drop`` volts lost at the brushes and driver."""
@@ -176,49 +144,39 @@ class SessionModel:
     def _d(self, data):
         return self.data if data is None else data
 
-    def _steady_and_tau_residuals(self, p: Params, *, data=None, drop=0.0):
-        d = self._d(data)
-        w, i = self.steady_prediction(p, d["steady_v"], d["steady_tl"], drop)
-        return [(d["steady_w"] - w, d["steady_w_mask"]), (d["steady_i"] - i, d["steady_i_mask"]),
-                (d["tau_obs"] - self.tau_prediction(p), jnp.ones(d["tau_obs"].shape, bool))]
-
-    def trace_residuals(self, theta, *, fast: bool = False, data=None):
-        """Padded speed and current residuals (observed − model) of all traces."""
-        d = self._d(data)
-        ia, w = simulate_padded(self.params(theta), self.inputs(theta, d["exp"]),
-                                coulomb=self.coulomb, fast=fast)
-        return d["speed"] - w, d["current"] - ia
+    def _parts(self, theta, d, fast: bool = False) -> list:
+        """Every residual array of every block with its mask and channels:
+        ``[(r, mask, ch), ...]`` in block order."""
+        out = []
+        for b in self.blocks:
+            bd = d[b.key]
+            out += [(r, m, c) for r, (m, c) in zip(b.residuals(self, theta, bd, fast),
+                                                   b.layout(bd), strict=True)]
+        return out
 
     def channel_residuals(self, theta, *, fast: bool = False, data=None):
         """Residuals per channel (observed − model) with their masks, in channel order."""
-        d = self._d(data)
+        parts = self._parts(theta, self._d(data), fast)
         out = []
-        if self.exp is not None:
-            rw, ri = self.trace_residuals(theta, fast=fast, data=d)
-            mask = np.asarray(self.exp.mask)
-            for c in range(len(self.channels) - 3):
-                m_w = mask & (self._speed_ch == c)[:, None]
-                m_i = self._current_mask & (self._current_ch == c)[:, None]
-                out.append((rw, m_w) if m_w.any() else (ri, m_i))
-        return out + self._steady_and_tau_residuals(self.params(theta), data=d,
-                                                       drop=self.drop(theta))
+        for c in range(len(self.channels)):
+            for r, m, ch in parts:
+                sel = np.asarray(m) & np.asarray(entry_weights(np.asarray(ch) == c, ch, r))
+                if sel.any():
+                    out.append((r, sel))
+                    break
+            else:
+                out.append((jnp.zeros(0), np.zeros(0, bool)))
+        return out
 
     def sums_of_squares(self, theta, *, fast: bool = False, data=None):
         """Sum of squared residuals per channel."""
-        d = self._d(data)
         n_ch = len(self.channels)
-        if self.exp is not None:
-            rw, ri = self.trace_residuals(theta, fast=fast, data=d)
-            row_w = jnp.sum(jnp.where(d["exp"].mask, rw * rw, 0.0), axis=1)
-            row_i = jnp.sum(jnp.where(d["current_mask"], ri * ri, 0.0), axis=1)
-            ss = (jax.ops.segment_sum(row_w, d["speed_ch"], num_segments=n_ch)
-                  + jax.ops.segment_sum(row_i, d["current_ch"], num_segments=n_ch))
-        else:
-            ss = jnp.zeros(n_ch)
-        tail = [jnp.sum(jnp.where(m, r, 0.0) ** 2)
-                for r, m in self._steady_and_tau_residuals(self.params(theta), data=d,
-                                                       drop=self.drop(theta))]
-        return ss.at[n_ch - 3:].add(jnp.stack(tail))
+        ss = jnp.zeros(n_ch)
+        for r, m, ch in self._parts(theta, self._d(data), fast):
+            sq = jnp.where(m, r * r, 0.0)
+            sq = sq.reshape(sq.shape[0], -1).sum(axis=1) if sq.ndim > 1 else sq
+            ss = ss + jax.ops.segment_sum(sq, ch, num_segments=n_ch)
+        return ss
 
     def log_prior(self, theta, *, data=None):
         """The registry's priors (bench Gaussians in value, log-normal elsewhere)."""
@@ -266,17 +224,8 @@ class SessionModel:
         weights (for Levenberg–Marquardt)."""
         d = self._d(data)
         sw = jnp.sqrt(weights)
-        parts = []
-        if self.exp is not None:
-            rw, ri = self.trace_residuals(theta, fast=fast, data=d)
-            parts.append((jnp.where(d["exp"].mask, rw, 0.0) * sw[d["speed_ch"]][:, None])
-                         .reshape(-1))
-            parts.append((jnp.where(d["current_mask"], ri, 0.0)
-                          * sw[d["current_ch"]][:, None]).reshape(-1))
-        n_ch = len(self.channels)
-        for k, (r, m) in enumerate(self._steady_and_tau_residuals(self.params(theta), data=d,
-                                                       drop=self.drop(theta))):
-            parts.append(jnp.where(m, r, 0.0) * sw[n_ch - 3 + k])
+        parts = [(jnp.where(m, r, 0.0) * entry_weights(sw, ch, r)).reshape(-1)
+                 for r, m, ch in self._parts(theta, d, fast)]
         prior = self.registry.prior_residuals(theta, d["prior_centre"], d["prior_scale"])
         return jnp.concatenate(parts + [prior])
 
@@ -287,51 +236,45 @@ class SessionModel:
             return []
         c = self.coulomb if coulomb is None else coulomb
         fn = self.compiled(f"predict-coulomb={c}", lambda: jax.jit(
-            lambda t, d: simulate(self.params(t), self.inputs(t, d["exp"]), coulomb=c)))
+            lambda t, d: simulate(self.params(t), self.inputs(t, d["traces"]["exp"]),
+                                 coulomb=c)))
         ia, w = fn(jnp.asarray(theta), self.data)
         return list(zip(self.exp.split(ia), self.exp.split(w)))
 
     def padded_log_density(self, theta, *, data=None) -> list:
-        """Gaussian log-density of every observation, padded, at its channel's noise level
-        ``σ_c² = (ν0·s0_c² + SS_c)/(n_c + ν0)`` (for LOO): the traces' speed and current in
-        the ``(C, L)`` layout, then the steady speeds, steady currents and τ readings.
+        """Gaussian log-density of every observation, in each block's layout, at its
+        channel's noise level ``σ_c² = (ν0·s0_c² + SS_c)/(n_c + ν0)`` (for LOO);
         :meth:`observation_selection` picks each channel's observations out of it."""
         d = self._d(data)
         ss = self.sums_of_squares(theta, data=d)
         var = (NU0 * d["s0"] ** 2 + ss) / (d["n_obs"] + NU0)
-
-        def dens(r, v):
-            return -0.5 * (jnp.log(2 * jnp.pi * v) + r * r / v)
-
         out = []
-        if self.exp is not None:
-            rw, ri = self.trace_residuals(theta, data=d)
-            out += [dens(rw, var[d["speed_ch"]][:, None]),
-                    dens(ri, var[d["current_ch"]][:, None])]
-        n_ch = len(self.channels)
-        for k, (r, _) in enumerate(self._steady_and_tau_residuals(self.params(theta), data=d,
-                                                       drop=self.drop(theta))):
-            # lax.map cannot batch an empty output: an empty channel gets a dummy entry
-            # that its (empty) selection never reads.
-            out.append(dens(r if r.shape[0] else jnp.zeros(1), var[n_ch - 3 + k]))
+        for r, _, ch in self._parts(theta, d):
+            if r.shape[0] == 0:
+                # lax.map cannot batch an empty output: an empty array gets a dummy
+                # entry that its (empty) selection never reads.
+                out.append(jnp.zeros((1,) + r.shape[1:]))
+                continue
+            v = entry_weights(var, ch, r)
+            out.append(-0.5 * (jnp.log(2 * jnp.pi * v) + r * r / v))
         return out
 
     def observation_selection(self) -> list:
         """Per channel, in channel order: (which output of :meth:`padded_log_density`,
         flat indices of its observations)."""
-        n_ch = len(self.channels)
+        layout = [(np.asarray(m), np.asarray(ch)) for b in self.blocks
+                  for m, ch in b.layout(jax.tree_util.tree_map(np.asarray,
+                                                               self.data[b.key]))]
         sel = []
-        if self.exp is not None:
-            mask = np.asarray(self.exp.mask)
-            for c in range(n_ch - 3):
-                m_w = (mask & (self._speed_ch == c)[:, None]).reshape(-1)
-                m_i = (self._current_mask & (self._current_ch == c)[:, None]).reshape(-1)
-                sel.append((0, np.nonzero(m_w)[0]) if m_w.any() else (1, np.nonzero(m_i)[0]))
-        base = 2 if self.exp is not None else 0
-        st = self._steady
-        sel.append((base, np.nonzero(st["w_mask"])[0]))
-        sel.append((base + 1, np.nonzero(st["i_mask"])[0]))
-        sel.append((base + 2, np.arange(len(self.session.step_readings))))
+        for c in range(len(self.channels)):
+            for k, (m, ch) in enumerate(layout):
+                own = (ch == c).reshape(ch.shape + (1,) * (m.ndim - ch.ndim))
+                idx = np.nonzero((m & own).reshape(-1))[0]
+                if idx.size:
+                    sel.append((k, idx))
+                    break
+            else:
+                sel.append((0, np.zeros(0, int)))
         return sel
 
     def pointwise_log_likelihood(self, theta, *, data=None) -> list:

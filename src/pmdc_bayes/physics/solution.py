@@ -23,7 +23,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import motor
-from .motor import state_space
 from .experiment import (
     INITIAL_MODES,
     Experiment,
@@ -32,6 +31,8 @@ from .experiment import (
     make_experiment,
     stack_experiments,
 )
+from .motor import state_space
+from .propagator import apply_alpha_beta, coefficients, coefficients_real, real_modes
 
 __all__ = [
     "Params",
@@ -89,63 +90,6 @@ def _steady_coulomb(p: Params, va, tl, direction):
     return motor.steady_state(p.Ra, p.K, p.B, va, tl + direction * p.Tc)
 
 
-def _eigen(p: Params):
-    """Mean m, discriminant z, determinant of A: eigenvalues m ± sqrt(z)."""
-    a11, a22 = -p.Ra / p.La, -p.B / p.J
-    m = 0.5 * (a11 + a22)
-    det = (p.Ra * p.B + p.K * p.K) / (p.La * p.J)
-    z = (0.5 * (a11 - a22)) ** 2 - p.K * p.K / (p.La * p.J)
-    return m, z, det
-
-
-def real_modes(p: Params):
-    """True where A's eigenvalues are real and far enough apart for :func:`_propagator_real`."""
-    m, z, _ = _eigen(p)
-    return z > (1e-3 * m) ** 2
-
-
-def _propagator_real(p: Params, tau):
-    """(α, β) with ``expm(A·τ) = α·I + β·A``, for real, well-separated eigenvalues.
-
-    The fast eigenvalue is formed without cancellation and the slow one from the
-    product of the two (det), so neither loses digits.
-    """
-    m, z, det = _eigen(p)
-    s = jnp.sqrt(jnp.where(z > 0, z, 1.0))
-    lf = m - s
-    ls = det / lf
-    e_s, e_f = jnp.exp(ls * tau), jnp.exp(lf * tau)
-    gap = ls - lf
-    return (ls * e_f - lf * e_s) / gap, (e_s - e_f) / gap
-
-
-def _propagator(p: Params, tau):
-    """(α, β) with ``expm(A·τ) = α·I + β·A`` for any eigenvalues of the 2×2 motor matrix."""
-    m, z, det = _eigen(p)
-    zt2 = z * tau * tau
-    small = jnp.abs(zt2) < 1e-4
-    alpha_r, beta_r = _propagator_real(p, tau)
-    # Complex pair m ± iw.
-    w = jnp.sqrt(jnp.where(z < 0, -z, 1.0))
-    em = jnp.exp(m * tau)
-    sinc = jnp.sin(w * tau) / w
-    beta_c = em * sinc
-    alpha_c = em * (jnp.cos(w * tau) - m * sinc)
-    # Nearly repeated eigenvalues: series in z·τ².
-    beta_0 = tau * em * (1.0 + zt2 / 6.0 + zt2 * zt2 / 120.0)
-    alpha_0 = em * (1.0 + zt2 / 2.0 + zt2 * zt2 / 24.0) - m * beta_0
-    alpha = jnp.where(small, alpha_0, jnp.where(z > 0, alpha_r, alpha_c))
-    beta = jnp.where(small, beta_0, jnp.where(z > 0, beta_r, beta_c))
-    return alpha, beta
-
-
-def _apply(p: Params, alpha, beta, d):
-    """``(α·I + β·A)·d`` for d = (d_ia, d_ω) (arrays broadcast)."""
-    di, dw = d
-    ai, aw = motor.derivatives(p.Ra, p.La, p.K, p.B, p.J, di, dw)
-    return alpha * di + beta * ai, alpha * dw + beta * aw
-
-
 def _stuck_current(p: Params, ia0, va, tau):
     """Current with the rotor held at rest: first order with time constant La/Ra."""
     i_inf = va / p.Ra
@@ -164,8 +108,8 @@ class _Segment(NamedTuple):
 
 
 def _moving(p, seg, tau_m, fast=False):
-    alpha, beta = (_propagator_real if fast else _propagator)(p, tau_m)
-    di, dw = _apply(p, alpha, beta, (seg.xm_i - seg.ss_i, seg.xm_w - seg.ss_w))
+    alpha, beta = (coefficients_real if fast else coefficients)(p, tau_m)
+    di, dw = apply_alpha_beta(p, alpha, beta, (seg.xm_i - seg.ss_i, seg.xm_w - seg.ss_w))
     return seg.ss_i + di, seg.ss_w + dw
 
 
