@@ -55,6 +55,10 @@ class Table:
             return default, False
         return self.data[key], True
 
+    def value(self, key: str, *, default=REQUIRED, what: str = "value"):
+        """The raw value of ``key`` (``default`` when absent), unchecked."""
+        return self._get(key, default, what)[0]
+
     def table(self, key: str, *, required: bool = True) -> Table | None:
         if key not in self.data:
             if required:
@@ -80,16 +84,19 @@ class Table:
             out.append(Table(self.file, item, label))
         return out
 
-    def string(self, key: str, *, default=REQUIRED) -> str:
+    def string(self, key: str, *, default=REQUIRED, choices=None) -> str:
         value, given = self._get(key, default, "text in quotes")
         if given and (not isinstance(value, str) or not value.strip()):
             self.fail(key, f"expected a non-empty string, got {describe(value)}; write "
                       f'{key} = "..."')
+        if given and choices and value not in choices:
+            self.fail(key, f"unknown value {value!r}; use one of: {', '.join(choices)}")
         return value
 
     def number(self, key: str, kind: str | None = None, unit: str | None = None, *,
-               default=REQUIRED, positive: bool = False) -> float:
-        """A finite number, converted from ``unit`` to SI for a quantity of ``kind``."""
+               default=REQUIRED, positive: bool = False, low: float | None = None) -> float:
+        """A finite number, converted from ``unit`` to SI for a quantity of ``kind``;
+        ``positive`` and ``low`` bound the SI value."""
         value, given = self._get(key, default, "number")
         if not given:
             return value
@@ -101,7 +108,18 @@ class Table:
         si = float(value) if kind is None else to_si(value, kind, unit or SI_UNIT[kind])
         if positive and not si > 0:
             self.fail(key, f"must be positive, got {value}; check the value and its sign")
+        if low is not None and si < low:
+            self.fail(key, f"must be >= {low}, got {value}; check the value")
         return si
+
+    def numbers(self, key: str, *, required: bool = True) -> tuple[float, ...] | None:
+        """A non-empty list of finite numbers (SI, no unit)."""
+        value, given = self._get(key, REQUIRED if required else None, "[number, ...]")
+        if not given:
+            return None
+        if not isinstance(value, list) or not value:
+            self.fail(key, f"expected a non-empty list of numbers, got {describe(value)}")
+        return tuple(Table(self.file, {key: v}, self.where).number(key) for v in value)
 
     def unit(self, key: str, kind: str) -> str:
         text = self.string(key)

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import SessionError
+from ..io._toml import REQUIRED, Table
 from ..io.session import FRICTION_MODELS
 from ..io.units import unit_factor
 
@@ -119,116 +120,60 @@ def load_plan(path) -> dict:
         raise SessionError(path, "not UTF-8 text; save the file as UTF-8") from None
 
 
-class _T:
-    """Typed, checked access to one table of the plan; errors name the key path."""
-
-    def __init__(self, file, data, where=""):
-        self.file, self.data, self.where = file, data, where
-
-    def fail(self, key, message):
-        raise SessionError(self.file, message, where=f"{self.where}.{key}" if self.where
-                           else key)
-
-    def keys(self, allowed):
-        for key in self.data:
-            if key not in allowed:
-                self.fail(key, f"unknown key {key!r}; use one of: {', '.join(allowed)}")
-
-    def get(self, key, default, what):
-        if key not in self.data:
-            if default is None and what:
-                self.fail(key, f"missing required key; add {key} = <{what}>")
-            return default
-        return self.data[key]
-
-    def table(self, key):
-        value = self.get(key, None, "table")
-        if not isinstance(value, dict):
-            self.fail(key, f"expected a table, got {value!r}; write [{key}] and its keys")
-        return _T(self.file, value, f"{self.where}.{key}" if self.where else key)
-
-    def tables(self, key):
-        value = self.data.get(key, [])
-        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            self.fail(key, f"expected an array of tables; write each entry as [[{key}]]")
-        out = []
-        for i, item in enumerate(value, start=1):
-            t = _T(self.file, item, f"{key}[{i}]")
-            name = t.string("name")
-            if not _SAFE_NAME.fullmatch(name):
-                t.fail("name", f"{name!r} cannot be a file name; use letters, digits, _ . -")
-            out.append(_T(self.file, item, f"{key}[{name!r}]"))
-        return out
-
-    def string(self, key, default=None, choices=None):
-        value = self.get(key, default, "text in quotes")
-        if not isinstance(value, str) or not value.strip():
-            self.fail(key, f'expected a non-empty string, got {value!r}; write {key} = "..."')
-        if choices and value not in choices:
-            self.fail(key, f"unknown value {value!r}; use one of: {', '.join(choices)}")
-        return value
-
-    def number(self, key, default=None, *, low=None, positive=False):
-        value = self.get(key, default, "number")
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
-                value):
-            self.fail(key, f"expected a finite number, got {value!r}; write it without quotes")
-        if positive and not value > 0:
-            self.fail(key, f"must be positive, got {value}; check the value")
-        if low is not None and value < low:
-            self.fail(key, f"must be >= {low}, got {value}; check the value")
-        return float(value)
-
-    def numbers(self, key, required=True):
-        if key not in self.data and not required:
-            return None
-        value = self.get(key, None, "[number, ...]")
-        if not isinstance(value, list) or not value:
-            self.fail(key, f"expected a non-empty list of numbers, got {value!r}")
-        return tuple(_T(self.file, {key: v}, self.where).number(key) for v in value)
-
-    def schedule(self, key, required):
-        value = self.get(key, None, "[[time s, value], ...]" if required else "")
-        if value is None:
-            return None
-        example = f"write e.g. {key} = [[0.0, 0.0], [0.5, 12.0]]"
-        if not isinstance(value, list) or not value or not all(
-                isinstance(p, list) and len(p) == 2 for p in value):
-            self.fail(key, f"expected a list of [time s, value] pairs; {example}")
-        pairs = tuple((_T(self.file, {"time": p[0]}).number("time"),
-                       _T(self.file, {"value": p[1]}).number("value")) for p in value)
-        times = [p[0] for p in pairs]
-        if times[0] > 0.0 or any(b <= a for a, b in zip(times, times[1:])):
-            self.fail(key, f"times must start at or before 0 and increase strictly; {example}")
-        return pairs
+def _named_tables(t: Table, key: str) -> list[Table]:
+    """The array of tables ``[[key]]``, each with a name fit for a file name."""
+    out = t.tables(key)
+    for item in out:
+        name = item.string("name")
+        if not _SAFE_NAME.fullmatch(name):
+            item.fail("name", f"{name!r} cannot be a file name; use letters, digits, _ . -")
+    return out
 
 
-def _trace(t: _T) -> TraceSpec:
-    t.keys(("name", "kind", "duration", "rate", "voltage", "load_torque", "initial",
+def _schedule(t: Table, key: str, required: bool):
+    """A piecewise-constant schedule ``[[time s, value], ...]`` (None when optional and
+    absent)."""
+    value = t.value(key, default=REQUIRED if required else None, what="[[time s, value], ...]")
+    if value is None:
+        return None
+    example = f"write e.g. {key} = [[0.0, 0.0], [0.5, 12.0]]"
+    if not isinstance(value, list) or not value or not all(
+            isinstance(p, list) and len(p) == 2 for p in value):
+        t.fail(key, f"expected a list of [time s, value] pairs; {example}")
+    pairs = tuple((Table(t.file, {"time": p[0]}, t.path(key)).number("time"),
+                   Table(t.file, {"value": p[1]}, t.path(key)).number("value")) for p in value)
+    times = [p[0] for p in pairs]
+    if times[0] > 0.0 or any(b <= a for a, b in zip(times, times[1:], strict=False)):
+        t.fail(key, f"times must start at or before 0 and increase strictly; {example}")
+    return pairs
+
+
+def _trace(t: Table) -> TraceSpec:
+    t.check_keys(("name", "kind", "duration", "rate", "voltage", "load_torque", "initial",
             "speed_unit", "record_current", "speed_noise", "speed_quantum", "current_noise",
             "current_quantum", "delay"))
-    initial = t.get("initial", "rest", "")
+    initial = t.value("initial", default="rest")
     if isinstance(initial, dict):
-        sub = _T(t.file, initial, f"{t.where}.initial")
-        sub.keys(("current", "speed"))
+        sub = Table(t.file, initial, t.path("initial"))
+        sub.check_keys(("current", "speed"))
         initial = (sub.number("current"), sub.number("speed"))
     elif initial not in ("rest", "steady"):
         t.fail("initial", f'expected "rest", "steady" or {{ current = A, speed = rad/s }}, '
                f"got {initial!r}")
-    speed_unit = t.string("speed_unit", "rad/s")
+    speed_unit = t.string("speed_unit", default="rad/s")
     try:
         unit_factor("speed", speed_unit)
     except ValueError as exc:
         t.fail("speed_unit", str(exc))
-    record_current = t.get("record_current", True, "")
+    record_current = t.value("record_current", default=True)
     if not isinstance(record_current, bool):
         t.fail("record_current", f"expected true or false, got {record_current!r}")
     spec = TraceSpec(
         name=t.string("name"), kind=t.string("kind", choices=TRACE_KINDS),
         duration=t.number("duration", positive=True), rate=t.number("rate", positive=True),
-        voltage=t.schedule("voltage", True), load_torque=t.schedule("load_torque", False),
+        voltage=_schedule(t, "voltage", True), load_torque=_schedule(t, "load_torque", False),
         initial=initial, speed_unit=speed_unit, record_current=record_current,
-        **{k: t.number(k, 0.0, low=0.0) for k in ("speed_noise", "speed_quantum",
+        **{k: t.number(k, default=0.0, low=0.0) for k in ("speed_noise", "speed_quantum",
                                                   "current_noise", "current_quantum",
                                                   "delay")},
     )
@@ -251,29 +196,30 @@ def check_plan(data: dict, source=None) -> Plan:
         One line naming ``source`` (the plan file), the key, the problem and the fix.
     """
     source = None if source is None else Path(source)
-    top = _T(source, data)
-    top.keys(("seed", "motor", "truth", "bench", "operating_point", "steady_table", "trace"))
-    seed = top.get("seed", None, "")
+    top = Table(source, data, "")
+    top.check_keys(("seed", "motor", "truth", "bench", "operating_point", "steady_table", "trace"))
+    seed = top.value("seed", default=None)
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
         top.fail("seed", f"expected a whole number >= 0, got {seed!r}; write e.g. seed = 1")
     motor = top.table("motor")
-    motor.keys(("name", "friction"))
-    friction = motor.string("friction", "viscous", FRICTION_MODELS)
+    motor.check_keys(("name", "friction"))
+    friction = motor.string("friction", default="viscous", choices=FRICTION_MODELS)
     tt = top.table("truth")
-    tt.keys(TRUTH_KEYS)
-    truth = {k: tt.number(k, 0.0 if k == "Tc" else None, low=0.0, positive=k != "Tc")
+    tt.check_keys(TRUTH_KEYS)
+    truth = {k: tt.number(k, default=0.0 if k == "Tc" else REQUIRED, low=0.0,
+                       positive=k != "Tc")
              for k in TRUTH_KEYS}
     if friction == "viscous" and truth["Tc"] > 0:
         tt.fail("Tc", 'friction "viscous" has no Coulomb torque; set Tc = 0 or set '
                 'motor.friction = "coulomb"')
     bt = top.table("bench")
-    bt.keys(tuple(_BENCH))
+    bt.check_keys(tuple(_BENCH))
     bench = []
     for key, kind in _BENCH.items():
         if key == "La" and key not in bt.data:  # an unmeasured La: the session omits it
             continue
         b = bt.table(key)
-        b.keys(("sd", "unit"))
+        b.check_keys(("sd", "unit"))
         unit = b.string("unit")
         try:
             unit_factor(kind, unit)
@@ -281,27 +227,27 @@ def check_plan(data: dict, source=None) -> Plan:
             b.fail("unit", str(exc))
         bench.append(BenchSpec(key, b.number("sd", positive=True), unit))
     points = []
-    for t in top.tables("operating_point"):
-        t.keys(("name", "supply_voltage", "duty", "load_torque", "speed_sd", "current_sd"))
+    for t in _named_tables(top, "operating_point"):
+        t.check_keys(("name", "supply_voltage", "duty", "load_torque", "speed_sd", "current_sd"))
         duty = t.number("duty", positive=True)
         if duty > 1.0:
             t.fail("duty", f"duty {duty} is above 1; give the duty cycle as a fraction, e.g. 0.7")
         points.append(PointSpec(t.string("name"), t.number("supply_voltage", positive=True),
-                                duty, t.number("load_torque", 0.0),
-                                t.number("speed_sd", 0.0, low=0.0),
-                                t.number("current_sd", 0.0, low=0.0)))
+                                duty, t.number("load_torque", default=0.0),
+                                t.number("speed_sd", default=0.0, low=0.0),
+                                t.number("current_sd", default=0.0, low=0.0)))
     tables = []
-    for t in top.tables("steady_table"):
-        t.keys(("name", "voltages", "load_torques", "speed_sd", "current_sd"))
-        volts, loads = t.numbers("voltages"), t.numbers("load_torques", False)
+    for t in _named_tables(top, "steady_table"):
+        t.check_keys(("name", "voltages", "load_torques", "speed_sd", "current_sd"))
+        volts, loads = t.numbers("voltages"), t.numbers("load_torques", required=False)
         if loads and len(loads) != len(volts):
             t.fail("load_torques", f"has {len(loads)} values for {len(volts)} voltages; give "
                    "one load torque per voltage")
-        cur = t.get("current_sd", None, "")
+        cur = t.value("current_sd", default=None)
         tables.append(TableSpec(t.string("name"), volts, loads or None,
-                                t.number("speed_sd", 0.0, low=0.0),
+                                t.number("speed_sd", default=0.0, low=0.0),
                                 None if cur is None else t.number("current_sd", low=0.0)))
-    traces = tuple(_trace(t) for t in top.tables("trace"))
+    traces = tuple(_trace(t) for t in _named_tables(top, "trace"))
     names = [s.name for s in (*points, *tables, *traces)]
     for name in names:
         if names.count(name) > 1:
