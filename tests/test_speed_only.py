@@ -97,3 +97,49 @@ def test_speed_alone_determines_the_gain_and_time_constant_not_the_split(run):
     # La was not measured; the onset of fast-sampled steps still determines it
     assert ident["posterior_to_prior_width"]["La"] < 0.2
     assert summary["parameters"]["La"]["map"] == pytest.approx(LA, rel=0.2)
+
+
+def _with_bench(run, tmp_path, **bench):
+    """The speed-only session with further bench entries appended to its session.toml."""
+    import shutil
+
+    _, out = run
+    session = tmp_path / "session"
+    shutil.copytree(out.parent / "session", session)
+    extra = "".join(f'\n[bench.{k}]\nvalue = {v}\nsd = {sd}\nunit = "{unit}"\n'
+                    for k, (v, sd, unit) in bench.items())
+    toml = session / "session.toml"
+    toml.write_text(toml.read_text() + extra)
+    return load_session(session)
+
+
+@pytest.mark.slow
+def test_a_bench_K_is_a_prior_that_splits_the_damping(run, tmp_path):
+    from pmdc_bayes.pipeline import fit_session
+
+    session = _with_bench(run, tmp_path, K=(K * 1.01, K * 0.01, "V*s/rad"))
+    assert set(session.bench) == {"K"} and session.bench["K"].sd == pytest.approx(K * 0.01)
+    res = fit_session(session, mcmc=False)
+    spec = res.model.registry["K"]
+    assert (spec.prior.kind, spec.prior.source) == ("normal", "bench")
+    fit = res.fit
+    # K now carries the bench's 1 % (not the > 10 % of speed alone), and the steady gain
+    # then fixes B: both recovered within 3 sd of the truth
+    assert fit.sd["K"] / fit.values["K"] < 0.015
+    for name, true in (("K", K), ("B", B), ("J", J)):
+        assert abs(fit.values[name] - true) < 3 * fit.sd[name], (name, fit.values[name])
+    assert res.adequacy.verdict == "adequate"
+    assert res.summary["adequacy"]["bench"]["K"]["z"] == pytest.approx(
+        (fit.values["K"] - K * 1.01) / (K * 0.01))
+
+
+@pytest.mark.slow
+def test_a_bench_J_the_data_contradict_is_a_bench_conflict(run, tmp_path):
+    from pmdc_bayes.pipeline import fit_session
+
+    # an inertia measured (or typed) a factor 3 too large, claimed to 2 %
+    session = _with_bench(run, tmp_path, J=(3 * J, 0.02 * 3 * J, "kg*m^2"))
+    res = fit_session(session, mcmc=False)
+    assert res.adequacy.verdict == "inadequate"
+    assert any(f.check == "bench conflict" and f.where == "J" and f.severity == "fail"
+               for f in res.adequacy.findings)

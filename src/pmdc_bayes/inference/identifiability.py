@@ -41,7 +41,9 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
     prior_bound = [names[j] for j in range(len(names)) if ratio[j] > PRIOR_DOMINATED]
     for j, name in enumerate(names):
         if name in prior_bound and name != "La":
-            findings.append(f"{name} is determined by its prior alone: its posterior width is "
+            which = ("its bench measurement" if model.registry[name].prior.source == "bench"
+                     else "its prior")
+            findings.append(f"{name} is determined by {which} alone: its posterior width is "
                             f"{100 * ratio[j]:.0f} % of the prior width.")
     la_finding = _la_finding(model, fit, "La" in prior_bound, ratio[names.index("La")])
     if la_finding:

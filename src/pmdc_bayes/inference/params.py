@@ -197,7 +197,9 @@ def _lognormal(value: float, source: str) -> Prior:
 
 def motor_registry(session: Session, seed: dict, *, coulomb: bool) -> Registry:
     """The motor's parameters: Ra, La (bench priors), K, B, J (and Tc with Coulomb
-    friction) with log-normal priors a factor :data:`PRIOR_FACTOR` wide around ``seed``.
+    friction).  K, B and J measured on the bench (``session.bench``) get that
+    measurement as a Gaussian prior; otherwise, like Tc, a log-normal prior a factor
+    :data:`PRIOR_FACTOR` wide around ``seed``.
 
     ``seed`` maps K, B, J, Tc to physical starting values (SI).
     """
@@ -214,8 +216,10 @@ def motor_registry(session: Session, seed: dict, *, coulomb: bool) -> Registry:
             ("K", "V*s/rad", "motor", "torque and back-emf constant"),
             ("B", "N*m*s/rad", "friction", "viscous friction"),
             ("J", "kg*m^2", "motor", "inertia of rotor and load")):
-        specs.append(ParamSpec(name, unit, block, _lognormal(seed[name], "seed"), seed[name],
-                               description=words))
+        m = session.bench.get(name)
+        prior = (Prior("normal", m.value, m.sd, "bench") if m is not None
+                 else _lognormal(seed[name], "seed"))
+        specs.append(ParamSpec(name, unit, block, prior, seed[name], description=words))
     if coulomb:
         specs.append(ParamSpec("Tc", "N*m", "friction", _lognormal(seed["Tc"], "seed"),
                                seed["Tc"], description="Coulomb friction torque"))

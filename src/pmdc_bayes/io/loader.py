@@ -306,6 +306,7 @@ def load_session(path) -> Session:
     return Session(
         name=root.name,
         nuisances=nuisances,
+        bench={k: m for k, m in measured.items() if k not in ("Ra", "La")},
         root=root,
         motor=motor.string("name"),
         Ra=measured["Ra"],

@@ -159,6 +159,8 @@ class Session:
     ``truth`` holds the true parameters of a simulated session (from ``truth.json``).
     ``nuisances`` names the rig's non-idealities to fit with the motor
     (:data:`NUISANCES`: ``"dead_time"`` per trace, ``"voltage_drop"``).
+    ``bench`` holds the further bench measurements given (of ``"K"``, ``"J"``,
+    ``"B"``), each a prior of the fit.
     """
 
     name: str
@@ -174,6 +176,7 @@ class Session:
     closed_form_options: dict = field(default_factory=dict)
     truth: dict | None = None
     nuisances: tuple[str, ...] = ()
+    bench: dict = field(default_factory=dict)
 
     def trace(self, name: str) -> Trace:
         for tr in self.traces:
