@@ -7,9 +7,6 @@ replaces a good one.
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 import time
 from datetime import datetime
 from importlib import metadata
@@ -29,6 +26,7 @@ from .io._jsonio import dumps
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
 from .paper.consistency import consistency_checks
+from .rundir import check_replaceable, write_atomically
 
 __all__ = ["fit_session", "run_fit", "write_run", "default_out_dir", "versions"]
 
@@ -161,14 +159,16 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             mcmc: bool = True, friction: str | None = None, seed: int = 0,
             holdout=(), compare_friction: bool = False,
             progress=None, allow_inadequate: bool = False,
-            add=()) -> tuple[Path, dict]:
+            add=(), compare: bool = False) -> tuple[Path, dict]:
     """Fit a session directory and write the run directory ``out``: ``summary.json``,
     ``posterior.nc`` (with MCMC) and the report, all built beside ``out`` and moved into
     place in one rename once complete.
 
     Returns the run directory and the summary.  Raises :class:`UsageError` for an
     existing ``out`` without ``force``.  ``add`` names rig non-idealities to fit on top
-    of those the session declares (``io.session.NUISANCES``).
+    of those the session declares (``io.session.NUISANCES``); ``compare`` first fits the
+    candidate sets of :mod:`.selection` and then runs the recommended one, recording the
+    comparison under ``"model_selection"``.
     """
     session_full = load_session(session_path)
     if add:
@@ -179,10 +179,23 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             session_full, nuisances=tuple(n for n in NUISANCES if n in wanted))
     name = session_full.name
     out = Path(out) if out is not None else default_out_dir(name)
-    _check_replaceable(out, force)
+    check_replaceable(out, force)
+    selection = None
+    if compare:
+        import dataclasses
+
+        from .selection import compare_nuisances
+
+        fitted = session_full.without_traces(holdout) if holdout else session_full
+        selection = compare_nuisances(fitted, friction=friction, seed=seed, mcmc=mcmc,
+                                      progress=progress)
+        session_full = dataclasses.replace(session_full,
+                                           nuisances=tuple(selection["nuisances"]))
     result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
                          holdout=holdout, compare_friction=compare_friction, progress=progress,
                          allow_inadequate=allow_inadequate)
+    if selection is not None:
+        result.summary["model_selection"] = selection
     write_run(result, out, force=force)
     return out, result.summary
 
@@ -198,7 +211,7 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> Path:
             result.idata.to_netcdf(tmp / "posterior.nc")
         report_stage(result, out, tmp)
 
-    _write_atomically(Path(out), fill, force=force)
+    write_atomically(Path(out), fill, force=force)
     return Path(out)
 
 
@@ -253,49 +266,3 @@ def _no_trace(session, name):
     names = ", ".join(t.name for t in session.traces) or "none"
     raise UsageError(f"{session.root / 'session.toml'}: --holdout {name!r} names no trace; "
                      f"traces are: {names}")
-
-
-RUN_MARKER = ".pmdc-bayes-run"
-
-
-def is_run_dir(path: Path) -> bool:
-    """Whether ``path`` is a directory this tool wrote as a run (its marker file, or the
-    summary.json of a run written before the marker existed, and no session.toml)."""
-    path = Path(path)
-    return path.is_dir() and not path.is_symlink() and not (path / "session.toml").exists() \
-        and ((path / RUN_MARKER).is_file() or (path / "summary.json").is_file())
-
-
-def _check_replaceable(out: Path, force: bool) -> None:
-    """Refuse, before any work, an ``out`` that exists unless ``force`` is given and it
-    is a previous run: never a session, a regular file or a folder of the user's."""
-    if not (out.exists() or out.is_symlink()):
-        return
-    if not force:
-        raise UsageError(f"{out}: already exists; choose another --out or pass --force to "
-                         "replace it")
-    if not is_run_dir(out):
-        what = ("a session directory" if (out / "session.toml").exists()
-                else "not a directory" if not out.is_dir() else "not a pmdc-bayes run directory")
-        raise UsageError(f"{out}: {what}; --force only replaces an earlier run, so choose "
-                         "another --out")
-
-
-def _write_atomically(out: Path, fill, *, force: bool):
-    _check_replaceable(out, force)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        (tmp / RUN_MARKER).write_text("a run directory written by pmdc-bayes fit\n")
-        fill(tmp)
-        if out.exists():
-            _check_replaceable(out, force)
-            old = out.with_name(f".{out.name}.old")
-            os.replace(out, old)
-            os.replace(tmp, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
