@@ -95,3 +95,27 @@ def test_with_the_dead_time_fitted_the_model_passes_and_recovers_it(session, tmp
         assert abs(row["mean"] - truth[name]) < 4 * row["sd"], (name, row, truth[name])
     assert (out / "posterior.nc").exists() and (out / "report.html").exists()
     assert "dead_time_step_12v" in (out / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_compare_picks_the_dead_time_and_runs_it(session, tmp_path):
+    out = tmp_path / "compared"
+    proc = _fit(session, out, "--compare", "--no-mcmc")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.startswith("Model adequate")
+    assert "Candidate models (--compare)" in proc.stdout
+    assert "Recommended: dead time" in proc.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    sel = summary["model_selection"]
+    assert sel["recommended"] == "dead time" and sel["nuisances"] == ["dead_time"]
+    verdicts = {r["name"]: r["verdict"] for r in sel["candidates"]}
+    assert verdicts["ideal"] == "inadequate" and verdicts["dead time"] == "adequate"
+    assert "dead_time_step_12v" in summary["parameters"]
+    assert "Model choice" in (out / "report.md").read_text()
+
+
+def test_compare_and_add_together_are_bad_input(session, tmp_path):
+    proc = _fit(session, tmp_path / "x", "--compare", "--add", "dead-time")
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "--compare" in proc.stderr
+    assert not (tmp_path / "x").exists()

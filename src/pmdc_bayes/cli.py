@@ -74,14 +74,23 @@ def _cmd_simulate(args) -> int:
 def _cmd_fit(args) -> int:
     from .pipeline import run_fit
 
+    if args.compare and args.add:
+        raise UsageError("--compare chooses the non-idealities itself; drop --add (or drop "
+                         "--compare to fit the ones you name)")
     _enable_compilation_cache()
     out, summary = run_fit(
         _session_path(args.session), out=args.out, force=args.force, mcmc=not args.no_mcmc,
         friction=args.friction, seed=args.seed, holdout=args.holdout or (),
         compare_friction=args.compare_friction, allow_inadequate=args.allow_inadequate,
-        add=tuple(a.replace("-", "_") for a in args.add or ()),
+        add=tuple(a.replace("-", "_") for a in args.add or ()), compare=args.compare,
     )
     adequate = _print_adequacy(summary["adequacy"])
+    if "model_selection" in summary:
+        from .selection import format_selection
+
+        print("Candidate models (--compare):")
+        for line in format_selection(summary["model_selection"]):
+            print(f"  {line}")
     print(f"Fit of {summary['session']['motor']} ({summary['session']['friction']} friction): "
           f"{summary['fit']['message']}")
     has_post = "mean" in next(iter(summary["parameters"].values()))
@@ -260,6 +269,10 @@ def _parser() -> argparse.ArgumentParser:
                     help="also fit this non-ideality of the rig (repeatable): dead-time (one "
                     "per trace), voltage-drop (brushes and driver); same as [model] in "
                     "session.toml")
+    ft.add_argument("--compare", action="store_true",
+                    help="fit the candidate sets of rig non-idealities (ideal, + dead-time, "
+                    "+ voltage-drop, + both), check each for adequacy, compare the adequate "
+                    "ones by LOO, and run the simplest adequate one")
     ft.add_argument("--allow-inadequate", action="store_true",
                     help="go on (sample the posterior, exit 0) even when the adequacy checks "
                     "reject the model; every value stays labelled as conditional on it")

@@ -7,7 +7,7 @@ import re
 import numpy as np
 
 from ._doc import Bullets, Figure, Paragraph, Section, Table, fmt
-from .adequacy import CONDITIONAL, adequacy_section
+from .adequacy import CONDITIONAL, adequacy_section, selection_section
 from .comparison import compare_closed_form
 from .export import controller_model
 from .fig_params import chains_figure, corner_figure, forest_figure, ranks_figure
@@ -178,7 +178,7 @@ def _export(ctx) -> tuple[Section, dict]:
 def build_sections(ctx) -> tuple[list[Section], dict]:
     """The report's sections and the controller model (for ``controller.json``)."""
     export, model = _export(ctx)
-    parts = [adequacy_section(ctx), _overview(ctx), _published(ctx), _parameters(ctx),
-             _comparison(ctx),
+    parts = [adequacy_section(ctx), selection_section(ctx), _overview(ctx), _published(ctx),
+             _parameters(ctx), _comparison(ctx),
              _traces(ctx), _holdout(ctx), _steady(ctx), export, _diagnostics(ctx)]
     return [p for p in parts if p is not None], model

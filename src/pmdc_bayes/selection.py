@@ -1,0 +1,107 @@
+"""Choosing the model: candidate sets of the rig's non-idealities, fitted and compared.
+
+``pmdc-bayes fit --compare`` fits every candidate of :data:`CANDIDATES` (the ideal
+motor, + dead time, + voltage drop, + both) to the same session and checks each for
+adequacy at its MAP.  With MCMC, every candidate the data do not reject is sampled
+and the candidates are compared by PSIS-LOO (they share every observation: the
+nuisances change the prediction, not the data).
+
+The recommendation is the simplest candidate the data do not reject (fewest
+parameters).  When LOO prefers a larger adequate candidate by more than
+:data:`LOO_MARGIN` and twice the difference's standard error, that one is taken and
+the reason says so.  When the data reject every candidate, the largest is taken: its
+verdict and diagnosis then say what is still missing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from ._x64 import x64
+from .inference.adequacy import assess
+from .inference.diagnostics import loo_compare
+from .inference.fit import fit_map
+from .inference.objective import build_model
+from .inference.sampling import sample_posterior
+from .inference.seed import fit_seed
+from .io.session import Session
+
+__all__ = ["CANDIDATES", "LOO_MARGIN", "compare_nuisances", "format_selection"]
+
+CANDIDATES = (
+    ("ideal", ()),
+    ("dead time", ("dead_time",)),
+    ("voltage drop", ("voltage_drop",)),
+    ("dead time + voltage drop", ("dead_time", "voltage_drop")),
+)
+LOO_MARGIN = 4.0  # elpd units a larger candidate must gain to be preferred
+
+
+@x64
+def compare_nuisances(session: Session, *, friction: str | None = None, seed: int = 0,
+                      mcmc: bool = True, progress=None) -> dict:
+    """Every candidate of :data:`CANDIDATES` fitted to ``session``: its verdict, the
+    checks it fails, its MAP log-posterior and (with ``mcmc``, adequate ones only) its
+    LOO; the recommended candidate and why (a dict ready for JSON)."""
+    coulomb = None if friction is None else friction == "coulomb"
+    rows, idata = [], {}
+    for name, nuisances in CANDIDATES:
+        s = dataclasses.replace(session, nuisances=nuisances)
+        seed_cf = fit_seed(s)
+        model = build_model(s, seed_cf, coulomb=coulomb)
+        fit = fit_map(model, seed=seed)
+        adequacy = assess(model, fit, seed_cf)
+        rows.append({"name": name, "nuisances": list(nuisances), "n_params": len(model.names),
+                     "verdict": adequacy.verdict, "converged": fit.status == "converged",
+                     "log_posterior": float(fit.log_posterior),
+                     "failures": [f"{f.where}: {f.check}" for f in adequacy.findings
+                                  if f.severity == "fail"],
+                     "loo": None})
+        if mcmc and adequacy.ok:
+            idata[name] = sample_posterior(model, fit, seed=seed, progress=progress).idata
+    if idata:
+        for r in loo_compare(idata):
+            next(row for row in rows if row["name"] == r["model"])["loo"] = r
+    chosen, reason = _choose(rows)
+    return {"candidates": rows, "recommended": chosen["name"],
+            "nuisances": chosen["nuisances"], "reason": reason}
+
+
+def _choose(rows: list[dict]) -> tuple[dict, str]:
+    ok = [r for r in rows if r["verdict"] == "adequate" and r["converged"]]
+    if not ok:
+        largest = max(rows, key=lambda r: r["n_params"])
+        return largest, ("the data reject every candidate; the largest is fitted so that its "
+                         "diagnosis says what is still missing")
+    simplest = min(ok, key=lambda r: (r["n_params"], rows.index(r)))
+    reason = f"the simplest candidate the data do not reject ({simplest['n_params']} parameters)"
+    base = simplest["loo"]
+    if base is None:
+        return simplest, reason
+    # ArviZ states each difference's se against the best-ranked candidate: the larger of
+    # the two stands in for the se of their difference.
+    better = [r for r in ok if r["loo"] is not None and r["n_params"] > simplest["n_params"]
+              and r["loo"]["elpd_loo"] - base["elpd_loo"]
+              > max(LOO_MARGIN, 2 * max(r["loo"]["dse"], base["dse"]))]
+    if better:
+        best = max(better, key=lambda r: r["loo"]["elpd_loo"])
+        gain = best["loo"]["elpd_loo"] - base["elpd_loo"]
+        return best, (f"LOO prefers it to the simplest adequate candidate "
+                      f"({simplest['name']!r}) by {gain:.1f} elpd")
+    return simplest, reason + "; no larger candidate predicts clearly better (LOO)"
+
+
+def format_selection(sel: dict) -> list[str]:
+    """The comparison as lines of text for the terminal."""
+    width = max(len(r["name"]) for r in sel["candidates"]) + 2
+    lines = [f"{'candidate':<{width}}{'params':>7}  {'verdict':<11}{'log post':>12}"
+             f"{'elpd_loo':>12}{'± se':>8}  fails"]
+    for r in sel["candidates"]:
+        loo = r["loo"]
+        elpd = "—" if loo is None else f"{loo['elpd_loo']:.1f}"
+        se = "" if loo is None else f"{loo['se']:.1f}"
+        fails = ", ".join(r["failures"][:3]) + (" ..." if len(r["failures"]) > 3 else "")
+        lines.append(f"{r['name']:<{width}}{r['n_params']:>7}  {r['verdict']:<11}"
+                     f"{r['log_posterior']:>12.1f}{elpd:>12}{se:>8}  {fails or '—'}")
+    lines.append(f"Recommended: {sel['recommended']} — {sel['reason']}.")
+    return lines

@@ -1,0 +1,53 @@
+"""``fit --compare``: the candidate sets of rig non-idealities, each fitted and checked,
+and the simplest one the data do not reject recommended (benches the package's own
+model did not simulate: ``simulate/bench.py``)."""
+
+import pytest
+
+from pmdc_bayes.selection import CANDIDATES, _choose, compare_nuisances, format_selection
+from pmdc_bayes.simulate.cases import case_session
+
+
+def _row(name, n, verdict, elpd=None, dse=0.0, se=10.0):
+    loo = None if elpd is None else {"elpd_loo": elpd, "dse": dse, "se": se}
+    return {"name": name, "nuisances": [], "n_params": n, "verdict": verdict,
+            "converged": True, "log_posterior": 0.0, "failures": [], "loo": loo}
+
+
+def test_the_simplest_adequate_candidate_is_recommended():
+    rows = [_row("ideal", 5, "inadequate"), _row("a", 6, "adequate", 100.0, dse=1.0),
+            _row("b", 7, "adequate", 101.0), _row("c", 8, "inadequate")]
+    chosen, reason = _choose(rows)
+    assert chosen["name"] == "a" and "simplest" in reason
+
+
+def test_a_clear_loo_gain_takes_the_larger_candidate():
+    rows = [_row("ideal", 5, "adequate", 100.0, dse=3.0), _row("a", 6, "adequate", 120.0)]
+    chosen, reason = _choose(rows)
+    assert chosen["name"] == "a" and "LOO prefers" in reason and "20.0" in reason
+    # the same gain within twice its standard error is not clear
+    rows = [_row("ideal", 5, "adequate", 100.0, dse=12.0), _row("a", 6, "adequate", 120.0)]
+    assert _choose(rows)[0]["name"] == "ideal"
+
+
+def test_when_every_candidate_is_rejected_the_largest_is_fitted_and_said_so():
+    rows = [_row("ideal", 5, "inadequate"), _row("a", 6, "inadequate"),
+            _row("b", 8, "inadequate")]
+    chosen, reason = _choose(rows)
+    assert chosen["name"] == "b" and "reject every candidate" in reason
+    lines = format_selection({"candidates": rows, "recommended": "b", "reason": reason})
+    assert lines[-1].startswith("Recommended: b")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("case", "expected"), [
+    (None, "ideal"), ("dead time", "dead time"), ("brush drop", "voltage drop")])
+def test_compare_recommends_what_the_bench_has(case, expected):
+    sel = compare_nuisances(case_session(case, seed=2), mcmc=False)
+    assert [r["name"] for r in sel["candidates"]] == [c[0] for c in CANDIDATES]
+    assert sel["recommended"] == expected, format_selection(sel)
+    by = {r["name"]: r for r in sel["candidates"]}
+    if case is not None:
+        assert by["ideal"]["verdict"] == "inadequate" and by["ideal"]["failures"]
+    # the candidate that holds the missing term and one more is adequate too
+    assert by["dead time + voltage drop"]["verdict"] == "adequate"
