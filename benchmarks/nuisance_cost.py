@@ -1,6 +1,7 @@
 """What fitting the rig's non-idealities costs: log-posterior evaluations per second and
-compile time of the ideal model against the model with every nuisance on (a dead time
-per trace and a voltage drop), on the bundled demo and on a two-step bench session.
+compile time of the ideal model against the model with each nuisance on and with every
+nuisance on (a dead time per trace, a voltage drop, speed- and current-sensor lags), on
+the bundled demo and on a two-step bench session.
 
 Prints the table and replaces the section ``## Cost of the rig nuisances`` of
 ``reports/benchmarks.md`` (``--no-report`` to print only).
@@ -55,7 +56,8 @@ def main(argv=None) -> int:
     rows = []
     for label, session in sessions.items():
         base = None
-        for which, nuis in (("ideal", ()), ("+ dead time per trace + voltage drop", NUISANCES)):
+        variants = [("ideal", ())] + [(f"+ {n.replace('_', ' ')}", (n,)) for n in NUISANCES]
+        for which, nuis in variants + [("every nuisance", NUISANCES)]:
             n, comp, per = _measure(dataclasses.replace(session, nuisances=nuis))
             base = base or per
             rows.append((label, which, n, comp, per, per / base))
@@ -73,7 +75,10 @@ def main(argv=None) -> int:
                      f"{1 / per:,.0f} | x{rel:.2f} |")
     lines += ["", "A dead time shifts each sample's time within its segment and a voltage drop "
               "shifts the segment voltages: neither adds work per sample, so differences of a "
-              "few tens of per cent either way are timing noise on this shared machine."]
+              "few tens of per cent either way are timing noise on this shared machine.  A "
+              "sensor lag is a first-order filter of the predicted signal: a parallel prefix "
+              "scan over every sample (and a gather out of and back into the padded layout), "
+              "real work per sample."]
     section = "\n".join(lines) + "\n"
     print(section)
     if not args.no_report:

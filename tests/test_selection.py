@@ -41,7 +41,8 @@ def test_when_every_candidate_is_rejected_the_largest_is_fitted_and_said_so():
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("case", "expected"), [
-    (None, "ideal"), ("dead time", "dead time"), ("brush drop", "voltage drop")])
+    (None, "ideal"), ("dead time", "dead time"), ("sensor lag", "speed lag"),
+    ("brush drop", "voltage drop")])
 def test_compare_recommends_what_the_bench_has(case, expected):
     sel = compare_nuisances(case_session(case, seed=2), mcmc=False)
     assert [r["name"] for r in sel["candidates"]] == [c[0] for c in CANDIDATES]

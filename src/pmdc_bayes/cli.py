@@ -265,14 +265,16 @@ def _parser() -> argparse.ArgumentParser:
     ft.add_argument("--allow-unconverged", action="store_true",
                     help="exit 0 even if the fit or the sampler fails its checks")
     ft.add_argument("--add", action="append", metavar="NUISANCE",
-                    choices=("dead-time", "voltage-drop", "dead_time", "voltage_drop"),
+                    choices=("dead-time", "voltage-drop", "speed-lag", "current-lag",
+                             "dead_time", "voltage_drop", "speed_lag", "current_lag"),
                     help="also fit this non-ideality of the rig (repeatable): dead-time (one "
-                    "per trace), voltage-drop (brushes and driver); same as [model] in "
-                    "session.toml")
+                    "per trace), voltage-drop (brushes and driver), speed-lag or current-lag "
+                    "(a first-order sensor or filter lag); same as [model] in session.toml")
     ft.add_argument("--compare", action="store_true",
                     help="fit the candidate sets of rig non-idealities (ideal, + dead-time, "
-                    "+ voltage-drop, + both), check each for adequacy, compare the adequate "
-                    "ones by LOO, and run the simplest adequate one")
+                    "+ speed-lag, + voltage-drop, + voltage-drop with either), check each for "
+                    "adequacy, compare the adequate ones by LOO, and run the simplest "
+                    "adequate one")
     ft.add_argument("--allow-inadequate", action="store_true",
                     help="go on (sample the posterior, exit 0) even when the adequacy checks "
                     "reject the model; every value stays labelled as conditional on it")

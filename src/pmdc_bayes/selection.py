@@ -1,7 +1,8 @@
 """Choosing the model: candidate sets of the rig's non-idealities, fitted and compared.
 
 ``pmdc-bayes fit --compare`` fits every candidate of :data:`CANDIDATES` (the ideal
-motor, + dead time, + voltage drop, + both) to the same session and checks each for
+motor; + dead time; + a speed-sensor lag; + voltage drop; + voltage drop with either
+of the first two) to the same session and checks each for
 adequacy at its MAP.  With MCMC, every candidate the data do not reject is sampled
 and the candidates are compared by PSIS-LOO (they share every observation: the
 nuisances change the prediction, not the data).
@@ -31,8 +32,10 @@ __all__ = ["CANDIDATES", "LOO_MARGIN", "compare_nuisances", "format_selection"]
 CANDIDATES = (
     ("ideal", ()),
     ("dead time", ("dead_time",)),
+    ("speed lag", ("speed_lag",)),
     ("voltage drop", ("voltage_drop",)),
     ("dead time + voltage drop", ("dead_time", "voltage_drop")),
+    ("speed lag + voltage drop", ("voltage_drop", "speed_lag")),
 )
 LOO_MARGIN = 4.0  # elpd units a larger candidate must gain to be preferred
 

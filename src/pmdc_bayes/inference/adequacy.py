@@ -32,6 +32,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from .._x64 import x64
+from .channels import CoastDownBlock
 
 __all__ = ["Finding", "Adequacy", "assess", "whiteness", "fit_percent", "systematic_misfit"]
 
@@ -229,6 +230,12 @@ def assess(model, fit, closed_form=None) -> Adequacy:
                                         ch.s0, float(fit.noise_sd.get(name, ch.s0)))
             channels[name] = row
             findings += found
+    for name, y, yhat in _coast_down_pairs(model, fit):
+        ch = by_name[name]
+        row, found = _trace_channel(name, ch.unit, y, yhat, None, None, ch.s0,
+                                    float(fit.noise_sd.get(name, ch.s0)))
+        channels[name] = row
+        findings += found
     for name, y, yhat in _steady_pairs(model, fit):
         row, found = _steady_channel(name, by_name[name].unit, y, yhat)
         channels[name] = row
@@ -242,6 +249,18 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     verdict = "inadequate" if any(f.severity == "fail" for f in findings) else "adequate"
     diagnosis = diagnose(model, fit, preds, findings) if verdict == "inadequate" else ()
     return Adequacy(verdict, tuple(findings), channels, bench, plaus, tuple(diagnosis))
+
+
+def _coast_down_pairs(model, fit):
+    """(channel name, observed, predicted) for each coast-down's speed."""
+    out = []
+    for block in model.blocks:
+        if isinstance(block, CoastDownBlock):
+            d = model.data[block.key]
+            r = np.asarray(block.residuals(model, np.asarray(fit.theta), d)[0])
+            for k, tr in enumerate(model.session.coast_downs):
+                out.append((f"{tr.name}: speed", tr.speed, tr.speed - r[k, :tr.n]))
+    return out
 
 
 def _steady_pairs(model, fit):

@@ -83,11 +83,13 @@ def _start_rules(model, tr, pred, t_step):
         elif tr.current is not None:
             out.append(f"{tr.name}: the speed starts about {1e3 * late:.2g} ms later than "
                        "the model allows while the current starts on time: a lag in the "
-                       "speed sensor or its filter")
+                       "speed sensor or its filter: --add speed-lag, or speed_lag = true "
+                       "under [model] in session.toml")
         else:
             out.append(f"{tr.name}: the speed starts about {1e3 * late:.2g} ms later than "
                        "the model allows: add a dead time between the command and the "
-                       "motion (--add dead-time), or a speed-sensor/filter lag")
+                       "motion (--add dead-time), or a speed-sensor/filter lag "
+                       "(--add speed-lag)")
     if ramp:
         out.append(f"{tr.name}: the speed ramps up at a constant rate for "
                    f"{1e3 * data['ramp_time']:.3g} ms before turning exponential: a "
@@ -169,7 +171,8 @@ def _finding_rules(model, fit, findings, already=()):
             out.append(f"the fit stretches the electrical time constant La/Ra to "
                        f"{1e3 * fitted:.2g} ms against {1e3 * bench:.2g} ms on the bench: the "
                        "response starts more slowly than the motor's inductance explains: a "
-                       "dead time (--add dead-time) or a speed-sensor/filter lag")
+                       "dead time (--add dead-time) or a speed-sensor/filter lag "
+                       "(--add speed-lag)")
     for f in findings:
         if f.severity != "fail":
             continue

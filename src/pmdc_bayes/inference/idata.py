@@ -53,35 +53,6 @@ def _identifier(name: str, taken: set) -> str:
     return ident
 
 
-def _observed(model) -> list[np.ndarray]:
-    """Observed values per channel, in the model's channel order (the order the
-    objective builds them in: traces, steady speeds, steady currents, τ readings)."""
-    s = model.session
-    out = []
-    for tr in s.traces:
-        out.append(np.asarray(tr.speed, dtype=float))
-        if tr.current is not None:
-            out.append(np.asarray(tr.current, dtype=float))
-    w, i = [], []
-    for op in s.operating_points:
-        w.append(op.speed)
-        if op.current is not None:
-            i.append(op.current)
-    for tab in s.steady_tables:
-        w.extend(np.asarray(tab.speed, dtype=float))
-        if tab.current is not None:
-            i.extend(np.asarray(tab.current, dtype=float))
-    w.extend(r.final_speed for r in s.step_readings)
-    out += [np.asarray(w, dtype=float), np.asarray(i, dtype=float),
-            np.asarray([r.tau for r in s.step_readings], dtype=float)]
-    sizes = [c.n for c in model.channels]
-    if [o.size for o in out] != sizes:
-        raise ValueError(f"observed values per channel have sizes {[o.size for o in out]}, "
-                         f"but the model's channels have {sizes}: the channel order of "
-                         "SessionModel changed; update sampling._observed")
-    return out
-
-
 def _pointwise(model, chain_log: np.ndarray, thin: int) -> np.ndarray:
     """Pointwise log-likelihood ``(chains, kept, n_obs)`` at every ``thin``-th draw."""
     fn = _pointwise_fn(model)
@@ -114,7 +85,7 @@ def to_inference_data(model, chain_log: np.ndarray, log_prob: np.ndarray,
     chains, draws, _ = chain_log.shape
     taken: set = set()
     obs_names = [_identifier(c.name, taken) for c in model.channels]
-    observed = {nm: o for nm, o in zip(obs_names, _observed(model)) if o.size}
+    observed = {nm: o for nm, o in zip(obs_names, model.observed_values()) if o.size}
     values = model.registry.to_values(chain_log)
     idata = az.from_dict(
         posterior={n: values[..., k] for k, n in enumerate(model.names)},

@@ -84,8 +84,12 @@ def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: f
 def _separate_hint(model: SessionModel, a: str, b: str) -> str:
     kinds = {tr.kind for tr in model.session.traces}
     has_load = any(np.ptp(tr.load_torque.values) > 0 for tr in model.session.traces)
-    if {a, b} & {"J"} and not has_load:
+    if {a, b} & {"J"} and not has_load and not model.session.coast_downs:
         return "a load step or a coast-down would separate them."
+    if {a, b} == {"B", "J"} and model.session.coast_downs and model.session.traces:
+        return ("the coast-down fixes their ratio J/B; their common scale follows Ra "
+                "(speed-only traces determine Ra·J and Ra·B, not each): a logged current or "
+                "a tighter bench Ra would separate them.")
     if "Tc" in (a, b):
         return "steady points over a wider range of speeds would separate them."
     if not model.session.traces:

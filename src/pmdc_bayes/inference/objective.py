@@ -24,11 +24,19 @@ from ..io.session import Session
 from ..paper.closed_form import ClosedForm
 from ..physics import motor
 from ..physics.experiment import steady_points
-from ..physics.solution import Params, experiment_from_traces, real_modes, simulate
+from ..physics.sensor import first_order_lag
+from ..physics.solution import Params, experiment_from_traces, real_modes, simulate_padded
 from . import cache as _cache
 from .channels import SteadyBlock, blocks_for, entry_weights
 from .noise import Channel, noise_scale
-from .params import PRIOR_FACTOR, Registry, dead_time_name, motor_registry, nuisance_specs
+from .params import (
+    PRIOR_FACTOR,
+    Registry,
+    coast_down_specs,
+    dead_time_name,
+    motor_registry,
+    nuisance_specs,
+)
 from .seed import drop_seed, motor_seed
 
 __all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale"]
@@ -54,8 +62,9 @@ class SessionModel:
         steady = steady_points(session)
         motor_specs = motor_registry(session, motor_seed(seed, session, steady),
                                      coulomb=coulomb).specs
-        self.registry = Registry(motor_specs + tuple(nuisance_specs(session,
-                                                                    drop_seed(session))))
+        self.registry = Registry(motor_specs
+                                 + tuple(nuisance_specs(session, drop_seed(session)))
+                                 + tuple(coast_down_specs(session)))
         self.names = self.registry.names
         self.channels: list[Channel] = []
         self.exp = experiment_from_traces(session.traces) if session.traces else None
@@ -128,6 +137,18 @@ class SessionModel:
             delay = jnp.stack([v[dead_time_name(tr.name)] for tr in self.session.traces])
             exp = exp._replace(tau=jnp.maximum(exp.tau - delay[exp.chunk_trace][:, None], 0.0))
         return exp
+
+    def sensed(self, theta, ia, w, d):
+        """What the sensors read of the padded ``(ia, ω)`` of the traces (``d`` the trace
+        block's data): each declared first-order sensor lag applied."""
+        v = self.registry.values(theta)
+        exp = d["exp"]
+        out = []
+        for x, name in ((ia, "current_lag"), (w, "speed_lag")):
+            if name in self.registry:
+                x = exp.pad(first_order_lag(exp.unpad(x), d["t"], d["start"], v[name]))
+            out.append(x)
+        return tuple(out)
 
     # -- predictions and residuals -------------------------------------------------------
     def steady_prediction(self, p: Params, v, tl, drop=0.0):
@@ -235,9 +256,13 @@ class SessionModel:
         if self.exp is None:
             return []
         c = self.coulomb if coulomb is None else coulomb
-        fn = self.compiled(f"predict-coulomb={c}", lambda: jax.jit(
-            lambda t, d: simulate(self.params(t), self.inputs(t, d["traces"]["exp"]),
-                                 coulomb=c)))
+        def run(t, d):
+            d = d["traces"]
+            ia, w = simulate_padded(self.params(t), self.inputs(t, d["exp"]), coulomb=c)
+            ia, w = self.sensed(t, ia, w, d)
+            return d["exp"].unpad(ia), d["exp"].unpad(w)
+
+        fn = self.compiled(f"predict-coulomb={c}", lambda: jax.jit(run))
         ia, w = fn(jnp.asarray(theta), self.data)
         return list(zip(self.exp.split(ia), self.exp.split(w)))
 
@@ -259,12 +284,20 @@ class SessionModel:
             out.append(-0.5 * (jnp.log(2 * jnp.pi * v) + r * r / v))
         return out
 
+    def _numpy_data(self, block):
+        return jax.tree_util.tree_map(np.asarray, self.data[block.key])
+
+    def observed_values(self) -> list[np.ndarray]:
+        """Per channel, in channel order, its observations in the order of
+        :meth:`observation_selection` (and of the pointwise log-likelihood)."""
+        arrays = [np.asarray(o) for b in self.blocks for o in b.observed(self._numpy_data(b))]
+        return [arrays[k].reshape(-1)[idx] for k, idx in self.observation_selection()]
+
     def observation_selection(self) -> list:
         """Per channel, in channel order: (which output of :meth:`padded_log_density`,
         flat indices of its observations)."""
         layout = [(np.asarray(m), np.asarray(ch)) for b in self.blocks
-                  for m, ch in b.layout(jax.tree_util.tree_map(np.asarray,
-                                                               self.data[b.key]))]
+                  for m, ch in b.layout(self._numpy_data(b))]
         sel = []
         for c in range(len(self.channels)):
             for k, (m, ch) in enumerate(layout):

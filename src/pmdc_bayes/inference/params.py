@@ -23,12 +23,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..io.session import LA_ASSUMED, Session
+from .noise import noise_scale
 
 __all__ = ["Prior", "ParamSpec", "Registry", "motor_registry", "nuisance_specs",
+           "coast_down_specs", "initial_speed_name",
            "PRIOR_FACTOR", "BLOCKS", "DEAD_TIME_PRIOR", "DROP_PRIOR"]
 
 DEAD_TIME_PRIOR = 0.05  # sd of a trace's dead time, as a share of the trace's length
 DROP_PRIOR = 0.1  # sd of the voltage drop, as a share of the session's largest voltage
+LAG_PRIOR_SAMPLES = 3.0  # centre of a sensor lag's prior, in sample intervals
+LAG_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 PRIOR_FACTOR = 10.0  # one-sd width of the log-normal priors on K, B, J, Tc (a factor)
 BLOCKS = ("motor", "friction", "trace", "sensor", "driver")
 PRIOR_KINDS = ("normal", "lognormal")
@@ -246,7 +250,12 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0) -> list[ParamSpec]:
       :data:`DEAD_TIME_PRIOR` × the trace's length (a negative value is a response that
       leads its logged command: a clock or trigger offset).
 
-    Both are untransformed (they may be zero or of either sign).
+    * ``speed_lag``, ``current_lag`` — the time constant (s) of a first-order lag in
+      the speed or current sensor (a tachometer, a filter); prior log-normal centred on
+      :data:`LAG_PRIOR_SAMPLES` sample intervals, a factor :data:`LAG_PRIOR_FACTOR` wide
+      (one sd), log-transformed (a lag is positive).
+
+    The drop and the dead times are untransformed (they may be zero or of either sign).
     """
     specs = []
     if "voltage_drop" in session.nuisances:
@@ -258,6 +267,14 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0) -> list[ParamSpec]:
                                Prior("normal", 0.0, DROP_PRIOR * v_max, "nuisance"),
                                float(drop_seed), transform="identity",
                                description="voltage drop at brushes and driver"))
+    dts = [float(np.median(np.diff(tr.time))) for tr in session.traces]
+    for key, words in (("speed_lag", "speed sensor"), ("current_lag", "current sensor")):
+        if key in session.nuisances and dts:
+            centre = LAG_PRIOR_SAMPLES * min(dts)
+            specs.append(ParamSpec(key, "s", "sensor",
+                                   Prior("lognormal", centre, float(np.log(LAG_PRIOR_FACTOR)),
+                                         "nuisance"), centre,
+                                   description=f"first-order lag of the {words}"))
     if "dead_time" in session.nuisances:
         for tr in session.traces:
             length = float(tr.time[-1] - tr.time[0])
@@ -267,3 +284,26 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0) -> list[ParamSpec]:
                                    description=f"dead time of trace {tr.name!r}",
                                    trace=tr.name))
     return specs
+
+
+def initial_speed_name(trace_name: str) -> str:
+    """The parameter name of a coast-down's speed at its first sample."""
+    return f"initial_speed_{_identifier(trace_name)}"
+
+
+def coast_down_specs(session: Session) -> list[ParamSpec]:
+    """Per coast-down trace, ``initial_speed_<trace>`` (rad/s): the speed at its first
+    sample, fitted rather than read off one noisy sample.  Prior normal, centred on the
+    median of the first three samples, sd 10 % of it plus ten times the trace's
+    model-free noise level (the data decide it)."""
+    specs = []
+    for tr in session.coast_downs:
+        w0 = float(np.median(tr.speed[:3]))
+        sd = 0.1 * abs(w0) + 10.0 * noise_scale(tr.speed)
+        specs.append(ParamSpec(initial_speed_name(tr.name), "rad/s", "trace",
+                               Prior("normal", w0, sd, "first samples"), w0,
+                               transform="identity",
+                               description=f"speed at the start of coast-down {tr.name!r}",
+                               trace=tr.name))
+    return specs
+

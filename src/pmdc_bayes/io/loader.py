@@ -21,6 +21,7 @@ from ._csv import read_columns
 from ._toml import Table as _Table
 from ._toml import describe as _describe
 from .session import (
+    COAST_DOWN,
     FRICTION_MODELS,
     LA_ASSUMED,
     LA_PRIOR_LOG_SD,
@@ -175,18 +176,9 @@ def _initial(t: _Table, u: dict):
            f"{_describe(value)}; use one of those")
 
 
-def _trace(t: _Table, root: Path) -> Trace:
-    t.check_keys(("name", "kind", "file", "columns", "units", "voltage", "load_torque",
-                  "initial"))
-    name, kind, u = t.string("name"), t.string("kind"), t.units(_TRACE_KINDS)
-    cols = t.columns(_TRACE_KINDS, ("time", "speed"))
-    for inp in ("voltage", "load_torque"):
-        if inp in cols and inp in t.data:
-            t.fail(inp, f"{inp} is given both as a column (columns.{inp}) and as a schedule; "
-                   "remove one of them")
-    if "voltage" not in cols and "voltage" not in t.data:
-        t.fail("voltage", "no armature voltage given; add a column (columns.voltage = "
-               "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
+def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
+    """A trace's CSV file: its path, the raw columns, the raw and SI time axes (at
+    least 3 samples, strictly increasing)."""
     path = root / t.string("file")
     raw, lines = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}")
     t_raw = raw["time"]
@@ -201,6 +193,22 @@ def _trace(t: _Table, root: Path) -> Trace:
                            "the rows by time and remove duplicate samples",
                            where=f"line {lines[k]}")
     time = to_si(t_raw, "time", u["time"])
+    return path, raw, t_raw, time
+
+
+def _trace(t: _Table, root: Path) -> Trace:
+    t.check_keys(("name", "kind", "file", "columns", "units", "voltage", "load_torque",
+                  "initial"))
+    name, kind, u = t.string("name"), t.string("kind"), t.units(_TRACE_KINDS)
+    cols = t.columns(_TRACE_KINDS, ("time", "speed"))
+    for inp in ("voltage", "load_torque"):
+        if inp in cols and inp in t.data:
+            t.fail(inp, f"{inp} is given both as a column (columns.{inp}) and as a schedule; "
+                   "remove one of them")
+    if "voltage" not in cols and "voltage" not in t.data:
+        t.fail("voltage", "no armature voltage given; add a column (columns.voltage = "
+               "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
+    path, raw, t_raw, time = _read_trace_file(t, root, cols, u)
     si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw}
     inputs = {}
     for inp in ("voltage", "load_torque"):
@@ -214,6 +222,32 @@ def _trace(t: _Table, root: Path) -> Trace:
                  current=si.get("current"), voltage=inputs["voltage"],
                  load_torque=inputs["load_torque"], voltage_logged="voltage" in si,
                  load_logged="load_torque" in si, initial=_initial(t, u))
+
+
+def _coast_down(t: _Table, root: Path) -> Trace:
+    """A trace of kind ``"coast-down"``: time and speed only, the armature open."""
+    t.check_keys(("name", "kind", "file", "columns", "units"))
+    name = t.string("name")
+    kinds = {"time": "time", "speed": "speed"}
+    u = t.units(kinds)
+    cols = t.columns(kinds, ("time", "speed"))
+    path, raw, _, time = _read_trace_file(t, root, cols, u)
+    none = Schedule(time[:1].copy(), np.zeros(1))
+    return Trace(name=name, kind=COAST_DOWN, file=path, time=time,
+                 speed=to_si(raw["speed"], "speed", u["speed"]), current=None, voltage=none,
+                 load_torque=none)
+
+
+def _traces(top: _Table, root: Path, toml: Path) -> tuple[tuple, tuple]:
+    """The driven traces and the coast-downs, names unique across both."""
+    driven, coast = [], []
+    for t in top.tables("trace"):
+        if t.data.get("kind") == COAST_DOWN:
+            coast.append(_coast_down(t, root))
+        else:
+            driven.append(_trace(t, root))
+    _unique(driven + coast, "trace", toml)
+    return tuple(driven), tuple(coast)
 
 
 def _truth(path: Path) -> dict | None:
@@ -303,6 +337,7 @@ def load_session(path) -> Session:
                 mt.fail(key, f"expected true or false, got {_describe(flag)}; write e.g. "
                         f"{key} = true")
         nuisances = tuple(k for k in NUISANCES if mt.data.get(k, False))
+    traces, coast_downs = _traces(top, root, toml)
     return Session(
         name=root.name,
         nuisances=nuisances,
@@ -318,7 +353,8 @@ def load_session(path) -> Session:
                               "steady_table", toml),
         step_readings=_unique([_step_reading(t) for t in top.tables("step_reading")],
                               "step_reading", toml),
-        traces=_unique([_trace(t, root) for t in top.tables("trace")], "trace", toml),
+        traces=traces,
+        coast_downs=coast_downs,
         closed_form_options=options,
         truth=_truth(root / "truth.json"),
     )

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
+    "COAST_DOWN",
     "Measurement",
     "OperatingPoint",
     "SteadyTable",
@@ -26,7 +27,8 @@ __all__ = [
 FRICTION_MODELS = ("viscous", "coulomb")
 
 
-NUISANCES = ("dead_time", "voltage_drop")
+NUISANCES = ("dead_time", "voltage_drop", "speed_lag", "current_lag")
+COAST_DOWN = "coast-down"  # the trace kind of a run-down with the armature open
 LA_TIME_CONSTANT = 1e-3  # s: La/Ra assumed when La was not measured ...
 LA_PRIOR_LOG_SD = float(np.log(10.0)) / 2  # ... give or take a factor 10 at 2 sd (log)
 LA_ASSUMED = "not measured: La/Ra = 1 ms, a factor 10 either way at 2 sd"
@@ -158,9 +160,12 @@ class Session:
     ``{"K_decimals": 3}`` to carry Kb rounded as the paper printed it).
     ``truth`` holds the true parameters of a simulated session (from ``truth.json``).
     ``nuisances`` names the rig's non-idealities to fit with the motor
-    (:data:`NUISANCES`: ``"dead_time"`` per trace, ``"voltage_drop"``).
+    (:data:`NUISANCES`: ``"dead_time"`` per trace, ``"voltage_drop"``, a first-order
+    lag of the speed or current sensor ``"speed_lag"``, ``"current_lag"``).
     ``bench`` holds the further bench measurements given (of ``"K"``, ``"J"``,
-    ``"B"``), each a prior of the fit.
+    ``"B"``), each a prior of the fit.  ``coast_downs`` are traces of kind
+    ``"coast-down"``: the rotor running down with the armature open (speed only, no
+    current, no input), kept apart from ``traces`` (which the motor drives).
     """
 
     name: str
@@ -177,6 +182,7 @@ class Session:
     truth: dict | None = None
     nuisances: tuple[str, ...] = ()
     bench: dict = field(default_factory=dict)
+    coast_downs: tuple[Trace, ...] = ()
 
     def trace(self, name: str) -> Trace:
         for tr in self.traces:

@@ -92,6 +92,28 @@ def steady_state(Ra, K, B, va, tl=0.0, tc=None):
     return ia, w
 
 
+def coast_down(B, J, w0, t, tc=0.0):
+    """Speed of a rotor coasting with the armature open (no current, no load) from ``w0``
+    at ``t = 0``: ``J·dω/dt = −B·ω − Tc·sign(ω)``.
+
+    ``ω(t) = sign(ω0)·max(|ω0|·e^(−x) + (Tc/B)·(e^(−x) − 1), 0)`` with ``x = t·B/J``: an
+    exponential decay with the mechanical time constant J/B, shifted down by the
+    Coulomb torque, which stops the rotor in finite time and then holds it.  Written
+    with ``expm1`` so that it stays exact as B → 0 (a linear run-down ``−Tc·t/J``).
+    """
+    xp = _xp(B, J, w0, t, tc)
+    x = t * B / J
+    moving = xp.abs(w0) * xp.exp(-x) + tc * t / J * _expm1_ratio(xp, x)
+    return xp.sign(w0) * xp.maximum(moving, 0.0)
+
+
+def _expm1_ratio(xp, x):
+    """``(e^(−x) − 1)/x``, finite at x = 0 (−1 there)."""
+    small = xp.abs(x) < 1e-8
+    safe = xp.where(small, 1.0, x)
+    return xp.where(small, -1.0 + 0.5 * x, xp.expm1(-safe) / safe)
+
+
 def time_constant(Ra, K, B, J):
     """Mechanical time constant with La neglected, equation (9): ``τ = J·Ra/(B·Ra + K²)`` (s)."""
     return J * Ra / (B * Ra + K * K)

@@ -52,6 +52,8 @@ class BenchMotor:
         The motor sees the commanded voltage step this late (s).
     sensor_lag : float
         Time constant (s) of a first-order low-pass between the true and logged speed.
+    current_lag : float
+        The same between the true and logged current.
     brush_drop : float
         A constant voltage drop opposing the current (V): ``Va − brush_drop·sign(ia)``.
     source_resistance : float
@@ -83,6 +85,7 @@ class BenchMotor:
     Tc: float = 0.0
     dead_time: float = 0.0
     sensor_lag: float = 0.0
+    current_lag: float = 0.0
     brush_drop: float = 0.0
     source_resistance: float = 0.0
     current_limit: float | None = None
@@ -168,14 +171,15 @@ def steady_point(motor: BenchMotor, voltage: float, load: float = 0.0,
 
 
 def _rhs(m: BenchMotor, spec: StepSpec, va: float, w_eps: float, i_eps: float):
-    """Right-hand side for state ``(ia, ω, ω_sensor, θ_sensor)`` at constant ``va``."""
+    """Right-hand side for state ``(ia, ω, ω_sensor, θ_sensor, ia_sensor)`` at constant
+    ``va``."""
     tc_extra, b_extra = m.extra_load.get(spec.name, (0.0, 0.0))
     tc, b, tl = m.Tc + tc_extra, m.B + b_extra, spec.load
     lim, gain = m.current_limit, m.Ra / (m.La * _LOOP)  # near the limit, dia/dt = gain·Δi
-    lag = m.sensor_lag
+    lag, i_lag = m.sensor_lag, m.current_lag
 
     def f(t, x):
-        ia, w, ws, _ = x
+        ia, w, ws, _, ias = x
         v = va - m.brush_drop * math.tanh(ia / i_eps) - m.source_resistance * ia
         if lim is not None:  # the driver's current loop: it can only lower |voltage|
             emf = m.Ra * ia + m.K * w
@@ -186,20 +190,21 @@ def _rhs(m: BenchMotor, spec: StepSpec, va: float, w_eps: float, i_eps: float):
         friction = tc * s + min(max(drive, -tc), tc) * (1.0 - s * s)  # slip, or stick
         dw = (drive - b * w - friction) / m.J
         dws = (w - ws) / lag if lag > 0 else dw
-        return [dia, dw, dws, ws]
+        dias = (ia - ias) / i_lag if i_lag > 0 else dia
+        return [dia, dw, dws, ws, dias]
 
     return f
 
 
 def _integrate(m: BenchMotor, spec: StepSpec, t: np.ndarray, w_eps: float, i_eps: float):
-    """States ``(ia, ω, ω_sensor, θ_sensor)`` at the samples ``t`` (4 × n).
+    """States ``(ia, ω, ω_sensor, θ_sensor, ia_sensor)`` at the samples ``t`` (5 × n).
 
     Integrated from rest in two pieces, before and after the voltage reaches the motor
     (``t_step + dead_time``), so the solver never steps across the discontinuity.
     """
     t_on, t_end = spec.t_step + m.dead_time, float(t[-1])
-    atol = 1e-6 * np.array([i_eps, w_eps, w_eps, w_eps * spec.dt])
-    x0, out = np.zeros(4), np.zeros((4, t.size))
+    atol = 1e-6 * np.array([i_eps, w_eps, w_eps, w_eps * spec.dt, i_eps])
+    x0, out = np.zeros(5), np.zeros((5, t.size))
     for lo, hi, va in ((0.0, min(t_on, t_end), 0.0), (t_on, t_end, float(spec.voltage))):
         if hi <= lo:
             continue
@@ -221,7 +226,7 @@ def _trace(m: BenchMotor, spec: StepSpec, rng: np.random.Generator, w_eps: float
         raise ValueError(f"trace {spec.name!r}: need duration >= 2·dt and "
                          "0 <= t_step < duration")
     t = np.arange(n) * spec.dt
-    ia, _, ws, th = _integrate(m, spec, t, w_eps, i_eps)
+    _, _, ws, th, ia = _integrate(m, spec, t, w_eps, i_eps)
     speed_noise = rng.standard_normal(n)
     current_noise = rng.standard_normal(n)
     if m.encoder_counts_per_rev:
