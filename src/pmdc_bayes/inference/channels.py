@@ -29,7 +29,7 @@ from ..physics import motor
 from ..physics.experiment import Experiment, steady_points
 from ..physics.solution import simulate_padded
 from .noise import noise_scale, typical_level
-from .params import initial_speed_name
+from .nuisances import initial_speed_name
 
 __all__ = ["Block", "TraceBlock", "CoastDownBlock", "SteadyBlock", "StepReadingBlock", "blocks_for",
            "STEADY_RELATIVE_NOISE"]

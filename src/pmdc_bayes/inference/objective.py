@@ -24,19 +24,12 @@ from ..io.session import Session
 from ..paper.closed_form import ClosedForm
 from ..physics import motor
 from ..physics.experiment import steady_points
-from ..physics.sensor import first_order_lag
 from ..physics.solution import Params, experiment_from_traces, real_modes, simulate_padded
 from . import cache as _cache
 from .channels import SteadyBlock, blocks_for, entry_weights
 from .noise import Channel, noise_scale
-from .params import (
-    PRIOR_FACTOR,
-    Registry,
-    coast_down_specs,
-    dead_time_name,
-    motor_registry,
-    nuisance_specs,
-)
+from .nuisances import RigEffects, coast_down_specs, nuisance_specs
+from .params import PRIOR_FACTOR, Registry, motor_registry
 from .seed import drop_seed, motor_seed
 
 __all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale"]
@@ -45,7 +38,7 @@ NU0 = 2.0
 BATCH_CHUNK = 4  # parameter vectors evaluated together inside a batch (see benchmarks/)
 
 
-class SessionModel:
+class SessionModel(RigEffects):
     """Predictions, residuals and log-posterior of a session as functions of θ.
 
     Build with :func:`build_model`.  The likelihood is composed of the blocks of
@@ -120,35 +113,6 @@ class SessionModel:
 
     def theta_seed(self) -> jax.Array:
         return jnp.asarray(self.registry.seed_theta())
-
-    def drop(self, theta):
-        """The fitted voltage drop at θ (V), 0 when the model has none."""
-        return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else 0.0
-
-    def inputs(self, theta, exp):
-        """The experiment as the motor sees it at θ: voltages less the fitted drop, and
-        each trace's samples taken its fitted dead time earlier (before the response
-        starts, the state at the segment's start: exact when the preceding segment is at
-        rest or steady)."""
-        if "Vdrop" in self.registry:
-            exp = exp._replace(seg_va=motor.terminal_voltage(exp.seg_va, self.drop(theta)))
-        if "dead_time" in self.session.nuisances:
-            v = self.registry.values(theta)
-            delay = jnp.stack([v[dead_time_name(tr.name)] for tr in self.session.traces])
-            exp = exp._replace(tau=jnp.maximum(exp.tau - delay[exp.chunk_trace][:, None], 0.0))
-        return exp
-
-    def sensed(self, theta, ia, w, d):
-        """What the sensors read of the padded ``(ia, ω)`` of the traces (``d`` the trace
-        block's data): each declared first-order sensor lag applied."""
-        v = self.registry.values(theta)
-        exp = d["exp"]
-        out = []
-        for x, name in ((ia, "current_lag"), (w, "speed_lag")):
-            if name in self.registry:
-                x = exp.pad(first_order_lag(exp.unpad(x), d["t"], d["start"], v[name]))
-            out.append(x)
-        return tuple(out)
 
     # -- predictions and residuals -------------------------------------------------------
     def steady_prediction(self, p: Params, v, tl, drop=0.0):

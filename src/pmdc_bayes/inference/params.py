@@ -5,7 +5,8 @@ its name, SI unit, block (``motor``, ``friction``, ``trace``, ``sensor``, ``driv
 transform to the unconstrained space the optimiser and sampler work in, prior and
 seed.  Everything that needs the parameter list (the objective, the fit's starts,
 identifiability, the posterior's record, ``summary.json`` and the report) reads it
-from here, so adding a parameter is one entry here and its use in the prediction.
+from here, so adding a parameter is one entry (here for the motor, in
+:mod:`.nuisances` for the rig) and its use in the prediction.
 
 Priors
 ------
@@ -23,16 +24,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..io.session import LA_ASSUMED, Session
-from .noise import noise_scale
 
-__all__ = ["Prior", "ParamSpec", "Registry", "motor_registry", "nuisance_specs",
-           "coast_down_specs", "initial_speed_name",
-           "PRIOR_FACTOR", "BLOCKS", "DEAD_TIME_PRIOR", "DROP_PRIOR"]
+__all__ = ["Prior", "ParamSpec", "Registry", "motor_registry",
+           "PRIOR_FACTOR", "BLOCKS"]
 
-DEAD_TIME_PRIOR = 0.05  # sd of a trace's dead time, as a share of the trace's length
-DROP_PRIOR = 0.1  # sd of the voltage drop, as a share of the session's largest voltage
-LAG_PRIOR_SAMPLES = 3.0  # centre of a sensor lag's prior, in sample intervals
-LAG_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 PRIOR_FACTOR = 10.0  # one-sd width of the log-normal priors on K, B, J, Tc (a factor)
 BLOCKS = ("motor", "friction", "trace", "sensor", "driver")
 PRIOR_KINDS = ("normal", "lognormal")
@@ -228,82 +223,3 @@ def motor_registry(session: Session, seed: dict, *, coulomb: bool) -> Registry:
         specs.append(ParamSpec("Tc", "N*m", "friction", _lognormal(seed["Tc"], "seed"),
                                seed["Tc"], description="Coulomb friction torque"))
     return Registry(specs)
-
-
-def _identifier(text: str) -> str:
-    return "".join(c if c.isalnum() else "_" for c in text)
-
-
-def dead_time_name(trace_name: str) -> str:
-    """The parameter name of a trace's dead time."""
-    return f"dead_time_{_identifier(trace_name)}"
-
-
-def nuisance_specs(session: Session, drop_seed: float = 0.0) -> list[ParamSpec]:
-    """The rig's non-idealities the session asks to fit (``session.nuisances``):
-
-    * ``voltage_drop`` — ``Vdrop`` (V), a constant drop at the brushes and driver
-      opposing the voltage; prior normal, centre 0, sd :data:`DROP_PRIOR` × the largest
-      voltage; seeded at ``drop_seed``;
-    * ``dead_time`` — per trace ``dead_time_<trace>`` (s), the delay between the
-      logged command and the response; prior normal, centre 0, sd
-      :data:`DEAD_TIME_PRIOR` × the trace's length (a negative value is a response that
-      leads its logged command: a clock or trigger offset).
-
-    * ``speed_lag``, ``current_lag`` — the time constant (s) of a first-order lag in
-      the speed or current sensor (a tachometer, a filter); prior log-normal centred on
-      :data:`LAG_PRIOR_SAMPLES` sample intervals, a factor :data:`LAG_PRIOR_FACTOR` wide
-      (one sd), log-transformed (a lag is positive).
-
-    The drop and the dead times are untransformed (they may be zero or of either sign).
-    """
-    specs = []
-    if "voltage_drop" in session.nuisances:
-        volts = [abs(float(v)) for tr in session.traces for v in tr.voltage.values]
-        volts += [abs(float(v)) for tab in session.steady_tables for v in tab.voltage]
-        volts += [abs(op.voltage) for op in session.operating_points]
-        v_max = max(volts + [1.0])
-        specs.append(ParamSpec("Vdrop", "V", "driver",
-                               Prior("normal", 0.0, DROP_PRIOR * v_max, "nuisance"),
-                               float(drop_seed), transform="identity",
-                               description="voltage drop at brushes and driver"))
-    dts = [float(np.median(np.diff(tr.time))) for tr in session.traces]
-    for key, words in (("speed_lag", "speed sensor"), ("current_lag", "current sensor")):
-        if key in session.nuisances and dts:
-            centre = LAG_PRIOR_SAMPLES * min(dts)
-            specs.append(ParamSpec(key, "s", "sensor",
-                                   Prior("lognormal", centre, float(np.log(LAG_PRIOR_FACTOR)),
-                                         "nuisance"), centre,
-                                   description=f"first-order lag of the {words}"))
-    if "dead_time" in session.nuisances:
-        for tr in session.traces:
-            length = float(tr.time[-1] - tr.time[0])
-            specs.append(ParamSpec(dead_time_name(tr.name), "s", "trace",
-                                   Prior("normal", 0.0, DEAD_TIME_PRIOR * length, "nuisance"),
-                                   0.0, transform="identity",
-                                   description=f"dead time of trace {tr.name!r}",
-                                   trace=tr.name))
-    return specs
-
-
-def initial_speed_name(trace_name: str) -> str:
-    """The parameter name of a coast-down's speed at its first sample."""
-    return f"initial_speed_{_identifier(trace_name)}"
-
-
-def coast_down_specs(session: Session) -> list[ParamSpec]:
-    """Per coast-down trace, ``initial_speed_<trace>`` (rad/s): the speed at its first
-    sample, fitted rather than read off one noisy sample.  Prior normal, centred on the
-    median of the first three samples, sd 10 % of it plus ten times the trace's
-    model-free noise level (the data decide it)."""
-    specs = []
-    for tr in session.coast_downs:
-        w0 = float(np.median(tr.speed[:3]))
-        sd = 0.1 * abs(w0) + 10.0 * noise_scale(tr.speed)
-        specs.append(ParamSpec(initial_speed_name(tr.name), "rad/s", "trace",
-                               Prior("normal", w0, sd, "first samples"), w0,
-                               transform="identity",
-                               description=f"speed at the start of coast-down {tr.name!r}",
-                               trace=tr.name))
-    return specs
-

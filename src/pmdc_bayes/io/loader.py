@@ -20,8 +20,8 @@ from .._errors import SessionError
 from ._csv import read_columns
 from ._toml import Table as _Table
 from ._toml import describe as _describe
+from ._traces import read_traces
 from .session import (
-    COAST_DOWN,
     FRICTION_MODELS,
     LA_ASSUMED,
     LA_PRIOR_LOG_SD,
@@ -29,11 +29,9 @@ from .session import (
     NUISANCES,
     Measurement,
     OperatingPoint,
-    Schedule,
     Session,
     SteadyTable,
     StepReading,
-    Trace,
 )
 from .units import to_si
 
@@ -49,8 +47,6 @@ _TABLE_KINDS = {"voltage": "voltage", "speed": "speed", "current": "current",
                 "load_torque": "torque"}
 _STEP_KINDS = {"voltage": "voltage", "final_speed": "speed", "tau": "time",
                "initial_speed": "speed"}
-_TRACE_KINDS = {"time": "time", "speed": "speed", "current": "current", "voltage": "voltage",
-                "load_torque": "torque"}
 _TRUTH_KEYS = ("Ra", "La", "K", "B", "J", "Tc")
 
 
@@ -131,123 +127,6 @@ def _step_reading(t: _Table) -> StepReading:
         tau=t.number("tau", "time", u["tau"], positive=True),
         initial_speed=t.number("initial_speed", "speed", u["initial_speed"], default=0.0),
     )
-
-
-def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray) -> Schedule:
-    """A ``[[time, value], ...]`` schedule in the trace's units, checked against the samples."""
-    pairs = t.data[key]
-    example = f"{key} = [[0.0, 0.0], [1.0, 12.0]]"
-    if not isinstance(pairs, list) or not pairs:
-        t.fail(key, f"expected a list of [time, value] pairs, got {_describe(pairs)}; "
-               f"write e.g. {example}")
-    times, values = [], []
-    for i, pair in enumerate(pairs):
-        if not isinstance(pair, list) or len(pair) != 2:
-            t.fail(f"{key}[{i}]", f"expected a [time, value] pair, got {_describe(pair)}; "
-                   f"write e.g. {example}")
-        pt = _Table(t.file, {"time": pair[0], "value": pair[1]}, t.path(f"{key}[{i}]"))
-        times.append(pt.number("time"))
-        values.append(pt.number("value"))
-        if i and times[i] <= times[i - 1]:
-            t.fail(f"{key}[{i}]", f"schedule time {times[i]:g} does not follow "
-                   f"{times[i - 1]:g}; list the pairs with strictly increasing times")
-    tu = u["time"]
-    if times[0] > t_raw[-1]:
-        t.fail(key, f"trace and schedule don't overlap: the schedule starts at {times[0]:g} "
-               f"{tu}, after the last sample at {t_raw[-1]:g} {tu}; check the times (both "
-               "are in the trace's time unit)")
-    if times[0] > t_raw[0]:
-        t.fail(key, f"the schedule starts at {times[0]:g} {tu}, after the first sample at "
-               f"{t_raw[0]:g} {tu}; add a pair at the first sample time, "
-               f"[{t_raw[0]:g}, <value>]")
-    return Schedule(to_si(np.array(times), "time", tu), to_si(np.array(values), kind, u[key]))
-
-
-def _initial(t: _Table, u: dict):
-    value = t.data.get("initial", "rest")
-    if isinstance(value, str) and value in ("rest", "steady"):
-        return value
-    if isinstance(value, dict):
-        sub = _Table(t.file, value, t.path("initial"))
-        sub.check_keys(("current", "speed"))
-        return (sub.number("current", "current", u["current"]),
-                sub.number("speed", "speed", u["speed"]))
-    t.fail("initial", f'expected "rest", "steady" or {{ current = ..., speed = ... }}, got '
-           f"{_describe(value)}; use one of those")
-
-
-def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
-    """A trace's CSV file: its path, the raw columns, the raw and SI time axes (at
-    least 3 samples, strictly increasing)."""
-    path = root / t.string("file")
-    raw, lines = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}")
-    t_raw = raw["time"]
-    if t_raw.size < 3:
-        raise SessionError(path, f"only {t_raw.size} samples; a trace needs at least 3 "
-                           "samples (log a longer record)")
-    bad = np.nonzero(np.diff(t_raw) <= 0)[0]
-    if bad.size:
-        k = int(bad[0]) + 1
-        raise SessionError(path, f"time column {cols['time']!r} is not strictly increasing: "
-                           f"{t_raw[k]:g} follows {t_raw[k - 1]:g} (line {lines[k - 1]}); sort "
-                           "the rows by time and remove duplicate samples",
-                           where=f"line {lines[k]}")
-    time = to_si(t_raw, "time", u["time"])
-    return path, raw, t_raw, time
-
-
-def _trace(t: _Table, root: Path) -> Trace:
-    t.check_keys(("name", "kind", "file", "columns", "units", "voltage", "load_torque",
-                  "initial"))
-    name, kind, u = t.string("name"), t.string("kind"), t.units(_TRACE_KINDS)
-    cols = t.columns(_TRACE_KINDS, ("time", "speed"))
-    for inp in ("voltage", "load_torque"):
-        if inp in cols and inp in t.data:
-            t.fail(inp, f"{inp} is given both as a column (columns.{inp}) and as a schedule; "
-                   "remove one of them")
-    if "voltage" not in cols and "voltage" not in t.data:
-        t.fail("voltage", "no armature voltage given; add a column (columns.voltage = "
-               "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
-    path, raw, t_raw, time = _read_trace_file(t, root, cols, u)
-    si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw}
-    inputs = {}
-    for inp in ("voltage", "load_torque"):
-        if inp in si:
-            inputs[inp] = Schedule(time, si[inp])
-        elif inp in t.data:
-            inputs[inp] = _schedule(t, inp, u, _TRACE_KINDS[inp], t_raw)
-        else:
-            inputs[inp] = Schedule(time[:1].copy(), np.zeros(1))
-    return Trace(name=name, kind=kind, file=path, time=time, speed=si["speed"],
-                 current=si.get("current"), voltage=inputs["voltage"],
-                 load_torque=inputs["load_torque"], voltage_logged="voltage" in si,
-                 load_logged="load_torque" in si, initial=_initial(t, u))
-
-
-def _coast_down(t: _Table, root: Path) -> Trace:
-    """A trace of kind ``"coast-down"``: time and speed only, the armature open."""
-    t.check_keys(("name", "kind", "file", "columns", "units"))
-    name = t.string("name")
-    kinds = {"time": "time", "speed": "speed"}
-    u = t.units(kinds)
-    cols = t.columns(kinds, ("time", "speed"))
-    path, raw, _, time = _read_trace_file(t, root, cols, u)
-    none = Schedule(time[:1].copy(), np.zeros(1))
-    return Trace(name=name, kind=COAST_DOWN, file=path, time=time,
-                 speed=to_si(raw["speed"], "speed", u["speed"]), current=None, voltage=none,
-                 load_torque=none)
-
-
-def _traces(top: _Table, root: Path, toml: Path) -> tuple[tuple, tuple]:
-    """The driven traces and the coast-downs, names unique across both."""
-    driven, coast = [], []
-    for t in top.tables("trace"):
-        if t.data.get("kind") == COAST_DOWN:
-            coast.append(_coast_down(t, root))
-        else:
-            driven.append(_trace(t, root))
-    _unique(driven + coast, "trace", toml)
-    return tuple(driven), tuple(coast)
 
 
 def _truth(path: Path) -> dict | None:
@@ -337,7 +216,8 @@ def load_session(path) -> Session:
                 mt.fail(key, f"expected true or false, got {_describe(flag)}; write e.g. "
                         f"{key} = true")
         nuisances = tuple(k for k in NUISANCES if mt.data.get(k, False))
-    traces, coast_downs = _traces(top, root, toml)
+    traces, coast_downs = read_traces(top, root)
+    _unique(traces + coast_downs, "trace", toml)
     return Session(
         name=root.name,
         nuisances=nuisances,
