@@ -112,3 +112,17 @@ def session_dir(tmp_path) -> Path:
 @pytest.fixture
 def rng():
     return np.random.default_rng(20240611)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Drop the compiled programs of a test module after it: hundreds of them kept in one
+    process exhaust the compiler's memory on a 2-core CI machine."""
+    yield
+    import gc
+
+    from pmdc_bayes.inference import cache
+
+    cache._IN_MEMORY.clear()
+    jax.clear_caches()
+    gc.collect()
