@@ -7,7 +7,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from ._console import print_fit
@@ -124,16 +127,13 @@ def _cmd_report(args) -> int:
 def _enable_compilation_cache() -> None:
     """Keep compiled programs across runs (a later run of sessions of the same shapes
     skips tracing and compilation); ``PMDC_BAYES_CACHE`` moves the cache."""
-    import os
-
     import jax
 
     jax.config.update("jax_enable_x64", True)
     from .inference import cache as _cache
 
-    path = Path(os.environ.get("PMDC_BAYES_CACHE", Path.home() / ".cache" / "pmdc-bayes"))
     try:
-        _cache.enable(path)
+        _cache.enable(_cache_dir())
     except OSError:
         pass
 
@@ -243,31 +243,60 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is so that partial output is cleaned up."""
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if in_main else None
     try:
         return int(args.func(args) or 0)
     except (SessionError, UsageError) as exc:
         print(f"pmdc-bayes: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except _Terminated:
+        print("pmdc-bayes: terminated (no partial output is left)", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
-        print("pmdc-bayes: interrupted", file=sys.stderr)
+        print("pmdc-bayes: interrupted (no partial output is left)", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader of the output went away (e.g. ``| head``)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except Exception as exc:  # a fault of the tool, not of the user's input
         log = _save_traceback()
         print(f"pmdc-bayes: internal error ({type(exc).__name__}: {exc}); traceback saved "
               f"to {log}", file=sys.stderr)
         return EXIT_INTERNAL
+    finally:
+        if in_main:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _cache_dir() -> Path:
+    return Path(os.environ.get("PMDC_BAYES_CACHE", Path.home() / ".cache" / "pmdc-bayes"))
 
 
 def _save_traceback() -> str:
-    """Write the current exception's traceback to a new log file; its path."""
+    """Write the current exception's traceback to a new log file in the cache
+    directory's ``logs`` (the system's temporary directory if that is not writable)."""
     import tempfile
     import time
     import traceback
 
-    fd, path = tempfile.mkstemp(prefix=time.strftime("pmdc-bayes-error-%Y%m%d-%H%M%S-"),
-                                suffix=".log")
+    prefix = time.strftime("error-%Y%m%d-%H%M%S-")
+    try:
+        logs = _cache_dir() / "logs"
+        logs.mkdir(parents=True, exist_ok=True)
+        fd, path = tempfile.mkstemp(prefix=prefix, suffix=".log", dir=logs)
+    except OSError:
+        fd, path = tempfile.mkstemp(prefix="pmdc-bayes-" + prefix, suffix=".log")
     with open(fd, "w", encoding="utf-8") as fh:
         fh.write(" ".join(sys.argv) + "\n\n" + traceback.format_exc())
     return path

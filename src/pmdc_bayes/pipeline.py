@@ -26,7 +26,7 @@ from .io._jsonio import dumps
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
 from .paper.consistency import consistency_checks
-from .rundir import check_replaceable, write_atomically
+from .rundir import check_replaceable, copy_session, write_atomically
 
 __all__ = ["fit_session", "run_fit", "write_run", "default_out_dir", "versions"]
 
@@ -111,7 +111,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     summary = {
         "session": {"name": session.name, "path": str(session.root), "motor": session.motor,
                     "friction": "coulomb" if model.coulomb else "viscous",
-                    "holdout": list(holdout)},
+                    "holdout": list(holdout), "nuisances": list(session.nuisances)},
         "adequacy": adequacy.as_json(),
         "seed": seed,
         "parameters": params,
@@ -206,6 +206,7 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> Path:
     from .report import report_stage
 
     def fill(tmp: Path):
+        result.summary["session"]["files"] = copy_session(result.session_full, tmp)
         (tmp / "summary.json").write_text(dumps(result.summary))
         if result.idata is not None:
             result.idata.to_netcdf(tmp / "posterior.nc")

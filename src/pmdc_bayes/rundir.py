@@ -6,6 +6,8 @@ file tells a later ``--force`` that the directory is an earlier run it may repla
 
 from __future__ import annotations
 
+import errno
+import hashlib
 import os
 import shutil
 import tempfile
@@ -13,10 +15,49 @@ from pathlib import Path
 
 from ._errors import UsageError
 
-__all__ = ["RUN_MARKER", "is_run_dir", "check_replaceable", "write_atomically"]
+__all__ = ["RUN_MARKER", "SESSION_COPY", "is_run_dir", "check_replaceable", "write_atomically",
+           "default_mode", "copy_session", "changed_files"]
 
 
 RUN_MARKER = ".pmdc-bayes-run"
+_STORAGE_ERRORS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
+                   errno.EFBIG}
+SESSION_COPY = "session"
+"""The run's own copy of the session's files, so that the run outlives the original."""
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def copy_session(session, dest: Path) -> dict[str, str]:
+    """Copy the files of ``session`` into ``dest/session``, keeping their places relative
+    to its session.toml; return ``{relative path: sha256}``.  A file outside the session
+    directory is hashed but not copied (the copy then is incomplete and not used)."""
+    root = Path(session.root).resolve()
+    hashes = {}
+    for f in session.files():
+        rel = os.path.relpath(Path(f).resolve(), root)
+        hashes[rel] = _sha256(f)
+        if not rel.startswith(".."):
+            target = dest / SESSION_COPY / rel
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(f, target)
+    return hashes
+
+
+def changed_files(root: Path, hashes: dict[str, str]) -> list[str]:
+    """The files of ``hashes`` (relative to ``root``) that are missing or differ now."""
+    out = []
+    for rel, digest in hashes.items():
+        path = Path(root) / rel
+        try:
+            same = path.is_file() and _sha256(path) == digest
+        except OSError:
+            same = False
+        if not same:
+            out.append(rel)
+    return out
 
 
 def is_run_dir(path: Path) -> bool:
@@ -27,9 +68,41 @@ def is_run_dir(path: Path) -> bool:
         and ((path / RUN_MARKER).is_file() or (path / "summary.json").is_file())
 
 
+def _check_writable(out: Path) -> None:
+    """Refuse an ``out`` that cannot be created: below a regular file, or in a directory
+    that is read-only (checked by creating and removing a probe directory)."""
+    base = out.parent
+    while not base.exists() and base != base.parent:
+        base = base.parent
+    if not base.is_dir():
+        raise UsageError(f"{out}: {base} is a file, not a directory; choose another --out")
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".pmdc-bayes-probe.", dir=base))
+    except OSError as exc:
+        raise UsageError(f"{out}: cannot write in {base} ({exc.strerror}); choose another "
+                         "--out") from None
+
+
+def default_mode(directory: bool = False) -> int:
+    """The mode a new file (0644 under the usual umask 022) or directory (0755) gets;
+    temporary files are created private, and take this mode when they become the run."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return (0o777 if directory else 0o666) & ~mask
+
+
+def _publish_modes(root: Path) -> None:
+    for base, _dirs, files in os.walk(root):
+        os.chmod(base, default_mode(True))
+        for f in files:
+            os.chmod(os.path.join(base, f), default_mode())
+
+
 def check_replaceable(out: Path, force: bool) -> None:
-    """Refuse, before any work, an ``out`` that exists unless ``force`` is given and it
-    is a previous run: never a session, a regular file or a folder of the user's."""
+    """Refuse, before any work, an ``out`` that cannot be written, or that exists unless
+    ``force`` is given and it is a previous run: never a session, a regular file or a
+    folder of the user's."""
+    _check_writable(out)
     if not (out.exists() or out.is_symlink()):
         return
     if not force:
@@ -49,14 +122,23 @@ def write_atomically(out: Path, fill, *, force: bool):
     try:
         (tmp / RUN_MARKER).write_text("a run directory written by pmdc-bayes fit\n")
         fill(tmp)
+        _publish_modes(tmp)
         if out.exists():
             check_replaceable(out, force)
             old = out.with_name(f".{out.name}.old")
+            shutil.rmtree(old, ignore_errors=True)
             os.replace(out, old)
             os.replace(tmp, out)
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(tmp, out)
+    except OSError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if exc.errno not in _STORAGE_ERRORS:
+            raise
+        raise UsageError(f"{out}: could not be written ({exc.strerror}); free some space or "
+                         "choose another --out (nothing was left behind, an earlier run "
+                         "there is intact)") from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

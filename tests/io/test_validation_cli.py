@@ -234,14 +234,13 @@ def test_an_internal_fault_exits_4_with_one_line_and_a_saved_traceback(
         raise ZeroDivisionError("float division by zero")
 
     monkeypatch.setattr(pipeline, "run_fit", broken)
-    monkeypatch.setenv("TMPDIR", str(tmp_path))
-    import tempfile
-    monkeypatch.setattr(tempfile, "tempdir", None)
+    monkeypatch.setenv("PMDC_BAYES_CACHE", str(tmp_path / "cache"))
     code = cli.main(["fit", str(session_dir), "--no-mcmc", "--out", str(tmp_path / "run")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == cli.EXIT_INTERNAL == 4
     assert len(err) == 1 and "internal error" in err[0] and "ZeroDivisionError" in err[0]
-    (log,) = tmp_path.glob("pmdc-bayes-error-*.log")
+    (log,) = (tmp_path / "cache" / "logs").glob("error-*.log")
+    assert str(log) in err[0]
     assert "Traceback" in log.read_text() and "float division by zero" in log.read_text()
     assert not (tmp_path / "run").exists()
 

@@ -11,6 +11,7 @@ is never used.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 from pathlib import Path
@@ -91,8 +92,12 @@ class _Exported:
             checks = [export.DisabledSafetyCheck.custom_call(n) for n in _LAPACK]
             exp = export.export(self.jitted, disabled_checks=checks)(*args)
             tmp = file.with_suffix(f".{os.getpid()}.tmp")
-            tmp.write_bytes(exp.serialize())
-            tmp.replace(file)
+            try:
+                tmp.write_bytes(exp.serialize())
+                tmp.replace(file)
+            except OSError:  # a read-only or full cache: run without storing the program
+                with contextlib.suppress(OSError):
+                    tmp.unlink(missing_ok=True)
         self.programs[signature] = exp
         return exp
 

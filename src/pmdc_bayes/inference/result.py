@@ -9,6 +9,7 @@ read back from disk by :func:`read_run`.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,8 +19,9 @@ import numpy as np
 from .._errors import UsageError
 from .._x64 import x64
 from ..io.loader import load_session
-from ..io.session import Session
+from ..io.session import NUISANCES, Session
 from ..paper.closed_form import ClosedForm
+from ..rundir import SESSION_COPY, changed_files
 from .fit import FitResult
 from .objective import SessionModel, build_model
 from .seed import fit_seed
@@ -96,6 +98,29 @@ def read_summary(run_dir: Path) -> dict:
     return summary
 
 
+def _run_session(run_dir: Path, info: dict):
+    """The session a run was fitted on: the run's own copy when it has one, else the
+    original, refused if it changed since the fit; with the nuisances the fit added."""
+    copy = run_dir / SESSION_COPY
+    hashes = info.get("files") or {}
+    if (copy / "session.toml").is_file() and not changed_files(copy, hashes):
+        session = load_session(copy)
+    else:
+        changed = changed_files(Path(info["path"]), hashes)
+        if changed:
+            raise UsageError(f"{Path(info['path']) / changed[0]}: changed or missing since the "
+                             f"fit of {run_dir} (the run holds no intact copy); rerun "
+                             "'pmdc-bayes fit' on the session as it is now")
+        session = load_session(info["path"])
+    if "nuisances" in info:
+        names = info["nuisances"]
+        if not isinstance(names, list) or not set(names) <= set(NUISANCES):
+            raise UsageError(f"{run_dir / 'summary.json'}: session.nuisances is {names!r}, not "
+                             f"a list of {', '.join(NUISANCES)}; rerun 'pmdc-bayes fit'")
+        session = dataclasses.replace(session, nuisances=tuple(names))
+    return session
+
+
 def _read_posterior(run_dir: Path, names) -> tuple:
     path = run_dir / "posterior.nc"
     if not path.is_file():
@@ -120,7 +145,7 @@ def read_run(run_dir) -> RunResult:
     run_dir = Path(run_dir)
     summary = read_summary(run_dir)
     info = summary["session"]
-    session_full = load_session(info["path"])
+    session_full = _run_session(run_dir, info)
     held = list(info.get("holdout") or [])
     session = session_full.without_traces(held) if held else session_full
     cf = fit_seed(session)

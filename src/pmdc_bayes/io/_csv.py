@@ -1,26 +1,34 @@
 """Read named numeric columns from a CSV file, with errors that name the file and line.
 
 Only the session loader uses this.  Line numbers are 1-based physical lines of the
-file, so the header is line 1 and the first data row is usually line 2.
+file, so the header is line 1 and the first data row is usually line 2.  The column
+separator is found from the header (comma, semicolon or tab); with a semicolon or a
+tab, a decimal comma ("1,25") is read as a decimal point, as spreadsheets in many
+locales write it.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import math
+from array import array
 from pathlib import Path
 
 import numpy as np
 
 from .._errors import SessionError
+from ._text import read_text
 
 __all__ = ["read_columns"]
 
+_SEPARATORS = {",": "commas", ";": "semicolons", "\t": "tabs"}
 
-def _parse_cell(path: Path, line: int, column: str, text: str) -> float:
+
+def _parse_cell(path: Path, line: int, column: str, text: str, decimal_comma: bool) -> float:
     """One cell as a finite float, or a SessionError naming the line, column and text."""
     try:
-        value = float(text)
+        value = float(text.replace(",", ".") if decimal_comma and "." not in text else text)
     except ValueError:
         raise SessionError(
             path,
@@ -36,6 +44,24 @@ def _parse_cell(path: Path, line: int, column: str, text: str) -> float:
             where=f"line {line}",
         )
     return value
+
+
+def _separator(header_line: str) -> str:
+    """The separator the header uses: the candidate that splits it most."""
+    counts = {sep: header_line.count(sep) for sep in _SEPARATORS}
+    best = max(counts, key=counts.get)
+    return best if counts[best] else ","
+
+
+def _check_header(path: Path, header: list[str], sep: str, line: int) -> None:
+    names = [h for h in header if h]
+    dup = sorted({h for h in names if names.count(h) > 1})
+    if dup:
+        raise SessionError(path, f"the header names {', '.join(map(repr, dup))} more than "
+                           "once; give every column its own name", where=f"line {line}")
+    if len(header) == 1 and len(header[0].split()) > 1:
+        raise SessionError(path, f"the header {header[0]!r} has no comma, semicolon or tab; "
+                           "separate the columns with commas", where=f"line {line}")
 
 
 def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str) -> tuple[dict, list]:
@@ -56,48 +82,67 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str) -> tuple[
     Raises
     ------
     SessionError
-        If the file is missing or empty, a column is missing, a row is short, or a
-        cell is not a finite number.
+        If the file cannot be read as text, is empty, names a column twice, lacks a
+        column, has a row with fewer or more fields than the header, or a cell that is
+        not a finite number.
     """
-    if not path.is_file():
-        raise SessionError(path, "file not found; check the file name in session.toml "
-                           "(it is relative to the session directory) or add the file")
-    with path.open(newline="", encoding="utf-8-sig") as fh:
-        reader = csv.reader(fh)
-        header = None
-        for row in reader:
-            if any(cell.strip() for cell in row):
-                header = [cell.strip() for cell in row]
-                break
-        if header is None:
-            raise SessionError(path, "the file is empty; its first line must be a header "
-                               "naming the columns, followed by one row per sample")
-        header_line = reader.line_num
-        index = {}
-        for role, name in wanted.items():
-            if name not in header:
-                cols = ", ".join(repr(h) for h in header)
+    text = read_text(path, "CSV file")
+    first = next((ln for ln in text.splitlines() if ln.strip()), None)
+    if first is None:
+        raise SessionError(path, "the file is empty; its first line must be a header "
+                           "naming the columns, followed by one row per sample")
+    sep = _separator(first)
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=sep)
+    try:
+        return _read_rows(path, reader, sep, wanted, asked_by)
+    except csv.Error as exc:
+        raise SessionError(path, f"not readable as CSV ({exc}); check the quoting and that "
+                           "each cell is a short number", where=f"line {reader.line_num}") \
+            from None
+
+
+def _read_rows(path, reader, sep, wanted, asked_by):
+    header = None
+    for row in reader:
+        if any(cell.strip() for cell in row):
+            header = [cell.strip() for cell in row]
+            break
+    header_line = reader.line_num
+    _check_header(path, header, sep, header_line)
+    index = {}
+    for role, name in wanted.items():
+        if name not in header:
+            cols = ", ".join(repr(h) for h in header)
+            raise SessionError(
+                path,
+                f"no column named {name!r} (the {role} column named in {asked_by}); the "
+                f"header, separated by {_SEPARATORS[sep]}, has {cols}; fix the name in "
+                "session.toml or in the header",
+                where=f"line {header_line}",
+            )
+        index[role] = header.index(name)
+    decimal_comma = sep != ","
+    values = {role: array("d") for role in wanted}
+    lines: list[int] = []
+    for row in reader:
+        if not any(cell.strip() for cell in row):
+            continue
+        line = reader.line_num
+        if len(row) > len(header) and any(cell.strip() for cell in row[len(header):]):
+            hint = (" (is the decimal separator a comma? write decimals with a point, or "
+                    "separate the columns with semicolons)" if sep == "," else "")
+            raise SessionError(path, f"the row has {len(row)} fields but the header has "
+                               f"{len(header)}{hint}; make every row match the header",
+                               where=f"line {line}")
+        for role, k in index.items():
+            if k >= len(row):
                 raise SessionError(
                     path,
-                    f"no column named {name!r} (the {role} column named in {asked_by}); the "
-                    f"header has {cols}; fix the name in session.toml or in the header",
-                    where=f"line {header_line}",
+                    f"the row has {len(row)} fields but column {wanted[role]!r} is "
+                    f"field {k + 1}; fill in the missing fields",
+                    where=f"line {line}",
                 )
-            index[role] = header.index(name)
-        values: dict[str, list[float]] = {role: [] for role in wanted}
-        lines: list[int] = []
-        for row in reader:
-            if not any(cell.strip() for cell in row):
-                continue
-            line = reader.line_num
-            for role, k in index.items():
-                if k >= len(row):
-                    raise SessionError(
-                        path,
-                        f"the row has {len(row)} fields but column {wanted[role]!r} is "
-                        f"field {k + 1}; fill in the missing fields",
-                        where=f"line {line}",
-                    )
-                values[role].append(_parse_cell(path, line, wanted[role], row[k].strip()))
-            lines.append(line)
-    return {role: np.asarray(v, dtype=float) for role, v in values.items()}, lines
+            values[role].append(_parse_cell(path, line, wanted[role], row[k].strip(),
+                                            decimal_comma))
+        lines.append(line)
+    return {role: np.frombuffer(v, dtype=float).copy() for role, v in values.items()}, lines

@@ -103,6 +103,8 @@ class Table:
         if isinstance(value, bool) or not isinstance(value, int | float):
             self.fail(key, f"expected a number, got {describe(value)}; write the number "
                       "without quotes" + (" and give its unit in units" if kind else ""))
+        if isinstance(value, int) and abs(value) > 1e300:
+            self.fail(key, "the integer is too large for a number; write the measured value")
         if not math.isfinite(value):
             self.fail(key, f"{value} is not a finite number; write the measured value")
         si = float(value) if kind is None else to_si(value, kind, unit or SI_UNIT[kind])

@@ -18,6 +18,7 @@ import numpy as np
 
 from .._errors import SessionError
 from ._csv import read_columns
+from ._text import read_text
 from ._toml import Table as _Table
 from ._toml import describe as _describe
 from ._traces import read_traces
@@ -66,17 +67,15 @@ def _locate(path) -> Path:
 
 
 def _read_toml(toml: Path) -> dict:
+    text = read_text(toml, "session.toml").lstrip("\ufeff")
     try:
-        with toml.open("rb") as fh:
-            return tomllib.load(fh)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         m = re.match(r"(.*) \(at line (\d+), column (\d+)\)$", str(exc))
         what, where = (m.group(1), f"line {m.group(2)}, column {m.group(3)}") if m else (
             str(exc), None)
         raise SessionError(toml, f"TOML syntax error: {what}; fix the syntax there (strings "
                            "need quotes, keys need '=')", where=where) from None
-    except UnicodeDecodeError:
-        raise SessionError(toml, "not UTF-8 text; save the file as UTF-8") from None
 
 
 def _measurement(t: _Table, kind: str) -> Measurement:
@@ -132,9 +131,10 @@ def _step_reading(t: _Table) -> StepReading:
 def _truth(path: Path) -> dict | None:
     if not path.is_file():
         return None
+    text = read_text(path, "truth.json")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        data = json.loads(text)
+    except ValueError as exc:
         raise SessionError(path, f"not valid JSON ({exc}); fix or delete the file") from None
     if not isinstance(data, dict):
         raise SessionError(path, "expected a JSON object of SI parameter values; fix or "
@@ -143,8 +143,8 @@ def _truth(path: Path) -> dict | None:
     for key in _TRUTH_KEYS:
         if key in data:
             v = data[key]
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                raise SessionError(path, f"{key} is {v!r}, not a finite number; write the "
+            if isinstance(v, bool) or not isinstance(v, int | float) or not abs(v) < 1e300:
+                raise SessionError(path, f"{key} is {str(v)[:20]!r}, not a finite number; write the "
                                    "SI value", where=key)
             truth[key] = float(v)
     return truth

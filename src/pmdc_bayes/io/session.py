@@ -197,3 +197,12 @@ class Session:
 
         keep = tuple(t for t in self.traces if t.name not in set(names))
         return dataclasses.replace(self, traces=keep)
+
+    def files(self) -> tuple[Path, ...]:
+        """Every file the session was read from: session.toml, the CSV files and
+        truth.json (when present), each once."""
+        found = [self.root / "session.toml", *(t.file for t in self.traces),
+                 *(t.file for t in self.coast_downs), *(t.file for t in self.steady_tables)]
+        if (self.root / "truth.json").is_file():
+            found.append(self.root / "truth.json")
+        return tuple(dict.fromkeys(Path(f) for f in found))

@@ -164,11 +164,12 @@ class ClosedForm:
 
 
 def _step_of(trace: Trace) -> tuple[float, float, float]:
-    """(time of the largest voltage change, voltage before, voltage after)."""
+    """(time of the largest voltage change, voltage before, voltage after); a constant
+    voltage is a step from rest at the first sample."""
     v = trace.voltage.values
     times = trace.voltage.times
     if v.size < 2:
-        return float(trace.time[0]), float(v[0]), float(v[0])
+        return float(trace.time[0]), 0.0, float(v[0])
     jumps = np.abs(np.diff(v))
     k = int(np.argmax(jumps))
     return float(max(times[k + 1], trace.time[0])), float(v[k]), float(v[k + 1])
@@ -254,7 +255,7 @@ def closed_form(session: Session) -> ClosedForm:
         tau = sr.tau
         used["tau"] = f"step reading {sr.name!r}"
     elif steps:
-        tr = max(steps, key=lambda s: abs(_step_of(s)[2] - _step_of(s)[1]))
+        tr = max(steps, key=lambda s: (_turns(s), abs(_step_of(s)[2] - _step_of(s)[1])))
         t_step, _, _ = _step_of(tr)
         try:
             tau = read_time_constant(tr.time, tr.speed, t_step=t_step).tau
@@ -268,4 +269,24 @@ def closed_form(session: Session) -> ClosedForm:
                             "kind = \"step\" or a [[step_reading]]", where="trace")
     J = j_from_tau(tau, Ra, B, K)
     used["J"] = "equation (9) from tau"
+    _check_physical(session, Ra, La, K, B, tau, used)
     return ClosedForm(Ra, La, K, B, J, tau, gain(Ra, K, B), used)
+
+
+def _check_physical(session: Session, Ra, La, K, B, tau, used) -> None:
+    """Refuse a result no motor can have, naming the inputs that make it so."""
+    toml = session.root / "session.toml"
+    if not (np.isfinite(K) and K > 0):
+        raise NotApplicable(toml, f"{used['K']} gives K = {K:.3g} (it must be positive): the "
+                            "resistive drop Ra*Ia reaches the applied voltage there; check "
+                            "the current, the voltage (duty as a fraction, supply in V), "
+                            "bench.Ra and K_decimals", where="operating_point")
+    if not (np.isfinite(B) and B > 0):
+        raise NotApplicable(toml, f"{used['B']} gives B = {B:.3g} (it must be positive): "
+                            "the steady current or speed there is not positive; check their "
+                            "signs and values", where="operating_point")
+    if not (np.isfinite(tau) and tau > La / Ra):
+        raise NotApplicable(toml, f"the time constant from the {used['tau']} is "
+                            f"{tau:.3g} s, not longer than the electrical time constant "
+                            f"La/Ra = {La / Ra:.3g} s, so it cannot be the mechanical one of "
+                            "(8); check the value and its unit", where="step_reading")

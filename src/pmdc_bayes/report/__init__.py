@@ -8,6 +8,7 @@ session the summary names.  Matplotlib is used here only, with the Agg backend.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import tempfile
@@ -21,6 +22,7 @@ from .export import controller_model, to_control
 from .html import render_html
 from .markdown import render_markdown
 from .._x64 import x64
+from ..rundir import default_mode
 
 __all__ = ["write_report", "report_stage", "controller_model", "to_control"]
 
@@ -34,6 +36,7 @@ def _write(path: Path, data: bytes | str) -> None:
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(raw)
+        os.chmod(tmp, default_mode())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -41,7 +44,21 @@ def _write(path: Path, data: bytes | str) -> None:
 
 
 def _figures(sections):
-    return [b for s in sections for b in s.blocks if type(b).__name__ == "Figure"]
+    """The figures, each renamed if its file name (case-folded, as some file systems
+    compare names) is taken by an earlier one."""
+    figs, taken = [], set()
+    for sec in sections:
+        for i, fig in enumerate(sec.blocks):
+            if type(fig).__name__ != "Figure":
+                continue
+            name, k = fig.name, 2
+            while name.casefold() in taken:
+                name, k = f"{fig.name}-{k}", k + 1
+            if name != fig.name:
+                fig = sec.blocks[i] = dataclasses.replace(fig, name=name)
+            taken.add(name.casefold())
+            figs.append(fig)
+    return figs
 
 
 @x64

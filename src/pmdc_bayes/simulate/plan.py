@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import SessionError
+from ..io._text import read_text
 from ..io._toml import REQUIRED, Table
 from ..io.session import FRICTION_MODELS
 from ..io.units import unit_factor
@@ -111,13 +112,11 @@ def load_plan(path) -> dict:
     if not path.is_file():
         raise SessionError(path, "plan file not found; pass the path of a plan TOML file "
                            "(see data/demo/plan.toml)")
+    text = read_text(path, "plan").lstrip("\ufeff")
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SessionError(path, f"TOML syntax error: {exc}; fix the syntax there") from None
-    except UnicodeDecodeError:
-        raise SessionError(path, "not UTF-8 text; save the file as UTF-8") from None
 
 
 def _named_tables(t: Table, key: str) -> list[Table]:

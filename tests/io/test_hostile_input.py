@@ -1,0 +1,171 @@
+"""Awkward files as spreadsheets, editors and loggers write them, through the command line.
+
+Some are read correctly (a semicolon or tab separator with decimal commas, UTF-16 from
+Excel's "Unicode text", byte-order marks); the others end in one line naming the file,
+the place and the fix, exit code 2, never a traceback or a silently wrong number.
+"""
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+from conftest import replace_once
+
+TOML = "session.toml"
+
+
+def _run(path, *extra):
+    return subprocess.run([sys.executable, "-m", "pmdc_bayes", "closed-form", str(path),
+                           *extra], capture_output=True, text=True, timeout=120)
+
+
+def _step_text(d):
+    return (d / "step.csv").read_text(encoding="utf-8")
+
+
+def _resave(sep=",", decimal=".", encoding="utf-8"):
+    """Rewrite step.csv with another separator, decimal mark or encoding."""
+
+    def mutate(d):
+        text = _step_text(d).replace(",", "\0").replace(".", decimal).replace("\0", sep)
+        (d / "step.csv").write_bytes(text.encode(encoding))
+
+    return mutate
+
+
+def _toml_bom(d):
+    (d / TOML).write_bytes(b"\xef\xbb\xbf" + (d / TOML).read_bytes())
+
+
+ACCEPTED = [
+    ("semicolon-decimal-comma", _resave(";", ",")),
+    ("tab-separated", _resave("\t")),
+    ("tab-decimal-comma", _resave("\t", ",")),
+    ("utf-16-excel-unicode-text", _resave("\t", encoding="utf-16")),
+    ("utf-8-bom-csv", _resave(encoding="utf-8-sig")),
+    ("utf-8-bom-session-toml", _toml_bom),
+]
+
+
+@pytest.mark.parametrize("mutate", [c[1] for c in ACCEPTED], ids=[c[0] for c in ACCEPTED])
+def test_files_as_spreadsheets_save_them_are_read_the_same(session_dir, tmp_path, mutate):
+    expected = _run(session_dir, "--json")
+    assert expected.returncode == 0, expected.stderr
+    mutate(session_dir)
+    proc = _run(session_dir, "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout) == json.loads(expected.stdout)
+
+
+def _write(name, data: bytes):
+    def mutate(d):
+        (d / name).write_bytes(data)
+
+    return mutate
+
+
+def _edit(file, old, new):
+    def mutate(d):
+        replace_once(d / file, old, new)
+
+    return mutate
+
+
+def _decimal_comma_with_commas(d):
+    text = _step_text(d).splitlines()
+    rows = [text[0]] + [ln.replace(".", ",") for ln in text[1:]]
+    (d / "step.csv").write_text("\n".join(rows) + "\n")
+
+
+def _dir_for_file(d):
+    (d / "step.csv").unlink()
+    (d / "step.csv").mkdir()
+
+
+def _symlink_loop(d):
+    (d / "step.csv").unlink()
+    (d / "step.csv").symlink_to(d / "step.csv")
+
+
+def _huge_cell(d):
+    lines = _step_text(d).splitlines()
+    lines[3] = "0.02," + "1" * 200_000 + ",0.5"
+    (d / "step.csv").write_text("\n".join(lines) + "\n")
+
+
+STEP_READING = '\n[[step_reading]]\nname = "sr"\nvoltage = 6.0\nfinal_speed = 100.0\n'
+
+REFUSED = [
+    ("latin-1-csv", lambda d: (d / "step.csv").write_bytes(
+        _step_text(d).replace("ia", "i\xe9").encode("latin-1")),
+     ["step.csv:line 1", "not UTF-8", "0xe9", "save the CSV file as UTF-8"]),
+    ("binary-named-csv", _write("step.csv", bytes(range(256)) * 4),
+     ["step.csv", "binary file"]),
+    ("cell-over-field-limit", _huge_cell, ["step.csv:line 4", "field limit"]),
+    ("directory-for-csv", _dir_for_file, ["step.csv", "a directory, not a file"]),
+    ("symlink-loop-for-csv", _symlink_loop, ["step.csv", "points back to itself"]),
+    ("duplicate-header-name", _edit("step.csv", "t,speed_rpm,ia", "t,speed_rpm,speed_rpm"),
+     ["step.csv:line 1", "'speed_rpm' more than once"]),
+    ("comma-decimals-with-comma-separator", _decimal_comma_with_commas,
+     ["step.csv:line 2", "the row has 6 fields but the header has 3", "decimal separator"]),
+    ("space-separated", lambda d: (d / "step.csv").write_text(
+        _step_text(d).replace(",", " ")), ["step.csv:line 1", "no comma, semicolon or tab"]),
+    ("latin-1-session-toml", lambda d: (d / TOML).write_bytes(
+        (d / TOML).read_text().replace("Test motor", "Moteur d'essai \xe9").encode("latin-1")),
+     [f"{TOML}:line 2", "not UTF-8"]),
+    ("toml-integer-too-large", _edit(TOML, "supply_voltage = 12.0",
+                                     "supply_voltage = " + "9" * 400),
+     [f"{TOML}:operating_point['op'].supply_voltage", "too large"]),
+    # physically impossible closed-form results, named with the inputs that cause them
+    ("closed-form-K-negative", _edit(TOML, "current = 0.3", "current = 3.5"),
+     [f"{TOML}:operating_point", "K = -0.01 ", "Ra*Ia reaches the applied voltage"]),
+    ("closed-form-K-rounded-to-zero", _edit(TOML, "[[operating_point]]",
+                                            "[closed_form]\nK_decimals = 0\n\n"
+                                            "[[operating_point]]"),
+     [f"{TOML}:operating_point", "K = 0", "K_decimals"]),
+    ("closed-form-B-negative", _edit(TOML, "current = 0.3", "current = -0.3"),
+     [f"{TOML}:operating_point", "B = -0.000198", "not positive"]),
+    ("step-reading-tau-absurd", lambda d: (d / TOML).write_text(
+        (d / TOML).read_text() + STEP_READING + "tau = 1e-300\n"),
+     [f"{TOML}:step_reading", "1e-300 s", "electrical time constant"]),
+]
+
+
+@pytest.mark.parametrize(("mutate", "expected"), [c[1:] for c in REFUSED],
+                         ids=[c[0] for c in REFUSED])
+def test_unreadable_or_impossible_input_is_one_line(session_dir, mutate, expected):
+    mutate(session_dir)
+    proc = _run(session_dir)
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr and proc.stdout == ""
+    (line,) = proc.stderr.splitlines()
+    assert line.startswith("pmdc-bayes: error: ") and "; " in line, line
+    for text in expected:
+        assert text in line, f"{text!r} not in {line!r}"
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root reads files whatever their mode")
+def test_an_unreadable_csv_is_one_line(session_dir):
+    (session_dir / "step.csv").chmod(0)
+    proc = _run(session_dir)
+    assert proc.returncode == 2 and "permission denied" in proc.stderr
+    assert len(proc.stderr.splitlines()) == 1
+
+
+def test_a_file_over_the_size_limit_is_refused_before_it_is_read(session_dir, monkeypatch):
+    from pmdc_bayes._errors import SessionError
+    from pmdc_bayes.io import _text
+    from pmdc_bayes.io.loader import load_session
+
+    monkeypatch.setattr(_text, "MAX_BYTES", 1000)
+    with pytest.raises(SessionError, match=r"step.csv: the file is 0.00\d+ MB, more .* decimate"):
+        load_session(session_dir)
+
+
+def test_a_closed_pipe_is_not_an_error(session_dir):
+    proc = subprocess.run(f"{sys.executable} -m pmdc_bayes closed-form {session_dir} | head -1",
+                          shell=True, capture_output=True, text=True, timeout=120)
+    assert proc.stdout.startswith("Closed-form identification")
+    assert proc.stderr == ""

@@ -1,0 +1,243 @@
+"""Run directories: nothing of the user's lost, nothing half-written, readable by the group,
+self-contained; interruptions and a full disk leave the earlier run as it was."""
+
+import errno
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from pmdc_bayes._errors import UsageError
+from pmdc_bayes.rundir import (
+    RUN_MARKER,
+    changed_files,
+    check_replaceable,
+    copy_session,
+    write_atomically,
+)
+
+
+def _snapshot(root):
+    return {p.relative_to(root): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _debris(parent: Path, name: str):
+    return sorted(p.name for p in parent.iterdir() if p.name.startswith(f".{name}."))
+
+
+def _fill_with(text):
+    def fill(tmp):
+        (tmp / "summary.json").write_text(text)
+        (tmp / "figures").mkdir()
+        (tmp / "figures" / "a.png").write_bytes(b"png")
+
+    return fill
+
+
+def test_an_out_below_a_file_is_refused_before_any_work(tmp_path):
+    (tmp_path / "notes.txt").write_text("mine")
+    with pytest.raises(UsageError, match="is a file, not a directory"):
+        check_replaceable(tmp_path / "notes.txt" / "run", force=False)
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes in read-only directories")
+def test_an_out_in_a_read_only_directory_is_refused_before_any_work(tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir(mode=0o555)
+    with pytest.raises(UsageError, match="cannot write in"):
+        check_replaceable(ro / "run", force=False)
+
+
+def test_a_run_gets_the_modes_of_the_umask(tmp_path):
+    old = os.umask(0o022)
+    try:
+        write_atomically(tmp_path / "run", _fill_with("{}"), force=False)
+    finally:
+        os.umask(old)
+    run = tmp_path / "run"
+    assert run.stat().st_mode & 0o777 == 0o755
+    assert (run / "figures").stat().st_mode & 0o777 == 0o755
+    assert (run / "summary.json").stat().st_mode & 0o777 == 0o644
+    assert (run / RUN_MARKER).is_file() and _debris(tmp_path, "run") == []
+
+
+@pytest.mark.parametrize("fault", [KeyboardInterrupt(), OSError(errno.ENOSPC, "No space left "
+                                                                "on device")])
+def test_a_failed_rewrite_leaves_the_earlier_run_and_no_debris(tmp_path, fault):
+    run = tmp_path / "run"
+    write_atomically(run, _fill_with("old"), force=False)
+    before = _snapshot(run)
+
+    def fill(tmp):
+        (tmp / "summary.json").write_text("new")
+        raise fault
+
+    with pytest.raises(UsageError if isinstance(fault, OSError) else KeyboardInterrupt):
+        write_atomically(run, fill, force=True)
+    assert _snapshot(run) == before and _debris(tmp_path, "run") == []
+
+
+def test_a_rewrite_after_a_crash_between_the_renames_still_works(tmp_path):
+    run = tmp_path / "run"
+    write_atomically(run, _fill_with("old"), force=False)
+    (tmp_path / ".run.old").mkdir()  # left by a power cut between the two renames
+    write_atomically(run, _fill_with("new"), force=True)
+    assert (run / "summary.json").read_text() == "new" and _debris(tmp_path, "run") == []
+
+
+def test_the_session_copy_keeps_places_and_detects_changes(session_dir, tmp_path):
+    from pmdc_bayes.io.loader import load_session
+
+    session = load_session(session_dir)
+    hashes = copy_session(session, tmp_path)
+    assert set(hashes) == {"session.toml", "step.csv", "sweep.csv"}
+    copy = tmp_path / "session"
+    assert changed_files(copy, hashes) == [] and changed_files(session_dir, hashes) == []
+    assert load_session(copy).traces[0].speed.tolist() == session.traces[0].speed.tolist()
+    with (session_dir / "step.csv").open("a") as fh:
+        fh.write("1.51,1000.0,0.05\n")
+    (session_dir / "sweep.csv").unlink()
+    assert changed_files(session_dir, hashes) == ["step.csv", "sweep.csv"]
+
+
+# --- through the command line, on one fitted run of a small session ----------------------
+
+def _fit_cli(*args, **kw):
+    return subprocess.Popen([sys.executable, "-m", "pmdc_bayes", "fit", *map(str, args)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
+
+
+def _two_traces_one_figure_name(session_dir):
+    """Add a second trace, 'Step', whose figure name differs from 'step' only in case."""
+    text = (session_dir / "session.toml").read_text()
+    block = text[text.index("[[trace]]"):]
+    (session_dir / "session.toml").write_text(text + "\n" + block.replace('"step"', '"Step"', 1))
+    return session_dir
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    from conftest import write_session
+
+    root = tmp_path_factory.mktemp("rundir")
+    session = _two_traces_one_figure_name(write_session(root / "sess"))
+    out = root / "runs" / "run"
+    proc = _fit_cli(session, "--no-mcmc", "--out", out, "--allow-inadequate",
+                    "--allow-unconverged")
+    _, err = proc.communicate(timeout=900)
+    assert proc.returncode == 0, err
+    return session, out
+
+
+def test_figures_whose_names_collide_are_both_kept(fitted):
+    _, out = fitted
+    names = {p.name for p in (out / "figures").glob("trace_*.png")}
+    assert {"trace_step.png", "trace_Step-2.png"} <= names
+    html = (out / "report.md").read_text()
+    assert "figures/trace_Step-2.png" in html and "figures/trace_step.png" in html
+
+
+def test_the_run_holds_its_session_and_reports_after_the_original_changes(fitted, tmp_path):
+    import shutil
+
+    session, out = fitted
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    summary = json.loads((run / "summary.json").read_text())
+    assert set(summary["session"]["files"]) == {"session.toml", "step.csv", "sweep.csv"}
+    assert (run / "session" / "step.csv").read_bytes() == (session / "step.csv").read_bytes()
+    moved = tmp_path / "moved"
+    shutil.copytree(session, moved)
+    shutil.rmtree(session)
+    try:
+        proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(run)],
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        # without its copy, a run whose session has gone or changed is refused by name
+        shutil.rmtree(run / "session")
+        proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(run)],
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 2 and "changed or missing since the fit" in proc.stderr
+        assert len(proc.stderr.splitlines()) == 1
+    finally:
+        shutil.copytree(moved, session)
+
+
+def _wait_for_stage(parent: Path, name: str, file: str, proc, timeout=600):
+    """Wait until the run being built beside ``parent/name`` holds ``file``."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and proc.poll() is None:
+        for d in parent.glob(f".{name}.*"):
+            if (d / file).exists():
+                return True
+        time.sleep(0.05)
+    return False
+
+
+@pytest.mark.parametrize(("sig", "code", "stage"), [(signal.SIGTERM, 143, RUN_MARKER),
+                                                    (signal.SIGINT, 130, "summary.json")])
+def test_an_interrupted_rewrite_leaves_the_earlier_run(fitted, sig, code, stage):
+    """SIGTERM as the new run starts being written, SIGINT once its summary is written and
+    its report is being drawn: the earlier run stays whole, nothing else is left."""
+    session, out = fitted
+    before = _snapshot(out)
+    proc = _fit_cli(session, "--no-mcmc", "--out", out, "--force", "--allow-inadequate",
+                    "--allow-unconverged")
+    assert _wait_for_stage(out.parent, out.name, stage, proc), proc.communicate()
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == code, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert _snapshot(out) == before
+    assert _debris(out.parent, out.name) == []
+
+
+def _mount_tmpfs(where: Path, size: str, *opts) -> bool:
+    where.mkdir()
+    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", ",".join((f"size={size}", *opts)),
+                           "tmpfs", str(where)], capture_output=True)
+    return proc.returncode == 0
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    disk = tmp_path / "disk"
+    if not _mount_tmpfs(disk, "64k"):
+        pytest.skip("cannot mount a small file system here (needs root and mount)")
+    yield disk
+    subprocess.run(["umount", str(disk)], check=False)
+
+
+def test_a_full_disk_is_one_line_and_leaves_nothing(fitted, small_disk):
+    session, _ = fitted
+    proc = _fit_cli(session, "--no-mcmc", "--out", small_disk / "run", "--allow-inadequate",
+                    "--allow-unconverged")
+    _, err = proc.communicate(timeout=900)
+    assert proc.returncode == 2, err
+    assert "No space left on device" in err and len(err.strip().splitlines()) == 1
+    assert list(small_disk.iterdir()) == []
+
+
+@pytest.fixture
+def read_only_cache(tmp_path):
+    cache = tmp_path / "cache"
+    if not _mount_tmpfs(cache, "1m", "ro"):
+        pytest.skip("cannot mount a read-only file system here (needs root and mount)")
+    yield cache
+    subprocess.run(["umount", str(cache)], check=False)
+
+
+@pytest.mark.slow
+def test_a_read_only_compile_cache_does_not_stop_a_fit(fitted, read_only_cache, tmp_path):
+    session, _ = fitted
+    env = dict(os.environ, PMDC_BAYES_CACHE=str(read_only_cache))
+    proc = _fit_cli(session, "--no-mcmc", "--out", tmp_path / "run", "--allow-inadequate",
+                    "--allow-unconverged", env=env)
+    _, err = proc.communicate(timeout=900)
+    assert proc.returncode == 0, err
+    assert (tmp_path / "run" / "summary.json").is_file()
