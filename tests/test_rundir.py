@@ -241,3 +241,21 @@ def test_a_read_only_compile_cache_does_not_stop_a_fit(fitted, read_only_cache, 
     _, err = proc.communicate(timeout=900)
     assert proc.returncode == 0, err
     assert (tmp_path / "run" / "summary.json").is_file()
+
+
+def test_report_on_a_read_only_run_is_one_line(fitted, tmp_path):
+    import shutil
+
+    _, out = fitted
+    mount = tmp_path / "ro"
+    if not _mount_tmpfs(mount, "50m"):
+        pytest.skip("cannot mount a file system here (needs root and mount)")
+    try:
+        shutil.copytree(out, mount / "run")
+        subprocess.run(["mount", "-o", "remount,ro", str(mount)], check=True)
+        proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report",
+                               str(mount / "run")], capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 2, proc.stderr
+        assert "cannot write in" in proc.stderr and len(proc.stderr.splitlines()) == 1
+    finally:
+        subprocess.run(["umount", str(mount)], check=False)

@@ -16,6 +16,7 @@ from pathlib import Path
 from ._console import print_fit
 from ._errors import SessionError, UsageError
 from .io.bundled import DEFAULT_SESSION, bundled_session_dir
+from .rundir import check_writable
 
 __all__ = ["main"]
 
@@ -117,6 +118,7 @@ def _cmd_report(args) -> int:
     if not (run_dir / "summary.json").is_file():
         raise UsageError(f"{run_dir}: no summary.json here; give a directory that "
                          "'pmdc-bayes fit' wrote")
+    check_writable(run_dir, what="copy the run to a writable place and report there")
     _enable_compilation_cache()
     paths = write_report(run_dir)
     print(f"Wrote {paths['html']}, {paths['markdown'].name}, {paths['controller'].name} and "

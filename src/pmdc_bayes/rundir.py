@@ -16,7 +16,7 @@ from pathlib import Path
 from ._errors import UsageError
 
 __all__ = ["RUN_MARKER", "SESSION_COPY", "is_run_dir", "check_replaceable", "write_atomically",
-           "default_mode", "copy_session", "changed_files"]
+           "default_mode", "copy_session", "changed_files", "check_writable"]
 
 
 RUN_MARKER = ".pmdc-bayes-run"
@@ -68,19 +68,19 @@ def is_run_dir(path: Path) -> bool:
         and ((path / RUN_MARKER).is_file() or (path / "summary.json").is_file())
 
 
-def _check_writable(out: Path) -> None:
-    """Refuse an ``out`` that cannot be created: below a regular file, or in a directory
-    that is read-only (checked by creating and removing a probe directory)."""
-    base = out.parent
+def check_writable(out: Path, *, what: str = "choose another --out") -> None:
+    """Refuse an ``out`` that cannot be written in (an existing directory) or created:
+    below a regular file, or in a read-only place (checked by creating and removing a
+    probe directory, so read-only mounts are found whoever runs)."""
+    base = out if out.is_dir() else out.parent
     while not base.exists() and base != base.parent:
         base = base.parent
     if not base.is_dir():
-        raise UsageError(f"{out}: {base} is a file, not a directory; choose another --out")
+        raise UsageError(f"{out}: {base} is a file, not a directory; {what}")
     try:
         os.rmdir(tempfile.mkdtemp(prefix=".pmdc-bayes-probe.", dir=base))
     except OSError as exc:
-        raise UsageError(f"{out}: cannot write in {base} ({exc.strerror}); choose another "
-                         "--out") from None
+        raise UsageError(f"{out}: cannot write in {base} ({exc.strerror}); {what}") from None
 
 
 def default_mode(directory: bool = False) -> int:
@@ -102,7 +102,7 @@ def check_replaceable(out: Path, force: bool) -> None:
     """Refuse, before any work, an ``out`` that cannot be written, or that exists unless
     ``force`` is given and it is a previous run: never a session, a regular file or a
     folder of the user's."""
-    _check_writable(out)
+    check_writable(out.parent if out.is_dir() else out)
     if not (out.exists() or out.is_symlink()):
         return
     if not force:

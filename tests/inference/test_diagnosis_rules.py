@@ -77,3 +77,24 @@ def test_a_no_load_speed_the_session_contradicts_fails_the_plausibility_check():
     # the steady table's 12 V row (0.3 % reading noise) is the level compared
     assert out["no_load_speed"]["logged_speed"] == pytest.approx(
         session.steady_tables[0].speed[-1], rel=1e-12)
+
+
+def test_a_driven_trace_whose_speed_never_leaves_its_noise_is_named():
+    import dataclasses
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.diagnosis import _still
+    from pmdc_bayes.inference.noise import Channel, noise_scale
+    from pmdc_bayes.simulate.bench import StepSpec
+
+    session = bench_session(BenchMotor(**MOTOR), [StepSpec("off", 0.0, 0.12, 2e-4),
+                                                  StepSpec("on", 12.0, 0.12, 2e-4)])
+    off, on = session.traces
+    rng = np.random.default_rng(3)
+    blocked = dataclasses.replace(on, speed=off.speed + 0.01 * rng.standard_normal(off.n))
+    model = SimpleNamespace(channels=[Channel(f"{tr.name}: speed", "rad/s", tr.n,
+                                              noise_scale(tr.speed)) for tr in (off, on)])
+    assert _still(model, off) == []  # nothing applied, nothing expected
+    assert _still(model, on) == []  # it turns
+    (sentence,) = _still(model, blocked)
+    assert sentence.startswith("on: the speed never leaves its noise although 12 V")

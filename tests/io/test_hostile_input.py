@@ -169,3 +169,15 @@ def test_a_closed_pipe_is_not_an_error(session_dir):
                           shell=True, capture_output=True, text=True, timeout=120)
     assert proc.stdout.startswith("Closed-form identification")
     assert proc.stderr == ""
+
+
+@pytest.mark.parametrize(("reading", "expected"), [
+    ("voltage = 0.0\nfinal_speed = 100.0\ntau = 0.2\n", "step_reading['sr'].voltage: is 0"),
+    ("voltage = 6.0\nfinal_speed = 0.0\ntau = 0.2\n", "final_speed: equals the initial"),
+])
+def test_a_step_reading_that_is_no_step_is_one_line(session_dir, reading, expected):
+    with (session_dir / TOML).open("a") as fh:
+        fh.write('\n[[step_reading]]\nname = "sr"\n' + reading)
+    proc = _run(session_dir)
+    assert proc.returncode == 2 and expected in proc.stderr, proc.stderr
+    assert len(proc.stderr.splitlines()) == 1

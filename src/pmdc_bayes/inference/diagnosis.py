@@ -192,9 +192,22 @@ def _finding_rules(model, fit, findings, already=()):
     return out
 
 
+def _still(model, tr):
+    """A sentence when the speed of a driven trace never leaves its noise."""
+    s0 = next(c.s0 for c in model.channels if c.name == f"{tr.name}: speed")
+    volts = float(np.max(np.abs(tr.voltage.values)))
+    if volts > 0 and np.ptp(tr.speed) < 2 * DEPART * s0:
+        return [f"{tr.name}: the speed never leaves its noise although {volts:.3g} V is "
+                "applied: the rotor was blocked, the driver off, or the column is not the "
+                "speed; check the rig and the column, or remove the trace"]
+    return []
+
+
 def diagnose(model, fit, preds, findings) -> list[str]:
     """Sentences naming what the data suggest the model lacks, most specific first."""
     out = []
+    for tr in model.session.traces:
+        out += _still(model, tr)
     for tr, pred in zip(model.session.traces, preds, strict=True):
         # every trace, not only failing ones: a model that absorbs a delay in Ra and La
         # fails on those parameters while its traces only warn

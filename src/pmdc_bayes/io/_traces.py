@@ -79,6 +79,11 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
                            f"{t_raw[k]:g} follows {t_raw[k - 1]:g} (line {lines[k - 1]}); sort "
                            "the rows by time and remove duplicate samples",
                            where=f"line {lines[k]}")
+    speed = raw["speed"]
+    if np.all(speed == speed[0]):
+        raise SessionError(path, f"the speed column {cols['speed']!r} is {speed[0]:g} in every "
+                           "row: the motor did not turn, or the column is not the speed; "
+                           "remove the trace or log one in which the motor turns")
     time = to_si(t_raw, "time", u["time"])
     return path, raw, t_raw, time
 

@@ -119,13 +119,20 @@ def _steady_table(t: _Table, root: Path) -> SteadyTable:
 def _step_reading(t: _Table) -> StepReading:
     t.check_keys(("name", *_STEP_KINDS, "units"))
     name, u = t.string("name"), t.units(_STEP_KINDS)
-    return StepReading(
+    reading = StepReading(
         name=name,
         voltage=t.number("voltage", "voltage", u["voltage"]),
         final_speed=t.number("final_speed", "speed", u["final_speed"]),
         tau=t.number("tau", "time", u["tau"], positive=True),
         initial_speed=t.number("initial_speed", "speed", u["initial_speed"], default=0.0),
     )
+    if reading.final_speed == reading.initial_speed:
+        t.fail("final_speed", "equals the initial speed: there was no step to read a time "
+               "constant from; check the values or remove the reading")
+    if reading.voltage == 0 and reading.final_speed != 0:
+        t.fail("voltage", "is 0 but the speed settles away from 0; give the voltage the "
+               "step went to")
+    return reading
 
 
 def _truth(path: Path) -> dict | None:
