@@ -9,7 +9,6 @@ or line, what is wrong and how to fix it.  The format is described in
 from __future__ import annotations
 
 import json
-import math
 import re
 import tomllib
 from pathlib import Path
@@ -151,8 +150,8 @@ def _truth(path: Path) -> dict | None:
         if key in data:
             v = data[key]
             if isinstance(v, bool) or not isinstance(v, int | float) or not abs(v) < 1e300:
-                raise SessionError(path, f"{key} is {str(v)[:20]!r}, not a finite number; write the "
-                                   "SI value", where=key)
+                raise SessionError(path, f"{key} is {str(v)[:20]!r}, not a finite number; "
+                                   "write the SI value", where=key)
             truth[key] = float(v)
     return truth
 
