@@ -98,3 +98,20 @@ def test_false_alarm_rate_over_motors_the_model_describes():
         verdicts.append((a.verdict, [f.message for f in a.failures()]))
     alarms = [v for v in verdicts if v[0] != "adequate"]
     assert len(alarms) <= 0.05 * N_MOTORS, alarms
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("factor", "words"), [(60 / (2 * np.pi), ("rpm given as rad/s",)),
+                                               (-1.0, ("reversed sign",))])
+def test_a_unit_slip_or_reversed_sign_on_one_trace_is_named(factor, words):
+    """The step_6v log holds rpm read as rad/s, or counts the other way: the fit cannot
+    absorb it (the other trace and the steady table disagree) and names the slip."""
+    import dataclasses
+
+    session = case_session()
+    traces = tuple(dataclasses.replace(tr, speed=tr.speed * factor)
+                   if tr.name == "step_6v" else tr for tr in session.traces)
+    a = _verdict(dataclasses.replace(session, traces=traces))
+    assert a.verdict == "inadequate"
+    assert _says(a, "step_6v", *words), a.diagnosis
+    assert not _says(a, "unmeasured load"), a.diagnosis

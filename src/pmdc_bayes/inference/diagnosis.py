@@ -32,9 +32,11 @@ LATE_SHARE = 0.03  # ... and this share of the rise time counts as late
 SLOW_START = 1.5  # fitted La/Ra this many times the bench's: something delays the start
 DEPART = 5.0  # a channel has left rest when it is this many noise sd from its level ...
 DEPART_SPAN = 0.01  # ... and this share of its span
-UNIT_RATIOS = {"rpm given as rad/s": 2 * np.pi / 60, "rad/s given as rpm": 60 / (2 * np.pi),
-               "rev/s given as rad/s": 2 * np.pi, "rad/s given as rev/s": 1 / (2 * np.pi),
-               "mA given as A": 1000.0, "A given as mA": 1e-3}
+UNIT_RATIOS = {"rpm given as rad/s": 60 / (2 * np.pi), "rad/s given as rpm": 2 * np.pi / 60,
+               "rev/s given as rad/s": 1 / (2 * np.pi), "rad/s given as rev/s": 2 * np.pi,
+               "mA given as A": 1000.0, "A given as mA": 1e-3,
+               "a reversed sign (the speed counts the other way)": -1.0}
+SLIP_TOLERANCE = 0.03
 
 
 def _late_start(tr, y, yhat, s0, t_step, t_rise):
@@ -110,6 +112,18 @@ def _flat_top(tr, ia):
     return []
 
 
+def _unit_slips(ratios, outliers) -> dict[str, str]:
+    """Traces whose settled speed is a unit ratio (or -1) times what the model or the
+    other traces' levels imply: trace name -> the slip's label."""
+    out = {}
+    for name, r in ratios.items():
+        seen = [r] + ([1 + outliers[name]] if name in outliers else [])
+        for label, ratio in UNIT_RATIOS.items():
+            if any(abs(x / ratio - 1) < SLIP_TOLERANCE for x in seen):
+                out[name] = label
+    return out
+
+
 def _level_rules(model, fit, preds, findings):
     """Sentences on the steady levels: unmeasured loads, unit slips, an offset."""
     session, out = model.session, []
@@ -126,15 +140,22 @@ def _level_rules(model, fit, preds, findings):
         alt = ", or a voltage drop the other traces hide"
     else:
         alt = ""
+    slips = _unit_slips(ratios, outliers)
+    if slips and len(slips) == len(ratios) and len(set(slips.values())) == 1:
+        label = next(iter(slips.values()))
+        out.append(f"the logged speeds are {UNIT_RATIOS[label]:.4g} x what the rest of the "
+                   f"session implies: a unit slip ({label}); check the units in session.toml")
+    else:
+        out += [f"{name}: its speed is {UNIT_RATIOS[label]:.4g} x what the rest of the "
+                f"session implies: {label}; check this trace's units and sign in session.toml"
+                for name, label in slips.items()]
     for name, m in outliers.items():
+        if name in slips:
+            continue
         out.append(f"{name}: settles {100 * abs(m):.2g} % {'below' if m < 0 else 'above'} "
                    "the speed the other levels imply: an unmeasured load on this trace "
                    f"(a brake, a generator, a rubbing coupling){alt}; declare its load "
                    "torque")
-    for label, ratio in UNIT_RATIOS.items():
-        if ratios and all(abs(r / ratio - 1) < 0.03 for r in ratios.values()):
-            out.append(f"the logged speeds are {ratio:.4g} x what the rest of the session "
-                       f"implies: a unit slip ({label}); check the units in session.toml")
     icpt, offset = voltage_intercept(session), friction_offset(session)
     coulomb = (offset is not None and offset["current"] > 3 * offset["se"]
                and offset["current"] > 0.05 * offset["mean_current"])
