@@ -259,3 +259,18 @@ def test_report_on_a_read_only_run_is_one_line(fitted, tmp_path):
         assert "cannot write in" in proc.stderr and len(proc.stderr.splitlines()) == 1
     finally:
         subprocess.run(["umount", str(mount)], check=False)
+
+
+def test_report_without_the_cache_stores_nothing(fitted, tmp_path):
+    import shutil
+
+    _, out = fitted
+    shutil.copytree(out, tmp_path / "run")
+    env = dict(os.environ, PMDC_BAYES_CACHE=str(tmp_path / "cache"))
+    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(tmp_path / "run"),
+                           "--no-cache"], capture_output=True, text=True, timeout=600, env=env)
+    assert proc.returncode == 0, proc.stderr
+    assert not (tmp_path / "cache").exists()
+    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(tmp_path / "run")],
+                          capture_output=True, text=True, timeout=600, env=env)
+    assert proc.returncode == 0 and any((tmp_path / "cache" / "export").rglob("*.jaxexport"))

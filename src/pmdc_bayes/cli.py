@@ -13,6 +13,7 @@ import sys
 import threading
 from pathlib import Path
 
+from . import cachedir
 from ._console import print_fit
 from ._errors import SessionError, UsageError
 from .io.bundled import DEFAULT_SESSION, bundled_session_dir
@@ -82,13 +83,16 @@ def _cmd_fit(args) -> int:
     if args.compare and args.add:
         raise UsageError("--compare chooses the non-idealities itself; drop --add (or drop "
                          "--compare to fit the ones you name)")
-    _enable_compilation_cache()
+    if not args.no_cache:
+        cachedir.enable()
     out, summary = run_fit(
         _session_path(args.session), out=args.out, force=args.force, mcmc=not args.no_mcmc,
         friction=args.friction, seed=args.seed, holdout=args.holdout or (),
         compare_friction=args.compare_friction, allow_inadequate=args.allow_inadequate,
         add=tuple(a.replace("-", "_") for a in args.add or ()), compare=args.compare,
     )
+    if not args.no_cache:
+        cachedir.prune()
     adequate = print_fit(summary, out)
     status = 0
     if not adequate:
@@ -119,25 +123,25 @@ def _cmd_report(args) -> int:
         raise UsageError(f"{run_dir}: no summary.json here; give a directory that "
                          "'pmdc-bayes fit' wrote")
     check_writable(run_dir, what="copy the run to a writable place and report there")
-    _enable_compilation_cache()
+    if not args.no_cache:
+        cachedir.enable()
     paths = write_report(run_dir)
     print(f"Wrote {paths['html']}, {paths['markdown'].name}, {paths['controller'].name} and "
           f"{len(paths['figures'])} figures in {run_dir / 'figures'}")
     return 0
 
 
-def _enable_compilation_cache() -> None:
-    """Keep compiled programs across runs (a later run of sessions of the same shapes
-    skips tracing and compilation); ``PMDC_BAYES_CACHE`` moves the cache."""
-    import jax
-
-    jax.config.update("jax_enable_x64", True)
-    from .inference import cache as _cache
-
-    try:
-        _cache.enable(_cache_dir())
-    except OSError:
-        pass
+def _cmd_cache(args) -> int:
+    if args.action == "clear":
+        freed = cachedir.clear()
+        print(f"cleared {cachedir.location()} ({freed / 2**20:.1f} MB freed)")
+        return 0
+    report = cachedir.info()
+    print(f"cache: {report['location']} (bound {report['max_bytes'] / 2**20:.0f} MB of compiled "
+          "programs; PMDC_BAYES_CACHE moves it, PMDC_BAYES_CACHE_MAX_MB bounds it)")
+    for part, n in report["parts"].items():
+        print(f"  {part:<7}{n['files']:>6} files {n['bytes'] / 2**20:>9.1f} MB")
+    return 0
 
 
 def _seed(text: str) -> int:
@@ -232,6 +236,8 @@ def _parser() -> argparse.ArgumentParser:
     ft.add_argument("--allow-inadequate", action="store_true",
                     help="go on (sample the posterior, exit 0) even when the adequacy checks "
                     "reject the model; every value stays labelled as conditional on it")
+    ft.add_argument("--no-cache", action="store_true",
+                    help="neither read nor store compiled programs in the cache directory")
     ft.set_defaults(func=_cmd_fit)
     rp = sub.add_parser(
         "report",
@@ -241,7 +247,20 @@ def _parser() -> argparse.ArgumentParser:
         "RUN_DIR/posterior.nc (if present) and the session the summary names.",
     )
     rp.add_argument("run_dir", metavar="RUN_DIR", help="a directory written by 'pmdc-bayes fit'")
+    rp.add_argument("--no-cache", action="store_true",
+                    help="neither read nor store compiled programs in the cache directory")
     rp.set_defaults(func=_cmd_report)
+    ch = sub.add_parser(
+        "cache",
+        help="show or clear the cache of compiled programs",
+        description="The cache keeps compiled programs across runs (a session of a shape "
+        "seen before fits without compiling) and the logs of internal errors; it lives in "
+        "$PMDC_BAYES_CACHE or ~/.cache/pmdc-bayes and is bounded by "
+        "$PMDC_BAYES_CACHE_MAX_MB (default 2000).  'clear' deletes only what pmdc-bayes "
+        "wrote there.",
+    )
+    ch.add_argument("action", choices=("info", "clear"), nargs="?", default="info")
+    ch.set_defaults(func=_cmd_cache)
     return p
 
 
@@ -272,36 +291,13 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except Exception as exc:  # a fault of the tool, not of the user's input
-        log = _save_traceback()
+        log = cachedir.save_traceback()
         print(f"pmdc-bayes: internal error ({type(exc).__name__}: {exc}); traceback saved "
               f"to {log}", file=sys.stderr)
         return EXIT_INTERNAL
     finally:
         if in_main:
             signal.signal(signal.SIGTERM, previous)
-
-
-def _cache_dir() -> Path:
-    return Path(os.environ.get("PMDC_BAYES_CACHE", Path.home() / ".cache" / "pmdc-bayes"))
-
-
-def _save_traceback() -> str:
-    """Write the current exception's traceback to a new log file in the cache
-    directory's ``logs`` (the system's temporary directory if that is not writable)."""
-    import tempfile
-    import time
-    import traceback
-
-    prefix = time.strftime("error-%Y%m%d-%H%M%S-")
-    try:
-        logs = _cache_dir() / "logs"
-        logs.mkdir(parents=True, exist_ok=True)
-        fd, path = tempfile.mkstemp(prefix=prefix, suffix=".log", dir=logs)
-    except OSError:
-        fd, path = tempfile.mkstemp(prefix="pmdc-bayes-" + prefix, suffix=".log")
-    with open(fd, "w", encoding="utf-8") as fh:
-        fh.write(" ".join(sys.argv) + "\n\n" + traceback.format_exc())
-    return path
 
 
 if __name__ == "__main__":

@@ -1,0 +1,106 @@
+"""The cache of compiled programs: keyed on every traced library, robust to damaged or
+unwritable entries, bounded, and cleared without touching anything else."""
+
+import os
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from pmdc_bayes import cachedir, cli
+from pmdc_bayes.inference import cache
+
+
+@pytest.fixture
+def disk_cache(tmp_path, monkeypatch):
+    """The package's disk cache in ``tmp_path``, restored afterwards."""
+    monkeypatch.setenv("PMDC_BAYES_CACHE", str(tmp_path / "cache"))
+    state, xla = dict(cache._STATE), jax.config.jax_compilation_cache_dir
+    memory = dict(cache._IN_MEMORY)
+    cache._IN_MEMORY.clear()
+    assert cachedir.enable()
+    yield tmp_path / "cache"
+    cache._STATE.update(state)
+    jax.config.update("jax_compilation_cache_dir", xla)
+    cache._IN_MEMORY.clear()
+    cache._IN_MEMORY.update(memory)
+
+
+def _cubes():
+    return cache.compiled(("test_cubes", 1), lambda: jax.jit(lambda x: x ** 3))
+
+
+def test_the_key_changes_with_any_traced_library(monkeypatch):
+    from importlib import metadata
+
+    before = cache._source_hash()
+    real = metadata.version
+    for lib in ("jaxlib", "optimistix", "equinox", "lineax", "diffrax"):
+        monkeypatch.setattr(metadata, "version",
+                            lambda name, lib=lib: "0.0.0" if name == lib else real(name))
+        assert cache._source_hash() != before, lib
+    monkeypatch.setattr(metadata, "version", real)
+    assert cache._source_hash() == before
+
+
+def test_a_damaged_entry_is_rebuilt(disk_cache):
+    x = jnp.arange(3.0)
+    assert np.allclose(_cubes()(x), [0, 1, 8])
+    (entry,) = disk_cache.glob("export/*/test_cubes-*.jaxexport")
+    entry.write_bytes(b"not a program")
+    cache._IN_MEMORY.clear()
+    assert np.allclose(_cubes()(x), [0, 1, 8])
+    assert entry.read_bytes() != b"not a program"
+
+
+def test_an_unwritable_cache_still_computes(disk_cache, monkeypatch):
+    from pathlib import Path
+
+    def refuse(self, data):
+        raise OSError(30, "Read-only file system")
+
+    monkeypatch.setattr(Path, "write_bytes", refuse)
+    assert np.allclose(_cubes()(jnp.arange(2.0)), [0, 1])
+    assert list(disk_cache.glob("export/*/test_cubes-*")) == []
+
+
+def _file(path, size, age):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(b"x" * size)
+    t = 1_700_000_000 - age
+    os.utime(path, (t, t))
+    return path
+
+
+def test_prune_drops_the_least_recently_used_programs_first(tmp_path, monkeypatch):
+    monkeypatch.setenv("PMDC_BAYES_CACHE", str(tmp_path))
+    old = _file(tmp_path / "export" / "a" / "old.jaxexport", 600, age=300)
+    mid = _file(tmp_path / "xla" / "mid", 600, age=200)
+    new = _file(tmp_path / "export" / "a" / "new.jaxexport", 600, age=100)
+    log = _file(tmp_path / "logs" / "error-1.log", 5000, age=400)  # not a program
+    assert cachedir.prune(1300) == 600
+    assert not old.exists() and mid.exists() and new.exists() and log.exists()
+    assert cachedir.prune(0) == 1200 and log.exists()
+
+
+def test_clear_deletes_only_what_the_tool_wrote(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("PMDC_BAYES_CACHE", str(tmp_path))
+    mine = _file(tmp_path / "notes.txt", 10, age=0)
+    keep = _file(tmp_path / "project" / "data.csv", 10, age=0)
+    _file(tmp_path / "export" / "a" / "p.jaxexport", 100, age=0)
+    _file(tmp_path / "xla" / "q", 200, age=0)
+    assert cli.main(["cache", "info"]) == 0
+    out = capsys.readouterr().out
+    assert str(tmp_path) in out and "export" in out and "xla" in out
+    assert cli.main(["cache", "clear"]) == 0
+    assert mine.exists() and keep.exists()
+    assert not (tmp_path / "export").exists() and not (tmp_path / "xla").exists()
+    assert "0.0 MB freed" in capsys.readouterr().out
+
+
+def test_the_bound_comes_from_the_environment(monkeypatch):
+    monkeypatch.setenv("PMDC_BAYES_CACHE_MAX_MB", "1.5")
+    assert cachedir.max_bytes() == int(1.5 * 2**20)
+    monkeypatch.setenv("PMDC_BAYES_CACHE_MAX_MB", "lots")
+    assert cachedir.max_bytes() == 2000 * 2**20
