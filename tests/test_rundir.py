@@ -128,10 +128,26 @@ def fitted(tmp_path_factory):
     session = _two_traces_one_figure_name(write_session(root / "sess"))
     out = root / "runs" / "run"
     proc = _fit_cli(session, "--no-mcmc", "--out", out, "--allow-inadequate",
-                    "--allow-unconverged")
+                    "--allow-unconverged", "--verbose")
     _, err = proc.communicate(timeout=900)
     assert proc.returncode == 0, err
+    stages = [line.split("] ", 1)[1].split()[0] for line in err.splitlines()
+              if line.startswith("pmdc-bayes: [")]
+    assert stages == ["loading", "closed", "MAP", "adequacy", "writing"], err
     return session, out
+
+
+def test_quiet_prints_nothing_but_the_verdict_against_the_model(fitted, tmp_path):
+    """The small session's synthetic current is not a motor's: the model is inadequate,
+    and even --quiet with --allow-inadequate says so, in one line."""
+    session, _ = fitted
+    proc = _fit_cli(session, "--no-mcmc", "--out", tmp_path / "run", "--allow-inadequate",
+                    "--allow-unconverged", "--quiet")
+    out, err = proc.communicate(timeout=900)
+    assert proc.returncode == 0 and out == "", (out, err)
+    (line,) = err.splitlines()
+    assert line.startswith("pmdc-bayes: error: model inadequate: ")
+    assert (tmp_path / "run" / "report.html").is_file()
 
 
 def test_figures_whose_names_collide_are_both_kept(fitted):

@@ -5,7 +5,8 @@ User mistakes (a bad session, a bad option) print one line and exit with code 2.
 
 from __future__ import annotations
 
-import argparse
+import contextlib
+import io
 import json
 import os
 import signal
@@ -14,6 +15,7 @@ import threading
 from pathlib import Path
 
 from . import cachedir
+from ._cli_parser import build_parser
 from ._console import print_fit
 from ._errors import SessionError, UsageError
 from .io.bundled import DEFAULT_SESSION, bundled_session_dir
@@ -86,14 +88,19 @@ def _cmd_fit(args) -> int:
     if not args.no_cache:
         cachedir.enable()
     out, summary = run_fit(
-        _session_path(args.session), out=args.out, force=args.force, mcmc=not args.no_mcmc,
+        _session_path(args.session), say=_stage_printer(args), progress=_bar(args),
+        out=args.out, force=args.force, mcmc=not args.no_mcmc,
         friction=args.friction, seed=args.seed, holdout=args.holdout or (),
         compare_friction=args.compare_friction, allow_inadequate=args.allow_inadequate,
         add=tuple(a.replace("-", "_") for a in args.add or ()), compare=args.compare,
     )
     if not args.no_cache:
         cachedir.prune()
-    adequate = print_fit(summary, out)
+    if args.quiet:
+        with contextlib.redirect_stdout(io.StringIO()):
+            adequate = print_fit(summary, out)
+    else:
+        adequate = print_fit(summary, out)
     status = 0
     if not adequate:
         first = next(f for f in summary["adequacy"]["findings"] if f["severity"] == "fail")
@@ -131,6 +138,26 @@ def _cmd_report(args) -> int:
     return 0
 
 
+def _stage_printer(args):
+    """A line on stderr as each stage starts (on a terminal, or with --verbose), with the
+    seconds since the command started; nothing with --quiet."""
+    import time
+
+    if args.quiet or not (args.verbose or sys.stderr.isatty()):
+        return None
+    start = time.perf_counter()
+
+    def say(text: str) -> None:
+        print(f"pmdc-bayes: [{time.perf_counter() - start:6.1f} s] {text}", file=sys.stderr,
+              flush=True)
+
+    return say
+
+
+def _bar(args):
+    return False if args.quiet else (True if args.verbose else None)
+
+
 def _cmd_cache(args) -> int:
     if args.action == "clear":
         freed = cachedir.clear()
@@ -144,126 +171,6 @@ def _cmd_cache(args) -> int:
     return 0
 
 
-def _seed(text: str) -> int:
-    """A random seed: a whole number from 0 to 2**32 - 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if not 0 <= value < 2**32:
-        raise argparse.ArgumentTypeError(f"{value} is outside 0 .. 4294967295")
-    return value
-
-
-def _version() -> str:
-    from importlib import metadata
-
-    try:
-        return metadata.version("pmdc-bayes")
-    except metadata.PackageNotFoundError:
-        return "unknown"
-
-
-def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="pmdc-bayes",
-        description="Identify a permanent-magnet DC motor's parameters (Ra, La, K, B, J, "
-        "Coulomb friction) from bench experiments, with honest uncertainty.",
-    )
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    sub.required = True
-    cf = sub.add_parser(
-        "closed-form",
-        help="the reference paper's closed-form method (Table I, tau, G, transfer function)",
-        description="Apply the reference paper's closed-form method to a session and print "
-        "a table like its Table I, the time constant, the gain and transfer function (22).",
-    )
-    cf.add_argument("session", nargs="?", help=f"session directory (default: bundled "
-                    f"'{DEFAULT_SESSION}')")
-    cf.add_argument("--json", action="store_true", help="print one JSON object with SI floats")
-    cf.set_defaults(func=_cmd_closed_form)
-    sim = sub.add_parser(
-        "simulate",
-        help="write a simulated session (bench, steady points, traces) from a plan",
-        description="Simulate the bench work a plan describes (true parameters, bench "
-        "uncertainties, operating points, steady tables, traces with sensor noise, "
-        "quantisation and delay) and write it as a session directory: session.toml, CSV "
-        "files and truth.json.  The same plan and seed give byte-identical files.  "
-        "Example: pmdc-bayes simulate data/demo/plan.toml --out data/demo --force",
-    )
-    sim.add_argument("plan", help="the plan TOML file (see data/demo/plan.toml)")
-    sim.add_argument("--out", metavar="DIR", help="session directory to write (default: the "
-                     "plan's directory)")
-    sim.add_argument("--seed", type=_seed, metavar="N", help="random seed (default: the plan's "
-                     "seed)")
-    sim.add_argument("--force", action="store_true", help="replace the generated files of an "
-                     "existing session in DIR (other files such as plan.toml are kept)")
-    sim.set_defaults(func=_cmd_simulate)
-    ft = sub.add_parser(
-        "fit",
-        help="closed form, then the joint MAP fit of every trace and steady point",
-        description="Identify the motor from a session: the paper's closed form seeds a joint "
-        "Levenberg-Marquardt fit of every trace, steady table and operating point, with Laplace "
-        "uncertainty and an identifiability report.  Writes OUT/summary.json.",
-    )
-    ft.add_argument("session", nargs="?", help=f"session directory (default: bundled "
-                    f"'{DEFAULT_SESSION}')")
-    ft.add_argument("--out", type=Path, help="run directory (default: reports/<session>-<time>)")
-    ft.add_argument("--force", action="store_true", help="replace an existing --out directory")
-    ft.add_argument("--no-mcmc", action="store_true", help="stop after the MAP fit")
-    ft.add_argument("--friction", choices=("viscous", "coulomb"),
-                    help="friction model (default: the session's)")
-    ft.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
-    ft.add_argument("--holdout", action="append", metavar="TRACE",
-                    help="fit without this trace (repeatable)")
-    ft.add_argument("--compare-friction", action="store_true",
-                    help="also fit and sample the other friction model and compare the two "
-                    "by PSIS-LOO (ArviZ)")
-    ft.add_argument("--allow-unconverged", action="store_true",
-                    help="exit 0 even if the fit or the sampler fails its checks")
-    ft.add_argument("--add", action="append", metavar="NUISANCE",
-                    choices=("dead-time", "voltage-drop", "speed-lag", "current-lag",
-                             "dead_time", "voltage_drop", "speed_lag", "current_lag"),
-                    help="also fit this non-ideality of the rig (repeatable): dead-time (one "
-                    "per trace), voltage-drop (brushes and driver), speed-lag or current-lag "
-                    "(a first-order sensor or filter lag); same as [model] in session.toml")
-    ft.add_argument("--compare", action="store_true",
-                    help="fit the candidate sets of rig non-idealities (ideal, + dead-time, "
-                    "+ speed-lag, + voltage-drop, + voltage-drop with either), check each for "
-                    "adequacy, compare the adequate ones by LOO, and run the simplest "
-                    "adequate one")
-    ft.add_argument("--allow-inadequate", action="store_true",
-                    help="go on (sample the posterior, exit 0) even when the adequacy checks "
-                    "reject the model; every value stays labelled as conditional on it")
-    ft.add_argument("--no-cache", action="store_true",
-                    help="neither read nor store compiled programs in the cache directory")
-    ft.set_defaults(func=_cmd_fit)
-    rp = sub.add_parser(
-        "report",
-        help="regenerate the uncertainty report of a finished run",
-        description="Write RUN_DIR/report.html (self-contained), RUN_DIR/report.md, "
-        "RUN_DIR/figures/*.png and RUN_DIR/controller.json from RUN_DIR/summary.json, "
-        "RUN_DIR/posterior.nc (if present) and the session the summary names.",
-    )
-    rp.add_argument("run_dir", metavar="RUN_DIR", help="a directory written by 'pmdc-bayes fit'")
-    rp.add_argument("--no-cache", action="store_true",
-                    help="neither read nor store compiled programs in the cache directory")
-    rp.set_defaults(func=_cmd_report)
-    ch = sub.add_parser(
-        "cache",
-        help="show or clear the cache of compiled programs",
-        description="The cache keeps compiled programs across runs (a session of a shape "
-        "seen before fits without compiling) and the logs of internal errors; it lives in "
-        "$PMDC_BAYES_CACHE or ~/.cache/pmdc-bayes and is bounded by "
-        "$PMDC_BAYES_CACHE_MAX_MB (default 2000).  'clear' deletes only what pmdc-bayes "
-        "wrote there.",
-    )
-    ch.add_argument("action", choices=("info", "clear"), nargs="?", default="info")
-    ch.set_defaults(func=_cmd_cache)
-    return p
-
-
 class _Terminated(KeyboardInterrupt):
     """SIGTERM, raised where the program is so that partial output is cleaned up."""
 
@@ -273,7 +180,9 @@ def _on_sigterm(signum, frame):
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    args = build_parser({"closed-form": _cmd_closed_form, "simulate": _cmd_simulate,
+                         "fit": _cmd_fit, "report": _cmd_report, "cache": _cmd_cache},
+                        ).parse_args(argv)
     in_main = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _on_sigterm) if in_main else None
     try:

@@ -72,14 +72,15 @@ def _closed_form_theta(model, cf):
 @x64
 def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | None = None,
                 seed: int = 0, holdout=(), compare_friction: bool = False,
-                progress=None, allow_inadequate: bool = False) -> RunResult:
+                progress=None, allow_inadequate: bool = False, say=None) -> RunResult:
     """Every stage of a fit, in memory: closed form → MAP → adequacy → (MCMC); the
-    run's result.
+    run's result.  ``say``, when given, is called with a line as each stage starts.
 
     ``summary`` of the result is what ``summary.json`` holds; nothing is written.  When
     the adequacy checks reject the model the posterior is not sampled (it would only
     describe the misfit) unless ``allow_inadequate``.
     """
+    say = say or (lambda text: None)
     t_start = time.perf_counter()
     for name in holdout:
         if name not in {t.name for t in session_full.traces}:
@@ -87,16 +88,20 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     session = session_full.without_traces(holdout) if holdout else session_full
     wall = {}
     t0 = time.perf_counter()
+    say("closed form (the paper's method), or a seed from the data")
     cf = fit_seed(session)
     wall["closed_form"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     coulomb = None if friction is None else friction == "coulomb"
     model = build_model(session, cf, coulomb=coulomb)
+    say(f"MAP fit of {len(model.names)} parameters (a session shape not seen before "
+        "compiles first)")
     fit = fit_map(model, seed=seed)
     ident = identifiability(model, fit)
     wall["map"] = time.perf_counter() - t0
     t0 = time.perf_counter()
+    say("adequacy checks")
     adequacy = assess(model, fit, cf)
     wall["adequacy"] = time.perf_counter() - t0
 
@@ -136,6 +141,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
             "not sampled: the data reject the model (pass --allow-inadequate to sample it)")
     if mcmc:
         t0 = time.perf_counter()
+        say("sampling the posterior (emcee)")
         post, stats = _posterior_stage(model, fit, seed=seed, progress=progress)
         for name in model.names:
             params[name].update(stats["summary"][name])
@@ -159,7 +165,7 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             mcmc: bool = True, friction: str | None = None, seed: int = 0,
             holdout=(), compare_friction: bool = False,
             progress=None, allow_inadequate: bool = False,
-            add=(), compare: bool = False) -> tuple[Path, dict]:
+            add=(), compare: bool = False, say=None) -> tuple[Path, dict]:
     """Fit a session directory and write the run directory ``out``: ``summary.json``,
     ``posterior.nc`` (with MCMC) and the report, all built beside ``out`` and moved into
     place in one rename once complete.
@@ -170,6 +176,8 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     candidate sets of :mod:`.selection` and then runs the recommended one, recording the
     comparison under ``"model_selection"``.
     """
+    say = say or (lambda text: None)
+    say(f"loading {session_path}")
     session_full = load_session(session_path)
     if add:
         import dataclasses
@@ -193,9 +201,10 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
                                            nuisances=tuple(selection["nuisances"]))
     result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
                          holdout=holdout, compare_friction=compare_friction, progress=progress,
-                         allow_inadequate=allow_inadequate)
+                         allow_inadequate=allow_inadequate, say=say)
     if selection is not None:
         result.summary["model_selection"] = selection
+    say(f"writing {out} (summary, posterior, report)")
     write_run(result, out, force=force)
     return out, result.summary
 

@@ -1,0 +1,153 @@
+"""The command line's arguments: sub-commands, options and their help."""
+
+from __future__ import annotations
+
+import argparse
+import textwrap
+from pathlib import Path
+
+from .io.bundled import DEFAULT_SESSION
+
+__all__ = ["build_parser", "EXIT_CODES"]
+
+EXIT_CODES = """exit codes:
+  0    done (model adequate, gates passed)
+  1    the fit or the posterior's gates failed (--allow-unconverged to go on)
+  2    bad input: one line naming the file, the place and the fix
+  3    model inadequate: the data reject it (--allow-inadequate to go on)
+  4    internal error: one line, the traceback saved to a log it names
+  130  interrupted (143: terminated); no partial output is left"""
+
+
+def _seed(text: str) -> int:
+    """A random seed: a whole number from 0 to 2**32 - 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 0 <= value < 2**32:
+        raise argparse.ArgumentTypeError(f"{value} is outside 0 .. 4294967295")
+    return value
+
+
+def _version() -> str:
+    from importlib import metadata
+
+    try:
+        return metadata.version("pmdc-bayes")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def build_parser(commands: dict) -> argparse.ArgumentParser:
+    """The argument parser; ``commands`` maps each sub-command to the function that runs it."""
+    p = argparse.ArgumentParser(
+        prog="pmdc-bayes",
+        description=textwrap.fill("Identify a permanent-magnet DC motor's parameters (Ra, "
+        "La, K, B, J, Coulomb friction) from bench experiments, with honest uncertainty.  "
+        "SESSION is a session directory, or 'demo' / 'paper' for the bundled ones.", 79),
+        epilog=EXIT_CODES, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    cf = sub.add_parser(
+        "closed-form",
+        help="the reference paper's closed-form method (Table I, tau, G, transfer function)",
+        description="Apply the reference paper's closed-form method to a session and print "
+        "a table like its Table I, the time constant, the gain and transfer function (22).",
+    )
+    cf.add_argument("session", nargs="?", help=f"session directory (default: bundled "
+                    f"'{DEFAULT_SESSION}')")
+    cf.add_argument("--json", action="store_true", help="print one JSON object with SI floats")
+    cf.set_defaults(func=commands['closed-form'])
+    sim = sub.add_parser(
+        "simulate",
+        help="write a simulated session (bench, steady points, traces) from a plan",
+        description="Simulate the bench work a plan describes (true parameters, bench "
+        "uncertainties, operating points, steady tables, traces with sensor noise, "
+        "quantisation and delay) and write it as a session directory: session.toml, CSV "
+        "files and truth.json.  The same plan and seed give byte-identical files.  "
+        "Example: pmdc-bayes simulate data/demo/plan.toml --out data/demo --force",
+    )
+    sim.add_argument("plan", help="the plan TOML file (see data/demo/plan.toml)")
+    sim.add_argument("--out", metavar="DIR", help="session directory to write (default: the "
+                     "plan's directory)")
+    sim.add_argument("--seed", type=_seed, metavar="N", help="random seed (default: the plan's "
+                     "seed)")
+    sim.add_argument("--force", action="store_true", help="replace the generated files of an "
+                     "existing session in DIR (other files such as plan.toml are kept)")
+    sim.set_defaults(func=commands['simulate'])
+    ft = sub.add_parser(
+        "fit",
+        help="closed form, joint MAP fit, adequacy checks, MCMC posterior and the report",
+        description=textwrap.fill("Identify the motor from a session: the paper's closed "
+        "form (or a seed "
+        "from the data) starts a joint Levenberg-Marquardt fit of every trace, steady table "
+        "and operating point; the adequacy checks say whether the data reject the model and "
+        "what to add; an emcee posterior (unless --no-mcmc) gives the uncertainty.  Writes "
+        "OUT/summary.json, posterior.nc, report.html, report.md, figures/ and controller.json, "
+        "all at once when complete.", 79),
+        epilog=EXIT_CODES, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ft.add_argument("session", nargs="?", help=f"session directory (default: bundled "
+                    f"'{DEFAULT_SESSION}')")
+    ft.add_argument("--out", type=Path, help="run directory (default: reports/<session>-<time>)")
+    ft.add_argument("--force", action="store_true", help="replace an existing --out directory")
+    ft.add_argument("--no-mcmc", action="store_true", help="stop after the MAP fit")
+    ft.add_argument("--friction", choices=("viscous", "coulomb"),
+                    help="friction model (default: the session's)")
+    ft.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
+    ft.add_argument("--holdout", action="append", metavar="TRACE",
+                    help="fit without this trace (repeatable)")
+    ft.add_argument("--compare-friction", action="store_true",
+                    help="also fit and sample the other friction model and compare the two "
+                    "by PSIS-LOO (ArviZ)")
+    ft.add_argument("--allow-unconverged", action="store_true",
+                    help="exit 0 even if the fit or the sampler fails its checks")
+    ft.add_argument("--add", action="append", metavar="NUISANCE",
+                    choices=("dead-time", "voltage-drop", "speed-lag", "current-lag",
+                             "dead_time", "voltage_drop", "speed_lag", "current_lag"),
+                    help="also fit this non-ideality of the rig (repeatable): dead-time (one "
+                    "per trace), voltage-drop (brushes and driver), speed-lag or current-lag "
+                    "(a first-order sensor or filter lag); same as [model] in session.toml")
+    ft.add_argument("--compare", action="store_true",
+                    help="fit the candidate sets of rig non-idealities (ideal, + dead-time, "
+                    "+ speed-lag, + voltage-drop, + voltage-drop with either), check each for "
+                    "adequacy, compare the adequate ones by LOO, and run the simplest "
+                    "adequate one")
+    ft.add_argument("--allow-inadequate", action="store_true",
+                    help="go on (sample the posterior, exit 0) even when the adequacy checks "
+                    "reject the model; every value stays labelled as conditional on it")
+    ft.add_argument("--no-cache", action="store_true",
+                    help="neither read nor store compiled programs in the cache directory")
+    talk = ft.add_mutually_exclusive_group()
+    talk.add_argument("--quiet", "-q", action="store_true",
+                      help="print nothing but errors (the run directory holds everything)")
+    talk.add_argument("--verbose", "-v", action="store_true",
+                      help="a line per stage and the sampler's bar even when not on a "
+                      "terminal (e.g. into a log)")
+    ft.set_defaults(func=commands['fit'])
+    rp = sub.add_parser(
+        "report",
+        help="regenerate the uncertainty report of a finished run",
+        description="Write RUN_DIR/report.html (self-contained), RUN_DIR/report.md, "
+        "RUN_DIR/figures/*.png and RUN_DIR/controller.json from RUN_DIR/summary.json, "
+        "RUN_DIR/posterior.nc (if present) and the session the summary names.",
+    )
+    rp.add_argument("run_dir", metavar="RUN_DIR", help="a directory written by 'pmdc-bayes fit'")
+    rp.add_argument("--no-cache", action="store_true",
+                    help="neither read nor store compiled programs in the cache directory")
+    rp.set_defaults(func=commands['report'])
+    ch = sub.add_parser(
+        "cache",
+        help="show or clear the cache of compiled programs",
+        description="The cache keeps compiled programs across runs (a session of a shape "
+        "seen before fits without compiling) and the logs of internal errors; it lives in "
+        "$PMDC_BAYES_CACHE or ~/.cache/pmdc-bayes and is bounded by "
+        "$PMDC_BAYES_CACHE_MAX_MB (default 2000).  'clear' deletes only what pmdc-bayes "
+        "wrote there.",
+    )
+    ch.add_argument("action", choices=("info", "clear"), nargs="?", default="info")
+    ch.set_defaults(func=commands['cache'])
+    return p
