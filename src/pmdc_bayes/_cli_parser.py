@@ -107,10 +107,14 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                     help="exit 0 even if the fit or the sampler fails its checks")
     ft.add_argument("--add", action="append", metavar="NUISANCE",
                     choices=("dead-time", "voltage-drop", "speed-lag", "current-lag",
-                             "dead_time", "voltage_drop", "speed_lag", "current_lag"),
+                             "unknown-load", "dead_time", "voltage_drop", "speed_lag",
+                             "current_lag", "unknown_load"),
                     help="also fit this non-ideality of the rig (repeatable): dead-time (one "
                     "per trace), voltage-drop (brushes and driver), speed-lag or current-lag "
-                    "(a first-order sensor or filter lag); same as [model] in session.toml")
+                    "(a first-order sensor or filter lag), unknown-load (a constant and a "
+                    "viscous drag of its own on every trace; [model] unknown_load = "
+                    "[\"trace\", ...] "
+                    "names the traces); same as [model] in session.toml")
     ft.add_argument("--compare", action="store_true",
                     help="fit the candidate sets of rig non-idealities (ideal, + dead-time, "
                     "+ speed-lag, + voltage-drop, + voltage-drop with either), check each for "

@@ -51,3 +51,27 @@ def test_nuisances_the_bench_lacks_come_out_zero():
     assert _within(fit, "Vdrop", 0.0)
     for name in ("dead_time_step_12v", "dead_time_step_6v"):
         assert _within(fit, name, 0.0, floor=1e-6)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("case", "index", "name"), [("unknown load", 0, "load_step_6v"),
+                                                     ("unknown viscous load", 1,
+                                                      "drag_step_6v")])
+def test_an_unknown_drag_on_one_trace_is_recovered(case, index, name):
+    """A brake on step_6v (a friction-like or a viscous drag, in the bench simulator's
+    stick-slip model): fitted as that trace's unknown load, the model is adequate, the
+    drag is recovered within 3 sd and the motor within 3 sd of the truth."""
+    session = dataclasses.replace(case_session(case), nuisances=("unknown_load",),
+                                  loaded_traces=("step_6v",))
+    cf = fit_seed(session)
+    model = build_model(session, cf)
+    assert model.coulomb_path and not model.coulomb
+    fit = fit_map(model)
+    a = assess(model, fit, cf)
+    assert a.verdict == "adequate", a.headline()
+    truth = CASES[case][0]["extra_load"]["step_6v"][index]
+    assert _within(fit, name, truth, n_sd=3.0), (fit.values[name], fit.sd[name], truth)
+    for motor in ("K", "B", "J", "Ra"):
+        assert _within(fit, motor, MOTOR[motor], n_sd=3.0), (motor, fit.values[motor],
+                                                             fit.sd[motor])
+    assert "load_step_12v" not in fit.values

@@ -181,3 +181,19 @@ def test_a_step_reading_that_is_no_step_is_one_line(session_dir, reading, expect
     proc = _run(session_dir)
     assert proc.returncode == 2 and expected in proc.stderr, proc.stderr
     assert len(proc.stderr.splitlines()) == 1
+
+
+def test_unknown_loads_name_driven_traces(session_dir):
+    from pmdc_bayes.io.loader import load_session
+
+    with (session_dir / TOML).open("a") as fh:
+        fh.write('\n[model]\nunknown_load = ["step"]\n')
+    session = load_session(session_dir)
+    assert session.unknown_load_traces() == ("step",) and "unknown_load" in session.nuisances
+    replace_once(session_dir / TOML, 'unknown_load = ["step"]', 'unknown_load = ["stepp"]')
+    proc = _run(session_dir)
+    assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1
+    assert "model.unknown_load: expected true, false or a list of driven trace names (of " \
+        "'step')" in proc.stderr
+    replace_once(session_dir / TOML, 'unknown_load = ["stepp"]', "unknown_load = true")
+    assert load_session(session_dir).unknown_load_traces() == ("step",)

@@ -95,7 +95,7 @@ class TraceBlock(Block):
     @staticmethod
     def residuals(model, theta, d, fast: bool = False) -> list:
         ia, w = model.sensed(theta, *simulate_padded(
-            model.params(theta), model.inputs(theta, d["exp"]), coulomb=model.coulomb,
+            model.params(theta), model.inputs(theta, d["exp"]), coulomb=model.coulomb_path,
             fast=fast), d)
         return [d["speed"] - w, d["current"] - ia]
 

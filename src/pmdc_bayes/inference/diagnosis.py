@@ -155,7 +155,7 @@ def _level_rules(model, fit, preds, findings):
         out.append(f"{name}: settles {100 * abs(m):.2g} % {'below' if m < 0 else 'above'} "
                    "the speed the other levels imply: an unmeasured load on this trace "
                    f"(a brake, a generator, a rubbing coupling){alt}; declare its load "
-                   "torque")
+                   f"torque, or fit it: [model] unknown_load = [{name!r}]")
     icpt, offset = voltage_intercept(session), friction_offset(session)
     coulomb = (offset is not None and offset["current"] > 3 * offset["se"]
                and offset["current"] > 0.05 * offset["mean_current"])

@@ -19,13 +19,15 @@ from .noise import noise_scale
 from .params import ParamSpec, Prior
 
 __all__ = ["RigEffects", "nuisance_specs", "coast_down_specs", "dead_time_name",
-           "initial_speed_name", "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES",
+           "initial_speed_name", "load_names", "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES",
            "LAG_PRIOR_FACTOR"]
 
 DEAD_TIME_PRIOR = 0.05  # sd of a trace's dead time, as a share of the trace's length
 DROP_PRIOR = 0.1  # sd of the voltage drop, as a share of the session's largest voltage
 LAG_PRIOR_SAMPLES = 3.0  # centre of a sensor lag's prior, in sample intervals
 LAG_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
+LOAD_PRIOR_SHARE = 0.3  # centre of an unknown drag's prior, as a share of the motor's own
+LOAD_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 
 
 def _identifier(text: str) -> str:
@@ -37,7 +39,37 @@ def dead_time_name(trace_name: str) -> str:
     return f"dead_time_{_identifier(trace_name)}"
 
 
-def nuisance_specs(session: Session, drop_seed: float = 0.0) -> list[ParamSpec]:
+def load_names(trace_name: str) -> tuple[str, str]:
+    """The parameter names of a trace's unknown drag: constant (N·m), viscous."""
+    return f"load_{_identifier(trace_name)}", f"drag_{_identifier(trace_name)}"
+
+
+def _load_specs(session: Session, b_seed: float) -> list[ParamSpec]:
+    """Per trace ``unknown_load`` names, ``load_<trace>`` (N·m), a friction-like constant
+    drag (a brake, a rubbing coupling), and ``drag_<trace>`` (N·m·s/rad), a viscous one
+    (an eddy-current brake, a generator into a resistor).  Priors log-normal (a drag is
+    positive), a factor :data:`LOAD_PRIOR_FACTOR` wide, centred on
+    :data:`LOAD_PRIOR_SHARE` of the motor's seeded viscous drag, as a torque at the
+    trace's top speed for the constant part."""
+    specs = []
+    for tr in session.traces:
+        if tr.name not in session.unknown_load_traces():
+            continue
+        w_top = max(float(np.max(np.abs(tr.speed))), 1e-9)
+        load, drag = load_names(tr.name)
+        for name, unit, centre, what in (
+                (load, "N*m", LOAD_PRIOR_SHARE * b_seed * w_top, "constant"),
+                (drag, "N*m*s/rad", LOAD_PRIOR_SHARE * b_seed, "viscous")):
+            specs.append(ParamSpec(name, unit, "trace",
+                                   Prior("lognormal", centre, float(np.log(LOAD_PRIOR_FACTOR)),
+                                         "nuisance"), centre,
+                                   description=f"unknown {what} drag on trace {tr.name!r}",
+                                   trace=tr.name))
+    return specs
+
+
+def nuisance_specs(session: Session, drop_seed: float = 0.0,
+                   b_seed: float = 0.0) -> list[ParamSpec]:
     """The rig's non-idealities the session asks to fit (``session.nuisances``):
 
     * ``voltage_drop`` — ``Vdrop`` (V), a constant drop at the brushes and driver
@@ -52,6 +84,9 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0) -> list[ParamSpec]:
       the speed or current sensor (a tachometer, a filter); prior log-normal centred on
       :data:`LAG_PRIOR_SAMPLES` sample intervals, a factor :data:`LAG_PRIOR_FACTOR` wide
       (one sd), log-transformed (a lag is positive).
+
+    * ``unknown_load`` — per loaded trace a constant and a viscous drag (see
+      :func:`_load_specs`; ``b_seed`` is the motor's seeded viscous friction).
 
     The drop and the dead times are untransformed (they may be zero or of either sign).
     """
@@ -81,7 +116,7 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0) -> list[ParamSpec]:
                                    0.0, transform="identity",
                                    description=f"dead time of trace {tr.name!r}",
                                    trace=tr.name))
-    return specs
+    return specs + _load_specs(session, b_seed)
 
 
 def initial_speed_name(trace_name: str) -> str:
@@ -125,6 +160,13 @@ class RigEffects:
             v = self.registry.values(theta)
             delay = jnp.stack([v[dead_time_name(tr.name)] for tr in self.session.traces])
             exp = exp._replace(tau=jnp.maximum(exp.tau - delay[exp.chunk_trace][:, None], 0.0))
+        loaded = self.session.unknown_load_traces()
+        if loaded:
+            v, zero = self.registry.values(theta), jnp.zeros(())
+            parts = [[v[n] if tr.name in loaded else zero for n in load_names(tr.name)]
+                     for tr in self.session.traces]
+            tc, b = (jnp.stack([jnp.asarray(q[k]) for q in parts]) for k in (0, 1))
+            exp = exp._replace(seg_b=b[exp.seg_trace], seg_tc=tc[exp.seg_trace])
         return exp
 
     def sensed(self, theta, ia, w, d):

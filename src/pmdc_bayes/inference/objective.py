@@ -53,11 +53,14 @@ class SessionModel(RigEffects):
         self.coulomb = coulomb
         self.seed = seed
         steady = steady_points(session)
-        motor_specs = motor_registry(session, motor_seed(seed, session, steady),
-                                     coulomb=coulomb).specs
+        start = motor_seed(seed, session, steady)
+        motor_specs = motor_registry(session, start, coulomb=coulomb).specs
         self.registry = Registry(motor_specs
-                                 + tuple(nuisance_specs(session, drop_seed(session)))
+                                 + tuple(nuisance_specs(session, drop_seed(session), start["B"]))
                                  + tuple(coast_down_specs(session)))
+        # a trace's friction-like unknown load needs the stick-slip solution, whatever
+        # the motor's own friction model
+        self.coulomb_path = coulomb or bool(session.unknown_load_traces())
         self.names = self.registry.names
         self.channels: list[Channel] = []
         self.exp = experiment_from_traces(session.traces) if session.traces else None
@@ -85,7 +88,7 @@ class SessionModel(RigEffects):
         """Everything compiled code depends on besides ``data``'s values: sessions with
         the same key share compiled functions."""
         leaves, treedef = jax.tree_util.tree_flatten(self.data)
-        return (self.coulomb, self.registry.structure(), len(self.channels),
+        return (self.coulomb, self.coulomb_path, self.registry.structure(), len(self.channels),
                 tuple(b.key for b in self.blocks), treedef,
                 tuple((x.shape, str(x.dtype)) for x in leaves))
 
@@ -188,6 +191,8 @@ class SessionModel(RigEffects):
         size, where vectorising all 64 at once gives under 1,000.
         """
         ok = jnp.all(jax.vmap(lambda t: real_modes(self.params(t)))(thetas))
+        if self.session.unknown_load_traces():  # a trace's drag moves its modes
+            ok = jnp.asarray(False)
 
         def over(fast):
             # Sub-batches of a few vectors keep each pass over the samples in cache; a
@@ -219,7 +224,7 @@ class SessionModel(RigEffects):
         """Per trace ``(ia, ω)`` in time order (A, rad/s), as NumPy arrays."""
         if self.exp is None:
             return []
-        c = self.coulomb if coulomb is None else coulomb
+        c = self.coulomb_path if coulomb is None else coulomb
         def run(t, d):
             d = d["traces"]
             ia, w = simulate_padded(self.params(t), self.inputs(t, d["exp"]), coulomb=c)

@@ -134,6 +134,22 @@ def _step_reading(t: _Table) -> StepReading:
     return reading
 
 
+def _loaded_traces(mt: _Table, traces) -> tuple[str, ...]:
+    """``[model] unknown_load``: true (every driven trace), false, or a list of names of
+    driven traces; the names given (empty for true or false)."""
+    value = mt.data.get("unknown_load", False)
+    if isinstance(value, bool):
+        return ()
+    names = [t.name for t in traces]
+    if (not isinstance(value, list) or not value
+            or not all(isinstance(v, str) and v in names for v in value)):
+        example = f"[{names[0]!r}]" if names else "true"
+        mt.fail("unknown_load", f"expected true, false or a list of driven trace names "
+                f"(of {', '.join(map(repr, names))}), got {_describe(value)}; write e.g. "
+                f"unknown_load = {example}")
+    return tuple(dict.fromkeys(value))
+
+
 def _truth(path: Path) -> dict | None:
     if not path.is_file():
         return None
@@ -212,21 +228,23 @@ def load_session(path) -> Session:
                 cf.fail("K_decimals", f"expected a whole number >= 0, got {_describe(d)}; "
                         "write e.g. K_decimals = 3")
             options["K_decimals"] = d
-    nuisances = ()
+    nuisances, loaded = (), ()
     mt = top.table("model", required=False)
+    traces, coast_downs = read_traces(top, root)
+    _unique(traces + coast_downs, "trace", toml)
     if mt is not None:
         mt.check_keys(NUISANCES)
+        loaded = _loaded_traces(mt, traces)
         for key in NUISANCES:
             flag = mt.data.get(key, False)
-            if not isinstance(flag, bool):
+            if key != "unknown_load" and not isinstance(flag, bool):
                 mt.fail(key, f"expected true or false, got {_describe(flag)}; write e.g. "
                         f"{key} = true")
         nuisances = tuple(k for k in NUISANCES if mt.data.get(k, False))
-    traces, coast_downs = read_traces(top, root)
-    _unique(traces + coast_downs, "trace", toml)
     return Session(
         name=root.name,
         nuisances=nuisances,
+        loaded_traces=loaded,
         bench={k: m for k, m in measured.items() if k not in ("Ra", "La")},
         root=root,
         motor=motor.string("name"),

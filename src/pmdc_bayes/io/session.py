@@ -27,7 +27,7 @@ __all__ = [
 FRICTION_MODELS = ("viscous", "coulomb")
 
 
-NUISANCES = ("dead_time", "voltage_drop", "speed_lag", "current_lag")
+NUISANCES = ("dead_time", "voltage_drop", "speed_lag", "current_lag", "unknown_load")
 COAST_DOWN = "coast-down"  # the trace kind of a run-down with the armature open
 LA_TIME_CONSTANT = 1e-3  # s: La/Ra assumed when La was not measured ...
 LA_PRIOR_LOG_SD = float(np.log(10.0)) / 2  # ... give or take a factor 10 at 2 sd (log)
@@ -161,7 +161,9 @@ class Session:
     ``truth`` holds the true parameters of a simulated session (from ``truth.json``).
     ``nuisances`` names the rig's non-idealities to fit with the motor
     (:data:`NUISANCES`: ``"dead_time"`` per trace, ``"voltage_drop"``, a first-order
-    lag of the speed or current sensor ``"speed_lag"``, ``"current_lag"``).
+    lag of the speed or current sensor ``"speed_lag"``, ``"current_lag"``, an unknown
+    drag ``"unknown_load"`` on the traces ``loaded_traces`` names, or on every driven
+    trace when it is empty).
     ``bench`` holds the further bench measurements given (of ``"K"``, ``"J"``,
     ``"B"``), each a prior of the fit.  ``coast_downs`` are traces of kind
     ``"coast-down"``: the rotor running down with the armature open (speed only, no
@@ -183,6 +185,15 @@ class Session:
     nuisances: tuple[str, ...] = ()
     bench: dict = field(default_factory=dict)
     coast_downs: tuple[Trace, ...] = ()
+    loaded_traces: tuple[str, ...] = ()
+
+    def unknown_load_traces(self) -> tuple[str, ...]:
+        """The driven traces that carry an unknown drag of their own (``unknown_load``)."""
+        if "unknown_load" not in self.nuisances:
+            return ()
+        names = tuple(t.name for t in self.traces)
+        return tuple(n for n in names if n in self.loaded_traces) if self.loaded_traces \
+            else names
 
     def trace(self, name: str) -> Trace:
         for tr in self.traces:

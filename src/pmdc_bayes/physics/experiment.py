@@ -41,7 +41,9 @@ class Experiment(NamedTuple):
     its samples ``tau[c]`` seconds after the segment's start, real where ``mask``.
     ``index`` maps the samples, trace after trace and in time order, into the flattened
     ``(C, L)`` layout; ``counts`` holds each trace's number of samples.  The layout lets
-    every sample of every trace be evaluated at once, without gathers.
+    every sample of every trace be evaluated at once, without gathers.  ``seg_b`` and
+    ``seg_tc``, when set, add a viscous (N·m·s/rad) and a friction-like constant
+    (N·m) drag per segment to the motor's own (an unknown load on a trace).
     """
 
     seg_t0: jax.Array
@@ -57,6 +59,13 @@ class Experiment(NamedTuple):
     mask: jax.Array
     index: jax.Array
     counts: jax.Array
+    seg_b: jax.Array | None = None
+    seg_tc: jax.Array | None = None
+
+    @property
+    def seg_trace(self) -> jax.Array:
+        """The trace of each segment."""
+        return jnp.cumsum(self.seg_first.astype(jnp.int32)) - 1
 
     @property
     def time(self) -> np.ndarray:

@@ -207,21 +207,31 @@ def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
     ``fast=True`` assumes real, well-separated eigenvalues (:func:`real_modes`) and
     skips the complex and nearly-repeated branches; callers check that first.
     """
-    x0 = initial_state(p, exp, coulomb)
+    drag = exp.seg_b is not None
+    b_x = exp.seg_b if drag else jnp.zeros_like(exp.seg_va)
+    tc_x = exp.seg_tc if drag else jnp.zeros_like(exp.seg_va)
+
+    def with_drag(b, tc):
+        """The parameters a segment sees: the motor's own, plus its trace's drag."""
+        return p._replace(B=p.B + b, Tc=p.Tc + tc) if drag else p
+
+    x0 = initial_state(with_drag(b_x[0], tc_x[0]), exp, coulomb)
 
     def step(x, seg_in):
-        va, tl, length, first, mode, xg = seg_in
-        xi = _initial_for(p, va, tl, mode, xg, coulomb)
+        va, tl, length, first, mode, xg, b, tc = seg_in
+        ps = with_drag(b, tc)
+        xi = _initial_for(ps, va, tl, mode, xg, coulomb)
         x = (jnp.where(first, xi[0], x[0]), jnp.where(first, xi[1], x[1]))
-        seg = _segment_info(p, x, va, tl, length, coulomb, fast)
-        x_end = _state_in_segment(p, seg, va, length, coulomb, fast)
+        seg = _segment_info(ps, x, va, tl, length, coulomb, fast)
+        x_end = _state_in_segment(ps, seg, va, length, coulomb, fast)
         return x_end, seg
 
     _, segs = jax.lax.scan(step, x0, (exp.seg_va, exp.seg_tl, exp.seg_len, exp.seg_first,
-                                      exp.seg_mode, exp.seg_x0))
+                                      exp.seg_mode, exp.seg_x0, b_x, tc_x))
     per_chunk = jax.tree_util.tree_map(lambda a: a[exp.chunk_seg][:, None], segs)
     va = exp.seg_va[exp.chunk_seg][:, None]
-    return _state_in_segment(p, per_chunk, va, exp.tau, coulomb, fast)
+    pc = with_drag(b_x[exp.chunk_seg][:, None], tc_x[exp.chunk_seg][:, None])
+    return _state_in_segment(pc, per_chunk, va, exp.tau, coulomb, fast)
 
 
 def simulate(p: Params, exp: Experiment, *, coulomb: bool = False):
