@@ -105,6 +105,12 @@ def test_force_never_replaces_a_session_a_file_or_a_foreign_folder(session_dir, 
     proc = _fit_cli(session_dir, "--no-mcmc", "--out", folder, "--force")
     assert proc.returncode == 2 and "not a pmdc-bayes run" in proc.stderr
     assert (folder / "a.jpg").read_bytes() == b"\xff\xd8"
+    (folder / "summary.json").write_text("{}")  # a summary.json of one's own is no marker
+    proc = _fit_cli(session_dir, "--no-mcmc", "--out", folder, "--force")
+    assert proc.returncode == 2 and "not a pmdc-bayes run" in proc.stderr
+    assert (folder / "a.jpg").read_bytes() == b"\xff\xd8"
+    proc = _fit_cli(session_dir, "--no-mcmc", "--out", tmp_path / ("x" * 300))
+    assert proc.returncode == 2 and "choose a shorter --out" in proc.stderr
 
 
 @pytest.mark.slow

@@ -42,7 +42,7 @@ def test_when_every_candidate_is_rejected_the_largest_is_fitted_and_said_so():
 @pytest.mark.slow
 @pytest.mark.parametrize(("case", "expected"), [
     (None, "ideal"), ("dead time", "dead time"), ("sensor lag", "speed lag"),
-    ("brush drop", "voltage drop")])
+    ("brush drop", "voltage drop"), ("unknown load", "unknown load")])
 def test_compare_recommends_what_the_bench_has(case, expected):
     sel = compare_nuisances(case_session(case, seed=2), mcmc=False)
     assert [r["name"] for r in sel["candidates"]] == [c[0] for c in CANDIDATES]
@@ -51,5 +51,9 @@ def test_compare_recommends_what_the_bench_has(case, expected):
     if case is not None:
         assert by["ideal"]["verdict"] == "inadequate" and by["ideal"]["failures"]
     # the candidate that holds the missing term and one more is adequate too
+    if case == "unknown load":  # the model-free levels point at the braked trace alone
+        assert by["unknown load"]["loaded_traces"] == ["step_6v"]
+        assert sel["loaded_traces"] == ["step_6v"]
+        return
     larger = "speed lag + voltage drop" if case == "sensor lag" else "dead time + voltage drop"
     assert by[larger]["verdict"] == "adequate"

@@ -116,7 +116,8 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     summary = {
         "session": {"name": session.name, "path": str(session.root), "motor": session.motor,
                     "friction": "coulomb" if model.coulomb else "viscous",
-                    "holdout": list(holdout), "nuisances": list(session.nuisances)},
+                    "holdout": list(holdout), "nuisances": list(session.nuisances),
+                    "loaded_traces": list(session.unknown_load_traces())},
         "adequacy": adequacy.as_json(),
         "seed": seed,
         "parameters": params,
@@ -198,7 +199,8 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
         selection = compare_nuisances(fitted, friction=friction, seed=seed, mcmc=mcmc,
                                       progress=progress)
         session_full = dataclasses.replace(session_full,
-                                           nuisances=tuple(selection["nuisances"]))
+                                           nuisances=tuple(selection["nuisances"]),
+                                           loaded_traces=tuple(selection["loaded_traces"]))
     result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
                          holdout=holdout, compare_friction=compare_friction, progress=progress,
                          allow_inadequate=allow_inadequate, say=say)

@@ -61,11 +61,11 @@ def changed_files(root: Path, hashes: dict[str, str]) -> list[str]:
 
 
 def is_run_dir(path: Path) -> bool:
-    """Whether ``path`` is a directory this tool wrote as a run (its marker file, or the
-    summary.json of a run written before the marker existed, and no session.toml)."""
+    """Whether ``path`` is a directory this tool wrote as a run: it holds the marker file
+    (a summary.json alone proves nothing: a folder of the user's may have one)."""
     path = Path(path)
-    return path.is_dir() and not path.is_symlink() and not (path / "session.toml").exists() \
-        and ((path / RUN_MARKER).is_file() or (path / "summary.json").is_file())
+    return path.is_dir() and not path.is_symlink() and (path / RUN_MARKER).is_file() \
+        and not (path / "session.toml").exists()
 
 
 def check_writable(out: Path, *, what: str = "choose another --out") -> None:
@@ -102,6 +102,9 @@ def check_replaceable(out: Path, force: bool) -> None:
     """Refuse, before any work, an ``out`` that cannot be written, or that exists unless
     ``force`` is given and it is a previous run: never a session, a regular file or a
     folder of the user's."""
+    if len(os.fsencode(out.name)) > 200:
+        raise UsageError(f"{out.name[:40]}...: the name is {len(out.name)} characters long, "
+                         "more than a file system takes; choose a shorter --out")
     check_writable(out.parent if out.is_dir() else out)
     if not (out.exists() or out.is_symlink()):
         return

@@ -2,7 +2,8 @@
 
 ``pmdc-bayes fit --compare`` fits every candidate of :data:`CANDIDATES` (the ideal
 motor; + dead time; + a speed-sensor lag; + voltage drop; + voltage drop with either
-of the first two) to the same session and checks each for
+of the first two; + an unknown load on the traces whose levels stand out) to the same
+session and checks each for
 adequacy at its MAP.  With MCMC, every candidate the data do not reject is sampled
 and the candidates are compared by PSIS-LOO (they share every observation: the
 nuisances change the prediction, not the data).
@@ -22,6 +23,7 @@ from ._x64 import x64
 from .inference.adequacy import assess
 from .inference.diagnostics import loo_compare
 from .inference.fit import fit_map
+from .inference.levels import level_outliers
 from .inference.objective import build_model
 from .inference.sampling import sample_posterior
 from .inference.seed import fit_seed
@@ -36,6 +38,7 @@ CANDIDATES = (
     ("voltage drop", ("voltage_drop",)),
     ("dead time + voltage drop", ("dead_time", "voltage_drop")),
     ("speed lag + voltage drop", ("voltage_drop", "speed_lag")),
+    ("unknown load", ("unknown_load",)),
 )
 LOO_MARGIN = 4.0  # elpd units a larger candidate must gain to be preferred
 
@@ -48,13 +51,16 @@ def compare_nuisances(session: Session, *, friction: str | None = None, seed: in
     LOO; the recommended candidate and why (a dict ready for JSON)."""
     coulomb = None if friction is None else friction == "coulomb"
     rows, idata = [], {}
+    loaded = _suspect_traces(session)
     for name, nuisances in CANDIDATES:
-        s = dataclasses.replace(session, nuisances=nuisances)
+        s = dataclasses.replace(session, nuisances=nuisances,
+                                loaded_traces=loaded if "unknown_load" in nuisances else ())
         seed_cf = fit_seed(s)
         model = build_model(s, seed_cf, coulomb=coulomb)
         fit = fit_map(model, seed=seed)
         adequacy = assess(model, fit, seed_cf)
         rows.append({"name": name, "nuisances": list(nuisances), "n_params": len(model.names),
+                     "loaded_traces": list(s.unknown_load_traces()),
                      "verdict": adequacy.verdict, "converged": fit.status == "converged",
                      "log_posterior": float(fit.log_posterior),
                      "failures": [f"{f.where}: {f.check}" for f in adequacy.findings
@@ -67,7 +73,16 @@ def compare_nuisances(session: Session, *, friction: str | None = None, seed: in
             next(row for row in rows if row["name"] == r["model"])["loo"] = r
     chosen, reason = _choose(rows)
     return {"candidates": rows, "recommended": chosen["name"],
-            "nuisances": chosen["nuisances"], "reason": reason}
+            "nuisances": chosen["nuisances"], "loaded_traces": chosen["loaded_traces"],
+            "reason": reason}
+
+
+def _suspect_traces(session: Session) -> tuple[str, ...]:
+    """The traces an unknown-load candidate loads: those settling off the line the other
+    traces' levels draw (model-free), or every driven trace when the levels are too few
+    to judge or none stands out."""
+    off = level_outliers(session)
+    return tuple(off) if off else tuple(t.name for t in session.traces)
 
 
 def _choose(rows: list[dict]) -> tuple[dict, str]:

@@ -326,3 +326,26 @@ def test_force_never_overwrites_a_hand_made_session(tmp_path):
         simulate_session(plan(), out, force=True)
     assert (out / "session.toml").read_text() == "[motor]\nname = \"my real motor\"\n"
     assert (out / "step.csv").read_text() == "t,speed\n0,0\n"
+
+
+@pytest.mark.parametrize("edit", ["trace", "csv"])
+def test_force_never_overwrites_a_simulated_session_the_user_changed(tmp_path, edit):
+    """A trace of the user's added to a simulated session, or a generated CSV edited:
+    --force refuses rather than delete or overwrite the change."""
+    out = simulate_session(plan(), tmp_path / "s")
+    if edit == "trace":
+        (out / "my_bench.csv").write_text("t,w\n0,0\n1,5\n")
+        with (out / "session.toml").open("a") as fh:
+            fh.write('\n[[trace]]\nname = "mine"\nkind = "step"\nfile = "my_bench.csv"\n')
+        changed = "session.toml"
+    else:
+        changed = next(p.name for p in out.glob("*.csv"))
+        with (out / changed).open("a") as fh:
+            fh.write("\n")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    with pytest.raises(UsageError, match=f"{changed}: changed since pmdc-bayes simulate"):
+        simulate_session(plan(), out, force=True, seed=7)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    # an untouched simulated session is replaced as before
+    fresh = simulate_session(plan(), tmp_path / "t")
+    assert simulate_session(plan(), fresh, force=True, seed=7) == fresh

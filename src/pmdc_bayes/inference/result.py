@@ -117,7 +117,13 @@ def _run_session(run_dir: Path, info: dict):
         if not isinstance(names, list) or not set(names) <= set(NUISANCES):
             raise UsageError(f"{run_dir / 'summary.json'}: session.nuisances is {names!r}, not "
                              f"a list of {', '.join(NUISANCES)}; rerun 'pmdc-bayes fit'")
-        session = dataclasses.replace(session, nuisances=tuple(names))
+        loaded = info.get("loaded_traces") or []
+        if not isinstance(loaded, list) or not set(loaded) <= {t.name for t in session.traces}:
+            raise UsageError(f"{run_dir / 'summary.json'}: session.loaded_traces is "
+                             f"{loaded!r}, not a list of the session's traces; rerun "
+                             "'pmdc-bayes fit'")
+        session = dataclasses.replace(session, nuisances=tuple(names),
+                                      loaded_traces=tuple(loaded))
     return session
 
 
