@@ -122,6 +122,8 @@ def _two_traces_one_figure_name(session_dir):
 
 @pytest.fixture(scope="module")
 def fitted(tmp_path_factory):
+    """One `fit --no-mcmc` of a small session (compiling it takes a minute: the tests
+    that use it are marked slow)."""
     from conftest import write_session
 
     root = tmp_path_factory.mktemp("rundir")
@@ -137,6 +139,7 @@ def fitted(tmp_path_factory):
     return session, out
 
 
+@pytest.mark.slow
 def test_quiet_prints_nothing_but_the_verdict_against_the_model(fitted, tmp_path):
     """The small session's synthetic current is not a motor's: the model is inadequate,
     and even --quiet with --allow-inadequate says so, in one line."""
@@ -150,6 +153,7 @@ def test_quiet_prints_nothing_but_the_verdict_against_the_model(fitted, tmp_path
     assert (tmp_path / "run" / "report.html").is_file()
 
 
+@pytest.mark.slow
 def test_figures_whose_names_collide_are_both_kept(fitted):
     _, out = fitted
     names = {p.name for p in (out / "figures").glob("trace_*.png")}
@@ -158,6 +162,7 @@ def test_figures_whose_names_collide_are_both_kept(fitted):
     assert "figures/trace_Step-2.png" in html and "figures/trace_step.png" in html
 
 
+@pytest.mark.slow
 def test_the_run_holds_its_session_and_reports_after_the_original_changes(fitted, tmp_path):
     import shutil
 
@@ -197,6 +202,7 @@ def _wait_for_stage(parent: Path, name: str, file: str, proc, timeout=600):
 
 @pytest.mark.parametrize(("sig", "code", "stage"), [(signal.SIGTERM, 143, RUN_MARKER),
                                                     (signal.SIGINT, 130, "summary.json")])
+@pytest.mark.slow
 def test_an_interrupted_rewrite_leaves_the_earlier_run(fitted, sig, code, stage):
     """SIGTERM as the new run starts being written, SIGINT once its summary is written and
     its report is being drawn: the earlier run stays whole, nothing else is left."""
@@ -229,6 +235,7 @@ def small_disk(tmp_path):
     subprocess.run(["umount", str(disk)], check=False)
 
 
+@pytest.mark.slow
 def test_a_full_disk_is_one_line_and_leaves_nothing(fitted, small_disk):
     session, _ = fitted
     proc = _fit_cli(session, "--no-mcmc", "--out", small_disk / "run", "--allow-inadequate",
@@ -259,6 +266,7 @@ def test_a_read_only_compile_cache_does_not_stop_a_fit(fitted, read_only_cache, 
     assert (tmp_path / "run" / "summary.json").is_file()
 
 
+@pytest.mark.slow
 def test_report_on_a_read_only_run_is_one_line(fitted, tmp_path):
     import shutil
 
@@ -277,6 +285,7 @@ def test_report_on_a_read_only_run_is_one_line(fitted, tmp_path):
         subprocess.run(["umount", str(mount)], check=False)
 
 
+@pytest.mark.slow
 def test_report_without_the_cache_stores_nothing(fitted, tmp_path):
     import shutil
 
@@ -290,3 +299,18 @@ def test_report_without_the_cache_stores_nothing(fitted, tmp_path):
     proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(tmp_path / "run")],
                           capture_output=True, text=True, timeout=600, env=env)
     assert proc.returncode == 0 and any((tmp_path / "cache" / "export").rglob("*.jaxexport"))
+
+
+@pytest.mark.slow
+def test_report_over_a_file_named_figures_is_one_line(fitted, tmp_path):
+    import shutil
+
+    _, out = fitted
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    shutil.rmtree(run / "figures")
+    (run / "figures").write_text("mine")
+    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(run)],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 2 and "where the report's figures go" in proc.stderr
+    assert (run / "figures").read_text() == "mine"

@@ -44,8 +44,13 @@ def test_when_every_candidate_is_rejected_the_largest_is_fitted_and_said_so():
     (None, "ideal"), ("dead time", "dead time"), ("sensor lag", "speed lag"),
     ("brush drop", "voltage drop"), ("unknown load", "unknown load")])
 def test_compare_recommends_what_the_bench_has(case, expected):
-    sel = compare_nuisances(case_session(case, seed=2), mcmc=False)
-    assert [r["name"] for r in sel["candidates"]] == [c[0] for c in CANDIDATES]
+    # every candidate but the unknown load's (the slowest to fit) on the cases it does not
+    # concern; on the braked bench, it against the ideal model and a voltage drop
+    chosen = (CANDIDATES[:-1] if case != "unknown load"
+              else tuple(c for c in CANDIDATES if c[0] in ("ideal", "voltage drop",
+                                                          "unknown load")))
+    sel = compare_nuisances(case_session(case, seed=2), mcmc=False, candidates=chosen)
+    assert [r["name"] for r in sel["candidates"]] == [c[0] for c in chosen]
     assert sel["recommended"] == expected, format_selection(sel)
     by = {r["name"]: r for r in sel["candidates"]}
     if case is not None:

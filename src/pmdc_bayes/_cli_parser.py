@@ -39,9 +39,16 @@ def _version() -> str:
         return "unknown"
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors in one line naming the option and where the help is."""
+
+    def error(self, message):
+        self.exit(2, f"pmdc-bayes: error: {message}; see '{self.prog} --help'\n")
+
+
 def build_parser(commands: dict) -> argparse.ArgumentParser:
     """The argument parser; ``commands`` maps each sub-command to the function that runs it."""
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="pmdc-bayes",
         description=textwrap.fill("Identify a permanent-magnet DC motor's parameters (Ra, "
         "La, K, B, J, Coulomb friction) from bench experiments, with honest uncertainty.  "

@@ -104,7 +104,9 @@ def _cmd_fit(args) -> int:
     status = 0
     if not adequate:
         first = next(f for f in summary["adequacy"]["findings"] if f["severity"] == "fail")
-        print(f"pmdc-bayes: error: model inadequate: {first['where']}: {first['message']}"
+        hint = next(iter(summary["adequacy"].get("diagnosis") or []), "")
+        hint = f"; likely: {hint}" if hint and not hint.startswith("no single") else ""
+        print(f"pmdc-bayes: error: model inadequate: {first['where']}: {first['message']}{hint}"
               + ("" if args.allow_inadequate else " (see the report; rerun with "
                  "--allow-inadequate to go on)"), file=sys.stderr)
         if not args.allow_inadequate:

@@ -45,14 +45,14 @@ LOO_MARGIN = 4.0  # elpd units a larger candidate must gain to be preferred
 
 @x64
 def compare_nuisances(session: Session, *, friction: str | None = None, seed: int = 0,
-                      mcmc: bool = True, progress=None) -> dict:
-    """Every candidate of :data:`CANDIDATES` fitted to ``session``: its verdict, the
+                      mcmc: bool = True, progress=None, candidates=CANDIDATES) -> dict:
+    """Every candidate (default :data:`CANDIDATES`) fitted to ``session``: its verdict, the
     checks it fails, its MAP log-posterior and (with ``mcmc``, adequate ones only) its
     LOO; the recommended candidate and why (a dict ready for JSON)."""
     coulomb = None if friction is None else friction == "coulomb"
     rows, idata = [], {}
     loaded = _suspect_traces(session)
-    for name, nuisances in CANDIDATES:
+    for name, nuisances in candidates:
         s = dataclasses.replace(session, nuisances=nuisances,
                                 loaded_traces=loaded if "unknown_load" in nuisances else ())
         seed_cf = fit_seed(s)

@@ -118,6 +118,28 @@ REFUSED = [
     ("toml-integer-too-large", _edit(TOML, "supply_voltage = 12.0",
                                      "supply_voltage = " + "9" * 400),
      [f"{TOML}:operating_point['op'].supply_voltage", "too large"]),
+    ("nul-byte-inside", lambda d: (d / "step.csv").write_text(
+        _step_text(d).replace("0.10,", "0.1\x000,")), ["step.csv:line 12", "NUL byte"]),
+    ("unclosed-quote", _edit("step.csv", "0.10,", '"0.10,'),
+     ["step.csv:line 12", "never closed", "remove the quote"]),
+    ("empty-cell-named", _edit("step.csv", "0.10,", ","), ["step.csv:line 12",
+                                                          "column 't' is empty"]),
+    ("dangling-symlink", lambda d: ((d / "step.csv").unlink(),
+                                    (d / "step.csv").symlink_to(d / "gone.csv")),
+     ["step.csv", "a symbolic link to", "gone.csv, which does not exist"]),
+    ("session-toml-symlink-loop", lambda d: ((d / TOML).unlink(),
+                                             (d / TOML).symlink_to(d / TOML)),
+     [TOML, "points back to itself"]),
+    ("step-after-the-last-sample", _edit(TOML, "voltage = [[0.0, 0.0], [0.1, 6.0]]",
+                                         "voltage = [[0.0, 0.0], [30.0, 6.0]]"),
+     [f"{TOML}:trace['step'].voltage", "changes at 30 s, after the last sample at 1.5 s"]),
+    ("reversed-speed-sign", lambda d: (d / "step.csv").write_text(
+        "\n".join([ln if i == 0 else ",".join([c if k != 1 else f"-{c}"
+                                               for k, c in enumerate(ln.split(","))])
+                   for i, ln in enumerate(_step_text(d).splitlines())]) + "\n"),
+     ["step.csv", "speed counts the other way"]),
+    ("operating-point-speed-unit-slip", _edit(TOML, "speed = 100.0", "speed = 954.9"),
+     ["step.csv", "trace 'step' settles at", "rpm given as rad/s"]),
     # physically impossible closed-form results, named with the inputs that cause them
     ("closed-form-K-negative", _edit(TOML, "current = 0.3", "current = 3.5"),
      [f"{TOML}:operating_point", "K = -0.01 ", "Ra*Ia reaches the applied voltage"]),
@@ -197,3 +219,31 @@ def test_unknown_loads_name_driven_traces(session_dir):
         "'step')" in proc.stderr
     replace_once(session_dir / TOML, 'unknown_load = ["stepp"]', "unknown_load = true")
     assert load_session(session_dir).unknown_load_traces() == ("step",)
+
+
+def test_comment_lines_are_skipped_and_keep_line_numbers(session_dir):
+    expected = _run(session_dir, "--json")
+    text = _step_text(session_dir)
+    (session_dir / "step.csv").write_text("# scope log 3\n# 1 kHz\n" + text)
+    proc = _run(session_dir, "--json")
+    assert proc.returncode == 0 and json.loads(proc.stdout) == json.loads(expected.stdout)
+    replace_once(session_dir / "step.csv", "0.10,", "x,")
+    assert "step.csv:line 14" in _run(session_dir).stderr
+
+
+def test_a_file_for_the_session_and_a_bad_option_are_one_line(session_dir):
+    proc = _run(session_dir / "step.csv")
+    assert proc.returncode == 2 and "pass the session directory" in proc.stderr
+    assert len(proc.stderr.splitlines()) == 1
+    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", "--seed", "-1"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
+    assert "--seed" in proc.stderr and "--help" in proc.stderr
+
+
+def test_a_declared_load_at_the_operating_point_enters_equation_19(session_dir):
+    base = json.loads(_run(session_dir, "--json").stdout)
+    replace_once(session_dir / TOML, "current = 0.3", "current = 0.3\nload_torque = 0.002")
+    loaded = json.loads(_run(session_dir, "--json").stdout)
+    assert loaded["K"] == base["K"]
+    assert loaded["B"] == pytest.approx(base["B"] - 0.002 / 100.0, rel=1e-12)

@@ -69,14 +69,14 @@ def test_trace_units_apply_to_schedules(session_dir):
     replace_once(toml, 'time = "s", speed = "rpm", current = "A", voltage = "V"',
                  'time = "ms", speed = "rad/s", current = "mA", voltage = "mV", '
                  'load_torque = "mN*m"')
-    replace_once(toml, SCHEDULE, "voltage = [[0.0, 0.0], [100.0, 6000.0]]\n"
-                 "load_torque = [[0.0, 0.0], [500.0, 20.0]]\n"
+    replace_once(toml, SCHEDULE, "voltage = [[0.0, 0.0], [1.0, 6000.0]]\n"
+                 "load_torque = [[0.0, 0.0], [1.2, 20.0]]\n"
                  "initial = { current = 50.0, speed = 3.0 }")
     tr = load_session(session_dir).trace("step")
     np.testing.assert_allclose(tr.time[:3], [0.0, 1e-5, 2e-5], rtol=0, atol=1e-15)
-    np.testing.assert_allclose(tr.voltage.times, [0.0, 0.1], rtol=1e-15)
+    np.testing.assert_allclose(tr.voltage.times, [0.0, 1e-3], rtol=1e-15)
     np.testing.assert_allclose(tr.voltage.values, [0.0, 6.0], rtol=1e-15)
-    np.testing.assert_allclose(tr.load_torque.times, [0.0, 0.5], rtol=1e-15)
+    np.testing.assert_allclose(tr.load_torque.times, [0.0, 1.2e-3], rtol=1e-15)
     np.testing.assert_allclose(tr.load_torque.values, [0.0, 0.02], rtol=1e-15)
     assert tr.initial == pytest.approx((0.05, 3.0), rel=1e-15)
     assert tr.current[0] == pytest.approx(step_rows()[0][2] * 1e-3, rel=1e-3)

@@ -118,7 +118,7 @@ CASES = [
      ["sweep.csv:line 1", "no column named 'V'", "'Va', 'w'"]),
     ("non-numeric-cell", _cell(5, "speed_rpm", "abc"),
      ["step.csv:line 5", "column 'speed_rpm'", "'abc' is not a number"]),
-    ("empty-cell", _cell(7, "ia", ""), ["step.csv:line 7", "column 'ia'", "'' is not a number"]),
+    ("empty-cell", _cell(7, "ia", ""), ["step.csv:line 7", "column 'ia' is empty"]),
     ("unit-in-cell", _cell(3, "Va", "4 V", file="sweep.csv"),
      ["sweep.csv:line 3", "column 'Va'", "'4 V' is not a number"]),
     ("nan-cell", _cell(9, "speed_rpm", "nan"),
@@ -183,8 +183,8 @@ CASES = [
     ("duplicate-trace-name", _append_trace,
      [f"{TOML}:trace['step']", "two [[trace]] entries are named 'step'"]),
     # found by the closed-form method rather than the loader
-    ("step-never-crosses-63-percent", _flat_step,
-     ["step.csv", "cannot read a time constant from trace 'step'", "never crosses"]),
+    ("speed-never-changes", _flat_step,
+     ["step.csv", "the speed column 'speed_rpm' is 500 in every row", "did not turn"]),
     ("truth-bad-json", _truth("{Ra: 1}"), ["truth.json", "not valid JSON"]),
     ("truth-non-number", _truth('{"Ra": "two"}'), ["truth.json:Ra", "not a finite number"]),
 ]

@@ -27,6 +27,13 @@ _SEPARATORS = {",": "commas", ";": "semicolons", "\t": "tabs"}
 
 def _parse_cell(path: Path, line: int, column: str, text: str, decimal_comma: bool) -> float:
     """One cell as a finite float, or a SessionError naming the line, column and text."""
+    if not text:
+        raise SessionError(path, f"column {column!r} is empty; fill in the value or remove "
+                           "the row", where=f"line {line}")
+    if "\n" in text:
+        raise SessionError(path, f"column {column!r}: a quote (\") opened here is never "
+                           "closed, so the rest of the file reads as one cell; remove the "
+                           "quote", where=f"line {line}")
     try:
         value = float(text.replace(",", ".") if decimal_comma and "." not in text else text)
     except ValueError:
@@ -87,6 +94,14 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str) -> tuple[
         not a finite number.
     """
     text = read_text(path, "CSV file")
+    if "\x00" in text:
+        line = text[:text.index("\x00")].count("\n") + 1
+        raise SessionError(path, "a NUL byte (binary data) in the text; export the CSV file "
+                           "again as text", where=f"line {line}")
+    # whole-line comments (loggers often start with a few) read as blank lines, so the
+    # line numbers of errors stay those of the file
+    text = "\n".join("" if ln.lstrip().startswith("#") else ln
+                     for ln in text.split("\n"))
     first = next((ln for ln in text.splitlines() if ln.strip()), None)
     if first is None:
         raise SessionError(path, "the file is empty; its first line must be a header "
@@ -124,10 +139,12 @@ def _read_rows(path, reader, sep, wanted, asked_by):
     decimal_comma = sep != ","
     values = {role: array("d") for role in wanted}
     lines: list[int] = []
+    end = reader.line_num
     for row in reader:
+        start, end = end + 1, reader.line_num
         if not any(cell.strip() for cell in row):
             continue
-        line = reader.line_num
+        line = reader.line_num if all("\n" not in c for c in row) else start
         if len(row) > len(header) and any(cell.strip() for cell in row[len(header):]):
             hint = (" (is the decimal separator a comma? write decimals with a point, or "
                     "separate the columns with semicolons)" if sep == "," else "")

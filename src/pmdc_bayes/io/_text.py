@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import codecs
 import errno
+import os
 from pathlib import Path
 
 from .._errors import SessionError
@@ -19,6 +20,7 @@ __all__ = ["MAX_BYTES", "read_text"]
 MAX_BYTES = 200 * 1024 * 1024
 """Largest file read (200 MB, about six million rows of a three-column trace)."""
 
+_CONTROL = [bytes([c]) for c in (*range(9), 11, *range(14, 32), 127)]  # not in text
 _BOMS = ((codecs.BOM_UTF8, "utf-8-sig"), (codecs.BOM_UTF16_LE, "utf-16"),
          (codecs.BOM_UTF16_BE, "utf-16"))
 
@@ -33,6 +35,10 @@ def _raw(path: Path, what: str) -> bytes:
         if exc.errno == errno.EACCES:
             raise SessionError(path, "permission denied on the way to the file; make the "
                                "directory readable") from None
+        if path.is_symlink():
+            raise SessionError(path, f"a symbolic link to {os.readlink(path)}, which does not "
+                               f"exist; point it at the {what} or replace it by the file") \
+                from None
         raise SessionError(path, f"{what} not found; check the name (it is relative to the "
                            "session directory) or add the file") from None
     if path.is_dir():
@@ -60,7 +66,8 @@ def read_text(path: Path, what: str = "file") -> str:
     path = Path(path)
     data = _raw(path, what)
     encoding = next((enc for bom, enc in _BOMS if data.startswith(bom)), "utf-8")
-    if encoding == "utf-8" and b"\x00" in data[:4096]:
+    head = data[:4096]
+    if encoding == "utf-8" and sum(head.count(c) for c in _CONTROL) > 0.05 * len(head):
         raise SessionError(path, f"a binary file, not text; export the {what} as text "
                            "(UTF-8 CSV)")
     try:

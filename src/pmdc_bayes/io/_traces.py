@@ -47,6 +47,12 @@ def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray) -> Sch
         t.fail(key, f"the schedule starts at {times[0]:g} {tu}, after the first sample at "
                f"{t_raw[0]:g} {tu}; add a pair at the first sample time, "
                f"[{t_raw[0]:g}, <value>]")
+    inside = [v for tk, v in zip(times, values, strict=True) if tk <= t_raw[-1]]
+    later = [tk for k, tk in enumerate(times) if tk > t_raw[-1] and values[k] != inside[-1]]
+    if len(set(inside)) == 1 and later:
+        t.fail(key, f"the {key} changes at {later[0]:g} {tu}, after the last sample at "
+               f"{t_raw[-1]:g} {tu}, and is constant over the samples; check the schedule's "
+               "times (they are in the trace's time unit)")
     return Schedule(to_si(np.array(times), "time", tu), to_si(np.array(values), kind, u[key]))
 
 

@@ -55,10 +55,13 @@ def _locate(path) -> Path:
     p = Path(path)
     if p.is_dir():
         toml = p / "session.toml"
-        if not toml.is_file():
+        if not (toml.is_file() or toml.is_symlink()):
             raise SessionError(toml, "file not found; a session directory must hold "
                                "session.toml (see docs/session-format.md)")
-        return toml.resolve()
+        return toml if toml.is_symlink() else toml.resolve()
+    if p.is_file() and p.suffix.lower() != ".toml":
+        raise SessionError(p, "a file, not a session; pass the session directory (the folder "
+                           "holding session.toml)")
     if p.is_file():
         return p.resolve()
     raise SessionError(p, "no such session directory or file; pass a directory holding "

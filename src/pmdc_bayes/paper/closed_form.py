@@ -54,15 +54,17 @@ def kb_from_chopper(supply_voltage, duty, current, speed, Ra):
     return (duty * supply_voltage - current * Ra) / speed
 
 
-def b_from_steady(K, current, speed):
-    """Viscous friction from one no-load steady state.
+def b_from_steady(K, current, speed, load=0.0):
+    """Viscous friction from one steady state.
 
     Notes
     -----
-    Equation (19): ``B = Kt·Ia / ω`` (N·m·s/rad).  All friction at that operating
-    point, whatever its kind, is lumped into this one viscous coefficient.
+    Equation (19): ``B = Kt·Ia / ω`` (N·m·s/rad) at no load; with a declared load
+    torque TL the motor's own friction is what remains, ``(Kt·Ia − TL) / ω``.  All
+    friction at that operating point, whatever its kind, is lumped into this one
+    viscous coefficient.
     """
-    return K * current / speed
+    return (K * current - load) / speed
 
 
 def j_from_tau(tau, Ra, B, K):
@@ -219,10 +221,11 @@ def closed_form(session: Session) -> ClosedForm:
 
     op = next((p for p in session.operating_points if p.current is not None), None)
     if op is not None:
-        Va, Ia, w = op.voltage, op.current, op.speed
+        Va, Ia, w, TL = op.voltage, op.current, op.speed, op.load_torque
         K = kb_from_chopper(op.supply_voltage, op.duty, Ia, w, Ra)
         used["K"] = f"equation (20) at operating point {op.name!r}"
     else:
+        TL = 0.0
         with_current = [t for t in steps if t.current is not None and _turns(t)]
         rows = _steady_rows_with_current(session)
         if with_current:
@@ -247,8 +250,10 @@ def closed_form(session: Session) -> ClosedForm:
     if digits is not None:
         K = round(K, int(digits))
         used["K"] += f", rounded to {int(digits)} decimals as published"
-    B = float(np.mean(b_from_steady(K, Ia, w)))
+    B = float(np.mean(b_from_steady(K, Ia, w, TL)))
     used["B"] = "equation (19) at the same point" + ("s, averaged" if np.size(Ia) > 1 else "")
+    if TL:
+        used["B"] += ", less its declared load torque"
 
     if session.step_readings:
         sr = session.step_readings[0]
@@ -270,7 +275,40 @@ def closed_form(session: Session) -> ClosedForm:
     J = j_from_tau(tau, Ra, B, K)
     used["J"] = "equation (9) from tau"
     _check_physical(session, Ra, La, K, B, tau, used)
+    if not session.step_readings:
+        _check_trace(session, tr, K, B, Ra)
     return ClosedForm(Ra, La, K, B, J, tau, gain(Ra, K, B), used)
+
+
+GAIN_MISMATCH = 2.0  # a trace settling this factor away from the gain (10) contradicts it
+
+
+def _check_trace(session: Session, tr: Trace, K, B, Ra) -> None:
+    """Refuse a step trace that contradicts the closed form: a speed moving against the
+    voltage step (a reversed sign), or an unloaded settled speed a factor
+    :data:`GAIN_MISMATCH` away from what the gain (10) predicts (a unit slip between
+    the operating point and the trace)."""
+    _, v0, v1 = _step_of(tr)
+    n_tail = max(3, tr.n // 10)
+    w_end = float(np.mean(tr.speed[-n_tail:]))
+    moved = w_end - float(np.mean(tr.speed[:3]))
+    if (v1 - v0) * moved < 0:
+        raise NotApplicable(tr.file, f"trace {tr.name!r}: the speed falls by {abs(moved):.3g} "
+                            f"rad/s while the voltage steps {'up' if v1 > v0 else 'down'}: "
+                            "the speed counts the other way; flip its sign (or the "
+                            "voltage's) so that positive voltage gives positive speed")
+    va_end = float(tr.voltage.at(tr.time[-n_tail:]).mean())
+    tl_end = float(tr.load_torque.at(tr.time[-n_tail:]).mean())
+    if not (_turns(tr) and tl_end == 0 and va_end != 0):
+        return
+    predicted = gain(Ra, K, B) * va_end
+    ratio = w_end / predicted
+    if not 1 / GAIN_MISMATCH < ratio < GAIN_MISMATCH:
+        raise NotApplicable(tr.file, f"trace {tr.name!r} settles at {w_end:.4g} rad/s at "
+                            f"{va_end:.3g} V where the closed form's gain (10) predicts "
+                            f"{predicted:.4g} rad/s ({ratio:.3g} x): the steady point and the "
+                            "trace disagree; check both speeds' units (rpm given as rad/s "
+                            "is 9.55 x)")
 
 
 def _check_physical(session: Session, Ra, La, K, B, tau, used) -> None:

@@ -21,6 +21,7 @@ from .build import CONTROLLER_FILE, build_sections
 from .export import controller_model, to_control
 from .html import render_html
 from .markdown import render_markdown
+from .._errors import UsageError
 from .._x64 import x64
 from ..rundir import default_mode
 
@@ -80,6 +81,9 @@ def write_report(run_dir, *, result=None, into=None) -> dict[str, Path]:
     s = ctx.summary["session"]
     title = f"pmdc-bayes report: {s['motor']} (session {s['name']!r})"
     figdir = dest / FIGURES
+    if figdir.exists() and not figdir.is_dir():
+        raise UsageError(f"{figdir}: a file where the report's figures go; move it away "
+                         "and rerun")
     figdir.mkdir(exist_ok=True)
     figs = []
     for fig in _figures(sections):
