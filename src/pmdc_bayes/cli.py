@@ -44,9 +44,10 @@ def _cmd_closed_form(args) -> int:
 
     session = load_session(_session_path(args.session))
     cf = closed_form(session)
+    code = _closed_form_warnings(cf)
     if args.json:
         print(json.dumps(cf.as_json(), indent=2))
-        return 0
+        return code
     num, den = cf.tf22()
     print(f"Closed-form identification (reference paper, Section III): {session.motor}")
     print(f"{'parameter':<12}{'value':>14}  {'unit':<16}source")
@@ -65,7 +66,14 @@ def _cmd_closed_form(args) -> int:
         "Transfer function (22): w(s)/Va(s) = "
         f"{num[0]:.4g} / ({den[0]:.4g} s^2 + {den[1]:.4g} s + {den[2]:.4g})"
     )
-    return 0
+    return code
+
+
+def _closed_form_warnings(cf) -> int:
+    """Each warning of the closed form on stderr; exit code 1 when there is one."""
+    for text in cf.warnings:
+        print(f"pmdc-bayes: error: {text}", file=sys.stderr)
+    return EXIT_FAILED if cf.warnings else 0
 
 
 def _cmd_simulate(args) -> int:

@@ -147,8 +147,6 @@ REFUSED = [
                                             "[closed_form]\nK_decimals = 0\n\n"
                                             "[[operating_point]]"),
      [f"{TOML}:operating_point", "K = 0", "K_decimals"]),
-    ("closed-form-B-negative", _edit(TOML, "current = 0.3", "current = -0.3"),
-     [f"{TOML}:operating_point", "B = -0.000198", "not positive"]),
     ("step-reading-tau-absurd", lambda d: (d / TOML).write_text(
         (d / TOML).read_text() + STEP_READING + "tau = 1e-300\n"),
      [f"{TOML}:step_reading", "1e-300 s", "electrical time constant"]),
@@ -247,3 +245,13 @@ def test_a_declared_load_at_the_operating_point_enters_equation_19(session_dir):
     loaded = json.loads(_run(session_dir, "--json").stdout)
     assert loaded["K"] == base["K"]
     assert loaded["B"] == pytest.approx(base["B"] - 0.002 / 100.0, rel=1e-12)
+
+
+def test_a_negative_b_from_equation_19_is_said_first_and_fails(session_dir):
+    """A negative no-load current gives B < 0 from (19): not impossible for a noisy
+    reading (J stays positive), but not a friction either: said before the table, exit 1."""
+    replace_once(session_dir / TOML, "current = 0.3", "current = -0.3")
+    proc = _run(session_dir)
+    assert proc.returncode == 1 and proc.stdout.startswith("Closed-form identification")
+    (line,) = proc.stderr.splitlines()
+    assert "B = -0.000198" in line and "cannot be negative" in line

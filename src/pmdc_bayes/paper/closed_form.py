@@ -147,6 +147,7 @@ class ClosedForm:
     used: dict = field(default_factory=dict)
     applicable: bool = True
     reason: str = ""
+    warnings: tuple = ()
 
     def params(self) -> dict:
         return {"Ra": self.Ra, "La": self.La, "K": self.K, "B": self.B, "J": self.J}
@@ -160,6 +161,7 @@ class ClosedForm:
         out["tf22"] = {"num": [float(v) for v in num], "den": [float(v) for v in den]}
         out["used"] = dict(self.used)
         out["applicable"] = self.applicable
+        out["warnings"] = list(self.warnings)
         if not self.applicable:
             out["reason"] = self.reason
         return out
@@ -277,7 +279,11 @@ def closed_form(session: Session) -> ClosedForm:
     _check_physical(session, Ra, La, K, B, tau, used)
     if not session.step_readings:
         _check_trace(session, tr, K, B, Ra)
-    return ClosedForm(Ra, La, K, B, J, tau, gain(Ra, K, B), used)
+    warnings = () if B > 0 else (
+        f"B = {B:.3g} from {used['B']}: viscous friction cannot be negative or zero; the "
+        "no-load current there is within its noise (or its sign is wrong), so (19) cannot "
+        "resolve B: the fit does, from the traces",)
+    return ClosedForm(Ra, La, K, B, J, tau, gain(Ra, K, B), used, warnings=warnings)
 
 
 GAIN_MISMATCH = 2.0  # a trace settling this factor away from the gain (10) contradicts it
@@ -312,17 +318,23 @@ def _check_trace(session: Session, tr: Trace, K, B, Ra) -> None:
 
 
 def _check_physical(session: Session, Ra, La, K, B, tau, used) -> None:
-    """Refuse a result no motor can have, naming the inputs that make it so."""
+    """Refuse a result no motor can have (K <= 0, J <= 0, a time constant no longer than
+    the electrical one), naming the inputs that make it so.  A B <= 0 alone is a noisy
+    no-load current, not an impossibility: :attr:`ClosedForm.warnings` says so."""
     toml = session.root / "session.toml"
+
+    def J_of(b):
+        return j_from_tau(tau, Ra, b, K)
+
     if not (np.isfinite(K) and K > 0):
         raise NotApplicable(toml, f"{used['K']} gives K = {K:.3g} (it must be positive): the "
                             "resistive drop Ra*Ia reaches the applied voltage there; check "
                             "the current, the voltage (duty as a fraction, supply in V), "
                             "bench.Ra and K_decimals", where="operating_point")
-    if not (np.isfinite(B) and B > 0):
-        raise NotApplicable(toml, f"{used['B']} gives B = {B:.3g} (it must be positive): "
-                            "the steady current or speed there is not positive; check their "
-                            "signs and values", where="operating_point")
+    if not (np.isfinite(B) and J_of(B) > 0):
+        raise NotApplicable(toml, f"{used['B']} gives B = {B:.3g}, and with it J <= 0 from "
+                            "(9): the steady current or speed there is not positive; check "
+                            "their signs and values", where="operating_point")
     if not (np.isfinite(tau) and tau > La / Ra):
         raise NotApplicable(toml, f"the time constant from the {used['tau']} is "
                             f"{tau:.3g} s, not longer than the electrical time constant "
