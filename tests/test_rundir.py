@@ -314,3 +314,42 @@ def test_report_over_a_file_named_figures_is_one_line(fitted, tmp_path):
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 2 and "where the report's figures go" in proc.stderr
     assert (run / "figures").read_text() == "mine"
+
+
+def test_report_on_an_empty_summary_is_one_line(tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "summary.json").write_text("{}")
+    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(run)],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 2 and "not a summary written by 'pmdc-bayes fit'" in proc.stderr
+    assert len(proc.stderr.splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_report_on_a_garbage_posterior_is_one_line(fitted, tmp_path):
+    import shutil
+
+    _, out = fitted
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    (run / "posterior.nc").write_bytes(b"\x89HDF garbage" * 100)
+    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(run)],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 2, proc.stderr
+    assert "cannot be read as this run's posterior" in proc.stderr
+    assert len(proc.stderr.splitlines()) == 1
+
+
+def test_fit_into_a_read_only_place_is_refused_before_the_fit(session_dir, tmp_path):
+    mount = tmp_path / "ro"
+    if not _mount_tmpfs(mount, "1m", "ro"):
+        pytest.skip("cannot mount a read-only file system here (needs root and mount)")
+    try:
+        proc = _fit_cli(session_dir, "--out", mount / "run", "--verbose")
+        _, err = proc.communicate(timeout=600)
+        lines = err.splitlines()
+        assert proc.returncode == 2 and "cannot write in" in lines[-1], err
+        assert "MAP fit" not in err and "Traceback" not in err  # refused before fitting
+    finally:
+        subprocess.run(["umount", str(mount)], check=False)
