@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._errors import NotApplicable, SessionError
-from ..io.session import LA_ASSUMED, Session, Trace
+from ..io.session import LA_ASSUMED, Session
 from ..physics.motor import (
     gain,
     state_space,
@@ -25,6 +25,7 @@ from ..physics.motor import (
     tf_normalised,
     time_constant,
 )
+from .checks import check_physical, check_trace, step_of, turns
 
 __all__ = [
     "kb_from_chopper",
@@ -167,27 +168,6 @@ class ClosedForm:
         return out
 
 
-def _step_of(trace: Trace) -> tuple[float, float, float]:
-    """(time of the largest voltage change, voltage before, voltage after); a constant
-    voltage is a step from rest at the first sample."""
-    v = trace.voltage.values
-    times = trace.voltage.times
-    if v.size < 2:
-        return float(trace.time[0]), 0.0, float(v[0])
-    jumps = np.abs(np.diff(v))
-    k = int(np.argmax(jumps))
-    return float(max(times[k + 1], trace.time[0])), float(v[k]), float(v[k + 1])
-
-
-def _turns(trace: Trace) -> bool:
-    """Whether a trace ends turning: its settled speed is a fair share of its largest
-    (a motor that never moved shows only noise, whose mean is far below its peaks),
-    so it gives a steady point for (20)."""
-    n_tail = max(3, trace.n // 10)
-    w = abs(float(np.mean(trace.speed[-n_tail:])))
-    return w > 0.2 * float(np.max(np.abs(trace.speed))) and w > 0
-
-
 def _steady_rows_with_current(session: Session):
     """(table name, V, I, ω arrays) of the first steady table's unloaded, turning rows
     with a current, or None."""
@@ -228,7 +208,7 @@ def closed_form(session: Session) -> ClosedForm:
         used["K"] = f"equation (20) at operating point {op.name!r}"
     else:
         TL = 0.0
-        with_current = [t for t in steps if t.current is not None and _turns(t)]
+        with_current = [t for t in steps if t.current is not None and turns(t)]
         rows = _steady_rows_with_current(session)
         if with_current:
             tr = with_current[0]
@@ -262,8 +242,8 @@ def closed_form(session: Session) -> ClosedForm:
         tau = sr.tau
         used["tau"] = f"step reading {sr.name!r}"
     elif steps:
-        tr = max(steps, key=lambda s: (_turns(s), abs(_step_of(s)[2] - _step_of(s)[1])))
-        t_step, _, _ = _step_of(tr)
+        tr = max(steps, key=lambda s: (turns(s), abs(step_of(s)[2] - step_of(s)[1])))
+        t_step, _, _ = step_of(tr)
         try:
             tau = read_time_constant(tr.time, tr.speed, t_step=t_step).tau
         except ValueError as exc:
@@ -276,67 +256,11 @@ def closed_form(session: Session) -> ClosedForm:
                             "kind = \"step\" or a [[step_reading]]", where="trace")
     J = j_from_tau(tau, Ra, B, K)
     used["J"] = "equation (9) from tau"
-    _check_physical(session, Ra, La, K, B, tau, used)
+    check_physical(session, Ra, La, K, B, tau, used)
     if not session.step_readings:
-        _check_trace(session, tr, K, B, Ra)
+        check_trace(session, tr, K, B, Ra)
     warnings = () if B > 0 else (
         f"B = {B:.3g} from {used['B']}: viscous friction cannot be negative or zero; the "
         "no-load current there is within its noise (or its sign is wrong), so (19) cannot "
         "resolve B: the fit does, from the traces",)
     return ClosedForm(Ra, La, K, B, J, tau, gain(Ra, K, B), used, warnings=warnings)
-
-
-GAIN_MISMATCH = 2.0  # a trace settling this factor away from the gain (10) contradicts it
-
-
-def _check_trace(session: Session, tr: Trace, K, B, Ra) -> None:
-    """Refuse a step trace that contradicts the closed form: a speed moving against the
-    voltage step (a reversed sign), or an unloaded settled speed a factor
-    :data:`GAIN_MISMATCH` away from what the gain (10) predicts (a unit slip between
-    the operating point and the trace)."""
-    _, v0, v1 = _step_of(tr)
-    n_tail = max(3, tr.n // 10)
-    w_end = float(np.mean(tr.speed[-n_tail:]))
-    moved = w_end - float(np.mean(tr.speed[:3]))
-    if (v1 - v0) * moved < 0:
-        raise NotApplicable(tr.file, f"trace {tr.name!r}: the speed falls by {abs(moved):.3g} "
-                            f"rad/s while the voltage steps {'up' if v1 > v0 else 'down'}: "
-                            "the speed counts the other way; flip its sign (or the "
-                            "voltage's) so that positive voltage gives positive speed")
-    va_end = float(tr.voltage.at(tr.time[-n_tail:]).mean())
-    tl_end = float(tr.load_torque.at(tr.time[-n_tail:]).mean())
-    if not (_turns(tr) and tl_end == 0 and va_end != 0):
-        return
-    predicted = gain(Ra, K, B) * va_end
-    ratio = w_end / predicted
-    if not 1 / GAIN_MISMATCH < ratio < GAIN_MISMATCH:
-        raise NotApplicable(tr.file, f"trace {tr.name!r} settles at {w_end:.4g} rad/s at "
-                            f"{va_end:.3g} V where the closed form's gain (10) predicts "
-                            f"{predicted:.4g} rad/s ({ratio:.3g} x): the steady point and the "
-                            "trace disagree; check both speeds' units (rpm given as rad/s "
-                            "is 9.55 x)")
-
-
-def _check_physical(session: Session, Ra, La, K, B, tau, used) -> None:
-    """Refuse a result no motor can have (K <= 0, J <= 0, a time constant no longer than
-    the electrical one), naming the inputs that make it so.  A B <= 0 alone is a noisy
-    no-load current, not an impossibility: :attr:`ClosedForm.warnings` says so."""
-    toml = session.root / "session.toml"
-
-    def J_of(b):
-        return j_from_tau(tau, Ra, b, K)
-
-    if not (np.isfinite(K) and K > 0):
-        raise NotApplicable(toml, f"{used['K']} gives K = {K:.3g} (it must be positive): the "
-                            "resistive drop Ra*Ia reaches the applied voltage there; check "
-                            "the current, the voltage (duty as a fraction, supply in V), "
-                            "bench.Ra and K_decimals", where="operating_point")
-    if not (np.isfinite(B) and J_of(B) > 0):
-        raise NotApplicable(toml, f"{used['B']} gives B = {B:.3g}, and with it J <= 0 from "
-                            "(9): the steady current or speed there is not positive; check "
-                            "their signs and values", where="operating_point")
-    if not (np.isfinite(tau) and tau > La / Ra):
-        raise NotApplicable(toml, f"the time constant from the {used['tau']} is "
-                            f"{tau:.3g} s, not longer than the electrical time constant "
-                            f"La/Ra = {La / Ra:.3g} s, so it cannot be the mechanical one of "
-                            "(8); check the value and its unit", where="step_reading")

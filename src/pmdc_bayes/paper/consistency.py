@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .closed_form import ClosedForm
 from ..io.session import Session
+from .closed_form import ClosedForm
 
 __all__ = ["consistency_checks"]
 
