@@ -10,7 +10,6 @@ locales write it.
 from __future__ import annotations
 
 import csv
-import io
 import math
 from array import array
 from pathlib import Path
@@ -51,6 +50,19 @@ def _parse_cell(path: Path, line: int, column: str, text: str, decimal_comma: bo
             where=f"line {line}",
         )
     return value
+
+
+def _lines(text: str):
+    """The lines of ``text`` one at a time (no copy of the whole), each with its newline;
+    a whole-line comment (``#``, as loggers often write first) reads as a blank line, so
+    the line numbers of errors stay those of the file."""
+    start, n = 0, len(text)
+    while start < n:
+        end = text.find("\n", start)
+        end = n if end < 0 else end + 1
+        line = text[start:end]
+        yield "\n" if line.lstrip().startswith("#") else line
+        start = end
 
 
 def _separator(header_line: str) -> str:
@@ -98,16 +110,12 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str) -> tuple[
         line = text[:text.index("\x00")].count("\n") + 1
         raise SessionError(path, "a NUL byte (binary data) in the text; export the CSV file "
                            "again as text", where=f"line {line}")
-    # whole-line comments (loggers often start with a few) read as blank lines, so the
-    # line numbers of errors stay those of the file
-    text = "\n".join("" if ln.lstrip().startswith("#") else ln
-                     for ln in text.split("\n"))
-    first = next((ln for ln in text.splitlines() if ln.strip()), None)
+    first = next((ln for ln in _lines(text) if ln.strip()), None)
     if first is None:
         raise SessionError(path, "the file is empty; its first line must be a header "
                            "naming the columns, followed by one row per sample")
     sep = _separator(first)
-    reader = csv.reader(io.StringIO(text, newline=""), delimiter=sep)
+    reader = csv.reader(_lines(text), delimiter=sep)
     try:
         return _read_rows(path, reader, sep, wanted, asked_by)
     except csv.Error as exc:
