@@ -15,7 +15,7 @@ from .._errors import NotApplicable
 from ..io.session import Session, Trace
 from ..physics.motor import gain
 
-__all__ = ["GAIN_MISMATCH", "step_of", "turns", "check_trace", "check_physical"]
+__all__ = ["GAIN_MISMATCH", "SETTLED", "step_of", "turns", "check_trace", "check_physical"]
 
 
 def step_of(trace: Trace) -> tuple[float, float, float]:
@@ -39,6 +39,7 @@ def turns(trace: Trace) -> bool:
     return w > 0.2 * float(np.max(np.abs(trace.speed))) and w > 0
 
 
+SETTLED = 0.02  # a trace's last tenth moving less than this share of its level has settled
 GAIN_MISMATCH = 2.0  # a trace settling this factor away from the gain (10) contradicts it
 
 
@@ -60,6 +61,10 @@ def check_trace(session: Session, tr: Trace, K, B, Ra) -> None:
     tl_end = float(tr.load_torque.at(tr.time[-n_tail:]).mean())
     if not (turns(tr) and tl_end == 0 and va_end != 0):
         return
+    tail = tr.speed[-n_tail:]
+    half = tail.size // 2
+    if abs(float(np.mean(tail[half:]) - np.mean(tail[:half]))) > SETTLED * abs(w_end):
+        return  # still moving at its end (a short capture): no steady speed to compare
     predicted = gain(Ra, K, B) * va_end
     ratio = w_end / predicted
     if not 1 / GAIN_MISMATCH < ratio < GAIN_MISMATCH:
