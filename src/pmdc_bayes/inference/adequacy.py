@@ -32,7 +32,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from .._x64 import x64
-from .channels import CoastDownBlock
+from .channels import CoastDownBlock, TraceBlock
 
 __all__ = ["Finding", "Adequacy", "assess", "whiteness", "fit_percent", "systematic_misfit"]
 
@@ -219,7 +219,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
         ia, w = preds[k]
         cf = preds_cf[k] if preds_cf is not None else (None, None)
         u = tr.voltage.at(tr.time)
-        for what, y, yhat, ycf in (("speed", tr.speed, w, cf[1]),
+        for what, y, yhat, ycf in (("speed", tr.speed if tr.speed_logged else None, w, cf[1]),
                                    ("current", tr.current, ia, cf[0])):
             if y is None:
                 continue
@@ -230,7 +230,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
                                         ch.s0, float(fit.noise_sd.get(name, ch.s0)))
             channels[name] = row
             findings += found
-    for name, y, yhat in _coast_down_pairs(model, fit):
+    for name, y, yhat in _coast_down_pairs(model, fit) + _position_pairs(model, fit):
         ch = by_name[name]
         row, found = _trace_channel(name, ch.unit, y, yhat, None, None, ch.s0,
                                     float(fit.noise_sd.get(name, ch.s0)))
@@ -260,6 +260,22 @@ def _coast_down_pairs(model, fit):
             r = np.asarray(block.residuals(model, np.asarray(fit.theta), d)[0])
             for k, tr in enumerate(model.session.coast_downs):
                 out.append((f"{tr.name}: speed", tr.speed, tr.speed - r[k, :tr.n]))
+    return out
+
+
+def _position_pairs(model, fit):
+    """(channel name, observed, predicted) for each trace's angle, where read."""
+    out = []
+    for block in model.blocks:
+        if isinstance(block, TraceBlock) and block.offsets:
+            d = model.data[block.key]
+            r = block.residuals(model, np.asarray(fit.theta), d)[2]
+            per_trace = model.exp.split(np.asarray(d["exp"].unpad(r)))
+            for tr, rk in zip(model.session.traces, per_trace, strict=True):
+                if tr.position is not None:
+                    ok = np.isfinite(tr.position)
+                    out.append((f"{tr.name}: position", tr.position[ok],
+                                tr.position[ok] - rk[ok]))
     return out
 
 

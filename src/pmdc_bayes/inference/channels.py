@@ -26,10 +26,11 @@ import numpy as np
 
 from ..io.session import Session
 from ..physics import motor
+from ..physics.angle import rotor_angle
 from ..physics.experiment import Experiment, steady_points
 from ..physics.solution import simulate_padded
 from .noise import noise_scale, typical_level
-from .nuisances import initial_speed_name
+from .nuisances import initial_speed_name, position_offset_name
 
 __all__ = ["Block", "TraceBlock", "CoastDownBlock", "SteadyBlock", "StepReadingBlock", "blocks_for",
            "STEADY_RELATIVE_NOISE"]
@@ -55,49 +56,72 @@ class Block:
 
 
 class TraceBlock(Block):
-    """Every trace's speed and (when logged) current, in the experiment's padded
-    ``(C, L)`` chunk layout; one simulation predicts them all."""
+    """Every trace's speed (when logged), current (when logged) and angle (when a
+    position sensor or an encoder read it), in the experiment's padded ``(C, L)`` chunk
+    layout; one simulation predicts them all.  The angle is the exact integral of the
+    speed (:func:`~pmdc_bayes.physics.angle.rotor_angle`) plus the trace's fitted
+    ``position_offset_<trace>``."""
 
     key = "traces"
 
     def __init__(self, session: Session, exp: Experiment, add: AddChannel):
         self.exp = exp
-        speed_ch, current_ch, speeds, currents = [], [], [], []
+        self.offsets = tuple(position_offset_name(tr.name) for tr in session.traces
+                             if tr.position is not None)
+        chans = {"speed": [], "current": [], "position": []}
+        values = {"speed": [], "current": [], "position": []}
+        seen = {"speed": [], "current": [], "position": []}
         for tr in session.traces:
-            speed_ch.append(add(f"{tr.name}: speed", "rad/s", tr.n, noise_scale(tr.speed)))
-            speeds.append(tr.speed)
-            if tr.current is not None:
-                current_ch.append(add(f"{tr.name}: current", "A", tr.n,
-                                      noise_scale(tr.current)))
-                currents.append(tr.current)
-            else:
-                current_ch.append(-1)
-                currents.append(np.zeros(tr.n))
+            logged = {"speed": tr.speed if tr.speed_logged else None,
+                      "current": tr.current, "position": tr.position}
+            for what, unit in (("speed", "rad/s"), ("current", "A"), ("position", "rad")):
+                y = logged[what]
+                if y is None:
+                    chans[what].append(-1)
+                    values[what].append(np.zeros(tr.n))
+                    seen[what].append(np.zeros(tr.n, bool))
+                    continue
+                ok = np.isfinite(y)
+                chans[what].append(add(f"{tr.name}: {what}", unit, int(ok.sum()),
+                                       noise_scale(y[ok])))
+                values[what].append(np.where(ok, y, 0.0))
+                seen[what].append(ok)
         ct = np.asarray(exp.chunk_trace)
-        cur = np.asarray(current_ch)[ct]
         starts = np.concatenate([np.arange(tr.n) == 0 for tr in session.traces])
-        self._data = {"exp": exp, "speed": exp.pad(np.concatenate(speeds)),
-                      "t": np.concatenate([tr.time for tr in session.traces]),
+        with_pos = [k for k, tr in enumerate(session.traces) if tr.position is not None]
+        slot = np.zeros(len(session.traces), int)
+        slot[with_pos] = np.arange(len(with_pos))
+        self._data = {"exp": exp, "t": np.concatenate([tr.time for tr in session.traces]),
                       "start": starts,
-                      "current": exp.pad(np.concatenate(currents)),
-                      "speed_ch": np.asarray(speed_ch)[ct],
-                      "current_ch": np.where(cur >= 0, cur, 0),
-                      "current_mask": np.asarray(exp.mask) & (cur >= 0)[:, None]}
+                      "sample_slot": np.repeat(slot, [tr.n for tr in session.traces])}
+        for what in chans:
+            ch = np.asarray(chans[what])[ct]
+            self._data[what] = exp.pad(np.concatenate(values[what]))
+            self._data[f"{what}_ch"] = np.where(ch >= 0, ch, 0)
+            self._data[f"{what}_mask"] = (np.asarray(exp.mask) & (ch >= 0)[:, None]
+                                          & np.asarray(exp.pad(np.concatenate(seen[what])),
+                                                       bool))
 
     @staticmethod
     def layout(d) -> list:
-        return [(d["exp"].mask, d["speed_ch"]), (d["current_mask"], d["current_ch"])]
+        return [(d[f"{w}_mask"], d[f"{w}_ch"]) for w in ("speed", "current", "position")]
 
     @staticmethod
     def observed(d) -> list:
-        return [d["speed"], d["current"]]
+        return [d["speed"], d["current"], d["position"]]
 
-    @staticmethod
-    def residuals(model, theta, d, fast: bool = False) -> list:
-        ia, w = model.sensed(theta, *simulate_padded(
-            model.params(theta), model.inputs(theta, d["exp"]), coulomb=model.coulomb_path,
-            fast=fast), d)
-        return [d["speed"] - w, d["current"] - ia]
+    def residuals(self, model, theta, d, fast: bool = False) -> list:
+        exp = model.inputs(theta, d["exp"])
+        p = model.params(theta)
+        ia_x, w_x = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast)
+        ia, w = model.sensed(theta, ia_x, w_x, d)
+        out = [d["speed"] - w, d["current"] - ia]
+        if not self.offsets:
+            return out + [jnp.zeros_like(w)]
+        v = model.registry.values(theta)
+        offset = jnp.stack([v[n] for n in self.offsets])[d["sample_slot"]]
+        angle = rotor_angle(p, exp, ia_x, w_x, d["t"], d["start"], coulomb=model.coulomb_path)
+        return out + [d["position"] - exp.pad(offset + angle)]
 
 
 class SteadyBlock(Block):

@@ -19,7 +19,7 @@ from .noise import noise_scale
 from .params import ParamSpec, Prior
 
 __all__ = ["RigEffects", "nuisance_specs", "coast_down_specs", "dead_time_name",
-           "initial_speed_name", "load_names", "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES",
+           "initial_speed_name", "load_names", "position_specs", "position_offset_name", "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES",
            "LAG_PRIOR_FACTOR"]
 
 DEAD_TIME_PRIOR = 0.05  # sd of a trace's dead time, as a share of the trace's length
@@ -141,6 +141,35 @@ def coast_down_specs(session: Session) -> list[ParamSpec]:
     return specs
 
 
+def position_offset_name(trace_name: str) -> str:
+    """The parameter name of a position trace's angle at its first sample."""
+    return f"position_offset_{_identifier(trace_name)}"
+
+
+def position_specs(session: Session) -> list[ParamSpec]:
+    """Per trace with an angle, ``position_offset_<trace>`` (rad): the sensor's reading
+    at the trace's first sample (the angle is otherwise only known up to it).  Prior
+    normal, centred on the first reading (for an encoder trace starting at rest before
+    its first edge, half a count before that edge), sd one count plus ten times the
+    angle's model-free noise level."""
+    specs = []
+    for tr in session.traces:
+        if tr.position is None:
+            continue
+        ok = np.isfinite(tr.position)
+        y = tr.position[ok]
+        first = float(y[0])
+        if not ok[0]:
+            first -= 0.5 * tr.encoder_step * float(np.sign(y[1] - y[0]) if y.size > 1 else 1.0)
+        sd = tr.encoder_step + 10.0 * noise_scale(y)
+        specs.append(ParamSpec(position_offset_name(tr.name), "rad", "trace",
+                               Prior("normal", first, sd, "first reading"), first,
+                               transform="identity",
+                               description=f"angle read at the start of trace {tr.name!r}",
+                               trace=tr.name))
+    return specs
+
+
 class RigEffects:
     """The rig's non-idealities in the prediction, for a model with ``registry`` and
     ``session``."""
@@ -159,7 +188,8 @@ class RigEffects:
         if "dead_time" in self.session.nuisances:
             v = self.registry.values(theta)
             delay = jnp.stack([v[dead_time_name(tr.name)] for tr in self.session.traces])
-            exp = exp._replace(tau=jnp.maximum(exp.tau - delay[exp.chunk_trace][:, None], 0.0))
+            shifted = exp.tau - delay[exp.chunk_trace][:, None]
+            exp = exp._replace(tau=jnp.maximum(shifted, 0.0), tau_pre=jnp.minimum(shifted, 0.0))
         loaded = self.session.unknown_load_traces()
         if loaded:
             v, zero = self.registry.values(theta), jnp.zeros(())

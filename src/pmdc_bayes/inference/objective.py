@@ -28,7 +28,7 @@ from ..physics.solution import Params, experiment_from_traces, real_modes, simul
 from . import cache as _cache
 from .channels import SteadyBlock, blocks_for, entry_weights
 from .noise import Channel, noise_scale
-from .nuisances import RigEffects, coast_down_specs, nuisance_specs
+from .nuisances import RigEffects, coast_down_specs, nuisance_specs, position_specs
 from .params import PRIOR_FACTOR, Registry, motor_registry
 from .seed import drop_seed, motor_seed
 
@@ -57,7 +57,8 @@ class SessionModel(RigEffects):
         motor_specs = motor_registry(session, start, coulomb=coulomb).specs
         self.registry = Registry(motor_specs
                                  + tuple(nuisance_specs(session, drop_seed(session), start["B"]))
-                                 + tuple(coast_down_specs(session)))
+                                 + tuple(coast_down_specs(session))
+                                 + tuple(position_specs(session)))
         # a trace's friction-like unknown load needs the stick-slip solution, whatever
         # the motor's own friction model
         self.coulomb_path = coulomb or bool(session.unknown_load_traces())

@@ -9,6 +9,7 @@ import numpy as np
 
 from .._errors import SessionError
 from ._csv import read_columns
+from ._position import angle_si, edge_angles, edges_flag, speed_estimate, unwrap_time
 from ._toml import Table as _Table
 from ._toml import describe as _describe
 from .session import COAST_DOWN, Schedule, Trace
@@ -17,7 +18,8 @@ from .units import to_si
 __all__ = ["read_traces"]
 
 _TRACE_KINDS = {"time": "time", "speed": "speed", "current": "current", "voltage": "voltage",
-                "load_torque": "torque"}
+                "load_torque": "torque", "position": "angle"}
+_COLUMNS = dict(_TRACE_KINDS, direction="")  # the roles a column may have
 
 
 def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray) -> Schedule:
@@ -74,7 +76,7 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
     least 3 samples, strictly increasing)."""
     path = root / t.string("file")
     raw, lines = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}")
-    t_raw = raw["time"]
+    t_raw = unwrap_time(t, path, raw["time"])
     if t_raw.size < 3:
         raise SessionError(path, f"only {t_raw.size} samples; a trace needs at least 3 "
                            "samples (log a longer record)")
@@ -85,20 +87,67 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
                            f"{t_raw[k]:g} follows {t_raw[k - 1]:g} (line {lines[k - 1]}); sort "
                            "the rows by time and remove duplicate samples",
                            where=f"line {lines[k]}")
-    speed = raw["speed"]
-    if np.all(speed == speed[0]):
-        raise SessionError(path, f"the speed column {cols['speed']!r} is {speed[0]:g} in every "
-                           "row: the motor did not turn, or the column is not the speed; "
-                           "remove the trace or log one in which the motor turns")
+    for role in ("speed", "position"):
+        y = raw.get(role)
+        if y is not None and np.all(y == y[0]):
+            raise SessionError(path, f"the {role} column {cols[role]!r} is {y[0]:g} in every "
+                               f"row: the motor did not turn, or the column is not the {role}; "
+                               "remove the trace or log one in which the motor turns")
     time = to_si(t_raw, "time", u["time"])
     return path, raw, t_raw, time
 
 
+def _motion_columns(t: _Table, cols: dict, edges: bool) -> None:
+    """A driven trace logs a speed, an angle, or one row per encoder edge."""
+    if edges:
+        for role in ("speed", "position", "voltage", "load_torque", "current"):
+            if role in cols:
+                t.fail(f"columns.{role}", "a trace with edges = true has one row per encoder "
+                       "edge (time and, optionally, direction); log the "
+                       f"{role} in a trace of its own" + (
+                           ", or give it as a schedule" if role in ("voltage", "load_torque")
+                           else ""))
+    elif "speed" not in cols and "position" not in cols:
+        t.fail("columns", 'no speed or position column; add columns.speed = "<header>" or '
+               'columns.position = "<header>", or set edges = true for one row per encoder edge')
+    if "direction" in cols and not edges:
+        t.fail("columns.direction", "a direction column belongs to an encoder-edge trace; set "
+               "edges = true, or remove it")
+
+
+def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: bool,
+            voltage: Schedule, initial) -> dict:
+    """The trace's time, speed and angle (SI), and the angle of one count.  An edge
+    trace starting at rest gets a first sample, unread, at its voltage schedule's start."""
+    if not edges:
+        out = {"time": time, "position": None, "encoder_step": 0.0}
+        if "position" in raw:
+            out["position"], out["encoder_step"] = angle_si(t, raw["position"], u["position"])
+        out["speed"] = raw.get("speed")
+        if out["speed"] is not None:
+            out["speed"] = to_si(out["speed"], "speed", u["speed"])
+        else:
+            out["speed"] = speed_estimate(time, out["position"])
+        return out
+    angle, q = edge_angles(t, path, time.size, raw.get("direction"))
+    if initial == "rest":
+        if not voltage.times[0] < time[0]:
+            t.fail("voltage", "an encoder-edge trace starting at rest starts at its voltage "
+                   "schedule's first time, which must come before the first edge; begin the "
+                   "schedule at the time the motor was still at rest")
+        time = np.concatenate([voltage.times[:1], time])
+        angle = np.concatenate([[np.nan], angle])
+    return {"time": time, "position": angle, "encoder_step": q,
+            "speed": speed_estimate(time, angle)}
+
+
 def _trace(t: _Table, root: Path) -> Trace:
     t.check_keys(("name", "kind", "file", "columns", "units", "voltage", "load_torque",
-                  "initial"))
+                  "initial", "counts_per_rev", "time_wrap", "edges"))
     name, kind, u = t.string("name"), t.string("kind"), t.units(_TRACE_KINDS)
-    cols = t.columns(_TRACE_KINDS, ("time", "speed"))
+    cols = t.columns(_COLUMNS, ("time",))
+    edges = edges_flag(t)
+    _motion_columns(t, cols, edges)
     for inp in ("voltage", "load_torque"):
         if inp in cols and inp in t.data:
             t.fail(inp, f"{inp} is given both as a column (columns.{inp}) and as a schedule; "
@@ -107,7 +156,8 @@ def _trace(t: _Table, root: Path) -> Trace:
         t.fail("voltage", "no armature voltage given; add a column (columns.voltage = "
                "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
     path, raw, t_raw, time = _read_trace_file(t, root, cols, u)
-    si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw}
+    si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw
+          if role in ("current", "voltage", "load_torque")}
     inputs = {}
     for inp in ("voltage", "load_torque"):
         if inp in si:
@@ -116,10 +166,14 @@ def _trace(t: _Table, root: Path) -> Trace:
             inputs[inp] = _schedule(t, inp, u, _TRACE_KINDS[inp], t_raw)
         else:
             inputs[inp] = Schedule(time[:1].copy(), np.zeros(1))
-    return Trace(name=name, kind=kind, file=path, time=time, speed=si["speed"],
+    initial = _initial(t, u)
+    m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial)
+    return Trace(name=name, kind=kind, file=path, time=m["time"], speed=m["speed"],
                  current=si.get("current"), voltage=inputs["voltage"],
                  load_torque=inputs["load_torque"], voltage_logged="voltage" in si,
-                 load_logged="load_torque" in si, initial=_initial(t, u))
+                 load_logged="load_torque" in si, initial=initial,
+                 position=m["position"], speed_logged="speed" in raw,
+                 encoder_step=m["encoder_step"])
 
 
 def _coast_down(t: _Table, root: Path) -> Trace:

@@ -128,6 +128,14 @@ class Trace:
         schedule written in ``session.toml`` (False).
     initial : ``"rest"``, ``"steady"`` (steady state of the inputs at the first
         sample) or a tuple ``(current A, speed rad/s)``.
+    position : the rotor's angle (rad) where a position sensor or an encoder read it,
+        NaN at samples it did not (an encoder trace's start, before the first edge),
+        or None.
+    speed_logged : False when ``speed`` was not logged but estimated from
+        ``position`` (for the closed form, the seeds and the figures; the likelihood
+        then reads the position only).
+    encoder_step : the angle of one encoder count (rad) when the position is counted,
+        0 otherwise.
     """
 
     name: str
@@ -141,6 +149,9 @@ class Trace:
     voltage_logged: bool = False
     load_logged: bool = False
     initial: str | tuple[float, float] = "rest"
+    position: np.ndarray | None = None
+    speed_logged: bool = True
+    encoder_step: float = 0.0
 
     @property
     def n(self) -> int:

@@ -44,6 +44,8 @@ class Experiment(NamedTuple):
     every sample of every trace be evaluated at once, without gathers.  ``seg_b`` and
     ``seg_tc``, when set, add a viscous (N·m·s/rad) and a friction-like constant
     (N·m) drag per segment to the motor's own (an unknown load on a trace).
+    ``tau_pre``, when set (a dead time), is how long before its segment's delayed start
+    each sample lies (≤ 0; ``tau`` is then 0 there).
     """
 
     seg_t0: jax.Array
@@ -61,6 +63,7 @@ class Experiment(NamedTuple):
     counts: jax.Array
     seg_b: jax.Array | None = None
     seg_tc: jax.Array | None = None
+    tau_pre: jax.Array | None = None
 
     @property
     def seg_trace(self) -> jax.Array:

@@ -28,6 +28,7 @@ __all__ = [
     "OUTPUT",
     "derivatives",
     "terminal_voltage",
+    "angle_increment",
     "steady_state",
     "time_constant",
     "electrical_time_constant",
@@ -61,6 +62,19 @@ def terminal_voltage(va, drop):
     """The voltage across the armature when a constant ``drop`` (brushes, driver)
     opposes the applied ``va``: ``va − drop·sign(va)`` (0 V stays 0 V)."""
     return va - drop * _xp(va, drop).sign(va)
+
+
+def angle_increment(Ra, La, K, B, J, dv, dt_load, dia, dw):
+    """The angle (rad) the rotor turns over an interval, exactly, from the two
+    equations (5)–(6) integrated over it: ``dv = ∫Va dt``, ``dt_load = ∫(TL + friction
+    torque) dt`` and the changes ``dia``, ``dw`` of the current and speed.
+
+    Integrating La·dia/dt = Va − Ra·ia − K·ω and J·dω/dt = K·ia − B·ω − T and
+    eliminating ∫ia: ``∫ω dt = (K·∫Va − Ra·∫T − Ra·J·Δω − K·La·Δia)/(K² + Ra·B)``.
+    Exact for any input within the interval; for Coulomb friction only where ω keeps
+    one sign (the friction torque is then ``Tc·sign(ω)``).
+    """
+    return (K * dv - Ra * dt_load - Ra * J * dw - K * La * dia) / (K * K + Ra * B)
 
 
 def steady_state(Ra, K, B, va, tl=0.0, tc=None):

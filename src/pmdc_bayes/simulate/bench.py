@@ -32,6 +32,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from ..io.session import Measurement, Schedule, Session, SteadyTable, Trace
+from ._encoder import EDGE_FINE, encoder_trace_parts
 
 __all__ = ["BenchMotor", "StepSpec", "bench_session", "steady_point"]
 
@@ -68,6 +69,11 @@ class BenchMotor:
         If set, the logged speed is the backward difference of the angle quantised to
         ``2π/counts`` (counted down with ``floor``), divided by the sample interval.
         The encoder replaces the analogue sensor: no speed noise is added.
+    encoder_output : str
+        What the encoder trace logs (:data:`~._encoder.ENCODER_OUTPUTS`): ``"speed"``
+        (the differenced counts above), ``"position"`` (the counted angle at each
+        sample, no speed), ``"edges"`` (one sample per edge at its time, to 1 µs,
+        after an unread first sample at rest; forward motion only).
     extra_load : dict
         Trace name -> ``(constant N·m, viscous N·m·s/rad)``: load the session does not
         declare.  The constant part is a drag opposing the motion (it acts like extra
@@ -91,6 +97,7 @@ class BenchMotor:
     current_limit: float | None = None
     speed_gain: float = 1.0
     encoder_counts_per_rev: int | None = None
+    encoder_output: str = "speed"
     extra_load: dict = field(default_factory=dict)
     speed_noise: float = 0.05
     current_noise: float = 0.002
@@ -229,6 +236,22 @@ def _trace(m: BenchMotor, spec: StepSpec, rng: np.random.Generator, w_eps: float
     _, _, ws, th, ia = _integrate(m, spec, t, w_eps, i_eps)
     speed_noise = rng.standard_normal(n)
     current_noise = rng.standard_normal(n)
+    volts = (Schedule(np.array([0.0, spec.t_step]), np.array([0.0, float(spec.voltage)]))
+             if spec.t_step > 0 else Schedule(np.array([0.0]), np.array([float(spec.voltage)])))
+    load = Schedule(np.array([0.0]), np.array([float(spec.load)]))
+    if m.encoder_counts_per_rev and m.encoder_output != "speed":
+        q = 2.0 * np.pi / m.encoder_counts_per_rev
+        fine = None
+        if m.encoder_output == "edges":
+            t_fine = np.arange((n - 1) * EDGE_FINE + 1) * (spec.dt / EDGE_FINE)
+            fine = (t_fine, _integrate(m, spec, t_fine, w_eps, i_eps)[3])
+        parts = encoder_trace_parts(m.encoder_output, t, th, q, fine)
+        current = ia + m.current_noise * current_noise if spec.log_current else None
+        if m.encoder_output == "edges":
+            current = None
+        return Trace(spec.name, "step", Path(spec.name + ".csv"), parts["time"],
+                     parts["speed"], current, volts, load, initial="rest",
+                     position=parts["position"], speed_logged=False, encoder_step=q)
     if m.encoder_counts_per_rev:
         q = 2.0 * np.pi / m.encoder_counts_per_rev
         counts = np.floor(th / q + 1e-9)
@@ -236,11 +259,8 @@ def _trace(m: BenchMotor, spec: StepSpec, rng: np.random.Generator, w_eps: float
     else:
         speed = m.speed_gain * ws + m.speed_noise * speed_noise
     current = ia + m.current_noise * current_noise if spec.log_current else None
-    volts = (Schedule(np.array([0.0, spec.t_step]), np.array([0.0, float(spec.voltage)]))
-             if spec.t_step > 0 else Schedule(np.array([0.0]), np.array([float(spec.voltage)])))
     return Trace(spec.name, "step", Path(spec.name + ".csv"), t, speed,
-                 current, volts, Schedule(np.array([0.0]), np.array([float(spec.load)])),
-                 initial="rest")
+                 current, volts, load, initial="rest")
 
 
 def bench_session(motor: BenchMotor, steps: Sequence[StepSpec], *, seed: int = 0,

@@ -1,0 +1,138 @@
+"""Position and encoder-edge traces as read from files: angle units, counts, one row
+per edge with a direction bit, wrapping time counters, and the one-line errors."""
+
+import math
+
+import numpy as np
+import pytest
+
+from pmdc_bayes._errors import SessionError
+from pmdc_bayes.io.loader import load_session
+
+HEAD = """\
+[motor]
+name = "encoder motor"
+[bench.Ra]
+value = 2.0
+unit = "ohm"
+sd = 0.05
+"""
+
+
+def _write(root, trace_toml, csv_text, extra=""):
+    root.mkdir(parents=True, exist_ok=True)
+    (root / "session.toml").write_text(HEAD + extra + "[[trace]]\n" + trace_toml)
+    (root / "t.csv").write_text(csv_text)
+    return root
+
+
+def _angles(n=50, step=3.0):
+    return [(k * 0.01, k * step) for k in range(n)]
+
+
+def test_a_position_column_in_degrees_is_read_in_radians_with_a_speed_estimate(tmp_path):
+    csv = "t,deg\n" + "".join(f"{t:.2f},{a:.1f}\n" for t, a in _angles())
+    s = load_session(_write(tmp_path / "s", 'name = "p"\nkind = "step"\nfile = "t.csv"\n'
+                            'columns = { time = "t", position = "deg" }\n'
+                            'units = { position = "deg" }\nvoltage = [[0.0, 6.0]]\n'
+                            'initial = "steady"\n', csv))
+    tr = s.traces[0]
+    assert not tr.speed_logged and tr.encoder_step == 0.0
+    np.testing.assert_allclose(tr.position[5], math.radians(15.0))
+    # 3 degrees per 10 ms is 300 deg/s: the estimate from the angle says so
+    np.testing.assert_allclose(tr.speed, math.radians(300.0), rtol=1e-9)
+
+
+def test_counts_become_radians_through_counts_per_rev(tmp_path):
+    csv = "t,n\n" + "".join(f"{t:.2f},{int(a)}\n" for t, a in _angles())
+    s = load_session(_write(tmp_path / "s", 'name = "p"\nkind = "step"\nfile = "t.csv"\n'
+                            'columns = { time = "t", position = "n" }\n'
+                            'units = { position = "counts" }\ncounts_per_rev = 400\n'
+                            'voltage = [[0.0, 6.0]]\n', csv))
+    tr = s.traces[0]
+    assert tr.encoder_step == pytest.approx(2 * math.pi / 400)
+    np.testing.assert_allclose(tr.position[10], 30 * 2 * math.pi / 400)
+
+
+def test_counts_without_counts_per_rev_name_the_key(tmp_path):
+    csv = "t,n\n" + "".join(f"{t:.2f},{int(a)}\n" for t, a in _angles())
+    with pytest.raises(SessionError, match="counts_per_rev"):
+        load_session(_write(tmp_path / "s", 'name = "p"\nkind = "step"\nfile = "t.csv"\n'
+                            'columns = { time = "t", position = "n" }\n'
+                            'units = { position = "counts" }\nvoltage = [[0.0, 6.0]]\n', csv))
+
+
+def _edges_toml(extra=""):
+    return ('name = "e"\nkind = "step"\nfile = "t.csv"\ncolumns = { time = "us"%s }\n'
+            'units = { time = "us" }\nedges = true\ncounts_per_rev = 100\n'
+            'voltage = [[1000.0, 0.0], [2000.0, 12.0]]\n' % extra)
+
+
+def test_edges_give_one_count_per_row_after_an_unread_start_at_rest(tmp_path):
+    times = [3000 + 400 * k for k in range(20)]
+    csv = "us\n" + "".join(f"{t}\n" for t in times)
+    tr = load_session(_write(tmp_path / "s", _edges_toml(), csv)).traces[0]
+    q = 2 * math.pi / 100
+    assert tr.n == 21 and tr.time[0] == pytest.approx(1000e-6)
+    assert np.isnan(tr.position[0])
+    np.testing.assert_allclose(tr.position[1:], q * np.arange(1, 21))
+    assert tr.speed[0] == 0.0
+    np.testing.assert_allclose(tr.speed[5:-5], q / 400e-6)
+
+
+def test_a_direction_column_counts_backward_edges(tmp_path):
+    times = [3000 + 400 * k for k in range(10)]
+    dirs = [1, 1, 1, 1, 0, 0, -1, 1, 1, 1]
+    csv = "us,dir\n" + "".join(f"{t},{d}\n" for t, d in zip(times, dirs, strict=True))
+    tr = load_session(_write(tmp_path / "s", _edges_toml(', direction = "dir"'), csv)).traces[0]
+    q = 2 * math.pi / 100
+    np.testing.assert_allclose(tr.position[1:] / q, [1, 2, 3, 4, 3, 2, 1, 2, 3, 4])
+
+
+def test_a_wrapping_microsecond_counter_is_unwrapped(tmp_path):
+    wrap = 2**16
+    times = [(60000 + 1000 * k) % wrap for k in range(12)]  # wraps after 5 edges
+    csv = "us\n" + "".join(f"{t}\n" for t in times)
+    toml = _edges_toml().replace("voltage = [[1000.0, 0.0], [2000.0, 12.0]]",
+                                 "voltage = [[50000.0, 0.0], [55000.0, 12.0]]")
+    toml += f"time_wrap = {wrap}\n"
+    tr = load_session(_write(tmp_path / "s", toml, csv)).traces[0]
+    np.testing.assert_allclose(np.diff(tr.time[1:]), 1e-3)
+    assert tr.time[-1] == pytest.approx((60000 + 11000) * 1e-6)
+
+
+@pytest.mark.parametrize("toml_edit, csv_text, words", [
+    (lambda t: t, "us,dir\n3000,2\n3400,1\n3800,1\n", None),
+    (lambda t: t.replace("[[1000.0, 0.0], [2000.0, 12.0]]", "[[3000.0, 12.0]]"),
+     "us\n3000\n3400\n3800\n", "before the first edge"),
+    (lambda t: t + "time_wrap = 1000\n", "us\n3000\n3400\n3800\n", "time_wrap"),
+    (lambda t: t.replace("counts_per_rev = 100\n", ""), "us\n3000\n3400\n3800\n",
+     "counts_per_rev"),
+    (lambda t: t.replace('columns = { time = "us"', 'columns = { time = "us", speed = "us"'),
+     "us\n3000\n3400\n3800\n",
+     "one row per encoder edge"),
+    (lambda t: t.replace("edges = true", "edges = 1"), "us\n3000\n3400\n3800\n", "true or false"),
+])
+def test_bad_encoder_input_is_one_line_naming_the_fix(tmp_path, toml_edit, csv_text, words):
+    extra = ', direction = "dir"' if "dir" in csv_text else ""
+    with pytest.raises(SessionError) as err:
+        load_session(_write(tmp_path / "s", toml_edit(_edges_toml(extra)), csv_text))
+    text = str(err.value)
+    assert "\n" not in text
+    assert (words or "direction 2") in text
+
+
+def test_a_trace_needs_a_speed_a_position_or_edges(tmp_path):
+    csv = "t,i\n0,0\n0.1,1\n0.2,2\n"
+    with pytest.raises(SessionError, match="no speed or position column"):
+        load_session(_write(tmp_path / "s", 'name = "p"\nkind = "step"\nfile = "t.csv"\n'
+                            'columns = { time = "t", current = "i" }\nvoltage = [[0.0, 6.0]]\n',
+                            csv))
+
+
+def test_a_direction_column_without_edges_is_refused(tmp_path):
+    csv = "t,w,d\n0,1,1\n0.1,2,1\n0.2,3,1\n"
+    with pytest.raises(SessionError, match="edges = true"):
+        load_session(_write(tmp_path / "s", 'name = "p"\nkind = "step"\nfile = "t.csv"\n'
+                            'columns = { time = "t", speed = "w", direction = "d" }\n'
+                            'voltage = [[0.0, 6.0]]\n', csv))
