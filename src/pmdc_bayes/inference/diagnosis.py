@@ -22,6 +22,7 @@ import numpy as np
 
 from .checks import step_time
 from .levels import LEVEL_MISS, friction_offset, level_outliers, voltage_intercept
+from .noise import noise_scale
 from .onset import departure, onset_shape
 
 __all__ = ["diagnose"]
@@ -55,7 +56,6 @@ def _late_start(tr, y, yhat, s0, t_step, t_rise):
 def _start_rules(model, tr, pred, t_step):
     """Sentences on the start of a failing trace."""
     ia, w = pred
-    s0 = {c.name: c.s0 for c in model.channels}
     out = []
     data, fitted = onset_shape(tr.time, tr.speed, t_step), onset_shape(tr.time, w, t_step)
     t_rise = fitted["t90"] if fitted else float(tr.time[-1] - t_step)
@@ -63,7 +63,7 @@ def _start_rules(model, tr, pred, t_step):
     for what, y, yhat in (("speed", tr.speed, w), ("current", tr.current, ia)):
         if y is not None:
             late = _late_start(tr, np.asarray(y), np.asarray(yhat),
-                               s0[f"{tr.name}: {what}"], t_step, t_rise)
+                               _noise(model, tr, what, y), t_step, t_rise)
             if late is not None:
                 lates[what] = late
     lagged = ramp = False
@@ -213,9 +213,16 @@ def _finding_rules(model, fit, findings, already=()):
     return out
 
 
+def _noise(model, tr, what, y) -> float:
+    """The channel's model-free noise level; for a speed estimated from an angle (no
+    speed channel), that of the estimate."""
+    s0 = {c.name: c.s0 for c in model.channels}.get(f"{tr.name}: {what}")
+    return s0 if s0 is not None else noise_scale(np.asarray(y))
+
+
 def _still(model, tr):
     """A sentence when the speed of a driven trace never leaves its noise."""
-    s0 = next(c.s0 for c in model.channels if c.name == f"{tr.name}: speed")
+    s0 = _noise(model, tr, "speed", tr.speed)
     volts = float(np.max(np.abs(tr.voltage.values)))
     if volts > 0 and np.ptp(tr.speed) < 2 * DEPART * s0:
         return [f"{tr.name}: the speed never leaves its noise although {volts:.3g} V is "

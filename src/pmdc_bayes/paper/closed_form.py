@@ -29,6 +29,7 @@ from .checks import check_physical, check_trace, step_of, turns
 
 __all__ = [
     "kb_from_chopper",
+    "steady_rows_with_current",
     "b_from_steady",
     "j_from_tau",
     "time_constant",
@@ -168,7 +169,7 @@ class ClosedForm:
         return out
 
 
-def _steady_rows_with_current(session: Session):
+def steady_rows_with_current(session: Session):
     """(table name, V, I, ω arrays) of the first steady table's unloaded, turning rows
     with a current, or None."""
     for tab in session.steady_tables:
@@ -209,7 +210,7 @@ def closed_form(session: Session) -> ClosedForm:
     else:
         TL = 0.0
         with_current = [t for t in steps if t.current is not None and turns(t)]
-        rows = _steady_rows_with_current(session)
+        rows = steady_rows_with_current(session)
         if with_current:
             tr = with_current[0]
             n_tail = max(3, tr.n // 10)

@@ -17,30 +17,43 @@ The decompositions are exact sums (the listed parts plus a stated remainder).
 
 from __future__ import annotations
 
-from ..paper.closed_form import kb_from_chopper
+import numpy as np
+
+from ..paper.checks import turns
+from ..paper.closed_form import kb_from_chopper, steady_rows_with_current
 from ..physics.motor import time_constant
 
 __all__ = ["compare_closed_form"]
 
 
 def _cf_point(session):
-    """The steady point the closed form used for (20) and (19): (V, Ia, ω, label)."""
+    """The steady readings the closed form used for (20) and (19), as arrays (one
+    entry for a single point, a steady table's rows otherwise): (V, Ia, ω, label)."""
     op = next((p for p in session.operating_points if p.current is not None), None)
     if op is not None:
-        return op.voltage, op.current, op.speed, f"operating point {op.name!r}"
-    tr = next(t for t in session.traces if t.kind == "step" and t.current is not None)
-    n = max(3, tr.n // 10)
-    return (float(tr.voltage.at(tr.time[-n:]).mean()), float(tr.current[-n:].mean()),
-            float(tr.speed[-n:].mean()), f"the settled end of trace {tr.name!r}")
+        point = op.voltage, op.current, op.speed, f"operating point {op.name!r}"
+    else:
+        tr = next((t for t in session.traces
+                   if t.kind == "step" and t.current is not None and turns(t)), None)
+        if tr is not None:
+            n = max(3, tr.n // 10)
+            point = (float(tr.voltage.at(tr.time[-n:]).mean()), float(tr.current[-n:].mean()),
+                     float(tr.speed[-n:].mean()), f"the settled end of trace {tr.name!r}")
+        else:
+            name, v, i, w = steady_rows_with_current(session)
+            point = v, i, w, f"the rows of steady table {name!r} (averaged)"
+    v, i, w, label = point
+    return np.atleast_1d(v), np.atleast_1d(i), np.atleast_1d(w), label
 
 
 def _k_causes(ctx, ref, label):
     V, Ia, w, where = _cf_point(ctx.session)
     cf = ctx.cf
-    k_raw = kb_from_chopper(V, 1.0, Ia, w, cf.Ra)
-    k_ra = kb_from_chopper(V, 1.0, Ia, w, ref["Ra"])
+    k_raw = float(np.mean(kb_from_chopper(V, 1.0, Ia, w, cf.Ra)))
+    k_ra = float(np.mean(kb_from_chopper(V, 1.0, Ia, w, ref["Ra"])))
     gap = cf.K - ref["K"]
-    out = [f"Equation (20) at {where} (Va = {V:.4g} V, Ia = {Ia:.4g} A, ω = {w:.4g} rad/s) "
+    V, Ia, w_mean = float(np.mean(V)), float(np.mean(Ia)), float(np.mean(w))
+    out = [f"Equation (20) at {where} (Va = {V:.4g} V, Ia = {Ia:.4g} A, ω = {w_mean:.4g} rad/s) "
            f"with the bench Ra = {cf.Ra:.4g} Ω gives K = {k_raw:.5g} V·s/rad; with the "
            f"{label} Ra = {ref['Ra']:.4g} Ω it gives {k_ra:.5g}, so Ra accounts for "
            f"{k_raw - k_ra:+.3g} of the {gap:+.3g} V·s/rad difference."]
@@ -56,12 +69,13 @@ def _b_causes(ctx, ref, label):
     V, Ia, w, where = _cf_point(ctx.session)
     cf = ctx.cf
     gap = cf.B - ref["B"]
-    k_part = (cf.K - ref["K"]) * Ia / w
+    k_part = float(np.mean((cf.K - ref["K"]) * Ia / w))
+    inv_w, w = float(np.mean(1.0 / w)), float(np.mean(w))
     out = [f"Equation (19), B = K·Ia/ω at {where}, inherits K's error: {k_part:+.3g} "
            f"N·m·s/rad of the {gap:+.3g} N·m·s/rad difference."]
     lump = 0.0
     if "Tc" in ref:
-        lump = ref["Tc"] / w
+        lump = ref["Tc"] * inv_w
         out.append(f"It lumps all friction at that point into B: the Coulomb torque "
                    f"Tc = {ref['Tc']:.3g} N·m at ω = {w:.4g} rad/s looks like "
                    f"Tc/ω = {lump:+.3g} N·m·s/rad of viscous friction.")
@@ -73,7 +87,7 @@ def _b_causes(ctx, ref, label):
             out.append(f"Friction that does not grow with speed is lumped into B: the steady "
                        f"points' offset of {off:.3g} rad/s at 0 V is what a constant friction "
                        f"torque of about {t_eq:.3g} N·m would cause, which at ω = {w:.4g} rad/s "
-                       f"looks like {t_eq / w:+.3g} N·m·s/rad of viscous friction. The viscous "
+                       f"looks like {t_eq * inv_w:+.3g} N·m·s/rad of viscous friction. The viscous "
                        f"model fitted here lumps it too, so it biases both values rather than "
                        f"their difference; fit with --friction coulomb to separate it.")
     rest = gap - k_part - lump

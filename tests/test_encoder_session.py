@@ -1,0 +1,95 @@
+"""Encoder sessions end to end through the command line, on data from the independent
+bench simulator (LSODA, edge times located on a fine grid): a log of encoder edge
+timestamps from a wrapping microsecond counter, no current sensor on the traces (a
+meter's steady currents at three voltages, which separate K from B), fits, is found
+adequate and recovers K, B and J; with a dead time on the rig, ``--add dead-time``
+recovers it too."""
+
+import dataclasses
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from pmdc_bayes.simulate.bench import BenchMotor, StepSpec, bench_session
+
+MOTOR = dict(Ra=2.0, La=2e-3, K=0.05, B=2e-5, J=2e-5)
+STEPS = (StepSpec("step_12v", 12.0, 0.12, 2e-4, log_current=False),
+         StepSpec("step_6v", 6.0, 0.12, 2e-4, log_current=False))
+WRAP = 2**32
+OFFSET = WRAP - 50_000  # µs: the counter wraps 50 ms into each trace
+CPR = 100
+
+
+def write_edge_session(root, **bench):
+    """The bench session as files: each trace one row per edge (µs, wrapping)."""
+    motor = BenchMotor(**MOTOR, encoder_counts_per_rev=CPR, encoder_output="edges", **bench)
+    s = bench_session(motor, STEPS, seed=4, steady_voltages=(4.0, 8.0, 12.0))
+    root.mkdir(parents=True)
+    toml = [f'[motor]\nname = "encoder bench"\n[bench.Ra]\nvalue = {float(s.Ra.value)!r}\n'
+            f'sd = {float(s.Ra.sd)!r}\nunit = "ohm"\n[bench.La]\nvalue = {float(s.La.value)!r}\n'
+            f'sd = {float(s.La.sd)!r}\nunit = "H"\n']
+    tab = s.steady_tables[0]
+    (root / "steady.csv").write_text("V,w,i\n" + "".join(
+        f"{float(v)!r},{float(w)!r},{float(i)!r}\n"
+        for v, w, i in zip(tab.voltage, tab.speed, tab.current, strict=True)))
+    toml.append('[[steady_table]]\nname = "steady"\nfile = "steady.csv"\n'
+                'columns = { voltage = "V", speed = "w", current = "i" }\n')
+    for tr in s.traces:
+        us = (np.round(tr.time[1:] * 1e6).astype(np.int64) + OFFSET) % WRAP
+        (root / f"{tr.name}.csv").write_text("t_us\n" + "".join(f"{u}\n" for u in us))
+        v = float(tr.voltage.values[-1])
+        toml.append(f'[[trace]]\nname = "{tr.name}"\nkind = "step"\nfile = "{tr.name}.csv"\n'
+                    'columns = { time = "t_us" }\nunits = { time = "us" }\nedges = true\n'
+                    f'counts_per_rev = {CPR}\ntime_wrap = {WRAP}\n'
+                    f'voltage = [[{OFFSET}.0, {v!r}]]\n')
+    (root / "session.toml").write_text("\n".join(toml))
+    return root, s
+
+
+def _fit(root, out, *extra):
+    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(root), "--no-mcmc",
+                           "--out", str(out), *extra], capture_output=True, text=True,
+                          timeout=900)
+    summary = json.loads((out / "summary.json").read_text()) if out.exists() else None
+    return proc, summary
+
+
+def _within(summary, name, truth, k=3.0):
+    p = summary["parameters"][name]
+    return abs(p["map"] - truth) <= k * p["map_sd"], (name, p["map"], p["map_sd"], truth)
+
+
+@pytest.mark.slow
+def test_an_encoder_edge_session_fits_end_to_end(tmp_path):
+    root, s = write_edge_session(tmp_path / "edges")
+    assert all(tr.position is not None and tr.current is None for tr in s.traces)
+    proc, summary = _fit(root, tmp_path / "run")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.splitlines()[0].startswith("Model adequate")
+    channels = summary["adequacy"]["channels"]
+    assert {"step_12v: position", "step_6v: position"} <= set(channels)
+    assert not any(k.endswith(": speed") and not k.startswith("steady") for k in channels)
+    for name in ("K", "B", "J"):
+        ok, row = _within(summary, name, MOTOR[name])
+        assert ok, row
+        assert summary["parameters"][name]["map_sd"] < 0.05 * MOTOR[name]
+
+
+@pytest.mark.slow
+def test_an_encoder_rig_dead_time_is_flagged_then_recovered(tmp_path):
+    delay = 2e-3
+    root, _ = write_edge_session(tmp_path / "edges", dead_time=delay)
+    proc, _ = _fit(root, tmp_path / "ideal")
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    assert "dead time" in proc.stdout + proc.stderr
+    proc, summary = _fit(root, tmp_path / "delayed", "--add", "dead-time")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    for tr in ("step_12v", "step_6v"):
+        ok, row = _within(summary, f"dead_time_{tr}", delay)
+        assert ok, row
+    for name in ("K", "J"):
+        ok, row = _within(summary, name, MOTOR[name])
+        assert ok, row
