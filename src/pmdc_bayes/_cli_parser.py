@@ -7,6 +7,7 @@ import textwrap
 from pathlib import Path
 
 from .io.bundled import DEFAULT_SESSION
+from .io.session import NUISANCES
 
 __all__ = ["build_parser", "EXIT_CODES"]
 
@@ -113,15 +114,15 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
     ft.add_argument("--allow-unconverged", action="store_true",
                     help="exit 0 even if the fit or the sampler fails its checks")
     ft.add_argument("--add", action="append", metavar="NUISANCE",
-                    choices=("dead-time", "voltage-drop", "speed-lag", "current-lag",
-                             "unknown-load", "dead_time", "voltage_drop", "speed_lag",
-                             "current_lag", "unknown_load"),
+                    choices=tuple(k.replace("_", "-") for k in NUISANCES) + NUISANCES,
                     help="also fit this non-ideality of the rig (repeatable): dead-time (one "
                     "per trace), voltage-drop (brushes and driver), speed-lag or current-lag "
                     "(a first-order sensor or filter lag), unknown-load (a constant and a "
                     "viscous drag of its own on every trace; [model] unknown_load = "
                     "[\"trace\", ...] "
-                    "names the traces); same as [model] in session.toml")
+                    "names the traces), speed-gain, speed-offset, current-gain or "
+                    "current-offset (a calibration error of the traces' sensor); same as "
+                    "[model] in session.toml")
     ft.add_argument("--compare", action="store_true",
                     help="fit the candidate sets of rig non-idealities (ideal, + dead-time, "
                     "+ speed-lag, + voltage-drop, + voltage-drop with either), check each for "

@@ -75,3 +75,38 @@ def test_an_unknown_drag_on_one_trace_is_recovered(case, index, name):
         assert _within(fit, motor, MOTOR[motor], n_sd=3.0), (motor, fit.values[motor],
                                                              fit.sd[motor])
     assert "load_step_12v" not in fit.values
+
+
+@pytest.mark.slow
+def test_a_speed_sensor_calibration_error_is_honest_then_recovered_with_a_bench_k():
+    """A tachometer reading 5 % high with a 0.5 rad/s offset.  A gain on the speed is
+    the same as a K, J and B scaled together (the armature equation sees K·ω, the
+    mechanical one is homogeneous in K, J, B), so steps alone cannot tell it: the ideal
+    model returns K 5 % off and tight; fitting the gain widens K to the gain's prior
+    and covers the truth, and says the gain is prior-dominated.  A bench K at 1 %
+    then pins the gain.  The offset is identified either way."""
+    from pmdc_bayes.io.session import Measurement
+    from pmdc_bayes.simulate.bench import BenchMotor, bench_session
+    from pmdc_bayes.simulate.cases import STEPS
+
+    gain, offset = 1.05, 0.5
+    session = bench_session(BenchMotor(**MOTOR, speed_gain=gain), STEPS, seed=2)
+    session = dataclasses.replace(session, traces=tuple(
+        dataclasses.replace(tr, speed=tr.speed + offset) for tr in session.traces))
+    cf = fit_seed(session)
+    ideal = fit_map(build_model(session, cf))
+    assert not _within(ideal, "K", MOTOR["K"])  # the ideal model is misled, confidently
+    calibrated = dataclasses.replace(session, nuisances=("speed_gain", "speed_offset"))
+    model = build_model(calibrated, cf)
+    fit = fit_map(model)
+    assert assess(model, fit, cf).verdict == "adequate"
+    assert fit.sd["speed_gain"] > 0.05  # the prior's 10 %: the data say nothing of it
+    assert _within(fit, "speed_offset", offset, 3.0) and fit.sd["speed_offset"] < 0.1
+    for name in ("K", "J", "B"):
+        assert _within(fit, name, MOTOR[name], 3.0), (name, fit.values[name], fit.sd[name])
+    with_k = dataclasses.replace(calibrated, bench={
+        "K": Measurement(MOTOR["K"] * 1.004, 0.01 * MOTOR["K"], "V*s/rad", "bench")})
+    model = build_model(with_k, cf)
+    fit = fit_map(model)
+    assert _within(fit, "speed_gain", gain, 3.0) and fit.sd["speed_gain"] < 0.02
+    assert _within(fit, "J", MOTOR["J"], 3.0)

@@ -28,6 +28,10 @@ LAG_PRIOR_SAMPLES = 3.0  # centre of a sensor lag's prior, in sample intervals
 LAG_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 LOAD_PRIOR_SHARE = 0.3  # centre of an unknown drag's prior, as a share of the motor's own
 LOAD_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
+GAIN_PRIOR = 0.1  # sd of a sensor gain's logarithm (a calibration 10 % off at one sd)
+OFFSET_PRIOR = 0.05  # sd of a sensor offset, as a share of the channel's largest reading
+CALIBRATION = {"speed_gain": ("speed", "gain"), "speed_offset": ("speed", "offset"),
+               "current_gain": ("current", "gain"), "current_offset": ("current", "offset")}
 
 
 def _identifier(text: str) -> str:
@@ -88,6 +92,9 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     * ``unknown_load`` — per loaded trace a constant and a viscous drag (see
       :func:`_load_specs`; ``b_seed`` is the motor's seeded viscous friction).
 
+    * ``speed_gain``, ``speed_offset``, ``current_gain``, ``current_offset`` — the
+      traces' sensor calibration (see :func:`_calibration_specs`).
+
     The drop and the dead times are untransformed (they may be zero or of either sign).
     """
     specs = []
@@ -116,7 +123,35 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
                                    0.0, transform="identity",
                                    description=f"dead time of trace {tr.name!r}",
                                    trace=tr.name))
-    return specs + _load_specs(session, b_seed)
+    return specs + _load_specs(session, b_seed) + _calibration_specs(session)
+
+
+def _calibration_specs(session: Session) -> list[ParamSpec]:
+    """``speed_gain``, ``speed_offset``, ``current_gain``, ``current_offset``: the
+    traces' sensor reads ``gain·x + offset`` of the true (lagged) signal.  A gain's
+    prior is log-normal at 1, :data:`GAIN_PRIOR` wide; an offset's normal at 0, sd
+    :data:`OFFSET_PRIOR` × the channel's largest logged reading."""
+    specs = []
+    for key, (channel, kind) in CALIBRATION.items():
+        if key not in session.nuisances:
+            continue
+        logged = [np.abs(y) for tr in session.traces
+                  if (y := (tr.speed if tr.speed_logged else None) if channel == "speed"
+                      else tr.current) is not None]
+        if not logged:
+            continue
+        unit = "rad/s" if channel == "speed" else "A"
+        if kind == "gain":
+            specs.append(ParamSpec(key, "1", "sensor",
+                                   Prior("lognormal", 1.0, GAIN_PRIOR, "nuisance"), 1.0,
+                                   description=f"calibration gain of the {channel} sensor"))
+        else:
+            top = max(float(np.max(y)) for y in logged)
+            specs.append(ParamSpec(key, unit, "sensor",
+                                   Prior("normal", 0.0, OFFSET_PRIOR * top, "nuisance"), 0.0,
+                                   transform="identity",
+                                   description=f"offset of the {channel} sensor"))
+    return specs
 
 
 def initial_speed_name(trace_name: str) -> str:
@@ -201,12 +236,18 @@ class RigEffects:
 
     def sensed(self, theta, ia, w, d):
         """What the sensors read of the padded ``(ia, ω)`` of the traces (``d`` the trace
-        block's data): each declared first-order sensor lag applied."""
+        block's data): each declared first-order sensor lag, then each declared gain
+        and offset, applied."""
         v = self.registry.values(theta)
         exp = d["exp"]
         out = []
-        for x, name in ((ia, "current_lag"), (w, "speed_lag")):
-            if name in self.registry:
-                x = exp.pad(first_order_lag(exp.unpad(x), d["t"], d["start"], v[name]))
+        for x, name in ((ia, "current"), (w, "speed")):
+            if f"{name}_lag" in self.registry:
+                x = exp.pad(first_order_lag(exp.unpad(x), d["t"], d["start"],
+                                            v[f"{name}_lag"]))
+            if f"{name}_gain" in self.registry:
+                x = v[f"{name}_gain"] * x
+            if f"{name}_offset" in self.registry:
+                x = x + v[f"{name}_offset"]
             out.append(x)
         return tuple(out)

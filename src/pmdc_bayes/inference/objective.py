@@ -236,6 +236,23 @@ class SessionModel(RigEffects):
         ia, w = fn(jnp.asarray(theta), self.data)
         return list(zip(self.exp.split(ia), self.exp.split(w)))
 
+    @x64
+    def predict_angles(self, theta) -> list:
+        """Per trace the angle a position sensor would read (rad, its fitted offset
+        included), in time order; None for a trace without one."""
+        block = self.blocks[0] if self.exp is not None else None
+        if block is None or not block.offsets:
+            return [None] * len(self.session.traces)
+
+        def run(t, d):
+            d = d["traces"]
+            return d["exp"].unpad(d["position"] - block.residuals(self, t, d)[2])
+
+        angle = self.compiled("predict-angle", lambda: jax.jit(run))(jnp.asarray(theta),
+                                                                      self.data)
+        return [a if tr.position is not None else None
+                for tr, a in zip(self.session.traces, self.exp.split(angle), strict=True)]
+
     def padded_log_density(self, theta, *, data=None) -> list:
         """Gaussian log-density of every observation, in each block's layout, at its
         channel's noise level ``σ_c² = (ν0·s0_c² + SS_c)/(n_c + ν0)`` (for LOO);

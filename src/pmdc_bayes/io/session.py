@@ -27,7 +27,8 @@ __all__ = [
 FRICTION_MODELS = ("viscous", "coulomb")
 
 
-NUISANCES = ("dead_time", "voltage_drop", "speed_lag", "current_lag", "unknown_load")
+NUISANCES = ("dead_time", "voltage_drop", "speed_lag", "current_lag", "unknown_load",
+             "speed_gain", "speed_offset", "current_gain", "current_offset")
 COAST_DOWN = "coast-down"  # the trace kind of a run-down with the armature open
 LA_TIME_CONSTANT = 1e-3  # s: La/Ra assumed when La was not measured ...
 LA_PRIOR_LOG_SD = float(np.log(10.0)) / 2  # ... give or take a factor 10 at 2 sd (log)

@@ -117,7 +117,7 @@ def _traces(ctx) -> Section:
                   f"{fmt(float(np.mean(tp.param_band[c][1] - tp.param_band[c][0])), 2)}"
                   for tp in ctx.predictions for c in tp.channels]
         sec.add(Paragraph("Mean width of the parameter-only 94 % band: " + "; ".join(widths)
-                          + " (rad/s for speed, A for current)."))
+                          + " (rad/s for speed, A for current, rad for angle)."))
     for tp in ctx.predictions:
         sec.add(Figure(f"trace_{_safe(tp.trace.name)}", f"Trace {tp.trace.name!r}: measured "
                        "against the models, residuals underneath.", trace_figure(tp, ctx.cf_label)))

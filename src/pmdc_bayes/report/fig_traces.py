@@ -10,13 +10,19 @@ from .predictive import TracePrediction
 
 __all__ = ["trace_figure"]
 
-_YLABEL = {"speed": "speed ω (rad/s)", "current": "current ia (A)"}
-_RLABEL = {"speed": "residual (rad/s)", "current": "residual (A)"}
+_YLABEL = {"speed": "speed ω (rad/s)", "current": "current ia (A)", "position": "angle θ (rad)"}
+_RLABEL = {"speed": "residual (rad/s)", "current": "residual (A)", "position": "residual (rad)"}
 
 
 def _time_axis(t):
+    """Times to plot and their label: from the first sample when the clock's origin is
+    far before the trace (a free-running counter)."""
     t = np.asarray(t)
-    return (t * 1e3, "time (ms)") if t[-1] - t[0] < 0.5 else (t, "time (s)")
+    span = t[-1] - t[0]
+    since = ""
+    if abs(t[0]) > 10 * span:
+        t, since = t - t[0], " since the first sample"
+    return (t * 1e3, f"time{since} (ms)") if span < 0.5 else (t, f"time{since} (s)")
 
 
 def _channel(ax, rax, tp: TracePrediction, c: str, t, cf_label: str):

@@ -16,7 +16,7 @@ import numpy as np
 from ..inference.objective import noise_scale
 from ..io.session import Trace
 
-__all__ = ["TracePrediction", "predict_traces", "BAND", "METHODS"]
+__all__ = ["TracePrediction", "predict_traces", "trace_channels", "BAND", "METHODS"]
 
 BAND = (0.03, 0.97)  # quantiles of the 94 % band
 METHODS = {"closed_form": "closed form", "map": "MAP", "mean": "posterior predictive"}
@@ -24,11 +24,11 @@ METHODS = {"closed_form": "closed form", "map": "MAP", "mean": "posterior predic
 
 @dataclass(frozen=True)
 class TracePrediction:
-    """One trace's measurements and predictions (SI: A, rad/s).
+    """One trace's measurements and predictions (SI: A, rad/s, rad).
 
     ``sims[method][channel]`` with method in ``closed_form``, ``map`` and, with a
-    posterior, ``mean`` (the posterior predictive mean); channel ``speed`` or
-    ``current`` (the latter only when the trace logs it).  ``band`` and
+    posterior, ``mean`` (the posterior predictive mean); channel ``speed``,
+    ``current`` or ``position`` (those the trace logs, :func:`trace_channels`).  ``band`` and
     ``param_band`` map a channel to ``(lower, upper)`` 94 % limits of the posterior
     predictive and of the parameter uncertainty alone (None without a posterior).
     ``noise`` is the measurement noise sd per channel used for the predictive;
@@ -46,15 +46,32 @@ class TracePrediction:
     coverage: dict | None
 
     def measured(self, channel: str) -> np.ndarray:
-        return self.trace.speed if channel == "speed" else self.trace.current
+        return _measured(self.trace, channel)
 
     @property
     def channels(self) -> tuple:
-        return ("speed", "current") if self.trace.current is not None else ("speed",)
+        return trace_channels(self.trace)
+
+
+def trace_channels(tr: Trace) -> tuple:
+    """The channels a trace logged: ``speed`` (unless estimated from an angle),
+    ``current``, ``position``."""
+    return tuple(c for c, y in (("speed", tr.speed if tr.speed_logged else None),
+                                ("current", tr.current), ("position", tr.position))
+                 if y is not None)
+
+
+def _measured(tr: Trace, channel: str) -> np.ndarray:
+    return {"speed": tr.speed, "current": tr.current, "position": tr.position}[channel]
 
 
 def _theta(model, values: dict):
     return model.theta(values)
+
+
+def _finite(x) -> np.ndarray:
+    x = np.asarray(x)
+    return x[np.isfinite(x)]
 
 
 def _rms(x) -> float:
@@ -76,25 +93,30 @@ def predict_traces(model, values: dict, draws, noise_sd: dict, *, seed: int = 0,
     """
     if model.exp is None:
         return []
-    runs = {"closed_form": model.predict(_theta(model, values["closed_form"]), coulomb=False),
-            "map": model.predict(_theta(model, values["map"]))}
+    def run(theta, coulomb=None):
+        pairs = model.predict(theta, coulomb=coulomb)
+        return [(ia, w, a) for (ia, w), a in zip(pairs, model.predict_angles(theta),
+                                                  strict=True)]
+
+    runs = {"closed_form": run(_theta(model, values["closed_form"]), coulomb=False),
+            "map": run(_theta(model, values["map"]))}
     per_draw = None
     if draws is not None:
-        sims = [model.predict(model.theta(dict(zip(model.names, d)))) for d in draws]
-        per_draw = [(np.stack([s[k][0] for s in sims]), np.stack([s[k][1] for s in sims]))
-                    for k in range(len(model.session.traces))]
+        sims = [run(model.theta(dict(zip(model.names, d)))) for d in draws]
+        per_draw = [tuple(None if sims[0][k][j] is None else np.stack([s[k][j] for s in sims])
+                          for j in range(3)) for k in range(len(model.session.traces))]
     rng = np.random.default_rng(seed)
     out = []
     for k, tr in enumerate(model.session.traces):
-        channels = ("speed", "current") if tr.current is not None else ("speed",)
+        channels = trace_channels(tr)
         noise = {c: float(noise_sd.get(f"{tr.name}: {c}")
-                          or noise_scale(tr.speed if c == "speed" else tr.current))
+                          or noise_scale(_finite(_measured(tr, c))))
                  for c in channels}
-        sims = {m: {"current": r[k][0], "speed": r[k][1]} for m, r in runs.items()}
+        sims = {m: {"current": r[k][0], "speed": r[k][1], "position": r[k][2]}
+                for m, r in runs.items()}
         band = param_band = coverage = None
         if per_draw is not None:
-            ia_d, w_d = per_draw[k]
-            draws_c = {"current": ia_d, "speed": w_d}
+            draws_c = dict(zip(("current", "speed", "position"), per_draw[k], strict=True))
             band, param_band, coverage = {}, {}, {}
             sims["mean"] = {}
             for c in channels:
@@ -103,9 +125,11 @@ def predict_traces(model, values: dict, draws, noise_sd: dict, *, seed: int = 0,
                 param_band[c] = tuple(np.quantile(x, BAND, axis=0))
                 noisy = x + rng.normal(0.0, noise[c], size=x.shape)
                 band[c] = tuple(np.quantile(noisy, BAND, axis=0))
-                y = tr.speed if c == "speed" else tr.current
-                coverage[c] = float(np.mean((y >= band[c][0]) & (y <= band[c][1])))
-        rms = {m: {c: _rms((tr.speed if c == "speed" else tr.current) - s[c])
-                   for c in channels} for m, s in sims.items()}
+                y = _measured(tr, c)
+                ok = np.isfinite(y)
+                coverage[c] = float(np.mean((y[ok] >= band[c][0][ok])
+                                            & (y[ok] <= band[c][1][ok])))
+        rms = {m: {c: _rms(_finite(_measured(tr, c) - s[c])) for c in channels}
+               for m, s in sims.items()}
         out.append(TracePrediction(tr, held_out, sims, band, param_band, noise, rms, coverage))
     return out

@@ -102,7 +102,7 @@ def rms_table(preds, *, title=TABLE_TITLES["rms"], note="") -> Table:
     rows = []
     for tp in preds:
         for c in tp.channels:
-            unit = "rad/s" if c == "speed" else "A"
+            unit = {"speed": "rad/s", "current": "A", "position": "rad"}[c]
             cells = [tp.trace.name, f"{c} ({unit})", fmt(tp.noise[c], 3)]
             cells += [fmt(tp.rms[m][c], 4) for m in methods]
             cells.append(f"{100 * tp.coverage[c]:.0f} %" if tp.coverage else "—")
