@@ -121,7 +121,8 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                     "viscous drag of its own on every trace; [model] unknown_load = "
                     "[\"trace\", ...] "
                     "names the traces), speed-gain, speed-offset, current-gain or "
-                    "current-offset (a calibration error of the traces' sensor); same as "
+                    "current-offset (a calibration error of the traces' sensor), "
+                    "source-resistance (the logged voltage is the supply's); same as "
                     "[model] in session.toml")
     ft.add_argument("--compare", action="store_true",
                     help="fit the candidate sets of rig non-idealities (ideal, + dead-time, "

@@ -189,3 +189,21 @@ def test_model_table_declares_the_nuisances_to_fit(session_dir):
     toml.write_text(text + "\n[model]\nbrush_drop = true\n", encoding="utf-8")
     with pytest.raises(SessionError, match="unknown key 'brush_drop'"):
         load_session(session_dir)
+
+
+def test_a_known_speed_dependent_drag_is_read_in_si(session_dir):
+    replace_once(session_dir / "session.toml", 'voltage = [[0.0, 0.0], [0.1, 6.0]]',
+                 'voltage = [[0.0, 0.0], [0.1, 6.0]]\ndrag = { constant = 0.01, viscous = 2e-5 }')
+    tr = load_session(session_dir).traces[0]
+    assert tr.drag == (0.01, 2e-5)
+
+
+def test_a_negative_or_empty_drag_names_the_key(session_dir):
+    toml = session_dir / "session.toml"
+    replace_once(toml, 'voltage = [[0.0, 0.0], [0.1, 6.0]]',
+                 'voltage = [[0.0, 0.0], [0.1, 6.0]]\ndrag = { viscous = -1e-5 }')
+    with pytest.raises(SessionError, match=r"drag\.viscous.*must be >= 0"):
+        load_session(session_dir)
+    replace_once(toml, 'drag = { viscous = -1e-5 }', 'drag = {}')
+    with pytest.raises(SessionError, match="constant = "):
+        load_session(session_dir)

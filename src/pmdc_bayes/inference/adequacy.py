@@ -282,7 +282,7 @@ def _position_pairs(model, fit):
 def _steady_pairs(model, fit):
     """(channel name, observed, predicted) for the steady speeds and currents."""
     st = model.steady
-    p = model.params(np.asarray(fit.theta))
+    p = model.circuit(np.asarray(fit.theta))
     w, i = model.steady_prediction(p, st["v"], st["tl"], model.drop(np.asarray(fit.theta)))
     out = []
     for name, obs, pred, mask in (("steady: speed", st["w"], w, st["w_mask"]),

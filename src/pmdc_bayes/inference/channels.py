@@ -112,7 +112,7 @@ class TraceBlock(Block):
 
     def residuals(self, model, theta, d, fast: bool = False) -> list:
         exp = model.inputs(theta, d["exp"])
-        p = model.params(theta)
+        p = model.circuit(theta)
         ia_x, w_x = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast)
         ia, w = model.sensed(theta, ia_x, w_x, d)
         out = [d["speed"] - w, d["current"] - ia]
@@ -151,7 +151,7 @@ class SteadyBlock(Block):
 
     @staticmethod
     def residuals(model, theta, d, fast: bool = False) -> list:
-        w, i = model.steady_prediction(model.params(theta), d["v"], d["tl"],
+        w, i = model.steady_prediction(model.circuit(theta), d["v"], d["tl"],
                                        model.drop(theta))
         return [d["w"] - w, d["i"] - i]
 
@@ -175,7 +175,7 @@ class StepReadingBlock(Block):
 
     @staticmethod
     def residuals(model, theta, d, fast: bool = False) -> list:
-        return [d["tau"] - model.tau_prediction(model.params(theta))]
+        return [d["tau"] - model.tau_prediction(model.circuit(theta))]
 
 
 class CoastDownBlock(Block):

@@ -199,13 +199,15 @@ def _finding_rules(model, fit, findings, already=()):
             continue
         if f.check == "residual whiteness" and f.where.endswith("speed"):
             out.append(f"{f.where}: {f.message}: a speed differenced from encoder counts or a "
-                       "quantised position; fit the position instead, or average over "
+                       "quantised position; log the encoder's count as the position "
+                       "(columns.position, or edges = true) instead, or average over "
                        "more samples")
         if f.where == "Ra" and f.check in ("bench conflict", "plausibility"):
             if fit.values["Ra"] > model.registry["Ra"].prior.centre:
                 out.append("the fitted resistance exceeds the bench Ra: a supply source "
                            "resistance, leads or a driver in the loop; log the terminal "
-                           "voltage or declare the source resistance")
+                           "voltage, or fit the source resistance: --add "
+                           "source-resistance, or source_resistance = true under [model]")
             else:
                 out.append("the fitted resistance is far below the bench Ra: the ideal motor "
                            "is absorbing something it lacks (a current limit, a voltage "

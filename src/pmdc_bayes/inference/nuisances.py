@@ -29,6 +29,7 @@ LAG_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 LOAD_PRIOR_SHARE = 0.3  # centre of an unknown drag's prior, as a share of the motor's own
 LOAD_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 GAIN_PRIOR = 0.1  # sd of a sensor gain's logarithm (a calibration 10 % off at one sd)
+SOURCE_PRIOR = 0.5  # sd of a source resistance, as a share of the bench Ra
 OFFSET_PRIOR = 0.05  # sd of a sensor offset, as a share of the channel's largest reading
 CALIBRATION = {"speed_gain": ("speed", "gain"), "speed_offset": ("speed", "offset"),
                "current_gain": ("current", "gain"), "current_offset": ("current", "offset")}
@@ -92,6 +93,11 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     * ``unknown_load`` — per loaded trace a constant and a viscous drag (see
       :func:`_load_specs`; ``b_seed`` is the motor's seeded viscous friction).
 
+    * ``source_resistance`` — ``Rs`` (Ω), the resistance between the logged voltage
+      (the supply's) and the terminals; prior normal, centre 0, sd
+      :data:`SOURCE_PRIOR` × the bench Ra (the data and the bench Ra split the
+      circuit's resistance between them).
+
     * ``speed_gain``, ``speed_offset``, ``current_gain``, ``current_offset`` — the
       traces' sensor calibration (see :func:`_calibration_specs`).
 
@@ -107,6 +113,11 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
                                Prior("normal", 0.0, DROP_PRIOR * v_max, "nuisance"),
                                float(drop_seed), transform="identity",
                                description="voltage drop at brushes and driver"))
+    if "source_resistance" in session.nuisances:
+        specs.append(ParamSpec("Rs", "ohm", "driver",
+                               Prior("normal", 0.0, SOURCE_PRIOR * session.Ra.value,
+                                     "nuisance"), 0.0, transform="identity",
+                               description="resistance of the supply, leads and driver"))
     dts = [float(np.median(np.diff(tr.time))) for tr in session.traces]
     for key, words in (("speed_lag", "speed sensor"), ("current_lag", "current sensor")):
         if key in session.nuisances and dts:
@@ -209,6 +220,14 @@ class RigEffects:
     """The rig's non-idealities in the prediction, for a model with ``registry`` and
     ``session``."""
 
+    def circuit(self, theta):
+        """The motor's parameters as the logged voltage drives them: Ra plus the fitted
+        source resistance ``Rs`` when the model has one."""
+        p = self.params(theta)
+        if "Rs" in self.registry:
+            p = p._replace(Ra=p.Ra + self.registry.values(theta)["Rs"])
+        return p
+
     def drop(self, theta):
         """The fitted voltage drop at θ (V), 0 when the model has none."""
         return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else 0.0
@@ -217,7 +236,8 @@ class RigEffects:
         """The experiment as the motor sees it at θ: voltages less the fitted drop, and
         each trace's samples taken its fitted dead time earlier (before the response
         starts, the state at the segment's start: exact when the preceding segment is at
-        rest or steady)."""
+        rest or steady), and each trace's fitted unknown drag per segment, added to its
+        known one (set in the experiment)."""
         if "Vdrop" in self.registry:
             exp = exp._replace(seg_va=motor.terminal_voltage(exp.seg_va, self.drop(theta)))
         if "dead_time" in self.session.nuisances:
@@ -231,7 +251,9 @@ class RigEffects:
             parts = [[v[n] if tr.name in loaded else zero for n in load_names(tr.name)]
                      for tr in self.session.traces]
             tc, b = (jnp.stack([jnp.asarray(q[k]) for q in parts]) for k in (0, 1))
-            exp = exp._replace(seg_b=b[exp.seg_trace], seg_tc=tc[exp.seg_trace])
+            known = exp.seg_b is not None
+            exp = exp._replace(seg_b=b[exp.seg_trace] + (exp.seg_b if known else 0.0),
+                               seg_tc=tc[exp.seg_trace] + (exp.seg_tc if known else 0.0))
         return exp
 
     def sensed(self, theta, ia, w, d):

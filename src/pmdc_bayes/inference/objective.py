@@ -61,7 +61,8 @@ class SessionModel(RigEffects):
                                  + tuple(position_specs(session)))
         # a trace's friction-like unknown load needs the stick-slip solution, whatever
         # the motor's own friction model
-        self.coulomb_path = coulomb or bool(session.unknown_load_traces())
+        self.coulomb_path = (coulomb or bool(session.unknown_load_traces())
+                             or any(tr.drag[0] > 0 for tr in session.traces))
         self.names = self.registry.names
         self.channels: list[Channel] = []
         self.exp = experiment_from_traces(session.traces) if session.traces else None
@@ -191,7 +192,7 @@ class SessionModel(RigEffects):
         on 3 × 10,000 samples, 4 at a time gives ~6,000 vectors/s whatever the batch
         size, where vectorising all 64 at once gives under 1,000.
         """
-        ok = jnp.all(jax.vmap(lambda t: real_modes(self.params(t)))(thetas))
+        ok = jnp.all(jax.vmap(lambda t: real_modes(self.circuit(t)))(thetas))
         if self.session.unknown_load_traces():  # a trace's drag moves its modes
             ok = jnp.asarray(False)
 
@@ -228,7 +229,7 @@ class SessionModel(RigEffects):
         c = self.coulomb_path if coulomb is None else coulomb
         def run(t, d):
             d = d["traces"]
-            ia, w = simulate_padded(self.params(t), self.inputs(t, d["exp"]), coulomb=c)
+            ia, w = simulate_padded(self.circuit(t), self.inputs(t, d["exp"]), coulomb=c)
             ia, w = self.sensed(t, ia, w, d)
             return d["exp"].unpad(ia), d["exp"].unpad(w)
 

@@ -58,6 +58,19 @@ def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray) -> Sch
     return Schedule(to_si(np.array(times), "time", tu), to_si(np.array(values), kind, u[key]))
 
 
+def _drag(t: _Table) -> tuple[float, float]:
+    """A known speed-dependent load ``drag = { constant = N·m, viscous = N·m·s/rad }``
+    (SI; either may be left out), each ≥ 0."""
+    if "drag" not in t.data:
+        return 0.0, 0.0
+    sub = t.table("drag")
+    sub.check_keys(("constant", "viscous"))
+    if not sub.data:
+        t.fail("drag", "give constant = <N·m> and/or viscous = <N·m·s/rad>")
+    return (sub.number("constant", "torque", default=0.0, low=0.0),
+            sub.number("viscous", "damping", default=0.0, low=0.0))
+
+
 def _initial(t: _Table, u: dict):
     value = t.data.get("initial", "rest")
     if isinstance(value, str) and value in ("rest", "steady"):
@@ -143,7 +156,7 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
 
 def _trace(t: _Table, root: Path) -> Trace:
     t.check_keys(("name", "kind", "file", "columns", "units", "voltage", "load_torque",
-                  "initial", "counts_per_rev", "time_wrap", "edges"))
+                  "initial", "counts_per_rev", "time_wrap", "edges", "drag"))
     name, kind, u = t.string("name"), t.string("kind"), t.units(_TRACE_KINDS)
     cols = t.columns(_COLUMNS, ("time",))
     edges = edges_flag(t)
@@ -167,13 +180,14 @@ def _trace(t: _Table, root: Path) -> Trace:
         else:
             inputs[inp] = Schedule(time[:1].copy(), np.zeros(1))
     initial = _initial(t, u)
+    drag = _drag(t)
     m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial)
     return Trace(name=name, kind=kind, file=path, time=m["time"], speed=m["speed"],
                  current=si.get("current"), voltage=inputs["voltage"],
                  load_torque=inputs["load_torque"], voltage_logged="voltage" in si,
                  load_logged="load_torque" in si, initial=initial,
                  position=m["position"], speed_logged="speed" in raw,
-                 encoder_step=m["encoder_step"])
+                 encoder_step=m["encoder_step"], drag=drag)
 
 
 def _coast_down(t: _Table, root: Path) -> Trace:

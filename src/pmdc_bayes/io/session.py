@@ -28,7 +28,8 @@ FRICTION_MODELS = ("viscous", "coulomb")
 
 
 NUISANCES = ("dead_time", "voltage_drop", "speed_lag", "current_lag", "unknown_load",
-             "speed_gain", "speed_offset", "current_gain", "current_offset")
+             "speed_gain", "speed_offset", "current_gain", "current_offset",
+             "source_resistance")
 COAST_DOWN = "coast-down"  # the trace kind of a run-down with the armature open
 LA_TIME_CONSTANT = 1e-3  # s: La/Ra assumed when La was not measured ...
 LA_PRIOR_LOG_SD = float(np.log(10.0)) / 2  # ... give or take a factor 10 at 2 sd (log)
@@ -137,6 +138,9 @@ class Trace:
         then reads the position only).
     encoder_step : the angle of one encoder count (rad) when the position is counted,
         0 otherwise.
+    drag : a known load that depends on the speed, ``(constant N·m, viscous
+        N·m·s/rad)``: a torque ``constant·sign(ω) + viscous·ω`` opposing the motion
+        (a fan, a brake, a generator into a known resistor), on top of ``load_torque``.
     """
 
     name: str
@@ -153,6 +157,7 @@ class Trace:
     position: np.ndarray | None = None
     speed_logged: bool = True
     encoder_step: float = 0.0
+    drag: tuple[float, float] = (0.0, 0.0)
 
     @property
     def n(self) -> int:

@@ -203,8 +203,13 @@ def experiment_from_trace(trace: Trace, *, delay: float = 0.0) -> Experiment:
 
 
 def experiment_from_traces(traces) -> Experiment:
-    """One stacked :class:`Experiment` for all of a session's traces."""
-    return stack_experiments([_trace_spec(tr) for tr in traces])
+    """One stacked :class:`Experiment` for all of a session's traces, with their known
+    drags (``Trace.drag``) per segment when any trace has one."""
+    exp = stack_experiments([_trace_spec(tr) for tr in traces])
+    if all(tuple(tr.drag) == (0.0, 0.0) for tr in traces):
+        return exp
+    tc, b = (jnp.asarray([float(tr.drag[k]) for tr in traces]) for k in (0, 1))
+    return exp._replace(seg_b=b[exp.seg_trace], seg_tc=tc[exp.seg_trace])
 
 
 def steady_points(session) -> dict:
