@@ -131,13 +131,16 @@ class Table:
             self.fail(key, str(exc))
         return text.strip()
 
-    def units(self, kinds: dict[str, str]) -> dict[str, str]:
-        """The optional ``units`` table: key -> unit, SI for keys not given."""
+    def units(self, kinds: dict[str, str], extra: dict | None = None) -> dict[str, str]:
+        """The optional ``units`` table: key -> unit, SI for keys not given; ``extra``
+        maps a key to further unit names it accepts (converted by the caller)."""
         out = {key: SI_UNIT[kind] for key, kind in kinds.items()}
+        extra = extra or {}
         given = self.table("units", required=False)
         if given is not None:
             given.check_keys(kinds)
-            out.update({key: given.unit(key, kinds[key]) for key in given.data})
+            out.update({key: (given.data[key].strip() if given.data[key] in extra.get(key, ())
+                              else given.unit(key, kinds[key])) for key in given.data})
         return out
 
     def columns(self, kinds: dict[str, str], required: tuple[str, ...]) -> dict[str, str]:

@@ -157,7 +157,9 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
 def _trace(t: _Table, root: Path) -> Trace:
     t.check_keys(("name", "kind", "file", "columns", "units", "voltage", "load_torque",
                   "initial", "counts_per_rev", "time_wrap", "edges", "drag"))
-    name, kind, u = t.string("name"), t.string("kind"), t.units(_TRACE_KINDS)
+    # an angle in counts is 2π/counts_per_rev each, known per trace (_position.angle_si)
+    name, kind = t.string("name"), t.string("kind")
+    u = t.units(_TRACE_KINDS, extra={"position": ("counts",)})
     cols = t.columns(_COLUMNS, ("time",))
     edges = edges_flag(t)
     _motion_columns(t, cols, edges)

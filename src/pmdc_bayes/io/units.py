@@ -29,9 +29,8 @@ KINDS: dict[str, dict[str, float]] = {
     "motor_constant": {"V*s/rad": 1.0, "V·s/rad": 1.0, "N*m/A": 1.0, "N·m/A": 1.0,
                        "mV*s/rad": 1e-3, "mN*m/A": 1e-3, "V/krpm": 60.0 / (2.0 * math.pi * 1000.0)},
     "duty": {"1": 1.0, "": 1.0, "%": 0.01},
-    "angle": {"rad": 1.0, "deg": math.pi / 180.0, "rev": 2.0 * math.pi, "counts": math.nan},
+    "angle": {"rad": 1.0, "deg": math.pi / 180.0, "rev": 2.0 * math.pi},
 }
-# "counts" of an angle is 2π/counts_per_rev, known only per trace: the loader converts it
 
 SI_UNIT: dict[str, str] = {
     "time": "s", "speed": "rad/s", "current": "A", "voltage": "V", "torque": "N*m",
