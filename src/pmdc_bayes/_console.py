@@ -1,7 +1,11 @@
 """What ``pmdc-bayes fit`` prints: the verdict before any number, the candidate models
-of ``--compare``, the parameter table and the findings."""
+of ``--compare``, the parameter table (each row rounded to its uncertainty, on one
+scale) and the findings."""
 
 from __future__ import annotations
+
+from ._format import row_format
+from .io.units import display_unit
 
 __all__ = ["print_fit", "print_adequacy"]
 
@@ -44,13 +48,15 @@ def print_fit(summary: dict, out) -> bool:
         print("Values CONDITIONAL on a model the data reject:")
     print(head + "  unit")
     for name, row in summary["parameters"].items():
-        cf = "—" if row["closed_form"] is None else f"{row['closed_form']:.5g}"
-        line = f"{name:<{width}}{cf:>13}{row['map']:>13.6g}{row['map_sd']:>11.3g}"
+        sds = [x for x in (row.get("map_sd"), row.get("sd")) if x is not None and x > 0]
+        f = row_format(row["mean"] if has_post else row["map"], min(sds) if sds else None)
+        line = (f"{name:<{width}}{f.value(row['closed_form']):>13}{f.value(row['map']):>13}"
+                f"{f.sd(row['map_sd']):>11}")
         if has_post:
-            hdi = f"[{row['hdi_3%']:.5g}, {row['hdi_97%']:.5g}]"
-            line += (f"{row['mean']:>13.6g}{row['sd']:>11.3g}{hdi:>26}{row['r_hat']:>7.3f}"
-                     f"{row['ess_bulk']:>7.0f}")
-        print(f"{line}  {row['unit']}")
+            hdi = f"[{f.value(row['hdi_3%'])}, {f.value(row['hdi_97%'])}]"
+            line += (f"{f.value(row['mean']):>13}{f.sd(row['sd']):>11}{hdi:>26}"
+                     f"{row['r_hat']:>7.3f}{row['ess_bulk']:>7.0f}")
+        print(f"{line}  {f.suffix}{display_unit(row['unit'])}")
     for line in summary["identifiability"]["findings"]:
         print(f"- {line}")
     for row in summary.get("laplace_check", []):

@@ -6,6 +6,7 @@ import numpy as np
 
 from ..physics.motor import gain, tf_full, time_constant
 from ..inference.derived import derived_draws
+from .._format import row_format
 from ._doc import Table, fmt, pm
 from ..io.units import display_unit
 from .predictive import METHODS
@@ -34,16 +35,21 @@ def parameter_table(ctx) -> Table:
     rows = []
     for n in ctx.names:
         r = ctx.summary["parameters"][n]
-        cells = [n, display_unit(r["unit"]), fmt(r["closed_form"]) if r["closed_form"] is not None
-                 else "— (none)", pm(r["map"], r["map_sd"])]
+        sds = [x for x in (r.get("map_sd"), r.get("sd")) if x is not None and x > 0]
+        f = row_format(r["mean"] if post else r["map"], min(sds) if sds else None)
+        cells = [n, f.suffix + display_unit(r["unit"]),
+                 f.value(r["closed_form"]) if r["closed_form"] is not None else "— (none)",
+                 f"{f.value(r['map'])} ± {f.sd(r['map_sd'])}"]
         if post:
-            cells += [pm(r.get("mean"), r.get("sd")),
-                      f"[{fmt(r.get('hdi_3%'))}, {fmt(r.get('hdi_97%'))}]",
+            cells += [f"{f.value(r.get('mean'))} ± {f.sd(r.get('sd'))}",
+                      f"[{f.value(r.get('hdi_3%'))}, {f.value(r.get('hdi_97%'))}]",
                       fmt(r.get("r_hat"), 4), f"{r.get('ess_bulk', float('nan')):.0f}"]
         if ctx.truth:
-            cells.append(fmt(ctx.truth.get(n)))
+            cells.append(f.value(ctx.truth.get(n)) if ctx.truth.get(n) is not None else "—")
         rows.append(tuple(cells))
-    note = ("MAP sd: Laplace approximation at the MAP. "
+    note = ("Each row is rounded to its uncertainty (two significant digits of the sd) "
+            "and written on one scale, given before the unit. MAP sd: Laplace "
+            "approximation at the MAP. "
             + ("Posterior: emcee ensemble; R-hat is ArviZ's rank-normalised split R-hat with "
                "walkers as chains." if post else "No posterior was sampled (--no-mcmc)."))
     return Table(TABLE_TITLES["parameters"], tuple(header), tuple(rows), note)

@@ -1,0 +1,71 @@
+"""Numbers as shown to people: each value rounded to its uncertainty.
+
+A row of values that share an uncertainty (an estimate, its sd, its interval, the
+closed form beside it) is written on one scale, a power of 1000 chosen from the
+estimate, with as many decimals as the sd's second significant digit needs; the sd
+itself has two significant digits.  So K = 0.0619991 ± 3.2e-06 reads
+``61.9991 ± 0.0032`` on the scale ``×1e-3``.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["RowFormat", "row_format"]
+
+SD_DIGITS = 2  # significant digits of an uncertainty
+
+
+def _finite(x) -> bool:
+    return x is not None and isinstance(x, int | float) and math.isfinite(x)
+
+
+class RowFormat:
+    """How to write the numbers of one row: ``scale`` (a power of ten, a multiple of
+    3) and ``decimals`` after scaling."""
+
+    def __init__(self, exponent: int, decimals: int | None):
+        self.exponent = exponent
+        self.decimals = decimals
+
+    @property
+    def suffix(self) -> str:
+        """The scale to write before the unit (``"×1e-3 "``), empty at 1."""
+        return "" if self.exponent == 0 else f"×1e{self.exponent} "
+
+    def value(self, x) -> str:
+        """A value on the row's scale, rounded to the row's uncertainty."""
+        if not _finite(x):
+            return "—"
+        y = x / 10.0 ** self.exponent
+        if self.decimals is None:
+            return f"{y:.6g}"
+        return f"{round(y, self.decimals):.{max(0, self.decimals)}f}"
+
+    def sd(self, s) -> str:
+        """An uncertainty on the row's scale, two significant digits."""
+        if not _finite(s):
+            return "—"
+        y = s / 10.0 ** self.exponent
+        if y == 0:
+            return "0"
+        decimals = _decimals(y)
+        return f"{round(y, decimals):.{max(0, decimals)}f}"
+
+
+def _decimals(y: float) -> int:
+    """Decimals that keep two significant digits of ``y`` (negative: round to tens...)."""
+    return SD_DIGITS - 1 - math.floor(math.log10(abs(y)))
+
+
+def row_format(estimate, sd) -> RowFormat:
+    """The format of a row whose estimate is ``estimate`` with uncertainty ``sd``
+    (the smallest sd of the row); without a usable sd, six significant digits.  The
+    scale is 1 for magnitudes in [0.1, 10⁴), else the power of 1000 at or below the
+    larger of the estimate and the sd."""
+    has_sd = _finite(sd) and sd > 0
+    ref = max(abs(estimate) if _finite(estimate) else 0.0, sd if has_sd else 0.0) or 1.0
+    exponent = 0 if 0.1 <= ref < 1e4 else 3 * math.floor(math.log10(ref) / 3)
+    if not has_sd:
+        return RowFormat(exponent, None)
+    return RowFormat(exponent, _decimals(sd / 10.0 ** exponent))
