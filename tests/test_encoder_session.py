@@ -5,7 +5,6 @@ meter's steady currents at three voltages, which separate K from B), fits, is fo
 adequate and recovers K, B and J; with a dead time on the rig, ``--add dead-time``
 recovers it too."""
 
-import dataclasses
 import json
 import subprocess
 import sys

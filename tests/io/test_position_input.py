@@ -63,9 +63,9 @@ def test_counts_without_counts_per_rev_name_the_key(tmp_path):
 
 
 def _edges_toml(extra=""):
-    return ('name = "e"\nkind = "step"\nfile = "t.csv"\ncolumns = { time = "us"%s }\n'
+    return (f'name = "e"\nkind = "step"\nfile = "t.csv"\ncolumns = {{ time = "us"{extra} }}\n'
             'units = { time = "us" }\nedges = true\ncounts_per_rev = 100\n'
-            'voltage = [[1000.0, 0.0], [2000.0, 12.0]]\n' % extra)
+            'voltage = [[1000.0, 0.0], [2000.0, 12.0]]\n')
 
 
 def test_edges_give_one_count_per_row_after_an_unread_start_at_rest(tmp_path):
