@@ -10,7 +10,7 @@ Paths timed, each jit-compiled with x64 on (see ``benchmarks/README.md``):
 * ``exact``       ``jax.jit(model.log_posterior)``, one parameter vector (general branch);
 * ``exact xW``    ``jax.jit(model.log_posterior_batch)`` on W = 8, 32, 64, 256 perturbed
   vectors;
-* ``zoh scan``    :func:`pmdc_bayes.physics.solution.simulate_scan` per trace, same log-posterior;
+* ``zoh scan``    :func:`pmdc_bayes.physics.ode.simulate_scan` per trace, same log-posterior;
 * ``diffrax``     :func:`pmdc_bayes.physics.ode.simulate_ode` per trace, same log-posterior
   (its default tolerances, rtol 1e-10, atol 1e-12; ``diffrax loose``: rtol 1e-8, atol 1e-10).
 
@@ -42,7 +42,8 @@ import numpy as np  # noqa: E402
 from pmdc_bayes.io.bundled import bundled_session_dir  # noqa: E402
 from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
-from pmdc_bayes.physics.solution import experiment_from_trace, real_modes, simulate_scan  # noqa: E402
+from pmdc_bayes.physics.ode import simulate_scan  # noqa: E402
+from pmdc_bayes.physics.solution import experiment_from_trace, real_modes  # noqa: E402
 from pmdc_bayes.inference.objective import NU0, build_model  # noqa: E402
 from pmdc_bayes.physics.ode import simulate_ode  # noqa: E402
 from pmdc_bayes.simulate.session import simulate_session  # noqa: E402

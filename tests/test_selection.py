@@ -42,13 +42,16 @@ def test_when_every_candidate_is_rejected_the_largest_is_fitted_and_said_so():
 @pytest.mark.slow
 @pytest.mark.parametrize(("case", "expected"), [
     (None, "ideal"), ("dead time", "dead time"), ("sensor lag", "speed lag"),
-    ("brush drop", "voltage drop"), ("unknown load", "unknown load")])
+    ("brush drop", "voltage drop"), ("unknown load", "unknown load"),
+    ("current limit", "current limit")])
 def test_compare_recommends_what_the_bench_has(case, expected):
-    # every candidate but the unknown load's (the slowest to fit) on the cases it does not
-    # concern; on the braked bench, it against the ideal model and a voltage drop
-    chosen = (CANDIDATES[:-1] if case != "unknown load"
-              else tuple(c for c in CANDIDATES if c[0] in ("ideal", "voltage drop",
-                                                          "unknown load")))
+    # every candidate but the unknown load's and the current limit's (the slowest to fit)
+    # on the cases they do not concern; on the braked or limited bench, the one it has
+    # against the ideal model and a voltage drop
+    own = {"unknown load", "current limit"}
+    keep = (lambda name: name not in own) if case not in own else \
+        (lambda name: name in ("ideal", "voltage drop", case))
+    chosen = tuple(c for c in CANDIDATES if keep(c[0]))
     sel = compare_nuisances(case_session(case, seed=2), mcmc=False, candidates=chosen)
     assert [r["name"] for r in sel["candidates"]] == [c[0] for c in chosen]
     assert sel["recommended"] == expected, format_selection(sel)
@@ -59,6 +62,9 @@ def test_compare_recommends_what_the_bench_has(case, expected):
     if case == "unknown load":  # the model-free levels point at the braked trace alone
         assert by["unknown load"]["loaded_traces"] == ["step_6v"]
         assert sel["loaded_traces"] == ["step_6v"]
+        return
+    if case == "current limit":
+        assert by["voltage drop"]["verdict"] == "inadequate"
         return
     larger = "speed lag + voltage drop" if case == "sensor lag" else "dead time + voltage drop"
     assert by[larger]["verdict"] == "adequate"

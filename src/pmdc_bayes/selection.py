@@ -2,7 +2,8 @@
 
 ``pmdc-bayes fit --compare`` fits every candidate of :data:`CANDIDATES` (the ideal
 motor; + dead time; + a speed-sensor lag; + voltage drop; + voltage drop with either
-of the first two; + an unknown load on the traces whose levels stand out) to the same
+of the first two; + an unknown load on the traces whose levels stand out; + a driver's
+current limit) to the same
 session and checks each for
 adequacy at its MAP.  With MCMC, every candidate the data do not reject is sampled
 and the candidates are compared by PSIS-LOO (they share every observation: the
@@ -39,6 +40,7 @@ CANDIDATES = (
     ("dead time + voltage drop", ("dead_time", "voltage_drop")),
     ("speed lag + voltage drop", ("voltage_drop", "speed_lag")),
     ("unknown load", ("unknown_load",)),
+    ("current limit", ("current_limit",)),
 )
 LOO_MARGIN = 4.0  # elpd units a larger candidate must gain to be preferred
 

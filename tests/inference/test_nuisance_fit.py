@@ -145,3 +145,35 @@ def test_a_declared_speed_dependent_load_is_fitted_around(case):
     cf = fit_seed(session)
     model = build_model(session, cf)
     assert assess(model, fit_map(model), cf).verdict == "inadequate"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("current_logged", [True, False])
+def test_a_fitted_current_limit_recovers_the_driver_and_the_motor(current_logged):
+    """The bench's driver holds the current at 2 A at the start of each step: the ideal
+    model is rejected and points to the limit; with ``current_limit`` the model is
+    adequate, the limit and the motor are recovered within 3 sd, from the traces'
+    currents or, with speed-only traces, from the ramp of the speed (a meter's steady
+    currents giving K)."""
+    session = case_session("current limit")
+    if not current_logged:
+        session = dataclasses.replace(session, traces=tuple(
+            dataclasses.replace(tr, current=None) for tr in session.traces))
+
+    def fit_with(nuisances):
+        s = dataclasses.replace(session, nuisances=nuisances)
+        cf = fit_seed(s)
+        model = build_model(s, cf)
+        fit = fit_map(model)
+        return fit, assess(model, fit, cf)
+
+    fit, a = fit_with(())
+    assert a.verdict == "inadequate"
+    assert "--add current-limit" in " ".join(a.diagnosis)
+    fit, a = fit_with(("current_limit",))
+    assert a.verdict == "adequate", a.headline()
+    limit = CASES["current limit"][0]["current_limit"]
+    assert _within(fit, "Imax", limit, n_sd=3.0), (fit.values["Imax"], fit.sd["Imax"])
+    for motor in ("K", "B", "J", "Ra", "La"):
+        assert _within(fit, motor, MOTOR[motor], n_sd=3.0), (motor, fit.values[motor],
+                                                             fit.sd[motor])

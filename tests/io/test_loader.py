@@ -191,6 +191,22 @@ def test_model_table_declares_the_nuisances_to_fit(session_dir):
         load_session(session_dir)
 
 
+def test_a_current_limit_is_fitted_free_or_around_the_drivers_setting(session_dir):
+    toml = session_dir / "session.toml"
+    text = toml.read_text(encoding="utf-8")
+    toml.write_text(text + "\n[model]\ncurrent_limit = true\n", encoding="utf-8")
+    s = load_session(session_dir)
+    assert s.nuisances == ("current_limit",) and s.current_limit_setting is None
+    toml.write_text(text + "\n[model]\ncurrent_limit = 2.5\n", encoding="utf-8")
+    s = load_session(session_dir)
+    assert s.nuisances == ("current_limit",) and s.current_limit_setting == 2.5
+    for bad in ("-1.0", "0", '"2 A"'):
+        toml.write_text(text + f"\n[model]\ncurrent_limit = {bad}\n", encoding="utf-8")
+        with pytest.raises(SessionError, match=r"model\.current_limit: expected true, false "
+                           r"or the driver's limit in A"):
+            load_session(session_dir)
+
+
 def test_a_known_speed_dependent_drag_is_read_in_si(session_dir):
     replace_once(session_dir / "session.toml", 'voltage = [[0.0, 0.0], [0.1, 6.0]]',
                  'voltage = [[0.0, 0.0], [0.1, 6.0]]\ndrag = { constant = 0.01, viscous = 2e-5 }')

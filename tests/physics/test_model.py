@@ -21,10 +21,9 @@ from pmdc_bayes.physics.solution import (
     real_modes,
     simulate,
     simulate_padded,
-    simulate_scan,
     steady_state,
 )
-from pmdc_bayes.physics.ode import simulate_ode
+from pmdc_bayes.physics.ode import simulate_ode, simulate_scan
 
 P = Params(8.5, 5.621e-3, 0.062, 5.663e-5, 5.902e-4, 0.0)
 PC = P._replace(Tc=2.5e-3)

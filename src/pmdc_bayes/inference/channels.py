@@ -113,14 +113,16 @@ class TraceBlock(Block):
     def residuals(self, model, theta, d, fast: bool = False) -> list:
         exp = model.inputs(theta, d["exp"])
         p = model.circuit(theta)
-        ia_x, w_x = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast)
+        limit = model.limit(theta)
+        ia_x, w_x = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast, limit=limit)
         ia, w = model.sensed(theta, ia_x, w_x, d)
         out = [d["speed"] - w, d["current"] - ia]
         if not self.offsets:
             return out + [jnp.zeros_like(w)]
         v = model.registry.values(theta)
         offset = jnp.stack([v[n] for n in self.offsets])[d["sample_slot"]]
-        angle = rotor_angle(p, exp, ia_x, w_x, d["t"], d["start"], coulomb=model.coulomb_path)
+        angle = rotor_angle(p, exp, ia_x, w_x, d["t"], d["start"], coulomb=model.coulomb_path,
+                            limit=limit)
         return out + [d["position"] - exp.pad(offset + angle)]
 
 

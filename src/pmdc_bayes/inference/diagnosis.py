@@ -95,7 +95,9 @@ def _start_rules(model, tr, pred, t_step):
     if ramp:
         out.append(f"{tr.name}: the speed ramps up at a constant rate for "
                    f"{1e3 * data['ramp_time']:.3g} ms before turning exponential: a "
-                   "current-limited driver (a ramp instead of an exponential at the start)")
+                   "current-limited driver (a ramp instead of an exponential at the start): "
+                   "--add current-limit, or current_limit = true (or the driver's limit in "
+                   "A) under [model] in session.toml")
     return out
 
 
@@ -107,8 +109,8 @@ def _flat_top(tr, ia):
     peak = float(np.max(np.abs(ia)))
     if near.sum() >= 5 and peak > 1.2 * top:
         return [f"{tr.name}: the logged current is flat at about {top:.3g} A while the model "
-                f"would draw {peak:.3g} A: a current-limited driver; declare its limit or "
-                "log the terminal voltage"]
+                f"would draw {peak:.3g} A: a current-limited driver: --add current-limit, "
+                f"or current_limit = {top:.3g} under [model] in session.toml"]
     return []
 
 

@@ -19,8 +19,9 @@ from .noise import noise_scale
 from .params import ParamSpec, Prior
 
 __all__ = ["RigEffects", "nuisance_specs", "coast_down_specs", "dead_time_name",
-           "initial_speed_name", "load_names", "position_specs", "position_offset_name", "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES",
-           "LAG_PRIOR_FACTOR"]
+           "initial_speed_name", "load_names", "position_specs", "position_offset_name",
+           "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES", "LAG_PRIOR_FACTOR",
+           "NO_LIMIT"]
 
 DEAD_TIME_PRIOR = 0.05  # sd of a trace's dead time, as a share of the trace's length
 DROP_PRIOR = 0.1  # sd of the voltage drop, as a share of the session's largest voltage
@@ -31,6 +32,9 @@ LOAD_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 GAIN_PRIOR = 0.1  # sd of a sensor gain's logarithm (a calibration 10 % off at one sd)
 SOURCE_PRIOR = 0.5  # sd of a source resistance, as a share of the bench Ra
 OFFSET_PRIOR = 0.05  # sd of a sensor offset, as a share of the channel's largest reading
+LIMIT_PRIOR_FACTOR = 3.0  # one-sd width (a factor) of an unknown current limit's prior
+LIMIT_SETTING_SD = 0.05  # sd of the limit's logarithm around a driver setting the user gave
+NO_LIMIT = 1e200  # A: a limit never reached (finite, so that no tangent meets infinity)
 CALIBRATION = {"speed_gain": ("speed", "gain"), "speed_offset": ("speed", "offset"),
                "current_gain": ("current", "gain"), "current_offset": ("current", "offset")}
 
@@ -101,16 +105,16 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     * ``speed_gain``, ``speed_offset``, ``current_gain``, ``current_offset`` — the
       traces' sensor calibration (see :func:`_calibration_specs`).
 
+    * ``current_limit`` — ``Imax`` (A), the driver's current limit (see
+      :func:`_limit_specs`).
+
     The drop and the dead times are untransformed (they may be zero or of either sign).
     """
-    specs = []
+    specs = _limit_specs(session)
     if "voltage_drop" in session.nuisances:
-        volts = [abs(float(v)) for tr in session.traces for v in tr.voltage.values]
-        volts += [abs(float(v)) for tab in session.steady_tables for v in tab.voltage]
-        volts += [abs(op.voltage) for op in session.operating_points]
-        v_max = max(volts + [1.0])
         specs.append(ParamSpec("Vdrop", "V", "driver",
-                               Prior("normal", 0.0, DROP_PRIOR * v_max, "nuisance"),
+                               Prior("normal", 0.0, DROP_PRIOR * _largest_voltage(session),
+                                     "nuisance"),
                                float(drop_seed), transform="identity",
                                description="voltage drop at brushes and driver"))
     if "source_resistance" in session.nuisances:
@@ -135,6 +139,32 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
                                    description=f"dead time of trace {tr.name!r}",
                                    trace=tr.name))
     return specs + _load_specs(session, b_seed) + _calibration_specs(session)
+
+
+def _largest_voltage(session: Session) -> float:
+    volts = [abs(float(v)) for tr in session.traces for v in tr.voltage.values]
+    volts += [abs(float(v)) for tab in session.steady_tables for v in tab.voltage]
+    volts += [abs(op.voltage) for op in session.operating_points]
+    return max(volts + [1.0])
+
+
+def _limit_specs(session: Session) -> list[ParamSpec]:
+    """``Imax`` (A), the level at which the driver holds the current (it lowers its
+    voltage instead).  Prior log-normal: centred on the driver's setting when the user
+    gave one, :data:`LIMIT_SETTING_SD` wide; otherwise on the largest logged current
+    (a limited current sits at its limit), or, with no current logged, on half the
+    largest voltage over the bench Ra, a factor :data:`LIMIT_PRIOR_FACTOR` wide."""
+    if "current_limit" not in session.nuisances:
+        return []
+    if session.current_limit_setting is not None:
+        centre, width, source = session.current_limit_setting, LIMIT_SETTING_SD, "driver setting"
+    else:
+        logged = [float(np.max(np.abs(tr.current))) for tr in session.traces
+                  if tr.current is not None]
+        centre = max(logged) if logged else 0.5 * _largest_voltage(session) / session.Ra.value
+        width, source = float(np.log(LIMIT_PRIOR_FACTOR)), "nuisance"
+    return [ParamSpec("Imax", "A", "driver", Prior("lognormal", centre, width, source),
+                      centre, description="current limit of the driver")]
 
 
 def _calibration_specs(session: Session) -> list[ParamSpec]:
@@ -227,6 +257,13 @@ class RigEffects:
         if "Rs" in self.registry:
             p = p._replace(Ra=p.Ra + self.registry.values(theta)["Rs"])
         return p
+
+    def limit(self, theta):
+        """The fitted current limit at θ (A); :data:`NO_LIMIT` when the model has none
+        but needs the regime-switching solution (``reverses``), else None."""
+        if "Imax" in self.registry:
+            return self.registry.values(theta)["Imax"]
+        return NO_LIMIT if self.reverses else None
 
     def drop(self, theta):
         """The fitted voltage drop at θ (V), 0 when the model has none."""

@@ -66,6 +66,10 @@ class SessionModel(RigEffects):
         self.names = self.registry.names
         self.channels: list[Channel] = []
         self.exp = experiment_from_traces(session.traces) if session.traces else None
+        # friction and a voltage reversed within a trace: a moving rotor stops and is
+        # driven back, which takes the regime-switching solution
+        self.reverses = bool(self.coulomb_path and self.exp is not None
+                             and self.exp.voltage_reverses)
         self.blocks = blocks_for(session, self.exp, self._add)
         self.steady = next(b for b in self.blocks if isinstance(b, SteadyBlock)).points
         self.n_obs = np.array([c.n for c in self.channels], dtype=float)
@@ -90,7 +94,8 @@ class SessionModel(RigEffects):
         """Everything compiled code depends on besides ``data``'s values: sessions with
         the same key share compiled functions."""
         leaves, treedef = jax.tree_util.tree_flatten(self.data)
-        return (self.coulomb, self.coulomb_path, self.registry.structure(), len(self.channels),
+        return (self.coulomb, self.coulomb_path, self.reverses, self.registry.structure(),
+                len(self.channels),
                 tuple(b.key for b in self.blocks), treedef,
                 tuple((x.shape, str(x.dtype)) for x in leaves))
 
@@ -229,7 +234,8 @@ class SessionModel(RigEffects):
         c = self.coulomb_path if coulomb is None else coulomb
         def run(t, d):
             d = d["traces"]
-            ia, w = simulate_padded(self.circuit(t), self.inputs(t, d["exp"]), coulomb=c)
+            ia, w = simulate_padded(self.circuit(t), self.inputs(t, d["exp"]), coulomb=c,
+                                    limit=self.limit(t))
             ia, w = self.sensed(t, ia, w, d)
             return d["exp"].unpad(ia), d["exp"].unpad(w)
 

@@ -9,6 +9,7 @@ or line, what is wrong and how to fix it.  The format is described in
 from __future__ import annotations
 
 import json
+import math
 import re
 import tomllib
 from pathlib import Path
@@ -137,6 +138,18 @@ def _step_reading(t: _Table) -> StepReading:
     return reading
 
 
+def _limit_setting(mt) -> float | None:
+    """``[model] current_limit``: true (fitted, its level unknown), false, or the
+    driver's setting in A (fitted, the prior centred on it)."""
+    value = mt.data.get("current_limit", False)
+    if isinstance(value, bool):
+        return None
+    if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        mt.fail("current_limit", f"expected true, false or the driver's limit in A (> 0), "
+                f"got {_describe(value)}; write e.g. current_limit = 2.5")
+    return float(value)
+
+
 def _loaded_traces(mt: _Table, traces) -> tuple[str, ...]:
     """``[model] unknown_load``: true (every driven trace), false, or a list of names of
     driven traces; the names given (empty for true or false)."""
@@ -231,16 +244,17 @@ def load_session(path) -> Session:
                 cf.fail("K_decimals", f"expected a whole number >= 0, got {_describe(d)}; "
                         "write e.g. K_decimals = 3")
             options["K_decimals"] = d
-    nuisances, loaded = (), ()
+    nuisances, loaded, limit_setting = (), (), None
     mt = top.table("model", required=False)
     traces, coast_downs = read_traces(top, root)
     _unique(traces + coast_downs, "trace", toml)
     if mt is not None:
         mt.check_keys(NUISANCES)
         loaded = _loaded_traces(mt, traces)
+        limit_setting = _limit_setting(mt)
         for key in NUISANCES:
             flag = mt.data.get(key, False)
-            if key != "unknown_load" and not isinstance(flag, bool):
+            if key not in ("unknown_load", "current_limit") and not isinstance(flag, bool):
                 mt.fail(key, f"expected true or false, got {_describe(flag)}; write e.g. "
                         f"{key} = true")
         nuisances = tuple(k for k in NUISANCES if mt.data.get(k, False))
@@ -248,6 +262,7 @@ def load_session(path) -> Session:
         name=root.name,
         nuisances=nuisances,
         loaded_traces=loaded,
+        current_limit_setting=limit_setting,
         bench={k: m for k, m in measured.items() if k not in ("Ra", "La")},
         root=root,
         motor=motor.string("name"),

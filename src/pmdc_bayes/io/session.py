@@ -29,7 +29,7 @@ FRICTION_MODELS = ("viscous", "coulomb")
 
 NUISANCES = ("dead_time", "voltage_drop", "speed_lag", "current_lag", "unknown_load",
              "speed_gain", "speed_offset", "current_gain", "current_offset",
-             "source_resistance")
+             "source_resistance", "current_limit")
 COAST_DOWN = "coast-down"  # the trace kind of a run-down with the armature open
 LA_TIME_CONSTANT = 1e-3  # s: La/Ra assumed when La was not measured ...
 LA_PRIOR_LOG_SD = float(np.log(10.0)) / 2  # ... give or take a factor 10 at 2 sd (log)
@@ -180,7 +180,8 @@ class Session:
     (:data:`NUISANCES`: ``"dead_time"`` per trace, ``"voltage_drop"``, a first-order
     lag of the speed or current sensor ``"speed_lag"``, ``"current_lag"``, an unknown
     drag ``"unknown_load"`` on the traces ``loaded_traces`` names, or on every driven
-    trace when it is empty).
+    trace when it is empty, a driver's current limit ``"current_limit"``, centred on
+    ``current_limit_setting`` (A) when the user gave the driver's setting).
     ``bench`` holds the further bench measurements given (of ``"K"``, ``"J"``,
     ``"B"``), each a prior of the fit.  ``coast_downs`` are traces of kind
     ``"coast-down"``: the rotor running down with the armature open (speed only, no
@@ -203,6 +204,7 @@ class Session:
     bench: dict = field(default_factory=dict)
     coast_downs: tuple[Trace, ...] = ()
     loaded_traces: tuple[str, ...] = ()
+    current_limit_setting: float | None = None
 
     def unknown_load_traces(self) -> tuple[str, ...]:
         """The driven traces that carry an unknown drag of their own (``unknown_load``)."""

@@ -7,6 +7,8 @@ input (the input integrals are summed per segment), with no quadrature of ω.  W
 Coulomb friction acts and ω stops or changes sign inside an interval, the friction
 torque is not ``Tc·sign(ω)`` throughout and the interval is taken by the trapezoid
 rule instead (the motor is then at or near rest, so the angle it misses is small).
+With a current-limited driver, the intervals where the current is held at its limit
+are taken as ``rotor_angle`` describes.
 """
 
 from __future__ import annotations
@@ -38,7 +40,8 @@ def _input_integral(exp: Experiment, values, tau_pre):
     return at_start[s][:, None] + values[s][:, None] * exp.tau + earlier[s][:, None] * tau_pre
 
 
-def rotor_angle(p, exp: Experiment, ia, w, t, start, *, coulomb: bool = False):
+def rotor_angle(p, exp: Experiment, ia, w, t, start, *, coulomb: bool = False,
+                limit=None):
     """The angle turned since each trace's first sample (rad), per sample in time order.
 
     Parameters
@@ -49,6 +52,11 @@ def rotor_angle(p, exp: Experiment, ia, w, t, start, *, coulomb: bool = False):
     ia, w : the exact current and speed in the padded layout (no sensor applied).
     t, start : sample times and the first-sample flags, traces one after another.
     coulomb : whether friction (the motor's Tc or a trace's constant drag) acts.
+    limit : the driver's current limit (A), or None.  While the current is held at it
+        the driver lowers the voltage, so the logged voltage's integral no longer
+        applies: an interval clamped at both ends takes the mechanical equation alone
+        (``B·∫ω = K·∫ia − ∫T − J·Δω`` with ``∫ia = ±limit·h``, exact), one entering or
+        leaving the clamp the trapezoid rule.
     """
     tau_pre = exp.tau_pre if exp.tau_pre is not None else jnp.zeros_like(exp.tau)
     cv = exp.unpad(_input_integral(exp, exp.seg_va, tau_pre))
@@ -67,7 +75,15 @@ def rotor_angle(p, exp: Experiment, ia, w, t, start, *, coulomb: bool = False):
     exact = motor.angle_increment(p.Ra, p.La, p.K, b, p.J, cv - prev(cv),
                                   cl - prev(cl) + tc * jnp.sign(w) * h, ia - prev(ia), w - w0)
     one_sign = (tc == 0.0) | (w0 * w > 0.0)
-    d = jnp.where(start, 0.0, jnp.where(one_sign, exact, 0.5 * (w0 + w) * h))
+    trapezoid = 0.5 * (w0 + w) * h
+    d = jnp.where(one_sign, exact, trapezoid)
+    if limit is not None:
+        at = jnp.abs(ia) >= limit * (1.0 - 1e-9)
+        held = at & prev(at) & (ia * prev(ia) > 0)
+        dl = cl - prev(cl) + tc * jnp.sign(w) * h
+        clamped = (p.K * ia * h - dl - p.J * (w - w0)) / b
+        d = jnp.where(held & one_sign, clamped, jnp.where(at | prev(at), trapezoid, d))
+    d = jnp.where(start, 0.0, d)
     total = jnp.cumsum(d)
     first = jax.lax.cummax(jnp.where(start, jnp.arange(t.shape[0]), 0))
     return total - total[first]

@@ -71,6 +71,13 @@ class Experiment(NamedTuple):
         return jnp.cumsum(self.seg_first.astype(jnp.int32)) - 1
 
     @property
+    def voltage_reverses(self) -> bool:
+        """Whether any trace's voltage takes both signs."""
+        va, trace = np.asarray(self.seg_va), np.asarray(self.seg_trace)
+        return any(bool((va[trace == k] > 0).any() and (va[trace == k] < 0).any())
+                   for k in np.unique(trace))
+
+    @property
     def time(self) -> np.ndarray:
         """Sample times of all traces, concatenated (s)."""
         t = np.asarray(self.seg_t0)[np.asarray(self.chunk_seg)][:, None] + np.asarray(self.tau)

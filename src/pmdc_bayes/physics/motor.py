@@ -58,6 +58,13 @@ def derivatives(Ra, La, K, B, J, ia, w, va=0.0, tl=0.0, tc=0.0):
     return (va - Ra * ia - K * w) / La, (K * ia - B * w - tl - tc) / J
 
 
+def stuck_current(Ra, La, ia0, va, tau):
+    """The current ``tau`` after ``ia0`` with the rotor held at rest (ω = 0 in (5)):
+    first order towards ``va/Ra`` with time constant La/Ra."""
+    i_inf = va / Ra
+    return i_inf + (ia0 - i_inf) * _xp(Ra, La, ia0, va, tau).exp(-Ra / La * tau)
+
+
 def terminal_voltage(va, drop):
     """The voltage across the armature when a constant ``drop`` (brushes, driver)
     opposes the applied ``va``: ``va − drop·sign(va)`` (0 V stays 0 V)."""

@@ -9,9 +9,8 @@ friction is a constant torque ``Tc·sign(ω)`` while the motor turns, with the r
 held at rest while the driving torque cannot overcome it; the breakaway and stop
 times are found inside each segment, so the solution stays exact.
 
-:func:`simulate_scan` is the straightforward zero-order-hold formulation
-(``expm([[A, b], [0, 0]]·dt)`` stepped sample by sample in ``lax.scan``), kept as a
-reference for the viscous model.
+A current-limited driver, and Coulomb friction through a voltage reversal, take the
+regime-switching solution of :mod:`.limited`.  The references are in :mod:`.ode`.
 """
 
 from __future__ import annotations
@@ -20,9 +19,8 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from . import motor
+from . import limited, motor
 from .experiment import (
     INITIAL_MODES,
     Experiment,
@@ -45,7 +43,6 @@ __all__ = [
     "simulate",
     "simulate_padded",
     "real_modes",
-    "simulate_scan",
     "system_matrices",
     "initial_state",
 ]
@@ -92,8 +89,7 @@ def _steady_coulomb(p: Params, va, tl, direction):
 
 def _stuck_current(p: Params, ia0, va, tau):
     """Current with the rotor held at rest: first order with time constant La/Ra."""
-    i_inf = va / p.Ra
-    return i_inf + (ia0 - i_inf) * jnp.exp(-p.Ra / p.La * tau)
+    return motor.stuck_current(p.Ra, p.La, ia0, va, tau)
 
 
 class _Segment(NamedTuple):
@@ -201,12 +197,15 @@ def initial_state(p: Params, exp: Experiment, coulomb: bool):
 
 
 def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
-                    fast: bool = False):
+                    fast: bool = False, limit=None):
     """Exact ``(ia, ω)`` in the experiment's padded ``(C, L)`` sample layout.
 
     ``fast=True`` assumes real, well-separated eigenvalues (:func:`real_modes`) and
     skips the complex and nearly-repeated branches; callers check that first.
+    ``limit`` (A), when given, is the driver's current limit (:mod:`.limited`).
     """
+    if limit is not None:
+        return _simulate_limited(p, exp, coulomb, fast, limit)
     drag = exp.seg_b is not None
     b_x = exp.seg_b if drag else jnp.zeros_like(exp.seg_va)
     tc_x = exp.seg_tc if drag else jnp.zeros_like(exp.seg_va)
@@ -234,6 +233,43 @@ def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
     return _state_in_segment(pc, per_chunk, va, exp.tau, coulomb, fast)
 
 
+def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, limit):
+    """:func:`simulate_padded` with a current-limited driver: each segment split into
+    its regimes by :func:`.limited.segment_phases`."""
+    drag = exp.seg_b is not None
+    b_x = exp.seg_b if drag else jnp.zeros_like(exp.seg_va)
+    tc_x = exp.seg_tc if drag else jnp.zeros_like(exp.seg_va)
+    tc0 = p.Tc if coulomb else 0.0
+
+    def seen(b, tc):
+        return p._replace(B=p.B + b, Tc=tc0 + tc)
+
+    def start(ps, va, tl, mode, xg):
+        ia, w = _initial_for(ps, va, tl, mode, xg, coulomb)
+        return limited.clamped_steady(ps, va, tl, ps.Tc, limit, ia, w)
+
+    ps0 = seen(b_x[0], tc_x[0])
+    x0 = start(ps0, exp.seg_va[0], exp.seg_tl[0], exp.seg_mode[0], exp.seg_x0[0])
+
+    def step(x, seg_in):
+        va, tl, length, first, mode, xg, b, tc = seg_in
+        ps = seen(b, tc)
+        xi = start(ps, va, tl, mode, xg)
+        x = (jnp.where(first, xi[0], x[0]), jnp.where(first, xi[1], x[1]))
+        phases = limited.segment_phases(ps, x, va, tl, ps.Tc, limit, length, coulomb, fast)
+        x_end = limited.state_in_segment(ps, phases, va, tl, ps.Tc, limit, length, fast)
+        return x_end, phases
+
+    _, phases = jax.lax.scan(step, x0, (exp.seg_va, exp.seg_tl, exp.seg_len, exp.seg_first,
+                                        exp.seg_mode, exp.seg_x0, b_x, tc_x))
+    # (segments, PHASES) → (PHASES, chunks, 1): each chunk's segment's phases.
+    per_chunk = jax.tree_util.tree_map(lambda a: a[exp.chunk_seg].T[:, :, None], phases)
+    c = exp.chunk_seg
+    pc = seen(b_x[c][:, None], tc_x[c][:, None])
+    return limited.state_in_segment(pc, per_chunk, exp.seg_va[c][:, None],
+                                    exp.seg_tl[c][:, None], pc.Tc, limit, exp.tau, fast)
+
+
 def simulate(p: Params, exp: Experiment, *, coulomb: bool = False):
     """Exact ``(ia, ω)`` at the experiment's sample times.
 
@@ -255,35 +291,3 @@ def simulate(p: Params, exp: Experiment, *, coulomb: bool = False):
     """
     ia, w = simulate_padded(p, exp, coulomb=coulomb)
     return exp.unpad(ia), exp.unpad(w)
-
-
-def simulate_scan(p: Params, exp: Experiment):
-    """Viscous model by zero-order-hold ``expm`` steps over samples and input changes.
-
-    The reference formulation: the augmented matrix ``[[A, b], [0, 0]]·dt`` is
-    exponentiated for every step of the grid formed by the sample times and the
-    input breakpoints, and the state is carried through ``lax.scan``.
-    """
-    t = exp.time
-    grid = np.unique(np.concatenate([t, np.asarray(exp.seg_t0)]))
-    seg_of = np.searchsorted(np.asarray(exp.seg_t0), grid[:-1], side="right") - 1
-    dts = jnp.asarray(np.diff(grid))
-    va = exp.seg_va[seg_of]
-    tl = exp.seg_tl[seg_of]
-    A, Bu = system_matrices(p)  # x = (ω, ia), u = (TL, Va)
-    A, Bu = jnp.asarray(A), jnp.asarray(Bu)
-    ia0, w0 = initial_state(p, exp, False)
-    x0 = jnp.stack([w0, ia0])
-
-    def step(x, inp):
-        dt, v, load = inp
-        b = Bu @ jnp.stack([load, v])
-        M = jnp.zeros((3, 3)).at[:2, :2].set(A).at[:2, 2].set(b)
-        E = jax.scipy.linalg.expm(M * dt)
-        x_new = E[:2, :2] @ x + E[:2, 2]
-        return x_new, x_new
-
-    _, xs = jax.lax.scan(step, x0, (dts, va, tl))
-    xs = jnp.concatenate([x0[None], xs])
-    idx = np.searchsorted(grid, t)
-    return xs[idx, 1], xs[idx, 0]

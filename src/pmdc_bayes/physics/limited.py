@@ -1,0 +1,259 @@
+"""The exact solution with a current-limited driver.
+
+A driver with a current limit ``I`` lowers the voltage it applies whenever the
+commanded voltage would push ``|ia|`` past ``I``: the current is then held at ``±I``
+(``dia/dt = 0``, the terminals at ``Ra·ia + K·ω``) and the speed follows the first-order
+``J·dω/dt = ±K·I − TL − Tc·sign(ω) − B·ω`` until the back-emf has risen so far that the
+commanded voltage no longer drives the current past the limit.  Within a constant
+segment the motor is therefore in one of three regimes, each solved in closed form:
+
+* ``STUCK`` — at rest held by Coulomb friction, the current first order in La/Ra;
+* ``MOVING`` — the two-state linear model (:mod:`.propagator`), friction opposing
+  the motion;
+* ``CLAMPED`` — the current at ``±I``, the speed first order in J/B (or held at rest
+  when the clamped torque cannot overcome the friction).
+
+The segment is split into at most :data:`PHASES` phases at the located times where the
+regime changes: breakaway and clamping of a stuck rotor, in closed form; the stop or
+clamping of a moving one, bracketed on a geometric grid (the first crossing, not just
+any) and bisected, then Newton steps that carry the time's dependence on the
+parameters; a clamped phase's exit or stop, in closed form.  A change beyond the
+last phase is not followed.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from . import motor
+from .propagator import apply_alpha_beta, coefficients, coefficients_real
+
+__all__ = ["PHASES", "STUCK", "MOVING", "CLAMPED", "Phase", "segment_phases",
+           "state_at", "state_in_segment", "clamped_steady"]
+
+STUCK, MOVING, CLAMPED = 0, 1, 2
+PHASES = 6  # regimes followed per constant segment (e.g. stuck, moving, clamped, moving)
+_GRID = 48  # geometric grid that brackets a moving phase's first event
+_GRID_SPAN = 1e-9  # its first point, as a share of the remaining segment
+_BISECT = 44
+_TOL = 1e-12  # relative margin that keeps a phase from re-entering the one it left
+
+
+class Phase(NamedTuple):
+    """One regime of a segment: its start ``t0`` after the segment's start (``inf``
+    when unused), ``mode``, the direction ``d`` of motion (±1, 0 held at rest), the
+    clamp's sign ``s`` and the state ``(ia, w)`` at its start."""
+
+    t0: jax.Array
+    mode: jax.Array
+    d: jax.Array
+    s: jax.Array
+    ia: jax.Array
+    w: jax.Array
+
+
+def _sign(x):
+    return jnp.where(x >= 0, 1.0, -1.0)
+
+
+def _safe_log1p_neg(q, ok):
+    """``log1p(−q)`` where ``ok`` (0 ≤ q < 1), 0 elsewhere, without NaN tangents."""
+    return jnp.where(ok, jnp.log1p(-jnp.where(ok, q, 0.0)), 0.0)
+
+
+def _moving(p, va, tl, tc, ph, tau, fast):
+    ss_i, ss_w = motor.steady_state(p.Ra, p.K, p.B, va, tl + ph.d * tc)
+    alpha, beta = (coefficients_real if fast else coefficients)(p, tau)
+    di, dw = apply_alpha_beta(p, alpha, beta, (ph.ia - ss_i, ph.w - ss_w))
+    return ss_i + di, ss_w + dw
+
+
+def _clamped_rate(p, tl, tc, limit, ph):
+    """The net torque ``a`` at the clamped phase's start (``J·dω/dt``), so that
+    ``ω(τ) = w + a·(1 − exp(−B·τ/J))/B``; 0 when held at rest."""
+    a = p.K * ph.s * limit - tl - ph.d * tc - p.B * ph.w
+    return jnp.where(ph.d == 0, 0.0, a)
+
+
+def state_at(p, va, tl, tc, limit, ph: Phase, tau, fast=False):
+    """``(ia, ω)`` at ``tau`` after the phase's start, in its regime (broadcasts)."""
+    i_s = motor.stuck_current(p.Ra, p.La, ph.ia, va, tau)
+    i_m, w_m = _moving(p, va, tl, tc, ph, tau, fast)
+    a = _clamped_rate(p, tl, tc, limit, ph)
+    w_c = ph.w + a * -jnp.expm1(-p.B * tau / p.J) / p.B
+    ia = jnp.where(ph.mode == STUCK, i_s, jnp.where(ph.mode == MOVING, i_m, ph.s * limit))
+    w = jnp.where(ph.mode == STUCK, 0.0, jnp.where(ph.mode == MOVING, w_m, w_c))
+    return ia, w
+
+
+def _held_direction(p, tl, tc, s, limit):
+    """Direction a clamped rotor at rest takes: that of its torque, 0 if friction holds."""
+    net = p.K * s * limit - tl
+    return jnp.where(jnp.abs(net) > tc, _sign(net), 0.0)
+
+
+def _classify(p, va, tl, tc, limit, ia, w, coulomb):
+    """The regime of state ``(ia, w)`` at a segment's start under the segment's inputs."""
+    s = _sign(ia)
+    pushes = s * (va - p.Ra * ia - p.K * w) > 0
+    clamped = (jnp.abs(ia) >= limit * (1.0 - _TOL)) & pushes
+    d_move = jnp.where(w == 0, _sign(p.K * ia - tl), _sign(w))
+    d_clamp = jnp.where(w == 0, _held_direction(p, tl, tc, s, limit), _sign(w))
+    stuck = coulomb & (w == 0)
+    mode = jnp.where(clamped, CLAMPED, jnp.where(stuck, STUCK, MOVING))
+    d = jnp.where(clamped, d_clamp, d_move)
+    return Phase(jnp.zeros_like(ia), mode, d, jnp.where(clamped, s, 0.0),
+                 jnp.where(clamped, s * limit, ia), w)
+
+
+def _after_stuck(p, va, tl, tc, limit, ph):
+    """Duration of a stuck phase and the phase after it (breakaway or clamp at rest)."""
+    i_inf = va / p.Ra
+    db = _sign(p.K * i_inf - tl)
+    i_star = (tl + db * tc) / p.K
+    already = db * (p.K * ph.ia - tl) > tc
+    possible = db * (p.K * i_inf - tl) > tc
+    rate = p.La / p.Ra
+
+    def time_to(level, ok):
+        q = (level - ph.ia) / jnp.where(ok, i_inf - ph.ia, 1.0)
+        good = ok & (q >= 0) & (q < 1)
+        return jnp.where(good, -rate * _safe_log1p_neg(q, good), jnp.inf)
+
+    t_b = jnp.where(already, 0.0, time_to(i_star, possible & ~already))
+    sc = _sign(i_inf)
+    t_c = time_to(sc * limit, jnp.abs(i_inf) > limit)
+    breaks = t_b <= t_c
+    nxt = Phase(jnp.zeros_like(ph.ia), jnp.where(breaks, MOVING, CLAMPED),
+                jnp.where(breaks, db, 0.0), jnp.where(breaks, 0.0, sc),
+                jnp.where(breaks, jnp.where(already, ph.ia, i_star), sc * limit),
+                jnp.zeros_like(ph.w))
+    return jnp.minimum(t_b, t_c), nxt
+
+
+def _after_clamped(p, va, tl, tc, limit, ph, coulomb):
+    """Duration of a clamped phase and the phase after it (released or stopped)."""
+    a = _clamped_rate(p, tl, tc, limit, ph)
+    w_inf = ph.w + a / p.B
+    span = w_inf - ph.w
+    w_exit = (va - ph.s * p.Ra * limit) / p.K
+    inside = ph.s * (va - ph.s * p.Ra * limit - p.K * ph.w) > 0
+
+    def time_to(target, ok):
+        q = (target - ph.w) / jnp.where(span == 0, 1.0, span)
+        good = ok & (span != 0) & (q >= 0) & (q < 1)
+        return jnp.where(good, -p.J / p.B * _safe_log1p_neg(q, good), jnp.inf)
+
+    t_exit = jnp.where(inside, time_to(w_exit, True), 0.0)
+    t_stop = time_to(0.0, coulomb & (ph.d != 0) & (ph.w != 0)) if coulomb else jnp.inf
+    exits = t_exit <= t_stop
+    w_x = jnp.where(inside, w_exit, ph.w)
+    at_rest = exits & (ph.d == 0)
+    d_rest = _held_direction(p, tl, tc, ph.s, limit)
+    mode = jnp.where(exits, jnp.where(at_rest & coulomb, STUCK, MOVING), CLAMPED)
+    nxt = Phase(jnp.zeros_like(ph.ia), mode, jnp.where(exits, ph.d, d_rest),
+                jnp.where(exits, 0.0, ph.s), ph.s * limit,
+                jnp.where(exits, jnp.where(at_rest, 0.0, w_x), 0.0))
+    return jnp.minimum(t_exit, t_stop), nxt
+
+
+def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast):
+    """Duration of a moving phase and the phase after it (stopped or clamped): the first
+    grid point past an event brackets it, bisection narrows it, Newton refines it."""
+    frac = jnp.logspace(jnp.log10(_GRID_SPAN), 0.0, _GRID)
+    grid = rem * frac
+    pc = jax.lax.stop_gradient((p, ph))
+
+    def events(q, tau):
+        pq, phq = q
+        ia, w = _moving(pq, va, tl, tc, phq, tau, fast)
+        stop = (phq.d * w < -_TOL * (jnp.abs(phq.w) + 1e-300)) if coulomb else tau < 0
+        clamp = jnp.abs(ia) > limit * (1.0 + _TOL)
+        return jnp.stack([stop, clamp])
+
+    hit = events(pc, grid)  # (2, G)
+    any_hit = hit.any(axis=1)
+    first = jnp.argmax(hit, axis=1)
+    hi = jnp.where(any_hit, grid[first], rem)
+    lo = jnp.where(first > 0, grid[jnp.maximum(first - 1, 0)], 0.0)
+
+    def bisect(_, lohi):
+        lo, hi = lohi
+        mid = 0.5 * (lo + hi)
+        h = events(pc, mid)  # (event, at which midpoint)
+        now = jnp.stack([h[0, 0], h[1, 1]])
+        return jnp.where(now, lo, mid), jnp.where(now, mid, hi)
+
+    lo, hi = jax.lax.fori_loop(0, _BISECT, bisect, (lo, hi))
+    t_root = jax.lax.stop_gradient(jnp.where(any_hit, hi, 0.0))
+    t_stop, t_clamp = t_root[0], t_root[1]
+    s = _sign(_moving(pc[0], va, tl, tc, pc[1], t_clamp, fast)[0])
+    for _ in range(2):
+        i1, w1 = _moving(p, va, tl, tc, ph, t_stop, fast)
+        _, dw = motor.derivatives(p.Ra, p.La, p.K, p.B, p.J, i1, w1, va=va, tl=tl,
+                                  tc=ph.d * tc)
+        t_stop = jnp.where(any_hit[0], t_stop - w1 / jnp.where(dw == 0, 1.0, dw), 0.0)
+        i2, w2 = _moving(p, va, tl, tc, ph, t_clamp, fast)
+        di, _ = motor.derivatives(p.Ra, p.La, p.K, p.B, p.J, i2, w2, va=va, tl=tl,
+                                  tc=ph.d * tc)
+        t_clamp = jnp.where(any_hit[1], t_clamp - (i2 - s * limit) / jnp.where(di == 0, 1.0, di),
+                            0.0)
+    t_stop = jnp.where(any_hit[0], t_stop, jnp.inf)
+    t_clamp = jnp.where(any_hit[1], t_clamp, jnp.inf)
+    clamps = t_clamp < t_stop
+    t_ev = jnp.minimum(t_stop, t_clamp)
+    i_e, w_e = _moving(p, va, tl, tc, ph, jnp.where(jnp.isfinite(t_ev), t_ev, rem), fast)
+    nxt = Phase(jnp.zeros_like(ph.ia), jnp.where(clamps, CLAMPED, STUCK),
+                jnp.where(clamps, ph.d, 0.0), jnp.where(clamps, s, 0.0),
+                jnp.where(clamps, s * limit, i_e), jnp.where(clamps, w_e, 0.0))
+    return t_ev, nxt
+
+
+def segment_phases(p, x, va, tl, tc, limit, length, coulomb: bool, fast: bool) -> Phase:
+    """The phases of one segment from the state ``x = (ia, ω)`` at its start, stacked
+    (leading axis :data:`PHASES`)."""
+    first = _classify(p, va, tl, tc, limit, x[0], x[1], coulomb)
+
+    def next_phase(ph, _):
+        rem = jnp.clip(length - ph.t0, 0.0, None)
+        rem = jnp.where(jnp.isfinite(rem), rem, 0.0)
+        dur_s, nx_s = _after_stuck(p, va, tl, tc, limit, ph)
+        dur_c, nx_c = _after_clamped(p, va, tl, tc, limit, ph, coulomb)
+        dur_m, nx_m = _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast)
+        pick = [ph.mode == STUCK, ph.mode == CLAMPED]
+        dur = jnp.where(pick[0], dur_s, jnp.where(pick[1], dur_c, dur_m))
+        nxt = jax.tree_util.tree_map(
+            lambda a, b, c: jnp.where(pick[0], a, jnp.where(pick[1], b, c)), nx_s, nx_c, nx_m)
+        t0 = jnp.where(dur < rem, ph.t0 + dur, jnp.inf)
+        # A phase past the segment's end keeps a finite state (its predecessor's), so
+        # that no tangent meets an infinity.
+        nxt = nxt._replace(t0=t0, ia=jnp.where(jnp.isfinite(t0), nxt.ia, ph.ia),
+                           w=jnp.where(jnp.isfinite(t0), nxt.w, ph.w))
+        return nxt, nxt
+
+    _, rest = jax.lax.scan(next_phase, first, None, length=PHASES - 1)
+    return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), first, rest)
+
+
+def state_in_segment(p, phases: Phase, va, tl, tc, limit, tau, fast=False):
+    """``(ia, ω)`` at ``tau`` after the segment's start (broadcasts over samples), from
+    the segment's phases (leading axis :data:`PHASES`, then the sample axes' shape)."""
+    ph = jax.tree_util.tree_map(lambda a: a[0], phases)
+    for k in range(1, PHASES):
+        q = jax.tree_util.tree_map(lambda a, k=k: a[k], phases)
+        on = tau >= q.t0
+        ph = jax.tree_util.tree_map(lambda a, b, on=on: jnp.where(on, b, a), ph, q)
+    return state_at(p, va, tl, tc, limit, ph, tau - ph.t0, fast)
+
+
+def clamped_steady(p, va, tl, tc, limit, ia, w):
+    """A steady state ``(ia, w)`` with the limit applied: a current beyond ``±limit`` is
+    held there, the speed from the torque balance (at rest if friction holds it)."""
+    s = _sign(ia)
+    over = jnp.abs(ia) > limit
+    net = p.K * s * limit - tl
+    w_c = jnp.where(jnp.abs(net) > tc, (net - _sign(net) * tc) / p.B, 0.0)
+    return jnp.where(over, s * limit, ia), jnp.where(over, w_c, w)
