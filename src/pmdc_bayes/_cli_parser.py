@@ -53,7 +53,8 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
         prog="pmdc-bayes",
         description=textwrap.fill("Identify a permanent-magnet DC motor's parameters (Ra, "
         "La, K, B, J, Coulomb friction) from bench experiments, with honest uncertainty.  "
-        "SESSION is a session directory, or 'demo' / 'paper' for the bundled ones.", 79),
+        "SESSION is a session directory, or 'demo', 'paper' or 'bench' for the bundled "
+        "ones.", 79),
         epilog=EXIT_CODES, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")

@@ -18,7 +18,7 @@ from . import cachedir
 from ._cli_parser import build_parser
 from ._console import print_fit
 from ._errors import SessionError, UsageError
-from .io.bundled import DEFAULT_SESSION, bundled_session_dir
+from .io.bundled import BUNDLED, DEFAULT_SESSION, bundled_session_dir
 from .rundir import check_writable
 
 __all__ = ["main"]
@@ -33,7 +33,7 @@ def _session_path(arg: str | None) -> Path:
     if arg is None:
         return bundled_session_dir(DEFAULT_SESSION)
     p = Path(arg)
-    if not p.exists() and arg in ("paper", "demo"):
+    if not p.exists() and arg in BUNDLED:
         return bundled_session_dir(arg)
     return p
 

@@ -1,4 +1,5 @@
-"""Locate the sessions bundled with pmdc-bayes (``data/paper``, ``data/demo``)."""
+"""Locate the sessions bundled with pmdc-bayes (``data/paper``, ``data/demo``,
+``data/bench``)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from pathlib import Path
 
 __all__ = ["bundled_session_dir", "BUNDLED", "DEFAULT_SESSION"]
 
-BUNDLED = ("paper", "demo")
+BUNDLED = ("paper", "demo", "bench")
 DEFAULT_SESSION = "demo"
 
 
