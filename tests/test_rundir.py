@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from pmdc_bayes import _signals
 from pmdc_bayes._errors import UsageError
 from pmdc_bayes.rundir import (
     RUN_MARKER,
@@ -51,6 +52,30 @@ def test_an_out_in_a_read_only_directory_is_refused_before_any_work(tmp_path):
     ro.mkdir(mode=0o555)
     with pytest.raises(UsageError, match="cannot write in"):
         check_replaceable(ro / "run", force=False)
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+@pytest.mark.parametrize(("sig", "raised"), [(signal.SIGTERM, _signals.Terminated),
+                                             (signal.SIGINT, KeyboardInterrupt)])
+def test_an_interrupt_whose_raise_python_ignored_still_stops_the_run(tmp_path, sig, raised):
+    """A signal arriving in a finaliser (as in a garbage-collection callback) has its
+    exception printed and dropped by Python; the earlier run must still stay whole."""
+    write_atomically(tmp_path / "run", _fill_with("earlier"), force=False)
+    before = _snapshot(tmp_path / "run")
+
+    class Finalised:
+        def __del__(self):
+            os.kill(os.getpid(), sig)
+
+    def fill(tmp):
+        _fill_with("new")(tmp)
+        obj = Finalised()
+        del obj  # the handler runs inside __del__, where its raise is ignored
+
+    with _signals.handled(), pytest.raises(raised):
+        write_atomically(tmp_path / "run", fill, force=True)
+    assert _snapshot(tmp_path / "run") == before
+    assert _debris(tmp_path, "run") == []
 
 
 def test_a_run_gets_the_modes_of_the_umask(tmp_path):

@@ -9,12 +9,10 @@ import contextlib
 import io
 import json
 import os
-import signal
 import sys
-import threading
 from pathlib import Path
 
-from . import cachedir
+from . import _signals, cachedir
 from ._cli_parser import build_parser
 from ._console import print_fit
 from ._errors import SessionError, UsageError
@@ -181,26 +179,19 @@ def _cmd_cache(args) -> int:
     return 0
 
 
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where the program is so that partial output is cleaned up."""
-
-
-def _on_sigterm(signum, frame):
-    raise _Terminated
-
-
 def main(argv: list[str] | None = None) -> int:
     args = build_parser({"closed-form": _cmd_closed_form, "simulate": _cmd_simulate,
                          "fit": _cmd_fit, "report": _cmd_report, "cache": _cmd_cache},
                         ).parse_args(argv)
-    in_main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _on_sigterm) if in_main else None
     try:
-        return int(args.func(args) or 0)
+        with _signals.handled():
+            code = int(args.func(args) or 0)
+            _signals.check()
+        return code
     except (SessionError, UsageError) as exc:
         print(f"pmdc-bayes: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    except _Terminated:
+    except _signals.Terminated:
         print("pmdc-bayes: terminated (no partial output is left)", file=sys.stderr)
         return 143
     except KeyboardInterrupt:
@@ -214,9 +205,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pmdc-bayes: internal error ({type(exc).__name__}: {exc}); traceback saved "
               f"to {log}", file=sys.stderr)
         return EXIT_INTERNAL
-    finally:
-        if in_main:
-            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from . import _signals
 from ._errors import UsageError
 
 __all__ = ["RUN_MARKER", "SESSION_COPY", "is_run_dir", "check_replaceable", "write_atomically",
@@ -126,6 +127,7 @@ def write_atomically(out: Path, fill, *, force: bool):
         (tmp / RUN_MARKER).write_text("a run directory written by pmdc-bayes fit\n")
         fill(tmp)
         _publish_modes(tmp)
+        _signals.check()
         if out.exists():
             check_replaceable(out, force)
             old = out.with_name(f".{out.name}.old")
