@@ -13,6 +13,7 @@ __all__ = [
     "SessionError",
     "UsageError",
     "closed_form",
+    "fit",
     "fit_session",
     "load_session",
     "read_run",
@@ -27,6 +28,7 @@ __version__ = "0.1.0"
 _LAZY = {
     "ClosedForm": ".paper.closed_form",
     "closed_form": ".paper.closed_form",
+    "fit": ".api",
     "Session": ".io.session",
     "load_session": ".io.loader",
     "RunResult": ".inference.result",

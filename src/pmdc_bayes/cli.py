@@ -16,7 +16,7 @@ from . import _signals, cachedir
 from ._cli_parser import build_parser
 from ._console import print_fit
 from ._errors import SessionError, UsageError
-from .io.bundled import BUNDLED, DEFAULT_SESSION, bundled_session_dir
+from .io.bundled import session_path
 from .rundir import check_writable
 
 __all__ = ["main"]
@@ -27,20 +27,11 @@ EXIT_INADEQUATE = 3
 EXIT_INTERNAL = 4
 
 
-def _session_path(arg: str | None) -> Path:
-    if arg is None:
-        return bundled_session_dir(DEFAULT_SESSION)
-    p = Path(arg)
-    if not p.exists() and arg in BUNDLED:
-        return bundled_session_dir(arg)
-    return p
-
-
 def _cmd_closed_form(args) -> int:
     from .io.loader import load_session
     from .paper.closed_form import closed_form
 
-    session = load_session(_session_path(args.session))
+    session = load_session(session_path(args.session))
     cf = closed_form(session)
     code = _closed_form_warnings(cf)
     if args.json:
@@ -94,7 +85,7 @@ def _cmd_fit(args) -> int:
     if not args.no_cache:
         cachedir.enable()
     out, summary = run_fit(
-        _session_path(args.session), say=_stage_printer(args), progress=_bar(args),
+        session_path(args.session), say=_stage_printer(args), progress=_bar(args),
         out=args.out, force=args.force, mcmc=not args.no_mcmc,
         friction=args.friction, seed=args.seed, holdout=args.holdout or (),
         compare_friction=args.compare_friction, allow_inadequate=args.allow_inadequate,

@@ -29,7 +29,7 @@ from .seed import fit_seed
 __all__ = ["RunResult", "read_run", "read_summary"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class RunResult:
     """A finished run.
 
@@ -69,6 +69,51 @@ class RunResult:
     @property
     def has_posterior(self) -> bool:
         return self.draws is not None
+
+    def __repr__(self) -> str:
+        from .._headline import headline_text
+
+        return headline_text(self.summary)
+
+    def _repr_html_(self) -> str:
+        from .._headline import headline_html
+
+        return headline_html(self.summary)
+
+    def write(self, out, *, force: bool = False) -> Path:
+        """Write the run directory ``out`` (summary, posterior, report, a copy of the
+        session's files), whole or not at all; ``force`` replaces an earlier run only."""
+        from ..pipeline import write_run
+
+        return write_run(self, Path(out), force=force)
+
+    def to_control(self, draws: int | None = None, *, seed: int = 0):
+        """The motor as a python-control ``StateSpace`` (state ``[ω, ia]``, inputs
+        ``[TL, Va]``, output ``ω``, equations (11)–(14)) at the posterior mean (the MAP
+        without a posterior); with ``draws=N``, a list of ``N`` systems, one per
+        posterior draw picked at random, for bands of step and frequency responses.
+        Coulomb friction, a constant load opposing the motion, is not part of them."""
+        try:
+            import control
+        except ImportError as exc:
+            raise ImportError("python-control is not installed; pip install "
+                              "'pmdc-bayes[control]'") from exc
+        from ..physics.motor import state_space
+
+        def system(v):
+            A, Bu, C, D = state_space(*(float(v[n]) for n in ("Ra", "La", "K", "B", "J")))
+            return control.ss(np.asarray(A), np.asarray(Bu), C, D, inputs=["TL", "Va"],
+                              outputs=["omega"], states=["omega", "ia"])
+
+        values = self.values()
+        if draws is None:
+            return system(values.get("mean", values["map"]))
+        if self.draws is None:
+            raise UsageError("no posterior to draw systems from: fit with mcmc=True, or "
+                             "call to_control() for the MAP's system")
+        rows = np.random.default_rng(seed).choice(len(self.draws), size=int(draws),
+                                                  replace=int(draws) > len(self.draws))
+        return [system(dict(zip(self.names, self.draws[k], strict=True))) for k in rows]
 
     def values(self) -> dict:
         """``{"closed_form" | "map" | "mean": {name: SI value}}`` (``closed_form`` only when

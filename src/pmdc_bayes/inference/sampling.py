@@ -211,7 +211,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
         by less than 5 % since the previous check (τ is estimated every 200 steps, every
         100 once the chain is long enough), and the draws after burn-in already pass
         the gates (R-hat ≤ 1.01, bulk and tail ESS ≥ 400).
-    progress : a tqdm bar on stderr; default when stderr is a terminal.
+    progress : a tqdm bar (on stderr, or a notebook's widget); default in a terminal or
+        a Jupyter kernel.
     moves : emcee moves; default :func:`default_moves` (differential evolution).
     ll_draws : at most this many draws carry the pointwise log-likelihood in ``idata``
         (evenly thinned along each chain).
@@ -224,8 +225,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     if n_walkers < 2 * ndim:
         raise ValueError(f"n_walkers={n_walkers} is too few for {ndim} parameters; "
                          f"use at least {2 * ndim}")
-    if progress is None:
-        progress = sys.stderr.isatty()
+    if progress is None:  # a terminal, or a notebook (where tqdm.auto draws a widget)
+        progress = sys.stderr.isatty() or "ipykernel" in sys.modules
     batch_fn = _log_posterior_batch(model)
     log_prob = _LogProb(batch_fn, max(1, n_walkers // 2))
     rng = np.random.default_rng(seed)

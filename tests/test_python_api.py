@@ -1,0 +1,82 @@
+"""The public Python API: ``docs/python-api.md``'s example run as written, the
+headline a result shows, and arguments refused before any work."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+import pmdc_bayes
+from pmdc_bayes._headline import headline_html, headline_rows, headline_text
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "python-api.md"
+
+
+def _blocks(text: str) -> list[str]:
+    return re.findall(r"```python\n(.*?)```", text, flags=re.S)
+
+
+@pytest.mark.slow
+def test_the_documented_example_runs(tmp_path, monkeypatch):
+    """Every python block of docs/python-api.md, in order, in one namespace: a full fit
+    of the demo, ArviZ on its posterior, python-control systems of posterior draws,
+    a MAP-only fit and the run written to disk (the blocks assert what they show)."""
+    blocks = _blocks(DOC.read_text(encoding="utf-8"))
+    assert len(blocks) >= 4
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {}
+    for code in blocks:
+        exec(compile(code, str(DOC), "exec"), namespace)  # noqa: S102
+    result = namespace["result"]
+    assert "model adequate" in repr(result).splitlines()[0]
+    assert "<table>" in result._repr_html_()
+    systems = namespace["systems"]
+    assert len(systems) == 50
+    # each system is one posterior draw's, and the draws differ
+    gains = namespace["gains"]
+    assert gains.std() > 0
+    assert (tmp_path / "demo-run" / "summary.json").is_file()
+    with pytest.raises(pmdc_bayes.UsageError, match="already exists"):
+        result.write(tmp_path / "demo-run")
+
+
+def _summary(verdict="adequate", post=True):
+    row = {"unit": "V*s/rad", "closed_form": 0.0620199, "map": 0.0619991,
+           "map_sd": 3.2e-6}
+    if post:
+        row.update(mean=0.0619990, sd=3.3e-6)
+    return {"session": {"name": "demo", "friction": "coulomb"},
+            "adequacy": {"verdict": verdict}, "parameters": {"K": row}}
+
+
+def test_the_headline_rounds_each_value_to_its_uncertainty():
+    (row,) = headline_rows(_summary())
+    assert row["estimate"] == "61.9990" and row["sd"] == "0.0033"
+    assert row["unit"] == "×1e-3 V·s/rad" and row["closed_form"] == "62.0199"
+    assert row["off"] == "+0.034 %, +6.3 sd" and row["source"] == "posterior mean"
+    (row,) = headline_rows(_summary(post=False))
+    assert row["estimate"] == "61.9991" and row["sd"] == "0.0032" and row["source"] == "MAP"
+
+
+def test_the_headline_says_first_when_the_model_is_rejected():
+    text = headline_text(_summary("inadequate"))
+    assert text.splitlines()[0].endswith("MODEL INADEQUATE: the data reject the fitted "
+                                         "model; the values below are conditional on it")
+    assert "MODEL INADEQUATE" in headline_html(_summary("inadequate"))
+    assert "<script" not in headline_html(dict(_summary(), session={"name": "<script>"}))
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"add": ["dead-time", "brush_wear"]}, "add: unknown non-ideality 'brush_wear'"),
+    ({"friction": "sticky"}, "friction: 'sticky' is not"),
+])
+def test_fit_refuses_arguments_that_do_not_apply_before_any_work(kwargs, match):
+    with pytest.raises(pmdc_bayes.UsageError, match=match):
+        pmdc_bayes.fit("demo", **kwargs)
+
+
+def test_a_missing_session_is_a_session_error(tmp_path):
+    with pytest.raises(pmdc_bayes.SessionError):
+        pmdc_bayes.fit(tmp_path / "nowhere", mcmc=False)
