@@ -17,7 +17,7 @@ from pmdc_bayes.paper.closed_form import ClosedForm, closed_form  # noqa: E402
 from pmdc_bayes.inference.derived import derived_quantities  # noqa: E402
 from pmdc_bayes.inference.fit import fit_map  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
-from pmdc_bayes.inference.idata import _padded_pointwise  # noqa: E402
+from pmdc_bayes.inference.idata import _padded_pointwise, lumped  # noqa: E402
 from pmdc_bayes.inference.sampling import (  # noqa: E402
     _log_posterior_batch,
     _LogProb,
@@ -141,31 +141,64 @@ def test_inference_data_groups_and_loo(tiny):
     model, fit = tiny
     post = sample_posterior(model, fit, seed=2, ll_draws=200, **QUICK)
     idata = post.idata
-    for group in ("posterior", "sample_stats", "observed_data", "log_likelihood"):
+    for group in ("posterior", "sample_stats", "observed_data", "log_likelihood",
+                  "posterior_predictive"):
         assert hasattr(idata, group), group
     assert set(idata.posterior.data_vars) == set(TRUTH)
     np.testing.assert_allclose(idata.posterior["J"].values, post.draws[..., 4], rtol=1e-15)
-    assert set(idata.observed_data.data_vars) == {"step_speed", "step_current",
-                                                  "steady_speed", "steady_current"}
-    np.testing.assert_allclose(idata.observed_data["step_speed"].values,
-                               model.session.traces[0].speed, rtol=0, atol=0)
-    ll = idata.log_likelihood["y"]
+    assert idata.posterior["J"].attrs["units"] == "kg*m^2"
+    channels = {"step_speed", "step_current", "steady_speed", "steady_current"}
+    assert set(idata.observed_data.data_vars) == channels
+    tr = model.session.traces[0]
+    np.testing.assert_allclose(idata.observed_data["step_speed"].values, tr.speed,
+                               rtol=0, atol=0)
+    # a trace's channels are on its sample times, in its units
+    np.testing.assert_array_equal(idata.observed_data["step_speed"]["step_speed_time"], tr.time)
+    assert idata.observed_data["step_current"].attrs["units"] == "A"
     n_obs = sum(c.n for c in model.channels)
-    assert ll.sizes["observation"] == n_obs and ll.sizes["chain"] == 32
-    assert ll.sizes["chain"] * ll.sizes["draw"] <= 200 + 32
-    assert np.all(np.isfinite(ll.values))
+    assert set(idata.log_likelihood.data_vars) == channels
+    assert sum(idata.log_likelihood[v].shape[-1] for v in channels) == n_obs
+    ll = idata.log_likelihood["step_speed"]
+    assert ll.sizes["chain"] == 32 and ll.sizes["chain"] * ll.sizes["draw"] <= 200 + 32
+    assert all(np.all(np.isfinite(idata.log_likelihood[v].values)) for v in channels)
     # The padded, compiled pointwise log-likelihood equals the model's own method.
     theta = np.asarray(fit.theta)
     dens, masks = _padded_pointwise(model, theta)
     ours = np.concatenate([np.asarray(d)[np.asarray(m)] for d, m in zip(dens, masks)])
     ref = np.concatenate([np.asarray(x) for x in model.pointwise_log_likelihood(theta)])
     np.testing.assert_allclose(ours, ref, rtol=1e-12, atol=1e-12)
+    # The replicates scatter about the data by the channel's noise level: their
+    # residual from the observation has the sd of the data's own noise (a replicate of
+    # the wrong channel, or without noise, would not).
+    rep = idata.posterior_predictive["step_speed"]
+    assert rep.dims == ("chain", "draw", "step_speed_time")
+    resid = (rep - idata.observed_data["step_speed"]).values
+    sd_noise = fit.noise_sd["step: speed"]
+    assert 0.8 * np.sqrt(2) * sd_noise < resid.std() < 1.25 * np.sqrt(2) * sd_noise
     with warnings.catch_warnings():
         # PSIS may warn that some Pareto k are high on so short a chain; LOO must still run.
         warnings.filterwarnings("ignore", message="Estimated shape parameter of Pareto",
                                 category=UserWarning)
-        loo = az.loo(idata, pointwise=True)
-    assert loo.loo_i.shape == (n_obs,) and np.isfinite(loo.elpd_loo)
+        loo = az.loo(idata, var_name="step_speed", pointwise=True)
+        assert loo.loo_i.shape == (tr.n,) and np.isfinite(loo.elpd_loo)
+        whole = az.loo(lumped(idata), pointwise=True)
+        assert whole.loo_i.shape == (n_obs,)
+        # the session's LOO is the channels' together, observation by observation
+        names = list(idata.log_likelihood.data_vars)
+        at = sum(idata.log_likelihood[v].shape[-1] for v in names[:names.index("step_speed")])
+        np.testing.assert_allclose(whole.loo_i.values[at:at + tr.n], loo.loo_i.values,
+                                   rtol=1e-10)
+        pit = az.loo_pit(idata, y="step_speed")
+        assert pit.shape == (tr.n,) and np.all((pit >= 0) & (pit <= 1))
+        import matplotlib.pyplot as plt
+
+        # ArviZ 0.23's plots call a matplotlib helper that matplotlib >= 3.11 deprecates
+        warnings.filterwarnings("ignore", message="Passing a dict or None as alias_mapping")
+        az.plot_ppc(idata, var_names=["step_speed"], num_pp_samples=20)
+        az.plot_loo_pit(idata, y="step_speed")
+        plt.close("all")
+    table = az.summary(idata, var_names=["K", "J"])
+    assert list(table.index) == ["K", "J"] and (table["ess_bulk"] > 0).all()
     # Two samples of the same model: same elpd within its Monte Carlo noise.
     other = sample_posterior(model, fit, seed=3, ll_draws=200, **QUICK).idata
     rows = loo_compare({"a": idata, "b": other})

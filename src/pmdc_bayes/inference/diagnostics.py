@@ -83,9 +83,11 @@ def _reff(idata) -> float:
 
 
 def _loo(idata):
+    from .idata import lumped
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.filterwarnings("always", message=_PARETO_WARNING, category=UserWarning)
-        elpd = az.loo(idata, pointwise=True, reff=_reff(idata))
+        elpd = az.loo(lumped(idata), pointwise=True, reff=_reff(idata))
     for w in caught:  # anything but the Pareto-k notice (reported in the rows) goes on
         if not str(w.message).startswith("Estimated shape parameter of Pareto"):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)

@@ -12,17 +12,17 @@ import xarray as xr
 
 from .diagnostics import az
 
-__all__ = ["to_inference_data", "LL_DRAWS"]
+__all__ = ["to_inference_data", "lumped", "LL_DRAWS"]
 
 LL_DRAWS = 400  # at most this many draws carry a pointwise log-likelihood (for LOO)
 _LL_BATCH = 50
 
 
 def _pointwise_fn(model):
-    """:meth:`SessionModel.padded_log_density` over a batch of θ, compiled once per
+    """:meth:`SessionModel.padded_residuals` over a batch of θ, compiled once per
     session structure."""
-    fn = model.compiled("pointwise", lambda: jax.jit(
-        lambda thetas, data: jax.lax.map(lambda t: model.padded_log_density(t, data=data),
+    fn = model.compiled("pointwise-residuals", lambda: jax.jit(
+        lambda thetas, data: jax.lax.map(lambda t: model.padded_residuals(t, data=data),
                                          thetas, batch_size=4)))
     return lambda thetas: fn(thetas, model.data)
 
@@ -53,59 +53,114 @@ def _identifier(name: str, taken: set) -> str:
     return ident
 
 
-def _pointwise(model, chain_log: np.ndarray, thin: int) -> np.ndarray:
-    """Pointwise log-likelihood ``(chains, kept, n_obs)`` at every ``thin``-th draw."""
+def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
+    """At every ``thin``-th draw, per observation (in channel order): the log-likelihood
+    and a replicate of the observation (the model's prediction plus Gaussian noise at
+    its channel's level), each ``(chains, kept, n_obs)``."""
     fn = _pointwise_fn(model)
     sel = model.observation_selection()
+    observed = np.concatenate(model.observed_values())
     sub = chain_log[:, ::thin]
     flat = sub.reshape(-1, sub.shape[-1])
     m = math.ceil(flat.shape[0] / _LL_BATCH) * _LL_BATCH
     padded = np.concatenate([flat, np.repeat(flat[:1], m - flat.shape[0], axis=0)])
-    parts = []
+    res, var = [], []
     for a in range(0, m, _LL_BATCH):
-        outs = [np.asarray(o) for o in fn(jnp.asarray(padded[a:a + _LL_BATCH]))]
-        outs = [o.reshape(_LL_BATCH, int(np.prod(o.shape[1:]))) for o in outs]
-        parts.append(np.concatenate([outs[k][:, idx] for k, idx in sel], axis=1))
-    ll = np.concatenate(parts)[:flat.shape[0]]
-    return ll.reshape(*sub.shape[:2], -1)
+        outs = fn(jnp.asarray(padded[a:a + _LL_BATCH]))
+        pick = [(np.asarray(r).reshape(_LL_BATCH, -1), np.asarray(v).reshape(_LL_BATCH, -1))
+                for r, v in outs]
+        res.append(np.concatenate([pick[k][0][:, idx] for k, idx in sel], axis=1))
+        var.append(np.concatenate([pick[k][1][:, idx] for k, idx in sel], axis=1))
+    r, v = (np.concatenate(x)[:flat.shape[0]] for x in (res, var))
+    ll = -0.5 * (np.log(2 * np.pi * v) + r * r / v)
+    replicate = observed - r + np.sqrt(v) * rng.standard_normal(r.shape)
+    return ll.reshape(*sub.shape[:2], -1), replicate.reshape(*sub.shape[:2], -1)
+
+
+def _coords(model, names) -> dict:
+    """Per channel variable, the coordinate of its observations: the sample time (s)
+    for a trace's channel, the observation's index otherwise."""
+    t = None
+    if model.exp is not None:
+        d = model.data["traces"]
+        t = np.asarray(model.exp.pad(np.asarray(d["t"]))).reshape(-1)
+    coords, dims = {}, {}
+    traces = {tr.name for tr in model.session.traces}
+    for nm, ch, (k, idx) in zip(names, model.channels, model.observation_selection(),
+                                strict=True):
+        trace_name, _, what = ch.name.rpartition(": ")
+        dim = f"{nm}_time" if t is not None and k < 3 and trace_name in traces \
+            and what in ("speed", "current", "position") else f"{nm}_dim"
+        dims[nm] = [dim]
+        coords[dim] = t[idx] if dim.endswith("_time") else np.arange(idx.size)
+    return coords, dims
 
 
 def to_inference_data(model, chain_log: np.ndarray, log_prob: np.ndarray,
-                      acceptance: np.ndarray, *, ll_draws: int = LL_DRAWS) -> az.InferenceData:
-    """ArviZ record of a sample: ``posterior`` (SI value per parameter, walkers as
-    chains), ``sample_stats`` (``lp``; per-chain ``acceptance``), ``observed_data`` (one
-    variable per channel, names made identifiers) and ``log_likelihood``.
+                      acceptance: np.ndarray, *, ll_draws: int = LL_DRAWS,
+                      seed: int = 0) -> az.InferenceData:
+    """ArviZ record of a sample, one variable per channel (names made identifiers:
+    ``step_speed``, ``steady_current``...), with its unit in ``attrs["units"]``:
 
-    ``log_likelihood`` holds one variable ``y`` over all observations (dimension
-    ``observation``, with a ``channel`` coordinate naming each one's channel), so
-    ``az.loo(idata)`` works directly.  It is evaluated at every ``thin``-th draw
-    (``attrs["thin"]``) so that at most ``ll_draws`` draws carry it; its ``draw``
-    coordinate gives the draws used.
+    * ``posterior``: the SI value of each parameter, walkers as chains;
+    * ``sample_stats``: ``lp``, and per chain ``acceptance``;
+    * ``observed_data``: each channel's observations, on the sample times (s) for a
+      trace's channel (dimension ``<channel>_time``), by index otherwise;
+    * ``log_likelihood``: each observation's log-density at its channel's noise level,
+      so ``az.loo(idata, var_name="step_speed")`` scores a channel
+      (:func:`lumped` joins them for the whole session's LOO);
+    * ``posterior_predictive``: a replicate of each observation (the model plus noise at
+      its channel's level), for ``az.plot_ppc`` and ``az.plot_loo_pit``.
+
+    The last two are evaluated at every ``thin``-th draw (``attrs["thin"]``) so that at
+    most ``ll_draws`` draws carry them; their ``draw`` coordinate gives the draws used.
     """
     chains, draws, _ = chain_log.shape
     taken: set = set()
-    obs_names = [_identifier(c.name, taken) for c in model.channels]
-    observed = {nm: o for nm, o in zip(obs_names, model.observed_values()) if o.size}
+    names = [_identifier(c.name, taken) for c in model.channels]
+    units = {nm: c.unit for nm, c in zip(names, model.channels, strict=True)}
+    coords, dims = _coords(model, names)
+    observed = {nm: o for nm, o in zip(names, model.observed_values(), strict=True) if o.size}
     values = model.registry.to_values(chain_log)
+    thin = max(1, math.ceil(chains * draws / max(ll_draws, chains)))
+    ll, replicate = _pointwise(model, chain_log, thin, np.random.default_rng(seed))
+    split = np.cumsum([c.n for c in model.channels])[:-1]
+    kept = {"chain": np.arange(chains), "draw": np.arange(0, draws, thin)}
+
+    def per_channel(x):  # float32: a few significant digits suffice, and these are large
+        return {nm: xr.DataArray(part.astype(np.float32), dims=["chain", "draw", *dims[nm]],
+                                 coords={**kept, dims[nm][0]: coords[dims[nm][0]]},
+                                 attrs={"units": units[nm]})
+                for nm, part in zip(names, np.split(x, split, axis=-1), strict=True)
+                if nm in observed}
+
     idata = az.from_dict(
         posterior={n: values[..., k] for k, n in enumerate(model.names)},
         sample_stats={"lp": log_prob},
         observed_data=observed,
-        dims={nm: [f"{nm}_dim"] for nm in observed},
+        coords={dims[nm][0]: coords[dims[nm][0]] for nm in observed},
+        dims={nm: dims[nm] for nm in observed},
         attrs={"inference_library": "emcee"},
     )
+    for n in model.names:
+        idata.posterior[n].attrs["units"] = model.registry[n].unit
+    for nm in observed:
+        idata.observed_data[nm].attrs["units"] = units[nm]
     idata.sample_stats["acceptance"] = xr.DataArray(np.asarray(acceptance), dims=["chain"],
                                                     coords={"chain": np.arange(chains)})
-    thin = max(1, math.ceil(chains * draws / max(ll_draws, chains)))
-    ll = _pointwise(model, chain_log, thin)
-    labels = np.asarray([nm for nm, c in zip(obs_names, model.channels) for _ in range(c.n)])
-    ds = xr.Dataset(
-        # float32: LOO needs ~3 significant digits of each term, and the group is by far
-        # the largest in posterior.nc.
-        {"y": (("chain", "draw", "observation"), ll.astype(np.float32))},
-        coords={"chain": np.arange(chains), "draw": np.arange(0, draws, thin),
-                "observation": np.arange(ll.shape[-1]), "channel": ("observation", labels)},
-        attrs={"thin": thin},
-    )
-    idata.add_groups(log_likelihood=ds)
+    idata.add_groups(log_likelihood=xr.Dataset(per_channel(ll), attrs={"thin": thin}),
+                     posterior_predictive=xr.Dataset(per_channel(replicate),
+                                                     attrs={"thin": thin}))
     return idata
+
+
+def lumped(idata) -> az.InferenceData:
+    """The posterior and one log-likelihood variable ``y`` over every observation of
+    every channel, for the whole session's ``az.loo``."""
+    ll = idata.log_likelihood
+    parts = [ll[v].values.reshape(ll.sizes["chain"], ll.sizes["draw"], -1)
+             for v in ll.data_vars]
+    y = xr.DataArray(np.concatenate(parts, axis=-1), dims=["chain", "draw", "observation"],
+                     coords={"chain": ll.chain, "draw": ll.draw})
+    return az.InferenceData(posterior=idata.posterior,
+                            log_likelihood=xr.Dataset({"y": y}, attrs=dict(ll.attrs)))

@@ -264,6 +264,12 @@ class SessionModel(RigEffects):
         """Gaussian log-density of every observation, in each block's layout, at its
         channel's noise level ``σ_c² = (ν0·s0_c² + SS_c)/(n_c + ν0)`` (for LOO);
         :meth:`observation_selection` picks each channel's observations out of it."""
+        return [-0.5 * (jnp.log(2 * jnp.pi * v) + r * r / v)
+                for r, v in self.padded_residuals(theta, data=data)]
+
+    def padded_residuals(self, theta, *, data=None) -> list:
+        """Per output of :meth:`padded_log_density`, ``(residual, σ_c²)`` of every entry:
+        the model's prediction is the observation minus the residual."""
         d = self._d(data)
         ss = self.sums_of_squares(theta, data=d)
         var = (NU0 * d["s0"] ** 2 + ss) / (d["n_obs"] + NU0)
@@ -272,10 +278,10 @@ class SessionModel(RigEffects):
             if r.shape[0] == 0:
                 # lax.map cannot batch an empty output: an empty array gets a dummy
                 # entry that its (empty) selection never reads.
-                out.append(jnp.zeros((1,) + r.shape[1:]))
+                r = jnp.zeros((1,) + r.shape[1:])
+                out.append((r, jnp.ones_like(r)))
                 continue
-            v = entry_weights(var, ch, r)
-            out.append(-0.5 * (jnp.log(2 * jnp.pi * v) + r * r / v))
+            out.append((r, jnp.broadcast_to(entry_weights(var, ch, r), r.shape)))
         return out
 
     def _numpy_data(self, block):

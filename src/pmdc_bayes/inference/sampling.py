@@ -270,7 +270,7 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)  # (walkers, draws, P)
     lp = np.swapaxes(sampler.get_log_prob(discard=burn), 0, 1)
     acc = np.asarray(sampler.acceptance_fraction, dtype=float)
-    idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws)
+    idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws, seed=seed)
     idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged))
     return Posterior(names, model.registry.to_values(chain), chain, lp, acc,
                      dict(zip(names, map(float, tau), strict=True)), steps, burn,
