@@ -5,6 +5,7 @@ scale) and the findings."""
 from __future__ import annotations
 
 from ._format import row_format
+from ._headline import headline_rows
 from .io.units import display_unit
 
 __all__ = ["print_fit", "print_adequacy"]
@@ -57,6 +58,10 @@ def print_fit(summary: dict, out) -> bool:
             line += (f"{f.value(row['mean']):>13}{f.sd(row['sd']):>11}{hdi:>26}"
                      f"{row['r_hat']:>7.3f}{row['ess_bulk']:>7.0f}")
         print(f"{line}  {f.suffix}{display_unit(row['unit'])}")
+    off = [f"{r['name']} {r['off'].replace(', ', ' (')})" for r in headline_rows(summary)
+           if r["off_sd"] is not None and abs(r["off_sd"]) > 2]
+    if off:
+        print(f"The closed form is off by more than 2 sd: {', '.join(off)}.")
     for line in summary["identifiability"]["findings"]:
         print(f"- {line}")
     for row in summary.get("laplace_check", []):

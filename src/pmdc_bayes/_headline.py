@@ -31,20 +31,22 @@ def _signed(x: float) -> str:
 def headline_rows(summary: dict) -> list[dict]:
     """One row per parameter, every number already a string rounded to its uncertainty:
     ``name``, ``estimate``, ``sd``, ``unit`` (with the row's scale), ``closed_form`` and
-    ``off`` (the closed form's distance from the estimate, in % and in sd)."""
+    ``off`` (the closed form's distance from the estimate, in % and in sd; ``off_sd``
+    the number of sd, or None)."""
     rows = []
     for name, p in summary["parameters"].items():
         post = "mean" in p
         est, sd = (p["mean"], p["sd"]) if post else (p["map"], p.get("map_sd"))
         f = row_format(est, sd)
         cf = p.get("closed_form")
-        off = ""
+        off, nsd = "", None
         if cf is not None and est and sd and math.isfinite(sd) and sd > 0:
             pct, nsd = 100.0 * (cf - est) / abs(est), (cf - est) / sd
             off = f"{_signed(pct)} %, {_signed(nsd)} sd"
         rows.append({"name": name, "estimate": f.value(est), "sd": f.sd(sd),
                      "unit": f"{f.suffix}{display_unit(p['unit'])}".strip(),
                      "closed_form": f.value(cf) if cf is not None else "—", "off": off,
+                     "off_sd": nsd,
                      "source": "posterior mean" if post else "MAP"})
     return rows
 

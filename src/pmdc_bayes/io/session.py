@@ -116,7 +116,7 @@ class Schedule:
         return self.values[np.clip(idx, 0, len(self.values) - 1)]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Trace:
     """One logged time series: samples of speed (and current) under known inputs.
 
@@ -159,6 +159,13 @@ class Trace:
     encoder_step: float = 0.0
     drag: tuple[float, float] = (0.0, 0.0)
 
+    def __repr__(self) -> str:
+        logged = [c for c, y in (("speed", self.speed if self.speed_logged else None),
+                                 ("current", self.current), ("position", self.position))
+                  if y is not None]
+        return (f"Trace({self.name!r}, kind={self.kind!r}, {self.n} samples over "
+                f"{self.time[-1] - self.time[0]:.6g} s, logged={logged})")
+
     @property
     def n(self) -> int:
         return int(self.time.shape[0])
@@ -169,7 +176,7 @@ class Trace:
         return float(np.median(np.diff(self.time)))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Session:
     """One motor's bench work, every number in SI.
 
@@ -205,6 +212,18 @@ class Session:
     coast_downs: tuple[Trace, ...] = ()
     loaded_traces: tuple[str, ...] = ()
     current_limit_setting: float | None = None
+
+    def __repr__(self) -> str:
+        parts = [f"{self.name!r}", f"motor={self.motor!r}", f"friction={self.friction!r}",
+                 f"traces={[f'{t.name} ({t.n} samples)' for t in self.traces]}"]
+        parts += [f"{what}={n}" for what, n in (
+            ("steady_tables", len(self.steady_tables)),
+            ("operating_points", len(self.operating_points)),
+            ("step_readings", len(self.step_readings)),
+            ("coast_downs", len(self.coast_downs))) if n]
+        if self.nuisances:
+            parts.append(f"nuisances={list(self.nuisances)}")
+        return f"Session({', '.join(parts)}, root={str(self.root)!r})"
 
     def unknown_load_traces(self) -> tuple[str, ...]:
         """The driven traces that carry an unknown drag of their own (``unknown_load``)."""
