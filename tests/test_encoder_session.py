@@ -75,6 +75,12 @@ def test_an_encoder_edge_session_fits_end_to_end(tmp_path):
         ok, row = _within(summary, name, MOTOR[name])
         assert ok, row
         assert summary["parameters"][name]["map_sd"] < 0.05 * MOTOR[name]
+    # residuals of what was logged: the angle, within a few counts of an adequate fit;
+    # no row for the speed the angle was differentiated into
+    for trace in ("step_12v", "step_6v"):
+        row = summary["residuals"]["map"][trace]
+        assert set(row) == {"position"}, row
+        assert 0 < row["position"] < 3 * s.traces[0].encoder_step, row
 
 
 @pytest.mark.slow

@@ -51,16 +51,25 @@ def default_out_dir(session_name: str, root: Path | None = None) -> Path:
 
 def _rms(x) -> float:
     x = np.asarray(x)
-    return float(np.sqrt(np.mean(x * x)))
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x * x))) if x.size else float("nan")
 
 
 def trace_rms(model, theta, *, coulomb=None) -> dict:
-    """Per trace RMS of the speed (rad/s) and current (A) residuals."""
+    """Per trace RMS of the residuals of each channel it logged: ``speed`` (rad/s),
+    ``current`` (A), ``position`` (rad; where an encoder's count has not started, no
+    sample).  A speed estimated from the angle is not a measurement and has no row."""
     out = {}
-    for tr, (ia, w) in zip(model.session.traces, model.predict(theta, coulomb=coulomb)):
-        row = {"speed": _rms(tr.speed - w)}
+    angles = model.predict_angles(theta)
+    for tr, (ia, w), a in zip(model.session.traces, model.predict(theta, coulomb=coulomb),
+                              angles, strict=True):
+        row = {}
+        if tr.speed_logged:
+            row["speed"] = _rms(tr.speed - w)
         if tr.current is not None:
             row["current"] = _rms(tr.current - ia)
+        if tr.position is not None and a is not None:
+            row["position"] = _rms(tr.position - a)
         out[tr.name] = row
     return out
 
