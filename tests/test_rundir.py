@@ -78,6 +78,28 @@ def test_an_interrupt_whose_raise_python_ignored_still_stops_the_run(tmp_path, s
     assert _debris(tmp_path, "run") == []
 
 
+def test_an_interrupt_between_the_two_renames_puts_the_earlier_run_back(tmp_path,
+                                                                       monkeypatch):
+    import pmdc_bayes.rundir as rundir
+
+    write_atomically(tmp_path / "run", _fill_with("earlier"), force=False)
+    before = _snapshot(tmp_path / "run")
+    real, calls = os.replace, []
+
+    def replace(src, dst):
+        calls.append(Path(dst).name)
+        if len(calls) == 2:  # the new run's rename, after the earlier one moved aside
+            raise KeyboardInterrupt
+        real(src, dst)
+
+    monkeypatch.setattr(rundir.os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt):
+        write_atomically(tmp_path / "run", _fill_with("new"), force=True)
+    assert calls[:2] == [".run.old", "run"]
+    assert _snapshot(tmp_path / "run") == before
+    assert _debris(tmp_path, "run") == []
+
+
 def test_a_run_gets_the_modes_of_the_umask(tmp_path):
     old = os.umask(0o022)
     try:

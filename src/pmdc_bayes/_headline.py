@@ -24,8 +24,8 @@ def _verdict(summary: dict) -> str:
 
 
 def _signed(x: float) -> str:
-    """Two significant digits, never an exponent: +24, -1.8, +0.034, +256."""
-    return f"{x:+.0f}" if abs(x) >= 10 else f"{x:+.2g}" if abs(x) >= 1e-3 else "0"
+    """Two significant digits: +24, -1.8, +0.034, +256; below 0.001 one digit, +3e-05."""
+    return f"{x:+.0f}" if abs(x) >= 10 else f"{x:+.2g}" if abs(x) >= 1e-3 else f"{x:+.0e}"
 
 
 def headline_rows(summary: dict) -> list[dict]:
@@ -40,7 +40,7 @@ def headline_rows(summary: dict) -> list[dict]:
         f = row_format(est, sd)
         cf = p.get("closed_form")
         off, nsd = "", None
-        if cf is not None and est and sd and math.isfinite(sd) and sd > 0:
+        if all(x is not None and math.isfinite(x) for x in (cf, est, sd)) and est and sd > 0:
             pct, nsd = 100.0 * (cf - est) / abs(est), (cf - est) / sd
             off = f"{_signed(pct)} %, {_signed(nsd)} sd"
         rows.append({"name": name, "estimate": f.value(est), "sd": f.sd(sd),
@@ -54,12 +54,13 @@ def headline_rows(summary: dict) -> list[dict]:
 def headline_text(summary: dict) -> str:
     rows = headline_rows(summary)
     session = summary.get("session", {})
+    w = max([10] + [len(r["name"]) + 1 for r in rows])
     lines = [f"pmdc-bayes fit of {session.get('name', '?')} "
              f"({session.get('friction', '?')} friction): {_verdict(summary)}",
-             f"{'parameter':<10}{'value':>12}{'± sd':>10}  {'unit':<18}{'closed form':>12}"
+             f"{'parameter':<{w}}{'value':>12}{'± sd':>10}  {'unit':<18}{'closed form':>12}"
              "  closed form off by"]
     for r in rows:
-        lines.append(f"{r['name']:<10}{r['estimate']:>12}{r['sd']:>10}  {r['unit']:<18}"
+        lines.append(f"{r['name']:<{w}}{r['estimate']:>12}{r['sd']:>10}  {r['unit']:<18}"
                      f"{r['closed_form']:>12}  {r['off']}")
     lines.append(f"(values: {rows[0]['source'] if rows else '—'})")
     return "\n".join(lines)

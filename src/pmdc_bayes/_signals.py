@@ -3,7 +3,9 @@
 A signal handler raises in whatever code runs when the signal arrives; when that is a
 garbage-collection callback or a finaliser, Python prints the exception and carries on.
 The handlers here also record the request, and :func:`check` raises it again at the points
-where it matters: before a run directory is put in place.
+where it matters: before a run directory or a simulated session is put in place, and
+between the sampler's chunks of steps.  Only the command line installs them; from
+Python, an interrupt is Python's own KeyboardInterrupt.
 """
 
 from __future__ import annotations

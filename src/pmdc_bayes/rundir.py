@@ -133,7 +133,12 @@ def write_atomically(out: Path, fill, *, force: bool):
             old = out.with_name(f".{out.name}.old")
             shutil.rmtree(old, ignore_errors=True)
             os.replace(out, old)
-            os.replace(tmp, out)
+            try:
+                os.replace(tmp, out)
+            except BaseException:  # interrupted between the two renames: put it back
+                if not out.exists():
+                    os.replace(old, out)
+                raise
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(tmp, out)

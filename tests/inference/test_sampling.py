@@ -167,6 +167,14 @@ def test_inference_data_groups_and_loo(tiny):
     ours = np.concatenate([np.asarray(d)[np.asarray(m)] for d, m in zip(dens, masks)])
     ref = np.concatenate([np.asarray(x) for x in model.pointwise_log_likelihood(theta)])
     np.testing.assert_allclose(ours, ref, rtol=1e-12, atol=1e-12)
+    # The stored log-likelihood of a kept draw is the model's, channel by channel.
+    c, k = 3, 2
+    draw = int(ll["draw"][k])
+    per_channel = model.pointwise_log_likelihood(post.draws_log[c, draw])
+    for name, ref in zip(("step_speed", "step_current", "steady_speed", "steady_current"),
+                         per_channel, strict=False):
+        np.testing.assert_allclose(idata.log_likelihood[name].values[c, k], np.asarray(ref),
+                                   rtol=2e-6, atol=2e-6)
     # The replicates scatter about the data by the channel's noise level: their
     # residual from the observation has the sd of the data's own noise (a replicate of
     # the wrong channel, or without noise, would not).

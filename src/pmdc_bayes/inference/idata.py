@@ -56,24 +56,28 @@ def _identifier(name: str, taken: set) -> str:
 def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
     """At every ``thin``-th draw, per observation (in channel order): the log-likelihood
     and a replicate of the observation (the model's prediction plus Gaussian noise at
-    its channel's level), each ``(chains, kept, n_obs)``."""
+    its channel's level), each ``(chains, kept, n_obs)`` float32, filled batch by batch."""
     fn = _pointwise_fn(model)
     sel = model.observation_selection()
     observed = np.concatenate(model.observed_values())
     sub = chain_log[:, ::thin]
     flat = sub.reshape(-1, sub.shape[-1])
-    m = math.ceil(flat.shape[0] / _LL_BATCH) * _LL_BATCH
-    padded = np.concatenate([flat, np.repeat(flat[:1], m - flat.shape[0], axis=0)])
-    res, var = [], []
+    n = flat.shape[0]
+    m = math.ceil(n / _LL_BATCH) * _LL_BATCH
+    padded = np.concatenate([flat, np.repeat(flat[:1], m - n, axis=0)])
+    ll = np.empty((n, observed.size), np.float32)
+    replicate = np.empty_like(ll)
     for a in range(0, m, _LL_BATCH):
-        outs = fn(jnp.asarray(padded[a:a + _LL_BATCH]))
-        pick = [(np.asarray(r).reshape(_LL_BATCH, -1), np.asarray(v).reshape(_LL_BATCH, -1))
-                for r, v in outs]
-        res.append(np.concatenate([pick[k][0][:, idx] for k, idx in sel], axis=1))
-        var.append(np.concatenate([pick[k][1][:, idx] for k, idx in sel], axis=1))
-    r, v = (np.concatenate(x)[:flat.shape[0]] for x in (res, var))
-    ll = -0.5 * (np.log(2 * np.pi * v) + r * r / v)
-    replicate = observed - r + np.sqrt(v) * rng.standard_normal(r.shape)
+        outs = [(np.asarray(r), np.asarray(v))
+                for r, v in fn(jnp.asarray(padded[a:a + _LL_BATCH]))]
+        pick = [np.broadcast_to(x, r.shape).reshape(_LL_BATCH, -1) for r, v in outs
+                for x in (r, v)]
+        r = np.concatenate([pick[2 * k][:, idx] for k, idx in sel], axis=1)
+        v = np.concatenate([pick[2 * k + 1][:, idx] for k, idx in sel], axis=1)
+        keep = slice(0, min(_LL_BATCH, n - a))
+        ll[a:a + _LL_BATCH] = (-0.5 * (np.log(2 * np.pi * v) + r * r / v))[keep]
+        replicate[a:a + _LL_BATCH] = (observed - r + np.sqrt(v) * rng.standard_normal(
+            r.shape))[keep]
     return ll.reshape(*sub.shape[:2], -1), replicate.reshape(*sub.shape[:2], -1)
 
 
@@ -123,12 +127,14 @@ def to_inference_data(model, chain_log: np.ndarray, log_prob: np.ndarray,
     observed = {nm: o for nm, o in zip(names, model.observed_values(), strict=True) if o.size}
     values = model.registry.to_values(chain_log)
     thin = max(1, math.ceil(chains * draws / max(ll_draws, chains)))
-    ll, replicate = _pointwise(model, chain_log, thin, np.random.default_rng(seed))
-    split = np.cumsum([c.n for c in model.channels])[:-1]
+    # the replicates' noise: a stream of its own, apart from the sampler's
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1])
+    ll, replicate = _pointwise(model, chain_log, thin, rng)
+    split = np.cumsum([idx.size for _, idx in model.observation_selection()])[:-1]
     kept = {"chain": np.arange(chains), "draw": np.arange(0, draws, thin)}
 
     def per_channel(x):  # float32: a few significant digits suffice, and these are large
-        return {nm: xr.DataArray(part.astype(np.float32), dims=["chain", "draw", *dims[nm]],
+        return {nm: xr.DataArray(part, dims=["chain", "draw", *dims[nm]],
                                  coords={**kept, dims[nm][0]: coords[dims[nm][0]]},
                                  attrs={"units": units[nm]})
                 for nm, part in zip(names, np.split(x, split, axis=-1), strict=True)

@@ -268,8 +268,9 @@ class SessionModel(RigEffects):
                 for r, v in self.padded_residuals(theta, data=data)]
 
     def padded_residuals(self, theta, *, data=None) -> list:
-        """Per output of :meth:`padded_log_density`, ``(residual, σ_c²)`` of every entry:
-        the model's prediction is the observation minus the residual."""
+        """Per output of :meth:`padded_log_density`, ``(residual, σ_c²)``, the second
+        broadcastable to the first: the model's prediction is the observation minus the
+        residual."""
         d = self._d(data)
         ss = self.sums_of_squares(theta, data=d)
         var = (NU0 * d["s0"] ** 2 + ss) / (d["n_obs"] + NU0)
@@ -281,7 +282,7 @@ class SessionModel(RigEffects):
                 r = jnp.zeros((1,) + r.shape[1:])
                 out.append((r, jnp.ones_like(r)))
                 continue
-            out.append((r, jnp.broadcast_to(entry_weights(var, ch, r), r.shape)))
+            out.append((r, entry_weights(var, ch, r)))
         return out
 
     def _numpy_data(self, block):

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
+from .. import _signals
 from .._x64 import x64
 from .diagnostics import (
     ESS_MIN,
@@ -244,6 +245,7 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
             long_enough = tau_prev is not None and steps >= min_tau_multiple * tau_prev.max()
             n = min(CHECK if long_enough else CHUNK, max_steps - steps)
             state = sampler.run_mcmc(state, n, progress=False)
+            _signals.check()  # an interrupt Python dropped in a callback stops here
             steps += n
             bar.update(n)
             tau = np.asarray(sampler.get_autocorr_time(tol=0), dtype=float)

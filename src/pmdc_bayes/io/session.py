@@ -163,8 +163,9 @@ class Trace:
         logged = [c for c, y in (("speed", self.speed if self.speed_logged else None),
                                  ("current", self.current), ("position", self.position))
                   if y is not None]
-        return (f"Trace({self.name!r}, kind={self.kind!r}, {self.n} samples over "
-                f"{self.time[-1] - self.time[0]:.6g} s, logged={logged})")
+        span = f" over {self.time[-1] - self.time[0]:.6g} s" if self.n else ""
+        return (f"Trace({self.name!r}, kind={self.kind!r}, {self.n} samples{span}, "
+                f"logged={logged})")
 
     @property
     def n(self) -> int:

@@ -14,6 +14,7 @@ import os
 import shutil
 from pathlib import Path
 
+from .. import _signals
 from .._errors import UsageError
 
 __all__ = ["HEADER", "MANIFEST", "check_out", "write_session_files"]
@@ -99,6 +100,7 @@ def write_session_files(files: dict[str, str], out: Path, force: bool) -> None:
     try:
         for name, text in files.items():
             (tmp / name).write_bytes(text.encode("utf-8"))
+        _signals.check()
         if not out.exists():
             os.replace(tmp, out)
             return
