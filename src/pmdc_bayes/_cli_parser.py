@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import textwrap
 from pathlib import Path
 
@@ -45,6 +46,19 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):
         self.exit(2, f"pmdc-bayes: error: {message}; see '{self.prog} --help'\n")
+
+
+def _pi(text: str) -> tuple[float, float, float]:
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in (2, 3) or not all(math.isfinite(v) and v >= 0 for v in values) \
+            or values[0] + values[1] == 0:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: give KP,KI or KP,KI,DELAY (non-negative numbers, SI: V·s/rad, "
+            "V/rad, s), e.g. --pi 0.5,5")
+    return (values[0], values[1], values[2] if len(values) == 3 else 0.0)
 
 
 def build_parser(commands: dict) -> argparse.ArgumentParser:
@@ -109,6 +123,10 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
     ft.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     ft.add_argument("--holdout", action="append", metavar="TRACE",
                     help="fit without this trace (repeatable)")
+    ft.add_argument("--pi", type=_pi, metavar="KP,KI[,DELAY]",
+                    help="stability margins of a PI speed loop (Va from the speed error, "
+                    "kp in V·s/rad, ki in V/rad, an optional loop delay in s) at the estimate "
+                    "and over the posterior draws")
     ft.add_argument("--compare-friction", action="store_true",
                     help="also fit and sample the other friction model and compare the two "
                     "by PSIS-LOO (ArviZ)")

@@ -62,6 +62,10 @@ def print_fit(summary: dict, out) -> bool:
            if r["off_sd"] is not None and abs(r["off_sd"]) > 2]
     if off:
         print(f"The closed form is off by more than 2 sd: {', '.join(off)}.")
+    if "pi_loop" in summary:
+        from .physics.loop import describe_pi_loop
+
+        print(describe_pi_loop(summary["pi_loop"]) + ".")
     for line in summary["identifiability"]["findings"]:
         print(f"- {line}")
     for row in summary.get("laplace_check", []):

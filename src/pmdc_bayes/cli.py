@@ -90,6 +90,7 @@ def _cmd_fit(args) -> int:
         friction=args.friction, seed=args.seed, holdout=args.holdout or (),
         compare_friction=args.compare_friction, allow_inadequate=args.allow_inadequate,
         add=tuple(a.replace("-", "_") for a in args.add or ()), compare=args.compare,
+        pi=args.pi,
     )
     if not args.no_cache:
         cachedir.prune()
@@ -176,9 +177,7 @@ def main(argv: list[str] | None = None) -> int:
                         ).parse_args(argv)
     try:
         with _signals.handled():
-            code = int(args.func(args) or 0)
-            _signals.check()
-        return code
+            return int(args.func(args) or 0)
     except (SessionError, UsageError) as exc:
         print(f"pmdc-bayes: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

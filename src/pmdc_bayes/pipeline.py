@@ -175,7 +175,7 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             mcmc: bool = True, friction: str | None = None, seed: int = 0,
             holdout=(), compare_friction: bool = False,
             progress=None, allow_inadequate: bool = False,
-            add=(), compare: bool = False, say=None) -> tuple[Path, dict]:
+            add=(), compare: bool = False, say=None, pi=None) -> tuple[Path, dict]:
     """Fit a session directory and write the run directory ``out``: ``summary.json``,
     ``posterior.nc`` (with MCMC) and the report, all built beside ``out`` and moved into
     place in one rename once complete.
@@ -184,7 +184,8 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     existing ``out`` without ``force``.  ``add`` names rig non-idealities to fit on top
     of those the session declares (``io.session.NUISANCES``); ``compare`` first fits the
     candidate sets of :mod:`.selection` and then runs the recommended one, recording the
-    comparison under ``"model_selection"``.
+    comparison under ``"model_selection"``.  ``pi = (kp, ki, delay)`` records the
+    stability margins of that PI speed loop under ``"pi_loop"``.
     """
     say = say or (lambda text: None)
     say(f"loading {session_path}")
@@ -215,6 +216,8 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
                          allow_inadequate=allow_inadequate, say=say)
     if selection is not None:
         result.summary["model_selection"] = selection
+    if pi is not None:
+        result.summary["pi_loop"] = result.pi_loop(*pi)
     say(f"writing {out} (summary, posterior, report)")
     write_run(result, out, force=force)
     return out, result.summary

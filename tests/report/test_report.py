@@ -26,7 +26,7 @@ ALWAYS = ("parameters", "derived", "diagnostics", "transfer", "comparison")
 @pytest.fixture(scope="module")
 def demo_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("report") / "demo"
-    run_fit(bundled_session_dir("demo"), out=out, mcmc=True, seed=0)
+    run_fit(bundled_session_dir("demo"), out=out, mcmc=True, seed=0, pi=(0.5, 5.0, 0.002))
     return out
 
 
@@ -72,8 +72,30 @@ def test_demo_report_files_figures_and_tables(demo_run):
     for name in figures:
         assert f"(figures/{name}.png)" in md
     assert "posterior mean ± sd" in html and "No posterior was sampled" not in html
+    # --pi: the loop's margins at the estimate and over the posterior draws
+    loop = json.loads((demo_run / "summary.json").read_text())["pi_loop"]
+    assert loop["over_draws"]["n"] == 1000 and loop["at_estimate"]["gain_margin_db"] > 0
+    assert "PI loop kp=0.5, ki=5, delay 2 ms: phase margin" in html
     summary = json.loads((demo_run / "summary.json").read_text())
     assert summary["diagnostics"]["wall_s"]["report"] > 0.0
+
+
+def test_the_report_opens_with_the_answer(demo_run):
+    """Before any detail: the verdict, the parameters rounded to their uncertainty with
+    the closed form's error, and the fit % per channel."""
+    md = (demo_run / "report.md").read_text(encoding="utf-8")
+    first = md.split("\n## ", 2)[1]
+    assert first.startswith("At a glance\n")
+    assert "Model adequate: the data do not reject the fitted model." in first
+    rows = {r[0]: r for r in _table_rows(md, "Parameters at a glance")}
+    assert set(rows) == {"Ra", "La", "K", "B", "J", "Tc"}
+    b = rows["B"]  # the closed form's B is the paper method's largest error on the demo
+    assert b[3] == "×1e-6 N·m·s/rad" and float(b[1]) == pytest.approx(45.0, abs=0.5)
+    off_pct, off_sd = re.match(r"\+(\d+) %, \+(\d+) sd", b[5]).groups()
+    assert 15 < int(off_pct) < 35 and int(off_sd) > 50
+    fits = _table_rows(md, "Fit % per channel")
+    assert {r[0] for r in fits} >= {"load_change: speed", "step_12v97: current"}
+    assert all(float(r[2]) > 85 for r in fits)
 
 
 def test_demo_report_explains_closed_form_bias(demo_run):

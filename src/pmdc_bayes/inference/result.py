@@ -115,6 +115,22 @@ class RunResult:
                                                   replace=int(draws) > len(self.draws))
         return [system(dict(zip(self.names, self.draws[k], strict=True))) for k in rows]
 
+    def pi_loop(self, kp: float, ki: float, delay: float = 0.0, *, draws: int = 1000,
+                seed: int = 0) -> dict:
+        """Stability margins of a PI speed loop ``Va = kp·e + ki·∫e`` (e the speed
+        error, rad/s; an optional loop delay in s) around the motor, at the posterior
+        mean (the MAP without a posterior) and over up to ``draws`` posterior draws:
+        :func:`~pmdc_bayes.physics.loop.pi_loop`."""
+        from ..physics.loop import pi_loop
+
+        values = self.values()
+        rows = []
+        if self.draws is not None:
+            pick = np.random.default_rng(seed).choice(
+                len(self.draws), size=min(draws, len(self.draws)), replace=False)
+            rows = [dict(zip(self.names, self.draws[k], strict=True)) for k in pick]
+        return pi_loop(kp, ki, delay, values.get("mean", values["map"]), rows)
+
     def values(self) -> dict:
         """``{"closed_form" | "map" | "mean": {name: SI value}}`` (``closed_form`` only when
         the method ran, with ``Tc = 0``; ``mean`` only with a posterior)."""

@@ -27,6 +27,45 @@ def _safe(name: str) -> str:
     return re.sub(r"[^\w.-]+", "_", name)
 
 
+def _percent(x) -> str:
+    return f"{x:.1f}" if x is not None and np.isfinite(x) else "—"
+
+
+def _glance(ctx) -> Section:
+    """The answer before any detail: the verdict, each parameter rounded to its
+    uncertainty beside the closed form and its error, the fit % per channel and what the
+    data cannot determine."""
+    from .._headline import headline_rows
+
+    s = ctx.summary
+    sec = Section("At a glance")
+    adequate = s.get("adequacy", {}).get("verdict", "adequate") == "adequate"
+    sec.add(Paragraph(
+        ("Model adequate: the data do not reject the fitted model." if adequate else
+         "MODEL INADEQUATE: the data reject the fitted model; every number below is "
+         "conditional on it (see Model adequacy for what to add).")
+        + f" Fit of {s['session']['name']!r} ({s['session']['friction']} friction)."))
+    rows = headline_rows(s)
+    source = rows[0]["source"] if rows else "MAP"
+    sec.add(Table("Parameters at a glance", (
+        "parameter", source, "± sd", "unit", "closed form", "closed form off by"),
+        tuple((r["name"], r["estimate"], r["sd"], r["unit"], r["closed_form"], r["off"])
+              for r in rows),
+        "Each value rounded to its uncertainty; a row's numbers share its scale."))
+    fits = [(name, c["fit_percent_closed_form"], c["fit_percent_map"])
+            for name, c in s.get("adequacy", {}).get("channels", {}).items()
+            if c.get("fit_percent_map") is not None]
+    if fits:
+        sec.add(Table("Fit % per channel", ("channel", "closed form", "MAP"), tuple(
+            (name, _percent(cf), _percent(m)) for name, cf, m in fits),
+            "100 × (1 − ‖y − ŷ‖ / ‖y − mean(y)‖), as MATLAB's compare."))
+    findings = s.get("identifiability", {}).get("findings", [])
+    if findings:
+        sec.add(Paragraph("What the data can and cannot determine:"))
+        sec.add(Bullets(tuple(findings)))
+    return sec
+
+
 def _overview(ctx) -> Section:
     s = ctx.summary
     info = s["session"]
@@ -44,11 +83,9 @@ def _overview(ctx) -> Section:
     if ctx.truth:
         sec.add(Paragraph("This is a SIMULATED session: the true parameters are known and "
                           "shown beside the estimates."))
-    findings = list(s.get("identifiability", {}).get("findings", []))
-    findings += s.get("consistency", {}).get("findings", [])
+    findings = s.get("consistency", {}).get("findings", [])
     if findings:
-        sec.add(Paragraph("What the data can and cannot determine, and where the session's "
-                          "own numbers disagree:"))
+        sec.add(Paragraph("Where the session's own numbers disagree:"))
         sec.add(Bullets(tuple(findings)))
     return sec
 
@@ -172,13 +209,18 @@ def _export(ctx) -> tuple[Section, dict]:
     rows = tuple((name, "; ".join("[" + ", ".join(fmt(x) for x in r) + "]" for r in model[name]))
                  for name in ("A", "B", "C", "D"))
     sec.add(Table("State-space matrices", ("matrix", "rows"), rows))
+    if "pi_loop" in ctx.summary:
+        from ..physics.loop import describe_pi_loop
+
+        sec.add(Paragraph(describe_pi_loop(ctx.summary["pi_loop"]) + " (fit --pi)."))
     return sec, model
 
 
 def build_sections(ctx) -> tuple[list[Section], dict]:
     """The report's sections and the controller model (for ``controller.json``)."""
     export, model = _export(ctx)
-    parts = [adequacy_section(ctx), selection_section(ctx), _overview(ctx), _published(ctx),
+    parts = [_glance(ctx), adequacy_section(ctx), selection_section(ctx), _overview(ctx),
+             _published(ctx),
              _parameters(ctx), _comparison(ctx),
              _traces(ctx), _holdout(ctx), _steady(ctx), export, _diagnostics(ctx)]
     return [p for p in parts if p is not None], model

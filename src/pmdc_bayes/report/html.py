@@ -18,6 +18,8 @@ th, td { border: 1px solid #ccc; padding: 0.25em 0.5em; text-align: left; }
 th { background: #f3f3f3; } td { font-variant-numeric: tabular-nums; }
 figure { margin: 1em 0; } figure img { max-width: 100%; }
 figcaption, .note { font-size: 0.85em; color: #555; }
+nav ul { display: flex; flex-wrap: wrap; gap: 0 1.2em; list-style: none; padding: 0;
+         font-size: 0.9em; }
 """
 
 
