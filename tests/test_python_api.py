@@ -113,3 +113,29 @@ def test_the_cli_says_where_the_closed_form_is_off_by_more_than_2_sd(capsys):
     summary["parameters"]["K"]["closed_form"] = 0.0619992  # 0.03 sd off: not worth a line
     print_fit(summary, "run")
     assert "closed form is off" not in capsys.readouterr().out
+
+
+def test_a_session_changed_in_memory_is_fitted_but_not_written_as_a_run(tmp_path):
+    """A run directory is read back from its copy of the session's files: a session
+    whose data were changed in memory would be read back as something it was not."""
+    import dataclasses
+
+    import numpy as np
+
+    from pmdc_bayes.api import _as_on_disk
+    from pmdc_bayes.inference.result import RunResult
+    from pmdc_bayes.io.bundled import session_path
+
+    session = pmdc_bayes.load_session(session_path("demo"))
+    assert _as_on_disk(session)
+    # what a run records apart (non-idealities, friction) may differ from the files
+    assert _as_on_disk(dataclasses.replace(session, nuisances=("dead_time",),
+                                           friction="viscous"))
+    tr = session.traces[0]
+    edited = dataclasses.replace(tr, speed=np.where(np.arange(tr.n) == 5, 0.0, tr.speed))
+    assert not _as_on_disk(dataclasses.replace(session, traces=(edited,) + session.traces[1:]))
+    assert not _as_on_disk(session.without_traces([tr.name]))
+    result = RunResult({"session": {"changed_in_memory": True}}, session, session, None, None)
+    with pytest.raises(pmdc_bayes.UsageError, match="changed in memory"):
+        result.write(tmp_path / "run")
+    assert not (tmp_path / "run").exists()

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import dataclasses
 
-from ._errors import UsageError
+import numpy as np
+
+from ._errors import SessionError, UsageError
 from .inference.result import RunResult
 from .io.bundled import session_path
 from .io.loader import load_session
@@ -36,7 +38,10 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
     :class:`SessionError` for a session that cannot be read and :class:`UsageError`
     for arguments that do not apply to it.
     """
-    if not isinstance(session, Session):
+    changed = False
+    if isinstance(session, Session):
+        changed = not _as_on_disk(session)
+    else:
         session = load_session(session_path(session))
     names = tuple(a.replace("-", "_") for a in ([add] if isinstance(add, str) else add))
     unknown = [a for a in names if a not in NUISANCES]
@@ -49,6 +54,34 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
             session, nuisances=tuple(n for n in NUISANCES if n in wanted))
     if friction not in (None, "viscous", "coulomb"):
         raise UsageError(f"friction: {friction!r} is not 'viscous' or 'coulomb'")
-    return fit_session(session, mcmc=mcmc, friction=friction, seed=seed,
-                       holdout=tuple([holdout] if isinstance(holdout, str) else holdout),
-                       progress=progress, allow_inadequate=allow_inadequate)
+    result = fit_session(session, mcmc=mcmc, friction=friction, seed=seed,
+                         holdout=tuple([holdout] if isinstance(holdout, str) else holdout),
+                         progress=progress, allow_inadequate=allow_inadequate)
+    if changed:
+        result.summary["session"]["changed_in_memory"] = True
+    return result
+
+
+_RECORDED = {"nuisances", "loaded_traces", "friction"}  # the run's summary keeps these
+
+
+def _same(a, b) -> bool:
+    if dataclasses.is_dataclass(a) and type(a) is type(b):
+        return all(_same(getattr(a, f.name), getattr(b, f.name))
+                   for f in dataclasses.fields(a) if f.name not in _RECORDED)
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True)
+    if isinstance(a, tuple | list) and isinstance(b, tuple | list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    return bool(a == b)
+
+
+def _as_on_disk(session: Session) -> bool:
+    """Whether ``session`` is what its files say (but for what a run records apart:
+    the non-idealities, the loaded traces and the friction model)."""
+    try:
+        return _same(session, load_session(session.root))
+    except SessionError:
+        return False

@@ -85,6 +85,11 @@ class RunResult:
         session's files), whole or not at all; ``force`` replaces an earlier run only."""
         from ..pipeline import write_run
 
+        if self.summary["session"].get("changed_in_memory"):
+            raise UsageError(f"{out}: not written: the session was changed in memory, so "
+                             f"its files under {self.session_full.root} are not what was "
+                             "fitted and the run could not be read back; write the session's "
+                             "files (docs/session-format.md) and fit those")
         return write_run(self, Path(out), force=force)
 
     def to_control(self, draws: int | None = None, *, seed: int = 0):
