@@ -22,6 +22,7 @@ from ._text import read_text
 from ._toml import Table as _Table
 from ._toml import describe as _describe
 from ._traces import read_traces
+from .bundled import session_path
 from .session import (
     FRICTION_MODELS,
     LA_ASSUMED,
@@ -204,7 +205,9 @@ def load_session(path) -> Session:
     Parameters
     ----------
     path : str or Path
-        A session directory holding ``session.toml``, or the ``session.toml`` itself.
+        A session directory holding ``session.toml``, or the ``session.toml`` itself,
+        or the name of a bundled session (``"demo"``, ``"paper"``, ``"bench"``) when no
+        such directory exists here.
 
     Returns
     -------
@@ -217,7 +220,7 @@ def load_session(path) -> Session:
     SessionError
         With a one-line message naming the file, the key or line, the problem and the fix.
     """
-    toml = _locate(path)
+    toml = _locate(session_path(path))
     root = toml.parent
     top = _Table(toml, _read_toml(toml), "")
     top.check_keys(_TOP_KEYS)

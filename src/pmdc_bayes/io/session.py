@@ -226,6 +226,44 @@ class Session:
             parts.append(f"nuisances={list(self.nuisances)}")
         return f"Session({', '.join(parts)}, root={str(self.root)!r})"
 
+    @classmethod
+    def from_arrays(cls, *, Ra, traces=None, La=None, K=None, J=None, B=None,
+                    motor: str = "motor", friction: str = "viscous", steady=None,
+                    operating_points=None, model=None, name=None,
+                    directory=None) -> Session:
+        """A session from data in memory, checked as a session directory is.
+
+        Parameters
+        ----------
+        Ra, La, K, J, B : a bench measurement ``(value, sd)`` in SI (Ω, H, V·s/rad,
+            kg·m², N·m·s/rad), or a mapping ``{"value", "unit", "sd", "source"}`` as in
+            ``session.toml``; Ra is required, the others optional (priors of the fit).
+        traces : ``{name: data}``; ``data`` is a dict or a pandas DataFrame of columns
+            ``time`` (s) and ``speed`` (rad/s) and/or ``position`` (rad), optionally
+            ``current`` (A), ``voltage`` (V), ``load_torque`` (N·m), ``direction``; a
+            ``voltage`` or ``load_torque`` that is not a column is a constant or
+            ``(time, value)`` pairs; the settings ``kind`` (default ``"step"``),
+            ``initial``, ``units``, ``counts_per_rev``, ``edges``, ``drag``,
+            ``time_wrap`` are as in ``[[trace]]`` (``docs/session-format.md``).
+        steady : ``{name: data}`` with columns ``voltage``, ``speed`` (``current``,
+            ``load_torque``): steady tables.
+        operating_points : ``{name: {"supply_voltage", "duty", "current", "speed"}}``.
+        model : the ``[model]`` table: ``{"dead_time": True, ...}``.
+        name : the session's name (default ``"session"``); its files are then written
+            to a temporary directory removed when Python exits.
+        directory : a new (or empty) directory to keep the session's files in instead;
+            the session is named after it.
+
+        Raises :class:`~pmdc_bayes.UsageError` for arguments of the wrong shape and
+        :class:`~pmdc_bayes.SessionError` for data a session file would be refused for.
+        """
+        from .arrays import session_from_arrays
+
+        return session_from_arrays(
+            Ra=Ra, traces=traces, La=La, K=K, J=J, B=B, motor=motor, friction=friction,
+            steady=steady, operating_points=operating_points, model=model, name=name,
+            directory=directory)
+
     def unknown_load_traces(self) -> tuple[str, ...]:
         """The driven traces that carry an unknown drag of their own (``unknown_load``)."""
         if "unknown_load" not in self.nuisances:
