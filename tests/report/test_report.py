@@ -61,7 +61,7 @@ def test_demo_report_files_figures_and_tables(demo_run):
         assert png.startswith(PNG_MAGIC) and len(png) > 1024
     figures = sorted(p.stem for p in (demo_run / "figures").glob("*.png"))
     assert len(figures) == html.count("<img")
-    for name in ("forest", "corner", "steady", "chains", "ranks", "trace_step_12v97",
+    for name in ("forest", "corner", "steady", "chains", "ranks", "response", "trace_step_12v97",
                  "trace_load_change", "trace_current_capture"):
         assert name in figures
         assert f'id="fig-{name}"' in html
@@ -96,6 +96,28 @@ def test_the_report_opens_with_the_answer(demo_run):
     fits = _table_rows(md, "Fit % per channel")
     assert {r[0] for r in fits} >= {"load_change: speed", "step_12v97: current"}
     assert all(float(r[2]) > 85 for r in fits)
+
+
+def test_the_first_screen_in_a_browser_shows_the_verdict_and_the_headline(demo_run, tmp_path):
+    """As laid out by headless Chromium in a 1280×900 window (skipped without one)."""
+    check = _browser_check()
+    if check.browser() is None:
+        pytest.skip("no Chromium installed (apt-get install chromium)")
+    m = check.measure(demo_run / "report.html", screenshot=tmp_path / "first.png")
+    assert check.verdict(m) == []
+    assert m["table_rows"][1:] == ["Ra", "La", "K", "B", "J", "Tc"]
+    assert (tmp_path / "first.png").read_bytes().startswith(PNG_MAGIC)
+
+
+def _browser_check():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "scripts" / "check_report_in_browser.py"
+    spec = importlib.util.spec_from_file_location("check_report_in_browser", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def test_demo_report_explains_closed_form_bias(demo_run):

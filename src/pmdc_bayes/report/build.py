@@ -10,6 +10,7 @@ from ._doc import Bullets, Figure, Paragraph, Section, Table, fmt
 from .adequacy import CONDITIONAL, adequacy_section, selection_section
 from .comparison import compare_closed_form
 from .export import controller_model
+from .fig_control import response_figure
 from .fig_params import chains_figure, corner_figure, forest_figure, ranks_figure
 from .fig_steady import steady_figure
 from .fig_traces import trace_figure
@@ -209,6 +210,11 @@ def _export(ctx) -> tuple[Section, dict]:
     rows = tuple((name, "; ".join("[" + ", ".join(fmt(x) for x in r) + "]" for r in model[name]))
                  for name in ("A", "B", "C", "D"))
     sec.add(Table("State-space matrices", ("matrix", "rows"), rows))
+    band = ("the 94 % band over posterior draws (the parameters' uncertainty alone, no "
+            "noise)" if ctx.has_posterior else "no band (no posterior was sampled)")
+    sec.add(Figure("response", f"The speed's response to the voltage, ω/Va of (7), at the "
+                   f"{ctx.best_label}, with {band} and the {ctx.cf_label}'s. Coulomb "
+                   "friction is not part of the linear model.", response_figure(ctx)))
     if "pi_loop" in ctx.summary:
         from ..physics.loop import describe_pi_loop
 

@@ -1,0 +1,52 @@
+"""The first-screen check of scripts/check_report_in_browser.py: what it calls a
+first screen that answers, and (with Chromium installed) that it tells a page whose
+headline is pushed below the fold from one whose headline is in view."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+PATH = Path(__file__).resolve().parents[2] / "scripts" / "check_report_in_browser.py"
+_spec = importlib.util.spec_from_file_location("check_report_in_browser", PATH)
+check = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(check)
+
+GOOD = dict(viewport=[1280, 813], page_width=1280, heading="At a glance",
+            verdict="Model adequate: the data do not reject the fitted model.",
+            verdict_bottom=292.0, table_bottom=561.0, table_rows=["parameter", "Ra"])
+
+
+@pytest.mark.parametrize("change, problem", [
+    ({}, None),
+    ({"table_bottom": 950.0}, "parameter table ends at 950 px"),
+    ({"verdict_bottom": 900.0}, "verdict ends at 900 px"),
+    ({"heading": "Overview"}, "first section is 'Overview'"),
+    ({"verdict": "Fit of 'demo'."}, "no verdict"),
+    ({"page_width": 1500}, "wider than the window"),
+])
+def test_what_the_check_calls_a_first_screen_that_answers(change, problem):
+    found = check.verdict(dict(GOOD, **change))
+    assert found == [] if problem is None else any(problem in p for p in found)
+
+
+def _page(spacer_px: int) -> str:
+    return ("<html><body><h1>pmdc-bayes report</h1>"
+            f'<div style="height:{spacer_px}px"></div>'
+            '<h2 id="s0">At a glance</h2><p>Model adequate: the data do not reject the '
+            "fitted model.</p><h3>Parameters</h3><table><tr><th>parameter</th></tr>"
+            "<tr><td>Ra</td></tr><tr><td>K</td></tr></table></body></html>")
+
+
+def test_chromium_lays_out_what_the_check_measures(tmp_path):
+    if check.browser() is None:
+        pytest.skip("no Chromium installed (apt-get install chromium)")
+    for spacer, fine in ((10, True), (1500, False)):
+        page = tmp_path / f"page{spacer}.html"
+        page.write_text(_page(spacer), encoding="utf-8")
+        m = check.measure(page)
+        assert m["table_rows"] == ["parameter", "Ra", "K"]
+        assert (check.verdict(m) == []) is fine, m
+        assert (check.main([str(page)]) == 0) is fine
