@@ -113,9 +113,12 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
         "all at once when complete.", 79),
         epilog=EXIT_CODES, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    ft.add_argument("session", nargs="?", help=f"session directory (default: bundled "
-                    f"'{DEFAULT_SESSION}')")
-    ft.add_argument("--out", type=Path, help="run directory (default: reports/<session>-<time>)")
+    ft.add_argument("session", nargs="*", help=f"session directory (default: bundled "
+                    f"'{DEFAULT_SESSION}'); several, or a folder of session directories, fit "
+                    "a lot in one process, sharing compiled programs")
+    ft.add_argument("--out", type=Path, help="run directory (default: reports/<session>-<time>);"
+                    " with several sessions, the folder that gets one run per session and "
+                    "lot.csv, the lot's table")
     ft.add_argument("--force", action="store_true", help="replace an existing --out directory")
     ft.add_argument("--no-mcmc", action="store_true", help="stop after the MAP fit")
     ft.add_argument("--friction", choices=("viscous", "coulomb"),

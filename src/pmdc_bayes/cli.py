@@ -77,23 +77,59 @@ def _cmd_simulate(args) -> int:
 
 
 def _cmd_fit(args) -> int:
-    from .pipeline import run_fit
+    from ._batch import expand_sessions
 
     if args.compare and args.add:
         raise UsageError("--compare chooses the non-idealities itself; drop --add (or drop "
                          "--compare to fit the ones you name)")
+    paths = expand_sessions(args.session)
     if not args.no_cache:
         cachedir.enable()
+    if len(paths) == 1:
+        status = _fit_one(args, paths[0], args.out)[0]
+    else:
+        status = _fit_lot(args, paths)
+    if not args.no_cache:
+        cachedir.prune()
+    return status
+
+
+def _fit_lot(args, paths) -> int:
+    """Each session in turn, one's bad input not stopping the others; the lot's table
+    at the end (and ``lot.csv`` in ``--out``); the largest exit code of the motors."""
+    from ._batch import LotEntry, lot_outs, lot_table, write_lot
+
+    entries = []
+    for k, (path, out) in enumerate(zip(paths, lot_outs(paths, args.out, args.force),
+                                        strict=True)):
+        if not args.quiet:
+            print(f"== motor {k + 1} of {len(paths)}: {path}", flush=True)
+        try:
+            status, summary, run = _fit_one(args, path, out)
+            entries.append(LotEntry(path, status, run, summary))
+        except (SessionError, UsageError) as exc:
+            print(f"pmdc-bayes: error: {exc}", file=sys.stderr)
+            entries.append(LotEntry(path, EXIT_USAGE, error=str(exc)))
+    if not args.quiet:
+        print(lot_table(entries))
+    if args.out is not None:
+        table = write_lot(args.out, entries)
+        if not args.quiet:
+            print(f"Wrote {table}")
+    return max(e.status for e in entries)
+
+
+def _fit_one(args, path, out) -> tuple[int, dict, Path]:
+    from .pipeline import run_fit
+
     out, summary = run_fit(
-        session_path(args.session), say=_stage_printer(args), progress=_bar(args),
-        out=args.out, force=args.force, mcmc=not args.no_mcmc,
+        path, say=_stage_printer(args), progress=_bar(args),
+        out=out, force=args.force, mcmc=not args.no_mcmc,
         friction=args.friction, seed=args.seed, holdout=args.holdout or (),
         compare_friction=args.compare_friction, allow_inadequate=args.allow_inadequate,
         add=tuple(a.replace("-", "_") for a in args.add or ()), compare=args.compare,
         pi=args.pi,
     )
-    if not args.no_cache:
-        cachedir.prune()
     if args.quiet:
         with contextlib.redirect_stdout(io.StringIO()):
             adequate = print_fit(summary, out)
@@ -108,7 +144,7 @@ def _cmd_fit(args) -> int:
               + ("" if args.allow_inadequate else " (see the report; rerun with "
                  "--allow-inadequate to go on)"), file=sys.stderr)
         if not args.allow_inadequate:
-            return EXIT_INADEQUATE
+            return EXIT_INADEQUATE, summary, out
     if summary["fit"]["status"] != "converged" and not args.allow_unconverged:
         print(f"pmdc-bayes: error: the fit did not converge: {summary['fit']['message']}",
               file=sys.stderr)
@@ -119,7 +155,7 @@ def _cmd_fit(args) -> int:
               + "; ".join(diag["failures"]) + " (rerun with --allow-unconverged to accept)",
               file=sys.stderr)
         status = EXIT_FAILED
-    return status
+    return status, summary, out
 
 
 def _cmd_report(args) -> int:

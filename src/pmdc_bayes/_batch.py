@@ -1,0 +1,119 @@
+"""A lot of motors in one ``pmdc-bayes fit``: several session directories (or folders
+of them) fitted in turn in one process, so that sessions of a shape already seen reuse
+its compiled programs; one line per motor, and a table of the lot (``lot.csv`` in the
+``--out`` folder).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from ._errors import UsageError
+from .io.bundled import session_path
+
+__all__ = ["LotEntry", "expand_sessions", "lot_outs", "lot_table", "write_lot", "STATUS"]
+
+STATUS = {0: "ok", 1: "failed gates", 2: "bad input", 3: "model inadequate"}
+_PARAMS = ("Ra", "La", "K", "B", "J", "Tc")
+
+
+@dataclass
+class LotEntry:
+    """One session of a lot: its directory, exit status, run directory and summary
+    (None when it could not be fitted), and the one-line error when there was one."""
+
+    session: Path
+    status: int
+    run: Path | None = None
+    summary: dict | None = None
+    error: str = ""
+
+
+def expand_sessions(args) -> list[Path]:
+    """The session directories named: each argument a session directory, a bundled
+    session's name, or a folder whose subfolders hold sessions (in name order); the
+    bundled default for none."""
+    if not args:
+        return [session_path(None)]
+    found = []
+    for arg in args:
+        p = session_path(arg)
+        if p.is_dir() and not (p / "session.toml").exists():
+            subs = sorted(d for d in p.iterdir() if (d / "session.toml").is_file())
+            if not subs:
+                raise UsageError(f"{p}: neither a session (no session.toml) nor a folder of "
+                                 "sessions; pass session directories")
+            found += subs
+        else:
+            found.append(p)
+    resolved = [p.resolve() for p in found]
+    twice = next((p for k, p in enumerate(resolved) if p in resolved[:k]), None)
+    if twice is not None:
+        raise UsageError(f"{twice}: named twice; give each session once")
+    return found
+
+
+def lot_outs(paths: list[Path], out: Path | None, force: bool) -> list[Path | None]:
+    """Each session's run directory under ``out`` (named after the session, ``-2``,
+    ``-3`` ... for sessions of the same name); None each without ``out`` (the default
+    ``reports/<session>-<time>``).  Refuses an ``out`` that is a file, or holds a
+    ``lot.csv`` already (unless ``force``), before any fit."""
+    if out is None:
+        return [None] * len(paths)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"{out}: --out is a file; with several sessions --out is the "
+                         "folder that gets one run per session")
+    if (out / "lot.csv").exists() and not force:
+        raise UsageError(f"{out / 'lot.csv'}: already exists; pass --force to replace the "
+                         "lot's runs and table, or choose another --out")
+    names: dict[str, int] = {}
+    outs = []
+    for p in paths:
+        name = p.resolve().name
+        names[name] = names.get(name, 0) + 1
+        outs.append(out / (name if names[name] == 1 else f"{name}-{names[name]}"))
+    return outs
+
+
+def _row(entry: LotEntry) -> dict:
+    row = {"session": str(entry.session), "status": STATUS.get(entry.status, "error"),
+           "exit_code": entry.status, "run": str(entry.run or ""), "error": entry.error}
+    params = (entry.summary or {}).get("parameters", {})
+    for name in _PARAMS:
+        p = params.get(name, {})
+        row[name] = p.get("mean", p.get("map", ""))
+        row[f"{name}_sd"] = p.get("sd", p.get("map_sd", ""))
+    return row
+
+
+def lot_table(entries: list[LotEntry]) -> str:
+    """The lot as text: one line per motor, its status and where its run is."""
+    width = max(7, *(len(e.session.name) for e in entries))
+    lines = [f"{'session':<{width}}  {'status':<17} run or error"]
+    for e in entries:
+        lines.append(f"{e.session.name:<{width}}  {STATUS.get(e.status, 'error'):<17} "
+                     f"{e.run if e.run else e.error}")
+    ok = sum(e.status == 0 for e in entries)
+    lines.append(f"{ok} of {len(entries)} motors ok")
+    return "\n".join(lines)
+
+
+def write_lot(out: Path, entries: list[LotEntry]) -> Path:
+    """``out/lot.csv``: per motor its status, run directory and each parameter's value
+    and sd in SI (posterior mean and sd, the MAP and its Laplace sd without a
+    posterior); written whole (a temporary file renamed into place)."""
+    out.mkdir(parents=True, exist_ok=True)
+    rows = [_row(e) for e in entries]
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    path = out / "lot.csv"
+    tmp = out / f".lot.csv.{os.getpid()}"
+    tmp.write_text(buf.getvalue(), encoding="utf-8")
+    os.replace(tmp, path)
+    return path
