@@ -27,6 +27,7 @@ __all__ = ["FitResult", "fit_map", "laplace"]
 N_STARTS = 8
 START_SPREAD = 0.3
 REWEIGHT_ITERATIONS = 40
+ROUND_STEPS = 64  # LM steps per reweighting round: a start still moving goes on next round
 RELEVANT = 10.0
 SAME_OPTIMUM = 0.05  # log-posterior units: nearby finals closer than this are one optimum
 WIDE_SPREAD = 1.0  # least log spread of the starts over the prior's range
@@ -76,7 +77,13 @@ def _solver():
 
 def _make_solve(model: SessionModel, *, fast: bool):
     """Batched Levenberg–Marquardt at fixed weights, plus the weight update: compiled
-    once per session structure (data travel as an argument)."""
+    once per session structure (data travel as an argument).
+
+    The starts are solved together, so a call lasts as long as its slowest start: each
+    call stops at :data:`ROUND_STEPS` steps, and a start still moving goes on from
+    where it stopped in the next reweighting round (the rounds end once the starts near
+    the best have settled; a start far below them that never converged is not counted
+    as an optimum)."""
 
     def build():
         def residuals(theta, args):
@@ -85,7 +92,7 @@ def _make_solve(model: SessionModel, *, fast: bool):
 
         def solve_one(theta0, weights, data):
             sol = optx.least_squares(residuals, _solver(), theta0, args=(weights, data),
-                                     max_steps=400, throw=False)
+                                     max_steps=ROUND_STEPS, throw=False)
             ok = sol.result == optx.RESULTS.successful
             return sol.value, ok, sol.stats["num_steps"]
 
@@ -210,6 +217,17 @@ def _settled(logp, prev) -> bool:
     return bool(np.all(np.abs(logp[near] - prev[near]) <= 1e-9 * np.abs(logp[near]) + 1e-9))
 
 
+def _far_below(logp, round_: int) -> np.ndarray:
+    """Starts that, from the second round on, lie far below the best (more than
+    :data:`RELEVANT` log-posterior units and 1 % of its size) or at a non-finite
+    value: a poor local optimum or a slow crawl, no longer worth holding the batch."""
+    finite = np.isfinite(logp)
+    if round_ < 2 or not finite.any():
+        return np.zeros(logp.shape, dtype=bool)
+    top = float(np.max(logp[finite]))
+    return ~finite | (logp < top - max(RELEVANT, 1e-2 * abs(top)))
+
+
 def _solve_starts(model: SessionModel, starts, *, fast: bool, solve=None):
     solve = _make_solve(model, fast=fast) if solve is None else solve
     # Device arrays from the start, like the outputs fed back in later rounds, so the
@@ -218,18 +236,33 @@ def _solve_starts(model: SessionModel, starts, *, fast: bool, solve=None):
     weights = jnp.asarray(_initial_weights(model, starts.shape[0]))
     logp_prev = None
     settled = False
+    frozen: dict[int, tuple] = {}  # start -> (θ, ok, log-posterior, weights) where it stopped
     for it in range(1, REWEIGHT_ITERATIONS + 1):
         thetas, ok, steps, weights, logp = solve(thetas, weights)
-        logp = np.asarray(logp)
+        logp = np.array(logp)
+        for i in frozen:
+            logp[i] = frozen[i][2]
         if logp_prev is not None and _settled(logp, logp_prev):
             settled = True
             break
         logp_prev = logp
-    ok = np.asarray(ok)
+        # A start far below the best stops here; its slot follows the best start, whose
+        # few steps then bound the round's length.
+        new = [int(i) for i in np.flatnonzero(_far_below(logp, it)) if int(i) not in frozen]
+        if new:
+            best = int(np.nanargmax(np.where(np.isfinite(logp), logp, np.nan)))
+            for i in new:
+                frozen[i] = (np.asarray(thetas[i]), bool(ok[i]), float(logp[i]),
+                             np.asarray(weights[i]))
+            idx = jnp.asarray(new)
+            thetas = thetas.at[idx].set(thetas[best])
+            weights = weights.at[idx].set(weights[best])
+    thetas, ok, weights = np.array(thetas), np.array(ok), np.array(weights)
+    for i, (theta_i, ok_i, logp_i, w_i) in frozen.items():
+        thetas[i], ok[i], logp[i], weights[i] = theta_i, ok_i, logp_i, w_i
     logp = np.where(np.isfinite(logp), logp, -np.inf)
     best = int(np.argmax(logp))
-    return np.asarray(thetas[best]), np.asarray(thetas), logp, ok, np.asarray(weights), \
-        settled, it
+    return thetas[best], thetas, logp, ok, weights, settled, it
 
 
 def _modes(thetas, logp, ok) -> list[int]:
