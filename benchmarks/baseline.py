@@ -25,7 +25,8 @@ import emcee
 import numpy as np
 from scipy.integrate import solve_ivp
 
-__all__ = ["BaselinePosterior", "run_emcee", "RTOL", "ATOL", "NU0", "PRIOR_FACTOR"]
+__all__ = ["BaselinePosterior", "run_emcee", "user_script", "RTOL", "ATOL", "NU0",
+           "PRIOR_FACTOR"]
 
 RTOL, ATOL = 1e-6, 1e-8  # solve_ivp tolerances (LSODA)
 NU0 = 2.0  # pseudo-observations of each channel's inverse-gamma noise prior
@@ -172,22 +173,26 @@ class BaselinePosterior:
         self.prior_mean = np.log([seed.K, seed.B, seed.J])
         self.prior_sd = np.log(PRIOR_FACTOR)
 
-    def sums_of_squares(self, theta) -> np.ndarray:
-        """Sum of squared residuals per channel (observed − model)."""
+    def residuals(self, theta) -> list[np.ndarray]:
+        """Residuals (observed − model) per channel."""
         Ra, La, K, B, J = np.exp(theta)
-        ss = []
+        res = []
         for tr in self.traces:
             ia, w = simulate_trace((Ra, La, K, B, J), tr, rtol=self.rtol, atol=self.atol)
-            ss.append(np.sum((tr.speed - w) ** 2))
+            res.append(tr.speed - w)
             if tr.current is not None:
-                ss.append(np.sum((tr.current - ia) ** 2))
+                res.append(tr.current - ia)
         den = K * K + Ra * B
         w = (K * self.steady_v - Ra * self.steady_tl) / den
         i = (B * self.steady_v + K * self.steady_tl) / den
-        ss.append(np.sum((self.steady_w - w) ** 2))
-        ss.append(np.sum(((self.steady_i - i) ** 2)[self.has_i]))
-        ss.append(np.sum((self.tau_obs - J * Ra / (B * Ra + K * K)) ** 2))
-        return np.asarray(ss)
+        res.append(self.steady_w - w)
+        res.append((self.steady_i - i)[self.has_i])
+        res.append(self.tau_obs - J * Ra / (B * Ra + K * K))
+        return res
+
+    def sums_of_squares(self, theta) -> np.ndarray:
+        """Sum of squared residuals per channel (observed − model)."""
+        return np.asarray([np.sum(r * r) for r in self.residuals(theta)])
 
     def log_likelihood(self, theta) -> float:
         """Σ_c −(n_c + ν0)/2 · log(ν0·s0_c² + SS_c): each channel's σ integrated out."""
@@ -238,3 +243,35 @@ def run_emcee(log_prob, p0, *, budget_s: float, seed: int = 0, moves=None):
         steps += 1
     wall = time.perf_counter() - t0
     return sampler.get_chain(), wall, steps
+
+
+def user_script(base: BaselinePosterior, theta0, *, budget_s: float, walkers: int = 32,
+                seed: int = 0) -> dict:
+    """What a user writes without this project: ``scipy.optimize.least_squares`` on the
+    channels' residuals, each scaled by its noise level, from ``theta0`` (the closed
+    form); then ``emcee`` with its default stretch move, the walkers in a small
+    Gaussian ball around the least-squares solution (as emcee's documentation starts
+    them), for ``budget_s`` seconds.
+
+    Returns the least-squares wall time, the chain ``(steps, walkers, P)``, the emcee
+    wall time and step count.
+    """
+    from scipy.optimize import least_squares
+
+    def scaled(theta):
+        try:
+            parts = [r / s for r, s, n in zip(base.residuals(theta), base.s0, base.n_obs,
+                                              strict=True) if n > 0]
+        except (RuntimeError, ArithmeticError, ValueError):
+            return np.full(int(base.n_obs.sum()), 1e6)
+        return np.concatenate(parts)
+
+    t0 = time.perf_counter()
+    fit = least_squares(scaled, np.asarray(theta0, dtype=float), x_scale="jac")
+    ls_wall = time.perf_counter() - t0
+    rng = np.random.default_rng(seed)
+    p0 = fit.x + 1e-4 * rng.standard_normal((walkers, fit.x.size))
+    chain, wall, steps = run_emcee(base.log_posterior, p0, budget_s=budget_s, seed=seed,
+                                   moves=emcee.moves.StretchMove())
+    return {"least_squares_wall": ls_wall, "least_squares_nfev": int(fit.nfev),
+            "chain": chain, "wall": wall, "steps": steps, "theta": fit.x}

@@ -19,7 +19,7 @@ import json
 import re
 import sys
 import tempfile
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -39,9 +39,10 @@ def make_lot(folder: Path, n: int, seed: int = 7) -> None:
     for k in range(n):
         text = plan
         for name in SCALED:
-            def scale(m, f=rng.uniform(0.9, 1.1)):
-                return f"{m.group(1)}{float(m.group(2)) * f:.6g}"
-            text = re.sub(rf"(?m)^({name} = )([0-9.eE+-]+)", scale, text, count=1)
+            factor = rng.uniform(0.9, 1.1)
+            text = re.sub(rf"(?m)^({name} = )([0-9.eE+-]+)",
+                          lambda m, f=factor: f"{m.group(1)}{float(m.group(2)) * f:.6g}",
+                          text, count=1)
         session = folder / f"motor{k + 1:02d}"
         session.mkdir(parents=True)
         (session / "plan.toml").write_text(text, encoding="utf-8")
@@ -87,7 +88,7 @@ def main(argv=None) -> int:
                       f"{m['ok']} ok; peak {m['peak_mib']:.0f} MiB", flush=True)
     if args.no_report:
         return 0
-    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     lines = [f"## {SECTION}", "",
              f"`python benchmarks/lot.py` ({stamp}): `pmdc-bayes fit LOT --out RUNS` on a "
              f"folder of {args.motors} simulated demo-shaped motors (four traces, 10,204 "
