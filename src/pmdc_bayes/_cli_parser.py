@@ -32,6 +32,18 @@ def _seed(text: str) -> int:
     return value
 
 
+def _seconds(text: str) -> float:
+    """A duration in seconds, >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds >= 0, "
+                                         "e.g. 120 (0: no limit)")
+    return value
+
+
 def _version() -> str:
     from importlib import metadata
 
@@ -133,6 +145,10 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
     ft.add_argument("--compare-friction", action="store_true",
                     help="also fit and sample the other friction model and compare the two "
                     "by PSIS-LOO (ArviZ)")
+    ft.add_argument("--max-sampling-seconds", type=_seconds, default=60.0, metavar="S",
+                    help="stop the sampler after S seconds of sampling if it has not "
+                    "converged by then, saying how long it would need (default 60; 0 for "
+                    "no limit); a posterior stopped so fails its gates")
     ft.add_argument("--allow-unconverged", action="store_true",
                     help="exit 0 even if the fit or the sampler fails its checks")
     ft.add_argument("--add", action="append", metavar="NUISANCE",

@@ -12,13 +12,14 @@ from .inference.result import RunResult
 from .io.bundled import session_path
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
-from .pipeline import fit_session
+from .pipeline import SAMPLING_SECONDS, fit_session
 
 __all__ = ["fit"]
 
 
 def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, holdout=(),
-        seed: int = 0, allow_inadequate: bool = False, progress=None) -> RunResult:
+        seed: int = 0, allow_inadequate: bool = False, progress=None,
+        max_sampling_seconds: float | None = SAMPLING_SECONDS) -> RunResult:
     """Fit a session: the closed form, the MAP, the adequacy checks and (``mcmc``) the
     posterior, all in memory; nothing is written until ``result.write(dir)``.
 
@@ -32,6 +33,8 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
     friction : ``"viscous"`` or ``"coulomb"``; by default the session's.
     holdout : names of traces kept out of the fit.
     progress : the sampler's progress bar; by default in a terminal or a notebook.
+    max_sampling_seconds : stop a sampler that has not converged after this long, with
+        the reason in ``summary["diagnostics"]`` (its gates then fail); None: no limit.
 
     Returns the :class:`RunResult`: ``.adequate``, ``.values()``, ``.summary``,
     ``.idata``, ``.to_control(draws=N)``, ``.write(dir)``.  Raises
@@ -56,7 +59,8 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
         raise UsageError(f"friction: {friction!r} is not 'viscous' or 'coulomb'")
     result = fit_session(session, mcmc=mcmc, friction=friction, seed=seed,
                          holdout=tuple([holdout] if isinstance(holdout, str) else holdout),
-                         progress=progress, allow_inadequate=allow_inadequate)
+                         progress=progress, allow_inadequate=allow_inadequate,
+                         max_sampling_seconds=max_sampling_seconds)
     if changed:
         result.summary["session"]["changed_in_memory"] = True
     return result

@@ -128,7 +128,7 @@ def _fit_one(args, path, out) -> tuple[int, dict, Path]:
         friction=args.friction, seed=args.seed, holdout=args.holdout or (),
         compare_friction=args.compare_friction, allow_inadequate=args.allow_inadequate,
         add=tuple(a.replace("-", "_") for a in args.add or ()), compare=args.compare,
-        pi=args.pi,
+        pi=args.pi, max_sampling_seconds=args.max_sampling_seconds or None,
     )
     if args.quiet:
         with contextlib.redirect_stdout(io.StringIO()):

@@ -30,6 +30,7 @@ from .rundir import check_replaceable, copy_session, write_atomically
 
 __all__ = ["fit_session", "run_fit", "write_run", "default_out_dir", "versions"]
 
+SAMPLING_SECONDS = 60.0  # default bound on the sampler's wall time (s)
 _LIBRARIES = ("pmdc-bayes", "jax", "jaxlib", "diffrax", "optimistix", "emcee", "arviz", "numpy")
 
 
@@ -81,9 +82,12 @@ def _closed_form_theta(model, cf):
 @x64
 def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | None = None,
                 seed: int = 0, holdout=(), compare_friction: bool = False,
-                progress=None, allow_inadequate: bool = False, say=None) -> RunResult:
+                progress=None, allow_inadequate: bool = False, say=None,
+                max_sampling_seconds: float | None = SAMPLING_SECONDS) -> RunResult:
     """Every stage of a fit, in memory: closed form → MAP → adequacy → (MCMC); the
     run's result.  ``say``, when given, is called with a line as each stage starts.
+    ``max_sampling_seconds`` bounds the sampler's wall time (None: no bound); a
+    posterior stopped by it fails its gates with the reason.
 
     ``summary`` of the result is what ``summary.json`` holds; nothing is written.  When
     the adequacy checks reject the model the posterior is not sampled (it would only
@@ -152,15 +156,17 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     if mcmc:
         t0 = time.perf_counter()
         say("sampling the posterior (emcee)")
-        post, stats = _posterior_stage(model, fit, seed=seed, progress=progress)
+        post, stats = _posterior_stage(model, fit, seed=seed, progress=progress,
+                                       max_seconds=max_sampling_seconds)
         for name in model.names:
             params[name].update(stats["summary"][name])
         summary["derived"] = stats["derived"]
         summary["laplace_check"] = stats["laplace_check"]
         summary["diagnostics"].update(stats["diagnostics"])
         if compare_friction:
-            summary["model_comparison"] = _compare_friction(session, cf, model, post,
-                                                            seed=seed, progress=progress)
+            summary["model_comparison"] = _compare_friction(
+                session, cf, model, post, seed=seed, progress=progress,
+                max_seconds=max_sampling_seconds)
         wall["mcmc"] = time.perf_counter() - t0
     wall["report"] = 0.0
     wall["total"] = time.perf_counter() - t_start
@@ -175,7 +181,8 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             mcmc: bool = True, friction: str | None = None, seed: int = 0,
             holdout=(), compare_friction: bool = False,
             progress=None, allow_inadequate: bool = False,
-            add=(), compare: bool = False, say=None, pi=None) -> tuple[Path, dict]:
+            add=(), compare: bool = False, say=None, pi=None,
+            max_sampling_seconds: float | None = SAMPLING_SECONDS) -> tuple[Path, dict]:
     """Fit a session directory and write the run directory ``out``: ``summary.json``,
     ``posterior.nc`` (with MCMC) and the report, all built beside ``out`` and moved into
     place in one rename once complete.
@@ -207,13 +214,14 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
 
         fitted = session_full.without_traces(holdout) if holdout else session_full
         selection = compare_nuisances(fitted, friction=friction, seed=seed, mcmc=mcmc,
-                                      progress=progress)
+                                      progress=progress, max_seconds=max_sampling_seconds)
         session_full = dataclasses.replace(session_full,
                                            nuisances=tuple(selection["nuisances"]),
                                            loaded_traces=tuple(selection["loaded_traces"]))
     result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
                          holdout=holdout, compare_friction=compare_friction, progress=progress,
-                         allow_inadequate=allow_inadequate, say=say)
+                         allow_inadequate=allow_inadequate, say=say,
+                         max_sampling_seconds=max_sampling_seconds)
     if selection is not None:
         result.summary["model_selection"] = selection
     if pi is not None:
@@ -249,11 +257,11 @@ def _reference_voltage(session) -> float:
     return max(volts) if volts else 12.0
 
 
-def _posterior_stage(model, fit, *, seed, progress):
+def _posterior_stage(model, fit, *, seed, progress, max_seconds=None):
     from .inference.derived import derived_quantities
     from .inference.sampling import compare_laplace, gates, sample_posterior, summarize
 
-    post = sample_posterior(model, fit, seed=seed, progress=progress)
+    post = sample_posterior(model, fit, seed=seed, progress=progress, max_seconds=max_seconds)
     summ = summarize(post)
     passed, failures = gates(summ, posterior=post)
     voltage = _reference_voltage(model.session)
@@ -274,13 +282,13 @@ def _posterior_stage(model, fit, *, seed, progress):
     return post, stats
 
 
-def _compare_friction(session, cf, model, post, *, seed, progress):
+def _compare_friction(session, cf, model, post, *, seed, progress, max_seconds=None):
     """LOO of the viscous and viscous + Coulomb models on the same session."""
     from .inference.sampling import loo_compare, sample_posterior
 
     other = build_model(session, cf, coulomb=not model.coulomb)
     other_post = sample_posterior(other, fit_map(other, seed=seed), seed=seed,
-                                  progress=progress)
+                                  progress=progress, max_seconds=max_seconds)
     by_name = {("coulomb" if model.coulomb else "viscous"): post.idata,
                ("coulomb" if other.coulomb else "viscous"): other_post.idata}
     return loo_compare(by_name)

@@ -47,10 +47,12 @@ LOO_MARGIN = 4.0  # elpd units a larger candidate must gain to be preferred
 
 @x64
 def compare_nuisances(session: Session, *, friction: str | None = None, seed: int = 0,
-                      mcmc: bool = True, progress=None, candidates=CANDIDATES) -> dict:
+                      mcmc: bool = True, progress=None, candidates=CANDIDATES,
+                      max_seconds: float | None = None) -> dict:
     """Every candidate (default :data:`CANDIDATES`) fitted to ``session``: its verdict, the
     checks it fails, its MAP log-posterior and (with ``mcmc``, adequate ones only) its
-    LOO; the recommended candidate and why (a dict ready for JSON)."""
+    LOO, each posterior sampled for at most ``max_seconds``; the recommended candidate
+    and why (a dict ready for JSON)."""
     coulomb = None if friction is None else friction == "coulomb"
     rows, idata = [], {}
     loaded = _suspect_traces(session)
@@ -69,7 +71,8 @@ def compare_nuisances(session: Session, *, friction: str | None = None, seed: in
                                   if f.severity == "fail"],
                      "loo": None})
         if mcmc and adequacy.ok:
-            idata[name] = sample_posterior(model, fit, seed=seed, progress=progress).idata
+            idata[name] = sample_posterior(model, fit, seed=seed, progress=progress,
+                                           max_seconds=max_seconds).idata
     if idata:
         for r in loo_compare(idata):
             next(row for row in rows if row["name"] == r["model"])["loo"] = r

@@ -73,6 +73,26 @@ def test_same_seed_same_draws_other_seed_other_draws(tiny):
     assert a.capped and "max_steps=300" in a.message
 
 
+def test_a_sampler_out_of_time_stops_with_the_reason_and_a_usable_record(tiny):
+    """A time limit stops a run that has not converged (here it never can) between
+    chunks, says so and how long it would need, and still returns its draws."""
+    model, fit = tiny
+    post = sample_posterior(model, fit, seed=5, max_steps=10**6, min_tau_multiple=1e9,
+                            progress=False, max_seconds=0.5)
+    assert post.capped
+    assert "s of sampling (the limit, 0.5 s;" in post.message
+    assert "would be needed" in post.message and "--max-sampling-seconds" in post.message
+    assert 0 < post.n_steps < 10**6 and post.draws.shape[1] == post.n_steps - post.burn_in
+    assert post.idata.posterior.attrs["capped"] == 1
+    # the gates fail with the reason first
+    passed, failures = gates(summarize(post), posterior=post)
+    assert not passed and failures[0].startswith("run capped: stopped after")
+    # a run that converges before the limit is the same run without it
+    a = sample_posterior(model, fit, seed=5, **QUICK)
+    b = sample_posterior(model, fit, seed=5, max_seconds=3600.0, **QUICK)
+    np.testing.assert_array_equal(a.draws, b.draws)
+
+
 def test_impossible_parameters_have_minus_inf_log_posterior(tiny):
     model, _ = tiny
     batch_fn = _log_posterior_batch(model)

@@ -256,3 +256,13 @@ def test_a_negative_seed_is_bad_input_and_version_is_printed(capsys):
     with pytest.raises(SystemExit) as exc:
         cli.main(["--version"])
     assert exc.value.code == 0 and capsys.readouterr().out.startswith("pmdc-bayes ")
+
+
+@pytest.mark.parametrize("bad", ["-1", "soon", "inf", "nan"])
+def test_a_malformed_sampling_limit_is_bad_input(bad, capsys):
+    from pmdc_bayes.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["fit", "demo", "--max-sampling-seconds", bad])
+    assert exc.value.code == 2
+    assert "--max-sampling-seconds" in capsys.readouterr().err

@@ -197,7 +197,7 @@ def _gates_met(sampler, burn: int, *, r_hat_max: float = R_HAT_MAX,
 def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                      max_steps: int = 20_000, min_tau_multiple: float = 50,
                      progress: bool | None = None, moves=None,
-                     ll_draws: int = LL_DRAWS) -> Posterior:
+                     ll_draws: int = LL_DRAWS, max_seconds: float | None = None) -> Posterior:
     """Sample the posterior of ``model`` with an emcee ensemble started at ``fit``.
 
     Parameters
@@ -217,6 +217,10 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     moves : emcee moves; default :func:`default_moves` (differential evolution).
     ll_draws : at most this many draws carry the pointwise log-likelihood in ``idata``
         (evenly thinned along each chain).
+    max_seconds : a limit on the sampling's wall time (checked between chunks of
+        steps); a run stopped by it is ``capped``, and ``message`` says how long the
+        chain would have needed.  A run that converges first does not depend on it; one
+        it stops depends on the machine's speed.
     """
     t_start = time.perf_counter()
     ndim = len(model.names)
@@ -240,6 +244,7 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     names = tuple(model.names)
     tau_prev, converged, steps = None, False, 0
     bar = tqdm(total=max_steps, disable=not progress, file=sys.stderr, unit="step")
+    t_loop, out_of_time = time.perf_counter(), False
     with bar:
         while steps < max_steps:
             long_enough = tau_prev is not None and steps >= min_tau_multiple * tau_prev.max()
@@ -250,6 +255,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
             bar.update(n)
             tau = np.asarray(sampler.get_autocorr_time(tol=0), dtype=float)
             tau = np.where(np.isfinite(tau), tau, float(steps))
+            # the bar's length: what the stopping rule needs at the current τ, not the cap
+            bar.total = int(min(max_steps, max(steps + CHECK, min_tau_multiple * tau.max())))
             bar.set_postfix(tau_max=f"{tau.max():.0f}")
             if tau_prev is not None:
                 settled = np.all(np.abs(tau - tau_prev) < TAU_RTOL * tau)
@@ -258,11 +265,24 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                     converged = True
                     break
             tau_prev = tau
+            if max_seconds is not None and time.perf_counter() - t_loop >= max_seconds:
+                out_of_time = True
+                break
 
     worst = names[int(np.argmax(tau))]
     if converged:
         message = (f"converged after {steps} steps: {steps / tau.max():.0f} × τ_max "
                    f"(τ_max {tau.max():.1f} steps, {worst})")
+    elif out_of_time:
+        elapsed = time.perf_counter() - t_loop
+        need = min_tau_multiple * tau.max()
+        message = (f"stopped after {elapsed:.0f} s of sampling (the limit, "
+                   f"{max_seconds:g} s; {steps} steps) before the chain was "
+                   f"{min_tau_multiple:g} × τ_max long with τ settled; slowest parameter "
+                   f"{worst} (τ ≈ {tau.max():.0f} steps, so about {need:.0f} steps, "
+                   f"~{need / steps * elapsed:.0f} s here, would be needed): its posterior "
+                   "may be far from Gaussian or poorly identified by the data; raise the "
+                   "limit (--max-sampling-seconds) to wait for it")
     else:
         message = (f"stopped at max_steps={max_steps} before the chain was "
                    f"{min_tau_multiple:g} × τ_max long with τ settled; slowest parameter "
