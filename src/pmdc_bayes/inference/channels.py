@@ -26,7 +26,7 @@ import numpy as np
 
 from ..io.session import Session
 from ..physics import motor
-from ..physics.angle import rotor_angle
+from ..physics.angle import since_first_sample
 from ..physics.experiment import Experiment, steady_points
 from ..physics.solution import simulate_padded
 from .noise import noise_scale, typical_level
@@ -59,7 +59,7 @@ class TraceBlock(Block):
     """Every trace's speed (when logged), current (when logged) and angle (when a
     position sensor or an encoder read it), in the experiment's padded ``(C, L)`` chunk
     layout; one simulation predicts them all.  The angle is the exact integral of the
-    speed (:func:`~pmdc_bayes.physics.angle.rotor_angle`) plus the trace's fitted
+    speed (:mod:`~pmdc_bayes.physics.angle`) plus the trace's fitted
     ``position_offset_<trace>``."""
 
     key = "traces"
@@ -113,16 +113,15 @@ class TraceBlock(Block):
     def residuals(self, model, theta, d, fast: bool = False) -> list:
         exp = model.inputs(theta, d["exp"])
         p = model.circuit(theta)
-        limit = model.limit(theta)
-        ia_x, w_x = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast, limit=limit)
-        ia, w = model.sensed(theta, ia_x, w_x, d)
+        sim = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast,
+                              limit=model.limit(theta), with_angle=bool(self.offsets))
+        ia, w = model.sensed(theta, sim[0], sim[1], d)
         out = [d["speed"] - w, d["current"] - ia]
         if not self.offsets:
             return out + [jnp.zeros_like(w)]
         v = model.registry.values(theta)
         offset = jnp.stack([v[n] for n in self.offsets])[d["sample_slot"]]
-        angle = rotor_angle(p, exp, ia_x, w_x, d["t"], d["start"], coulomb=model.coulomb_path,
-                            limit=limit)
+        angle = since_first_sample(exp, sim[2], d["start"])
         return out + [d["position"] - exp.pad(offset + angle)]
 
 

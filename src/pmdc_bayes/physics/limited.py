@@ -32,7 +32,8 @@ from . import motor
 from .propagator import apply_alpha_beta, coefficients, coefficients_real
 
 __all__ = ["PHASES", "STUCK", "MOVING", "CLAMPED", "Phase", "segment_phases",
-           "state_at", "state_in_segment", "clamped_steady"]
+           "state_at", "state_in_segment", "phase_angle", "angle_in_segment",
+           "clamped_steady"]
 
 STUCK, MOVING, CLAMPED = 0, 1, 2
 PHASES = 6  # regimes followed per constant segment (e.g. stuck, moving, clamped, moving)
@@ -247,6 +248,40 @@ def state_in_segment(p, phases: Phase, va, tl, tc, limit, tau, fast=False):
         on = tau >= q.t0
         ph = jax.tree_util.tree_map(lambda a, b, on=on: jnp.where(on, b, a), ph, q)
     return state_at(p, va, tl, tc, limit, ph, tau - ph.t0, fast)
+
+
+def phase_angle(p, va, tl, tc, limit, ph: Phase, tau, ia, w):
+    """Angle turned in phase ``ph`` from its start to ``tau`` after it, where the state
+    is ``(ia, w)`` (broadcasts): none held at rest; a moving phase's from both
+    equations (:func:`~.motor.angle_increment`); a clamped one's from the mechanical
+    equation alone, ``B·∫ω = (±K·I − TL − d·Tc)·τ − J·Δω``."""
+    load = (tl + ph.d * tc) * tau
+    moving = motor.angle_increment(p.Ra, p.La, p.K, p.B, p.J, va * tau, load, ia - ph.ia,
+                                   w - ph.w)
+    clamped = (p.K * ph.s * limit * tau - load - p.J * (w - ph.w)) / p.B
+    return jnp.where(ph.mode == MOVING, moving,
+                     jnp.where((ph.mode == CLAMPED) & (ph.d != 0), clamped, 0.0))
+
+
+def angle_in_segment(p, phases: Phase, va, tl, tc, limit, tau, ia, w):
+    """Angle turned from the segment's start to ``tau`` after it, where the state is
+    ``(ia, w)``: the whole of each phase that ended before ``tau`` (from the next
+    phase's starting state) and the part of the one ``tau`` lies in; exact, and
+    continuous as the phases' times move with the parameters."""
+    ph = jax.tree_util.tree_map(lambda a: a[0], phases)
+    done = jnp.zeros_like(ph.t0)
+    before = done
+    for k in range(1, PHASES):
+        q = jax.tree_util.tree_map(lambda a, k=k: a[k], phases)
+        prev = jax.tree_util.tree_map(lambda a, k=k: a[k - 1], phases)
+        ended = jnp.isfinite(q.t0)
+        dur = jnp.where(ended, q.t0 - prev.t0, 0.0)
+        done = done + jnp.where(ended, phase_angle(p, va, tl, tc, limit, prev, dur, q.ia, q.w),
+                                0.0)
+        on = tau >= q.t0
+        ph = jax.tree_util.tree_map(lambda a, b, on=on: jnp.where(on, b, a), ph, q)
+        before = jnp.where(on, done, before)
+    return before + phase_angle(p, va, tl, tc, limit, ph, tau - ph.t0, ia, w)
 
 
 def clamped_steady(p, va, tl, tc, limit, ia, w):

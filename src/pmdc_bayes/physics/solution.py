@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 
 from . import limited, motor
+from .angle import assemble_angle
 from .experiment import (
     INITIAL_MODES,
     Experiment,
@@ -101,6 +102,8 @@ class _Segment(NamedTuple):
     ss_w: jax.Array
     t_stop: jax.Array    # stop time after breakaway (inf if it does not stop)
     i_stop: jax.Array    # current at the stop
+    w0: jax.Array        # speed at the segment start
+    d: jax.Array         # direction friction opposes while moving (0 without friction)
 
 
 def _moving(p, seg, tau_m, fast=False):
@@ -115,7 +118,7 @@ def _segment_info(p: Params, x, va, tl, length, coulomb: bool, fast: bool) -> _S
     if not coulomb:
         ss_i, ss_w = steady_state(p, va, tl)
         zero = jnp.zeros_like(ia0)
-        return _Segment(ia0, zero, ia0, w0, ss_i, ss_w, zero + inf, zero)
+        return _Segment(ia0, zero, ia0, w0, ss_i, ss_w, zero + inf, zero, w0, zero)
     at_rest = w0 == 0.0
     drive = p.K * va / p.Ra - tl
     direction = jnp.where(at_rest, jnp.where(drive >= 0, 1.0, -1.0),
@@ -131,7 +134,8 @@ def _segment_info(p: Params, x, va, tl, length, coulomb: bool, fast: bool) -> _S
     t_move = jnp.where(at_rest, jnp.where(already, 0.0, jnp.where(possible, t_break, inf)), 0.0)
     xm_i = jnp.where(at_rest & ~already, i_star, ia0)
     ss_i, ss_w = _steady_coulomb(p, va, tl, direction)
-    seg = _Segment(ia0, t_move, xm_i, w0, ss_i, ss_w, jnp.zeros_like(ia0) + inf, ia0)
+    seg = _Segment(ia0, t_move, xm_i, w0, ss_i, ss_w, jnp.zeros_like(ia0) + inf, ia0, w0,
+                   direction)
     # Stop: the moving phase crosses ω = 0 before the segment ends.
     span = jnp.clip(length - jnp.where(jnp.isfinite(t_move), t_move, length), 0.0, None)
     _, w_end = _moving(p, seg, span, fast)
@@ -181,6 +185,21 @@ def _state_in_segment(p: Params, seg: _Segment, va, tau, coulomb: bool, fast: bo
     return ia, w
 
 
+def _angle_in_segment(p: Params, seg: _Segment, va, tl, tau, ia, w):
+    """Angle turned from the segment's start to ``tau`` after it, where the state is
+    ``(ia, w)``: the moving phase's, exactly (:func:`~.motor.angle_increment`), nothing
+    while the rotor is held at rest."""
+    t_move = jnp.where(jnp.isfinite(seg.t_move), seg.t_move, 0.0)
+    moves = jnp.isfinite(seg.t_move) & (tau >= t_move)
+    dt = jnp.clip(tau - t_move, 0.0, None)
+    stopped = jnp.isfinite(seg.t_stop) & (dt >= seg.t_stop)
+    dt = jnp.where(stopped, jnp.where(jnp.isfinite(seg.t_stop), seg.t_stop, 0.0), dt)
+    i_end, w_end = jnp.where(stopped, seg.i_stop, ia), jnp.where(stopped, 0.0, w)
+    a = motor.angle_increment(p.Ra, p.La, p.K, p.B, p.J, va * dt, (tl + seg.d * p.Tc) * dt,
+                              i_end - seg.xm_i, w_end - seg.xm_w)
+    return jnp.where(moves, a, 0.0)
+
+
 def _initial_for(p: Params, va, tl, mode, x0, coulomb: bool):
     ss_i, ss_w = motor.steady_state(p.Ra, p.K, p.B, va, tl, p.Tc if coulomb else None)
     given = mode == INITIAL_MODES["given"]
@@ -197,15 +216,29 @@ def initial_state(p: Params, exp: Experiment, coulomb: bool):
 
 
 def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
-                    fast: bool = False, limit=None):
-    """Exact ``(ia, ω)`` in the experiment's padded ``(C, L)`` sample layout.
+                    fast: bool = False, limit=None, with_angle: bool = False):
+    """Exact ``(ia, ω)`` in the experiment's padded ``(C, L)`` sample layout, and with
+    ``with_angle`` the angle turned since each trace's start (rad), exact too
+    (:mod:`.angle`).
 
     ``fast=True`` assumes real, well-separated eigenvalues (:func:`real_modes`) and
     skips the complex and nearly-repeated branches; callers check that first.
     ``limit`` (A), when given, is the driver's current limit (:mod:`.limited`).
     """
     if limit is not None:
-        return _simulate_limited(p, exp, coulomb, fast, limit)
+        out = _simulate_limited(p, exp, coulomb, fast, limit, with_angle)
+    else:
+        out = _simulate_free(p, exp, coulomb, fast, with_angle)
+    if not with_angle:
+        return out[:2]
+    ia, w, totals, within, w_start = out
+    return ia, w, assemble_angle(exp, totals, within, w_start)
+
+
+def _simulate_free(p: Params, exp: Experiment, coulomb: bool, fast: bool, angle: bool):
+    """:func:`simulate_padded` without a current limit: ``(ia, ω)``, and with ``angle``
+    each segment's angle, each sample's angle since its segment's start and its
+    segment's starting speed."""
     drag = exp.seg_b is not None
     b_x = exp.seg_b if drag else jnp.zeros_like(exp.seg_va)
     tc_x = exp.seg_tc if drag else jnp.zeros_like(exp.seg_va)
@@ -223,18 +256,25 @@ def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
         x = (jnp.where(first, xi[0], x[0]), jnp.where(first, xi[1], x[1]))
         seg = _segment_info(ps, x, va, tl, length, coulomb, fast)
         x_end = _state_in_segment(ps, seg, va, length, coulomb, fast)
-        return x_end, seg
+        return x_end, (seg, _angle_in_segment(ps, seg, va, tl, length, *x_end))
 
-    _, segs = jax.lax.scan(step, x0, (exp.seg_va, exp.seg_tl, exp.seg_len, exp.seg_first,
-                                      exp.seg_mode, exp.seg_x0, b_x, tc_x))
-    per_chunk = jax.tree_util.tree_map(lambda a: a[exp.chunk_seg][:, None], segs)
-    va = exp.seg_va[exp.chunk_seg][:, None]
-    pc = with_drag(b_x[exp.chunk_seg][:, None], tc_x[exp.chunk_seg][:, None])
-    return _state_in_segment(pc, per_chunk, va, exp.tau, coulomb, fast)
+    _, (segs, totals) = jax.lax.scan(step, x0, (exp.seg_va, exp.seg_tl, exp.seg_len,
+                                                exp.seg_first, exp.seg_mode, exp.seg_x0,
+                                                b_x, tc_x))
+    c = exp.chunk_seg
+    per_chunk = jax.tree_util.tree_map(lambda a: a[c][:, None], segs)
+    va, tl = exp.seg_va[c][:, None], exp.seg_tl[c][:, None]
+    pc = with_drag(b_x[c][:, None], tc_x[c][:, None])
+    ia, w = _state_in_segment(pc, per_chunk, va, exp.tau, coulomb, fast)
+    if not angle:
+        return ia, w
+    within = _angle_in_segment(pc, per_chunk, va, tl, exp.tau, ia, w)
+    return ia, w, totals, within, per_chunk.w0
 
 
-def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, limit):
-    """:func:`simulate_padded` with a current-limited driver: each segment split into
+def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, limit,
+                      angle: bool):
+    """:func:`_simulate_free` with a current-limited driver: each segment split into
     its regimes by :func:`.limited.segment_phases`."""
     drag = exp.seg_b is not None
     b_x = exp.seg_b if drag else jnp.zeros_like(exp.seg_va)
@@ -258,16 +298,22 @@ def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, lim
         x = (jnp.where(first, xi[0], x[0]), jnp.where(first, xi[1], x[1]))
         phases = limited.segment_phases(ps, x, va, tl, ps.Tc, limit, length, coulomb, fast)
         x_end = limited.state_in_segment(ps, phases, va, tl, ps.Tc, limit, length, fast)
-        return x_end, phases
+        total = limited.angle_in_segment(ps, phases, va, tl, ps.Tc, limit, length, *x_end)
+        return x_end, (phases, total)
 
-    _, phases = jax.lax.scan(step, x0, (exp.seg_va, exp.seg_tl, exp.seg_len, exp.seg_first,
-                                        exp.seg_mode, exp.seg_x0, b_x, tc_x))
+    _, (phases, totals) = jax.lax.scan(step, x0, (exp.seg_va, exp.seg_tl, exp.seg_len,
+                                                  exp.seg_first, exp.seg_mode, exp.seg_x0,
+                                                  b_x, tc_x))
     # (segments, PHASES) → (PHASES, chunks, 1): each chunk's segment's phases.
     per_chunk = jax.tree_util.tree_map(lambda a: a[exp.chunk_seg].T[:, :, None], phases)
     c = exp.chunk_seg
     pc = seen(b_x[c][:, None], tc_x[c][:, None])
-    return limited.state_in_segment(pc, per_chunk, exp.seg_va[c][:, None],
-                                    exp.seg_tl[c][:, None], pc.Tc, limit, exp.tau, fast)
+    va, tl = exp.seg_va[c][:, None], exp.seg_tl[c][:, None]
+    ia, w = limited.state_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, fast)
+    if not angle:
+        return ia, w
+    within = limited.angle_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, ia, w)
+    return ia, w, totals, within, per_chunk.w[0]
 
 
 def simulate(p: Params, exp: Experiment, *, coulomb: bool = False):
