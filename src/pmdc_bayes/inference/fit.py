@@ -26,7 +26,8 @@ N_STARTS = 8
 START_SPREAD = 0.3
 ABANDON_AFTER = 20  # steps after which a start far below the best stops
 RELEVANT = 10.0
-SAME_OPTIMUM = 0.05  # log-posterior units: nearby finals closer than this are one optimum
+SAME_DISTANCE = 1.0  # Laplace sds (Mahalanobis) within which two finals are one optimum
+DIP = 1.0  # log-posterior units: a smaller dip between two finals is no valley
 WIDE_SPREAD = 1.0  # least log spread of the starts over the prior's range
 
 
@@ -151,44 +152,61 @@ def fit_map(model: SessionModel, *, theta0=None, n_starts: int = N_STARTS, seed:
     starts, origins = _starts(model, theta0, n_starts, rng, alternatives)
     kernel = GaussNewton(model)
     states = levenberg_marquardt(kernel.terms, starts, abandon=_far_below)
-    return _finish(model, states, origins)
+    return _finish(model, states, origins, kernel.terms)
 
 
-def _modes(thetas, logp, ok) -> list[int]:
-    """Indices of the distinct optima the starts reached (best first): two finals are
-    the same optimum when they lie within 1e-3 in θ (0.1 % in a log parameter) with
-    log-posteriors within 1e-6 (relative), or within 0.1 in θ with log-posteriors within
-    :data:`SAME_OPTIMUM` (one optimum where the solver stopped early along a flat
-    direction)."""
+def _modes(thetas, logp, ok, cov, evaluate) -> tuple[list[int], list[int]]:
+    """The distinct optima the starts reached: their indices (best first), and for each
+    start the index of the optimum it reached (-1 for one that did not converge).
+
+    Two finals are one optimum when they lie within 1e-3 in θ with log-posteriors within
+    1e-6 (relative), within :data:`SAME_DISTANCE` Laplace standard deviations of each
+    other (Mahalanobis distance under the MAP's covariance ``cov``), or on one ridge: the
+    log-posterior (``evaluate(θ).lp``) nowhere on the segment between them dips more
+    than :data:`DIP` below the lower of the two.  A distinct optimum is one a valley
+    separates from the MAP's.
+    """
     order = [int(i) for i in np.argsort(-logp) if np.isfinite(logp[i]) and ok[i]]
-    modes: list[int] = []
+    prec = _precision(cov)
 
     def same(i, j):
-        gap, dlp = np.max(np.abs(thetas[i] - thetas[j])), abs(logp[i] - logp[j])
-        return ((gap < 1e-3 and dlp < 1e-6 * max(1.0, abs(logp[j])))
-                or (gap < 0.1 and dlp < SAME_OPTIMUM))
+        d = thetas[i] - thetas[j]
+        gap, dlp = np.max(np.abs(d)), abs(logp[i] - logp[j])
+        if gap < 1e-3 and dlp < 1e-6 * max(1.0, abs(logp[j])):
+            return True
+        if float(d @ prec @ d) < SAME_DISTANCE**2:
+            return True
+        floor = min(logp[i], logp[j]) - DIP
+        return all(evaluate(thetas[j] + f * d).lp >= floor for f in (0.25, 0.5, 0.75))
 
+    modes: list[int] = []
+    label = [-1] * len(logp)
     for i in order:
-        if not any(same(i, j) for j in modes):
+        label[i] = next((j for j in modes if same(i, j)), i)
+        if label[i] == i:
             modes.append(i)
-    return modes
+    return modes, label
 
 
-def _finish(model, states, origins) -> FitResult:
+def _precision(cov) -> np.ndarray:
+    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    return (vecs / np.clip(vals, 1e-300, None)) @ vecs.T
+
+
+def _finish(model, states, origins, evaluate) -> FitResult:
     thetas = np.array([st.theta for st in states])
     logp = np.array([st.lp if np.isfinite(st.lp) else -np.inf for st in states])
     ok = np.array([st.converged for st in states])
     best = int(np.argmax(logp))
     theta = thetas[best]
-    agree = np.all(np.abs(thetas - theta) < 1e-4, axis=1) & (
-        np.abs(logp - logp[best]) < 1e-6 * max(1.0, abs(logp[best])))
-    modes = _modes(thetas, logp, ok)
+    terms = states[best].terms
+    cov, _ = laplace(model, theta, terms)
+    modes, label = _modes(thetas, logp, ok, cov, evaluate)
+    agree = np.array([lab == best for lab in label]) | (np.arange(len(states)) == best)
     starts = [{"start": i, "origin": origins[i], "log_posterior": float(logp[i]),
                "agrees": bool(agree[i]), "solver_ok": bool(ok[i]), "steps": st.steps,
                "stopped": st.stopped} for i, st in enumerate(states)]
-    terms = states[best].terms
     w = _weights(model, terms.ss)
-    cov, _ = laplace(model, theta, terms)
     sd_log = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     corr = cov / np.outer(sd_log, sd_log)
     vals = model.registry.to_values(theta)
