@@ -394,7 +394,7 @@ def _section(m: dict, r: dict, quick: bool) -> str:
         c = "—" if row["compile_s"] is None else f"{row['compile_s']:.2f}"
         L.append(f"| {row['path']} | {row['batch']} | {c} | {1e3 * row['call_s']:.3g} | "
                  f"{_fmt_rate(row['rate'])} | {_fmt_rate(row['rate'] / base_rate)} |")
-    L += ["", f"MAP fit (`fit_map`, 8 starts, Levenberg–Marquardt with reweighting): "
+    L += ["", f"MAP fit (`fit_map`, 8 starts, Levenberg–Marquardt around the compiled Gauss–Newton kernel): "
           f"{fitr['warm']:.2f} s after compilation, {fitr['cold']:.2f} s on the first call "
           f"({fitr['message']}).", ""]
     # compile
