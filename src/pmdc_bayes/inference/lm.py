@@ -27,7 +27,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..physics.solution import real_modes
 from .channels import entry_weights
 
 __all__ = ["gauss_newton", "GaussNewton", "Terms", "levenberg_marquardt", "Start"]
@@ -40,15 +39,14 @@ RESOLUTION = 0.05      # per parameter: a gap in log-posterior too small to matt
 WINDOW = 20            # accepted steps over which a crawl's progress is measured
 
 
-def gauss_newton(model, theta, *, fast: bool = False, data=None):
+def gauss_newton(model, theta, *, data=None):
     """The Gauss–Newton terms of ``model``'s log-posterior at ``θ`` (pure JAX).
 
-    Returns ``(lp, grad, H, H_noise, ss, G, real)``: the log-posterior, its gradient in
-    θ, the Gauss–Newton matrix ``H = Σ_c w_c·J_cᵀJ_c + J_pᵀJ_p`` with ``w_c = (n_c +
+    Returns ``(lp, grad, H, H_noise, ss, G)``: the log-posterior, its gradient in θ,
+    the Gauss–Newton matrix ``H = Σ_c w_c·J_cᵀJ_c + J_pᵀJ_p`` with ``w_c = (n_c +
     ν0)/(ν0·s0_c² + SS_c)``, the same less the curvature given up by not knowing the
     noise levels (``H_noise``, the Laplace approximation's Hessian), the sums of squares
-    ``SS_c``, ``G_c = J_cᵀr_c`` per channel (so ``∇SS_c = 2·G_c``), and whether the
-    motor's modes at θ are real (``fast`` is only valid where they are).
+    ``SS_c`` and ``G_c = J_cᵀr_c`` per channel (so ``∇SS_c = 2·G_c``).
 
     Notes
     -----
@@ -65,7 +63,7 @@ def gauss_newton(model, theta, *, fast: bool = False, data=None):
     n_ch = len(model.channels)
 
     def residual_vector(t):
-        parts = model._parts(t, d, fast)
+        parts = model._parts(t, d)
         r = jnp.concatenate([jnp.where(m, r, 0.0).reshape(-1) for r, m, _ in parts])
         return r, r
 
@@ -94,8 +92,7 @@ def gauss_newton(model, theta, *, fast: bool = False, data=None):
     coef = jnp.where(n > 0, w * w / (2.0 * (n + NU0)), 0.0)
     g = 2.0 * G
     H_noise = H - (g.T * coef) @ g
-    real = real_modes(model.circuit(theta))
-    return lp, grad, H, H_noise, ss, G, real
+    return lp, grad, H, H_noise, ss, G
 
 
 @dataclass(frozen=True)
@@ -117,33 +114,24 @@ class Terms:
 
 
 class GaussNewton:
-    """The compiled kernel of a model: ``terms(θ)`` evaluates :func:`gauss_newton` with
-    the fast real-mode propagator where it is valid and the general one elsewhere
-    (each compiled on first use, once per session structure)."""
+    """The compiled kernel of a model: ``terms(θ)`` evaluates :func:`gauss_newton`,
+    compiled on first use, once per session structure.
+
+    The kernel takes the general propagator (complex and nearly repeated modes too)
+    rather than choosing between it and the real-mode one per point: the fast one is
+    about three times quicker to run but a second program to compile, and the starts
+    spread over the prior's range reach complex modes, so a fit would compile both;
+    the fit's few hundred evaluations cost less than that compilation."""
 
     def __init__(self, model):
         self.model = model
-        self.general_only = bool(model.session.unknown_load_traces())  # drag moves modes
-        self._fns = {}
-
-    def _fn(self, fast: bool):
-        if fast not in self._fns:
-            model = self.model
-            self._fns[fast] = model.compiled(
-                f"gauss-newton-fast={fast}",
-                lambda: jax.jit(lambda t, d: gauss_newton(model, t, fast=fast, data=d)))
-        return self._fns[fast]
+        self._fn = model.compiled("gauss-newton", lambda: jax.jit(
+            lambda t, d: gauss_newton(model, t, data=d)))
 
     def terms(self, theta) -> Terms:
         theta = np.asarray(theta, dtype=float)
-        out = None
-        if not self.general_only:
-            out = self._fn(True)(jnp.asarray(theta), self.model.data)
-            if not bool(out[-1]):
-                out = None
-        if out is None:
-            out = self._fn(False)(jnp.asarray(theta), self.model.data)
-        lp, grad, H, H_noise, ss, G, _ = (np.asarray(x) for x in out)
+        out = self._fn(jnp.asarray(theta), self.model.data)
+        lp, grad, H, H_noise, ss, G = (np.asarray(x) for x in out)
         lp = float(lp) if np.isfinite(lp) else -np.inf
         return Terms(theta, lp, grad, H, H_noise, ss, G)
 
