@@ -165,9 +165,12 @@ class SessionModel(RigEffects):
 
     def sums_of_squares(self, theta, *, fast: bool = False, data=None):
         """Sum of squared residuals per channel."""
+        return self._sums(self._parts(theta, self._d(data), fast))
+
+    def _sums(self, parts):
         n_ch = len(self.channels)
         ss = jnp.zeros(n_ch)
-        for r, m, ch in self._parts(theta, self._d(data), fast):
+        for r, m, ch in parts:
             sq = jnp.where(m, r * r, 0.0)
             sq = sq.reshape(sq.shape[0], -1).sum(axis=1) if sq.ndim > 1 else sq
             ss = ss + jax.ops.segment_sum(sq, ch, num_segments=n_ch)
@@ -272,10 +275,10 @@ class SessionModel(RigEffects):
         broadcastable to the first: the model's prediction is the observation minus the
         residual."""
         d = self._d(data)
-        ss = self.sums_of_squares(theta, data=d)
-        var = (NU0 * d["s0"] ** 2 + ss) / (d["n_obs"] + NU0)
+        parts = self._parts(theta, d)
+        var = (NU0 * d["s0"] ** 2 + self._sums(parts)) / (d["n_obs"] + NU0)
         out = []
-        for r, _, ch in self._parts(theta, d):
+        for r, _, ch in parts:
             if r.shape[0] == 0:
                 # lax.map cannot batch an empty output: an empty array gets a dummy
                 # entry that its (empty) selection never reads.
