@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["RowFormat", "row_format"]
+__all__ = ["RowFormat", "row_format", "value_sd", "signed", "off_by"]
 
 SD_DIGITS = 2  # significant digits of an uncertainty
 
@@ -42,6 +42,19 @@ class RowFormat:
             return f"{y:.6g}"
         return f"{round(y, self.decimals):.{max(0, self.decimals)}f}"
 
+    def same_scale(self, sd) -> RowFormat:
+        """The format of another value of the row with an uncertainty of its own
+        (a bench value beside the fit): the row's scale, the decimals of ``sd``."""
+        if not (_finite(sd) and sd > 0):
+            return RowFormat(self.exponent, None)
+        return RowFormat(self.exponent, _decimals(sd / 10.0 ** self.exponent))
+
+    def interval(self, lo, hi) -> str:
+        """``[lo, hi]`` on the row's scale (``—`` when either end is missing)."""
+        if not (_finite(lo) and _finite(hi)):
+            return "—"
+        return f"[{self.value(lo)}, {self.value(hi)}]"
+
     def sd(self, s) -> str:
         """An uncertainty on the row's scale, two significant digits."""
         if not _finite(s):
@@ -69,3 +82,32 @@ def row_format(estimate, sd) -> RowFormat:
     if not has_sd:
         return RowFormat(exponent, None)
     return RowFormat(exponent, _decimals(sd / 10.0 ** exponent))
+
+
+def value_sd(value, sd) -> str:
+    """``value ± sd`` on their own scale, the scale written after them
+    (``61.9991 ± 0.0032 ×1e-3``): for a number in running text."""
+    f = row_format(value, sd)
+    text = f.value(value) if not (_finite(sd) and sd > 0) else f"{f.value(value)} ± {f.sd(sd)}"
+    return f"{text} {f.suffix}".rstrip()
+
+
+def signed(x: float, resolution: float = 0.0) -> str:
+    """``x`` with its sign and two significant digits (+24, -1.8, +0.034; whole numbers
+    from 10 up; below 0.001 one digit, +3e-05); ``0`` when ``|x|`` is below
+    ``resolution``, the smallest difference that means something."""
+    if not _finite(x):
+        return "—"
+    if x == 0 or abs(x) < resolution:
+        return "0"
+    return f"{x:+.0f}" if abs(x) >= 10 else f"{x:+.2g}" if abs(x) >= 1e-3 else f"{x:+.0e}"
+
+
+def off_by(value, estimate, sd) -> tuple[str, str] | None:
+    """How far ``value`` (the closed form) lies from ``estimate``: ``(percent, sds)`` as
+    signed strings, each ``0`` below a hundredth of an sd; None when it cannot be said
+    (a missing value, a zero estimate or no sd)."""
+    if not all(_finite(x) for x in (value, estimate, sd)) or not estimate or sd <= 0:
+        return None
+    pct, nsd = 100.0 * (value - estimate) / abs(estimate), (value - estimate) / sd
+    return signed(pct, 1e-2 * 100.0 * sd / abs(estimate)), signed(nsd, 1e-2)
