@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._format import off_by, row_format, value_sd
+from ..io.units import display_unit
 from ..paper.checks import turns
 from ..paper.closed_form import kb_from_chopper, steady_rows_with_current
 from ..physics.motor import time_constant
@@ -141,18 +143,21 @@ def _j_causes(ctx, ref, label):
     return out
 
 
-def _bench_causes(ctx, name, ref, label, unit):
+def _bench_causes(ctx, name, ref, label):
     m = getattr(ctx.session, name)
+    unit = display_unit(ctx.unit(name))
     z_bench = (m.value - ref[name]) / m.sd
     sd = ctx.sd(name)
     better = m.sd / sd if sd > 0 else float("inf")
-    text = (f"The closed form takes the bench measurement ({m.value:.4g} ± {m.sd:.2g} {unit}); "
+    text = (f"The closed form takes the bench measurement ({value_sd(m.value, m.sd)} {unit}); "
             f"it is {z_bench:+.2g} bench sd from the {label}.")
     if better > 1.5:
         text += (f" The traces determine {name} {better:.3g} times more precisely than the "
                  f"bench.")
     else:
-        text += f" The data add little to the bench measurement ({name} sd {sd:.2g} {unit})."
+        f = row_format(sd, sd)
+        text += (f" The data add little to the bench measurement ({name} sd "
+                 f"{f.sd(sd)} {f.suffix}{unit}).")
     return [text]
 
 
@@ -164,14 +169,13 @@ def compare_closed_form(ctx) -> list[dict]:
     """
     ref, label = ctx.best, ctx.best_label
     rows = []
-    units = {"Ra": "Ω", "La": "H"}
     for name in [n for n in ctx.names if n in ctx.values["closed_form"]]:
         cf = ctx.values["closed_form"][name]
         sd = ctx.sd(name)
         z = (cf - ref[name]) / sd if sd > 0 else float("nan")
         rel = cf / ref[name] - 1.0 if ref[name] != 0 else float("nan")
-        if name in units:
-            causes = _bench_causes(ctx, name, ref, label, units[name])
+        if name in ("Ra", "La"):  # bench measurements, taken as they are
+            causes = _bench_causes(ctx, name, ref, label)
         elif name == "K":
             causes = _k_causes(ctx, ref, label)
         elif name == "B":
@@ -182,9 +186,10 @@ def compare_closed_form(ctx) -> list[dict]:
             causes = [f"The closed form has no Coulomb friction (Tc = 0); the data put it at "
                       f"{ref['Tc']:.3g} N·m, {ref['Tc'] / sd:.3g} sd from zero. At the "
                       "closed form's operating point it is lumped into B (see B)."]
-        head = (f"{name}: the closed form is {100 * rel:+.3g} % from the {label}, "
-                f"{z:+.3g} sd." if name != "Tc" else
-                f"Tc: the closed form's implicit 0 is {z:+.3g} sd from the {label}.")
+        pct, nsd = off_by(cf, ref[name], sd) or ("—", "—")
+        head = (f"{name}: the closed form is {pct} % from the {label}, {nsd} sd."
+                if name != "Tc" else
+                f"Tc: the closed form's implicit 0 is {nsd} sd from the {label}.")
         rows.append({"name": name, "closed_form": cf, "reference": ref[name], "sd": sd,
                      "z": z, "relative": rel, "headline": head, "causes": causes})
     return rows
