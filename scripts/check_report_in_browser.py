@@ -56,11 +56,19 @@ def browser() -> str | None:
     return next((p for p in map(shutil.which, BROWSERS) if p), None)
 
 
+# A headless browser that reaches no network of its own and keeps no state: no QUIC,
+# no first-run, background, component-update or sync traffic, and a profile of its own
+# (a fresh, temporary --user-data-dir) for every page, so no user's profile is read or
+# locked and two checks never share one.
+FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         "--hide-scrollbars", f"--window-size={WIDTH},{HEIGHT}", "--virtual-time-budget=10000")
+
+
 def _chromium(exe: str, page: Path, *extra: str) -> str:
-    cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-           f"--window-size={WIDTH},{HEIGHT}", "--virtual-time-budget=10000", *extra,
-           page.as_uri()]
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True)
+    with tempfile.TemporaryDirectory(prefix="chromium-profile-") as profile:
+        cmd = [exe, *FLAGS, f"--user-data-dir={profile}", *extra, page.as_uri()]
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True)
     return done.stdout
 
 

@@ -50,3 +50,29 @@ def test_chromium_lays_out_what_the_check_measures(tmp_path):
         assert m["table_rows"] == ["parameter", "Ra", "K"]
         assert (check.verdict(m) == []) is fine, m
         assert (check.main([str(page)]) == 0) is fine
+
+
+def test_chromium_runs_isolated_with_a_fresh_profile_each_time(tmp_path, monkeypatch):
+    """No network traffic of its own (QUIC, first run, background, component updates,
+    sync) and a new, empty --user-data-dir for every page, removed afterwards."""
+    calls = []
+
+    def run(cmd, **kwargs):
+        profile = next(Path(a.split("=", 1)[1]) for a in cmd
+                       if a.startswith("--user-data-dir="))
+        calls.append((cmd, profile, profile.is_dir() and not any(profile.iterdir())))
+        return check.subprocess.CompletedProcess(cmd, 0, stdout="", stderr="")
+
+    monkeypatch.setattr(check.subprocess, "run", run)
+    page = tmp_path / "page.html"
+    for _ in range(2):
+        check._chromium("chromium", page, "--dump-dom")
+    for cmd, _, fresh in calls:
+        assert fresh
+        for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                     "--no-first-run", "--disable-background-networking",
+                     "--disable-component-update", "--disable-sync", "--window-size=1280,900"):
+            assert flag in cmd
+        assert cmd[-1] == page.as_uri()
+    (_, first, _), (_, second, _) = calls
+    assert first != second and not first.exists() and not second.exists()
