@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["RowFormat", "row_format", "value_sd", "signed", "off_by"]
+__all__ = ["RowFormat", "row_format", "spread_format", "value_sd", "signed", "off_by"]
 
 SD_DIGITS = 2  # significant digits of an uncertainty
 
@@ -82,6 +82,17 @@ def row_format(estimate, sd) -> RowFormat:
     if not has_sd:
         return RowFormat(exponent, None)
     return RowFormat(exponent, _decimals(sd / 10.0 ** exponent))
+
+
+def spread_format(lo, hi) -> RowFormat:
+    """The format of values known to the width of an interval ``[lo, hi]`` (a 94 %
+    range over posterior draws, with no sd of its own): the decimals that keep two
+    significant digits of the width, scale 1 (so ``[46.284, 46.303]``, not
+    ``[46.3, 46.3]``); six significant digits when the width is zero or unknown."""
+    width = hi - lo if _finite(lo) and _finite(hi) else None
+    if not width or width <= 0:
+        return RowFormat(0, None)
+    return RowFormat(0, _decimals(width))
 
 
 def value_sd(value, sd) -> str:

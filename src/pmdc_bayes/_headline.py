@@ -11,11 +11,11 @@ from __future__ import annotations
 import html
 import math
 
-from ._format import off_by, row_format
+from ._format import off_by, row_format, spread_format
 from .io.units import display_unit
 
-__all__ = ["headline_rows", "fit_table", "fit_lines", "determinability", "headline_text",
-           "headline_html"]
+__all__ = ["headline_rows", "fit_table", "fit_lines", "determinability", "pi_loop_text",
+           "headline_text", "headline_html"]
 
 EVERYTHING_DETERMINED = ("The data determine every parameter: no weakly constrained "
                          "combination, none set by its prior or bench value alone, no "
@@ -92,6 +92,29 @@ def fit_lines(summary: dict) -> list[str]:
     return [f"  {r[0]}: " + ", ".join(f"{w} {cf} → {m}" for w, cf, m
                                       in zip(kinds, r[1::2], r[2::2], strict=True) if m)
             for r in rows]
+
+
+def pi_loop_text(rec: dict) -> str:
+    """One line for people on a PI loop's margins (``summary["pi_loop"]``): at the
+    estimate and their 94 % range over posterior draws, each kind of margin written to
+    the precision of that range's width."""
+    def margin(x, f, unit):
+        return "∞" if x is None else f"{f.value(x)}{unit}"
+
+    a, d = rec["at_estimate"], rec.get("over_draws")
+    pm, gm = (d["phase_margin_deg"], d["gain_margin_db"]) if d else ((None,) * 3,) * 2
+    fp = spread_format(pm[0], pm[2])
+    fg = spread_format(gm[0], gm[2])
+    text = (f"PI loop kp={rec['kp']:g}, ki={rec['ki']:g}"
+            + (f", delay {rec['delay'] * 1e3:g} ms" if rec["delay"] else "")
+            + f": phase margin {margin(a['phase_margin_deg'], fp, '°')}, gain margin "
+              f"{margin(a['gain_margin_db'], fg, ' dB')}")
+    if not d:
+        return text + " (no posterior draws: no spread)"
+    return text + (f"; over {d['n']} posterior draws, 94 % of phase margins in "
+                   f"[{margin(pm[0], fp, '°')}, {margin(pm[2], fp, '°')}], of gain margins in "
+                   f"[{margin(gm[0], fg, ' dB')}, {margin(gm[2], fg, ' dB')}]; "
+                   f"{100 * d['share_pm_below_45']:.0f} % of draws under 45°")
 
 
 def headline_text(summary: dict) -> str:

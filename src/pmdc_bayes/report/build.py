@@ -211,9 +211,9 @@ def _export(ctx) -> tuple[Section, dict]:
                    f"{ctx.cf_label}. Coulomb friction is not part of the linear model.",
                    response_figure(ctx)))
     if "pi_loop" in ctx.summary:
-        from ..physics.loop import describe_pi_loop
+        from .._headline import pi_loop_text
 
-        sec.add(Paragraph(describe_pi_loop(ctx.summary["pi_loop"]) + " (fit --pi)."))
+        sec.add(Paragraph(pi_loop_text(ctx.summary["pi_loop"]) + " (fit --pi)."))
     return sec, model
 
 
