@@ -43,6 +43,9 @@ window.addEventListener("load", () => {
       out.table_right = box.right;
       out.table_rows = Array.from(table.rows).map(r => r.cells[0].textContent);
     }
+    let next = head.nextElementSibling;
+    while (next && next.tagName !== "H2") next = next.nextElementSibling;
+    out.section_bottom = next ? next.getBoundingClientRect().top : null;
   }
   const pre = document.createElement("pre");
   pre.id = "first-screen-check";
@@ -131,7 +134,8 @@ def main(argv=None) -> int:
     print(f"window {WIDTH}×{HEIGHT} (page viewport {m['viewport'][0]}×{m['viewport'][1]}): "
           f"verdict ends at {m.get('verdict_bottom') or 0:.0f} px, parameter table "
           f"({', '.join(m.get('table_rows', [])[1:])}) ends at "
-          f"{m.get('table_bottom') or 0:.0f} px")
+          f"{m.get('table_bottom') or 0:.0f} px; the whole first section ends at "
+          f"{m.get('section_bottom') or 0:.0f} px")
     problems = verdict(m)
     for p in problems:
         print(f"FIRST SCREEN: {p}")

@@ -37,7 +37,8 @@ def _page(spacer_px: int) -> str:
             f'<div style="height:{spacer_px}px"></div>'
             '<h2 id="s0">At a glance</h2><p>Model adequate: the data do not reject the '
             "fitted model.</p><h3>Parameters</h3><table><tr><th>parameter</th></tr>"
-            "<tr><td>Ra</td></tr><tr><td>K</td></tr></table></body></html>")
+            "<tr><td>Ra</td></tr><tr><td>K</td></tr></table><p>Fit % per trace</p>"
+            "<h2>Model adequacy</h2></body></html>")
 
 
 def test_chromium_lays_out_what_the_check_measures(tmp_path):
@@ -48,6 +49,7 @@ def test_chromium_lays_out_what_the_check_measures(tmp_path):
         page.write_text(_page(spacer), encoding="utf-8")
         m = check.measure(page)
         assert m["table_rows"] == ["parameter", "Ra", "K"]
+        assert m["table_bottom"] < m["section_bottom"] < m["table_bottom"] + 200
         assert (check.verdict(m) == []) is fine, m
         assert (check.main([str(page)]) == 0) is fine
 

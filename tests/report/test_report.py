@@ -107,6 +107,9 @@ def test_the_first_screen_in_a_browser_shows_the_verdict_and_the_headline(demo_r
     m = check.measure(demo_run / "report.html", screenshot=tmp_path / "first.png")
     assert check.verdict(m) == []
     assert m["table_rows"][1:] == ["Ra", "La", "K", "B", "J", "Tc"]
+    # the whole of 'At a glance' (fit % per trace, what the data cannot determine too)
+    # lies within the 1280×900 window
+    assert m["section_bottom"] <= check.HEIGHT
     assert (tmp_path / "first.png").read_bytes().startswith(PNG_MAGIC)
 
 
