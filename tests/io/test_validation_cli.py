@@ -73,7 +73,8 @@ STEP_UNITS = 'units = { time = "s", speed = "rpm", current = "A", voltage = "V" 
 # (case id, mutation, substrings the one-line error must contain)
 CASES = [
     # files and directories
-    ("missing-directory", _missing_dir, ["no_such_session", "no such session directory"]),
+    ("missing-directory", _missing_dir, ["no_such_session", "no such session directory",
+                                         "bundled session (paper, demo, bench)"]),
     ("missing-session-toml", _delete(TOML), [TOML, "file not found", "must hold session.toml"]),
     ("missing-trace-csv", _delete("step.csv"), ["step.csv", "file not found"]),
     ("missing-table-csv", _delete("sweep.csv"), ["sweep.csv", "file not found"]),
