@@ -193,3 +193,41 @@ def test_the_comparison_is_titled_for_what_it_compares_with():
         table = comparison_table(ctx, [])
         assert "posterior" not in table.title
         assert table.header[3] == ("posterior mean" if posterior else "MAP")
+
+
+def test_the_closed_form_s_causes_write_amounts_as_the_tables_write_the_parameter():
+    """Each part of a closed-form difference on its parameter's scale, to the decimals
+    its sd supports, with its unit: no '+0.000137 of the +2.08e-05 V·s/rad'."""
+    from pmdc_bayes import closed_form, load_session
+    from pmdc_bayes.report.comparison import compare_closed_form
+
+    session = load_session("demo")
+    ctx = _ctx(True)
+    ctx.session, ctx.cf = session, closed_form(session)
+    ctx.values["closed_form"] = dict(ctx.cf.params(), Tc=0.0)
+    rows = {r["name"]: r for r in compare_closed_form(ctx)}
+    text = " ".join(" ".join(r["causes"]) for r in rows.values())
+    assert not re.search(r"(?<![×\d.])\d+(\.\d+)?e[-+]\d", text)  # no "2.08e-05" in the text
+    k = rows["K"]["causes"]
+    assert re.search(r"gives K = 62\.0199 ×1e-3 V·s/rad; with the posterior mean Ra = "
+                     r"8\.499\d\d Ω it gives 61\.\d{4} ×1e-3 V·s/rad, so Ra accounts for "
+                     r"\+0\.\d{4} ×1e-3 V·s/rad of the \+0\.02\d\d ×1e-3 V·s/rad difference",
+                     k[0]), k[0]
+    assert re.search(r"Tc = 2\.5\d{3} ×1e-3 N·m at ω = .* Tc/ω = \+10\.\d{3} ×1e-6 N·m·s/rad",
+                     rows["B"]["causes"][1]), rows["B"]["causes"][1]
+    assert re.search(r"up to \d+\.\d\d ×1e-6 kg·m²\)", " ".join(rows["J"]["causes"]))
+    assert "(8.35 ± 0.10 Ω)" in rows["Ra"]["causes"][0]
+    assert rows["K"]["headline"].startswith("K: the closed form is +0.034 % from the "
+                                            "posterior mean, +6.")
+
+
+def test_the_diagnostics_name_the_stages_in_words():
+    from pmdc_bayes.report.tables import diagnostics_table
+
+    ctx = _ctx(True)
+    ctx.summary["fit"] = {"status": "converged", "message": "converged", "starts": []}
+    ctx.summary["diagnostics"] = {"gates_passed": True, "wall_s": {
+        "closed_form": 0.01, "map": 33.7, "adequacy": 1.0, "mcmc": 14.3, "report": 11.3,
+        "total": 60.3}}
+    row = next(r for r in diagnostics_table(ctx).rows if r[0] == "wall time (s)")
+    assert row[1] == "closed form 0.0, MAP 33.7, adequacy 1.0, MCMC 14.3, report 11.3, total 60.3"

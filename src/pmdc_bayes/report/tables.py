@@ -112,6 +112,10 @@ def derived_table(ctx) -> Table:
     return Table(TABLE_TITLES["derived"], header, tuple(rows), note)
 
 
+# The stages of a run (keys of summary.json's diagnostics.wall_s), as people name them.
+_STAGES = {"closed_form": "closed form", "map": "MAP", "mcmc": "MCMC"}
+
+
 def diagnostics_table(ctx) -> Table:
     s = ctx.summary
     diag = s.get("diagnostics", {})
@@ -137,7 +141,8 @@ def diagnostics_table(ctx) -> Table:
                      r["note"] or "agrees within 20 %"))
     wall = diag.get("wall_s", {})
     if wall:
-        rows.append(("wall time (s)", ", ".join(f"{k} {v:.1f}" for k, v in wall.items()), ""))
+        rows.append(("wall time (s)", ", ".join(f"{_STAGES.get(k, k.replace('_', ' '))} "
+                                                f"{v:.1f}" for k, v in wall.items()), ""))
     return Table(TABLE_TITLES["diagnostics"], ("check", "result", "detail"), tuple(rows))
 
 
