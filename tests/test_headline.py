@@ -5,8 +5,14 @@ also when they determine everything."""
 from __future__ import annotations
 
 from pmdc_bayes._console import print_fit
-from pmdc_bayes._headline import (EVERYTHING_DETERMINED, determinability, fit_table,
-                                  headline_html, headline_text, pi_loop_text)
+from pmdc_bayes._headline import (
+    EVERYTHING_DETERMINED,
+    determinability,
+    fit_table,
+    headline_html,
+    headline_text,
+    pi_loop_text,
+)
 
 CHANNELS = {
     "step_12v97: speed": {"fit_percent_closed_form": 96.44, "fit_percent_map": 99.21},

@@ -15,8 +15,13 @@ from pmdc_bayes.inference.derived import derived_quantities
 from pmdc_bayes.report import fig_params
 from pmdc_bayes.report._plot import scale_of
 from pmdc_bayes.report.adequacy import bench_table
-from pmdc_bayes.report.tables import (comparison_table, derived_table, laplace_sd, rms_table,
-                                      transfer_table)
+from pmdc_bayes.report.tables import (
+    comparison_table,
+    derived_table,
+    laplace_sd,
+    rms_table,
+    transfer_table,
+)
 
 NAMES = ("Ra", "La", "K", "B", "J", "Tc")
 UNITS = dict(zip(NAMES, ("ohm", "H", "V*s/rad", "N*m*s/rad", "kg*m^2", "N*m"), strict=True))
