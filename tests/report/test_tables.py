@@ -51,8 +51,9 @@ def _ctx(posterior: bool):
                           best=values.get("mean", values["map"]),
                           best_label="posterior mean" if posterior else "MAP",
                           cf_label="closed form", truth=None,
-                          model=SimpleNamespace(registry={n: SimpleNamespace(transform="log")
-                                                          for n in NAMES}))
+                          model=SimpleNamespace(registry={
+                              n: SimpleNamespace(transform="log", description=f"the {n}")
+                              for n in NAMES}))
     ctx.unit = lambda n: UNITS[n]
     ctx.sd = lambda n: SD[n]
     ctx.covariance = lambda: np.diag([SD[n] ** 2 for n in NAMES])
@@ -236,3 +237,20 @@ def test_the_diagnostics_name_the_stages_in_words():
         "total": 60.3}}
     row = next(r for r in diagnostics_table(ctx).rows if r[0] == "wall time (s)")
     assert row[1] == "closed form 0.0, MAP 33.7, adequacy 1.0, MCMC 14.3, report 11.3, total 60.3"
+
+
+def test_the_rig_s_parameters_are_explained_in_words_under_the_table():
+    from pmdc_bayes.report.tables import parameter_table
+
+    ctx = _ctx(False)
+    assert "rig's parameters" not in parameter_table(ctx).note  # the motor's alone
+    name = "dead_time_step_12v"
+    ctx.names = (*NAMES, name)
+    ctx.summary["parameters"][name] = {"unit": "s", "closed_form": None, "map": 2.1e-3,
+                                       "map_sd": 1.2e-4}
+    ctx.model.registry[name] = SimpleNamespace(
+        transform="identity", description="dead time of trace 'step_12v'")
+    table = parameter_table(ctx)
+    assert table.rows[-1][:4] == (name, "×1e-3 s", "— (none)", "2.10 ± 0.12")
+    assert table.note.endswith("The rig's parameters (named as in summary.json): "
+                               "dead_time_step_12v: dead time of trace 'step_12v'.")

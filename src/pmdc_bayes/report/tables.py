@@ -26,6 +26,9 @@ TABLE_TITLES = {
 }
 
 
+_MOTOR = ("Ra", "La", "K", "B", "J", "Tc")  # named as in the paper; the rig's are explained
+
+
 def parameter_table(ctx) -> Table:
     post = ctx.has_posterior
     header = ["parameter", "unit", "closed form", "MAP ± sd"]
@@ -53,6 +56,10 @@ def parameter_table(ctx) -> Table:
             "approximation at the MAP. "
             + ("Posterior: emcee ensemble; R-hat is ArviZ's rank-normalised split R-hat with "
                "walkers as chains." if post else "No posterior was sampled (--no-mcmc)."))
+    rig = [f"{n}: {ctx.model.registry[n].description}" for n in ctx.names
+           if n not in _MOTOR and ctx.model.registry[n].description]
+    if rig:
+        note += " The rig's parameters (named as in summary.json): " + "; ".join(rig) + "."
     return Table(TABLE_TITLES["parameters"], tuple(header), tuple(rows), note)
 
 
