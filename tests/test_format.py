@@ -12,6 +12,10 @@ from pmdc_bayes._format import off_by, row_format, signed
     (7.27e-5, 7.61e-4, "70", "760", "×1e-6 "),      # an sd larger than the value
     (12345.6, 78.0, "12.346", "0.078", "×1e3 "),
     (-3.2e-3, 1e-4, "-3.20", "0.10", "×1e-3 "),
+    # an sd whose rounding carries into the next power of ten keeps two digits
+    (1.23e-3, 0.9962e-3, "1.2", "1.0", "×1e-3 "),
+    (0.5012, 0.0996, "0.50", "0.10", ""),
+    (1234.0, 99.7, "1230", "100", ""),
 ])
 def test_a_value_keeps_the_digits_its_sd_supports(value, sd, shown, shown_sd, suffix):
     f = row_format(value, sd)

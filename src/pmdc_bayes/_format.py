@@ -67,8 +67,13 @@ class RowFormat:
 
 
 def _decimals(y: float) -> int:
-    """Decimals that keep two significant digits of ``y`` (negative: round to tens...)."""
-    return SD_DIGITS - 1 - math.floor(math.log10(abs(y)))
+    """Decimals that keep two significant digits of ``y`` (negative: round to tens...);
+    one fewer when the rounding carries into the next power of ten (0.996 → 1.0, not
+    1.00)."""
+    d = SD_DIGITS - 1 - math.floor(math.log10(abs(y)))
+    if abs(round(y, d)) >= 10.0 ** (SD_DIGITS - d):
+        d -= 1
+    return d
 
 
 def row_format(estimate, sd) -> RowFormat:
