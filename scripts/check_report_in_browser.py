@@ -43,6 +43,9 @@ window.addEventListener("load", () => {
       out.table_right = box.right;
       out.table_rows = Array.from(table.rows).map(r => r.cells[0].textContent);
     }
+    let next = head.nextElementSibling;
+    while (next && next.tagName !== "H2") next = next.nextElementSibling;
+    out.section_bottom = next ? next.getBoundingClientRect().top : null;
   }
   const pre = document.createElement("pre");
   pre.id = "first-screen-check";
@@ -56,17 +59,40 @@ def browser() -> str | None:
     return next((p for p in map(shutil.which, BROWSERS) if p), None)
 
 
-def _chromium(exe: str, page: Path, *extra: str) -> str:
-    cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-           f"--window-size={WIDTH},{HEIGHT}", "--virtual-time-budget=10000", *extra,
-           page.as_uri()]
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True)
+# A headless browser that reaches no network of its own and keeps no state: no QUIC,
+# no first-run, background, component-update or sync traffic, and a profile of its own
+# (a fresh, temporary --user-data-dir) for every page, so no user's profile is read or
+# locked and two checks never share one.
+FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         "--hide-scrollbars", "--virtual-time-budget=10000")
+
+
+def _chromium(exe: str, page: Path, *extra: str, height: int = HEIGHT) -> str:
+    with tempfile.TemporaryDirectory(prefix="chromium-profile-") as profile:
+        cmd = [exe, *FLAGS, f"--window-size={WIDTH},{height}", f"--user-data-dir={profile}",
+               *extra, page.as_uri()]
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True)
     return done.stdout
+
+
+def _measured(exe: str, page: Path, height: int) -> dict:
+    dom = _chromium(exe, page, "--dump-dom", height=height)
+    found = re.search(r'<pre id="first-screen-check">(.*?)</pre>', dom, flags=re.S)
+    if not found:
+        raise RuntimeError("the browser did not run the measuring script")
+    return json.loads(html.unescape(found.group(1)))
 
 
 def measure(report: Path, screenshot: Path | None = None) -> dict:
     """Where the first section's verdict and headline table lie in a 1280×900 viewport
-    (CSS pixels from the top), as the browser laid them out."""
+    (CSS pixels from the top), as the browser laid them out.
+
+    Chromium's headless mode counts its (invisible) bars in ``--window-size`` when it
+    lays out a page for ``--dump-dom`` (a 900 px window gives the page 757 or 813 px,
+    as the profile goes), not for ``--screenshot``; so the measuring window is made
+    taller by what the bars took, and the page is measured in the same 1280×900
+    viewport the screenshot shows (``viewport`` in the result says what it had)."""
     exe = browser()
     if exe is None:
         raise FileNotFoundError("no Chromium found (" + ", ".join(BROWSERS) + ")")
@@ -74,15 +100,15 @@ def measure(report: Path, screenshot: Path | None = None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         page = Path(tmp) / "report.html"
         page.write_text(text.replace("</body>", _MEASURE + "</body>"), encoding="utf-8")
-        dom = _chromium(exe, page, "--dump-dom")
+        m = _measured(exe, page, HEIGHT)
+        bars = HEIGHT - m["viewport"][1]
+        if bars > 0:
+            m = _measured(exe, page, HEIGHT + bars)
         if screenshot is not None:
             plain = Path(tmp) / "plain.html"
             plain.write_text(text, encoding="utf-8")
             _chromium(exe, plain, f"--screenshot={Path(screenshot).resolve()}")
-    found = re.search(r'<pre id="first-screen-check">(.*?)</pre>', dom, flags=re.S)
-    if not found:
-        raise RuntimeError("the browser did not run the measuring script")
-    return json.loads(html.unescape(found.group(1)))
+    return m
 
 
 def verdict(m: dict) -> list[str]:
@@ -120,10 +146,11 @@ def main(argv=None) -> int:
     except FileNotFoundError as exc:
         print(f"{exc}; install one (Debian: apt-get install chromium)", file=sys.stderr)
         return 2
-    print(f"window {WIDTH}×{HEIGHT} (page viewport {m['viewport'][0]}×{m['viewport'][1]}): "
+    print(f"page viewport {m['viewport'][0]}×{m['viewport'][1]}: "
           f"verdict ends at {m.get('verdict_bottom') or 0:.0f} px, parameter table "
           f"({', '.join(m.get('table_rows', [])[1:])}) ends at "
-          f"{m.get('table_bottom') or 0:.0f} px")
+          f"{m.get('table_bottom') or 0:.0f} px; the whole first section ends at "
+          f"{m.get('section_bottom') or 0:.0f} px")
     problems = verdict(m)
     for p in problems:
         print(f"FIRST SCREEN: {p}")

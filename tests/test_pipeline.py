@@ -47,11 +47,42 @@ def test_demo_hdi_contains_truth_and_gates_pass(demo_run):
 
 @pytest.mark.slow
 def test_posterior_file_has_the_arviz_groups(demo_run):
+    """posterior.nc as a user opens it: every group, a channel per trace and quantity on
+    its sample times with its unit, and ArviZ's summary, LOO, LOO-PIT and predictive
+    plots working on the file read back."""
+    import warnings
+
+    import numpy as np
+
     out, _ = demo_run
     idata = az.from_netcdf(out / "posterior.nc")
-    for group in ("posterior", "sample_stats", "observed_data", "log_likelihood"):
+    for group in ("posterior", "sample_stats", "observed_data", "log_likelihood",
+                  "posterior_predictive"):
         assert group in idata.groups()
     assert set(idata.posterior.data_vars) >= {"Ra", "La", "K", "B", "J", "Tc"}
+    assert idata.posterior["B"].attrs["units"] == "N*m*s/rad"
+    speed = "step_12v97_speed"
+    assert set(idata.observed_data.data_vars) == set(idata.log_likelihood.data_vars) == set(
+        idata.posterior_predictive.data_vars) >= {speed, "step_12v97_current", "steady_speed"}
+    assert idata.observed_data[speed].attrs["units"] == "rad/s"
+    times = idata.observed_data[speed][f"{speed}_time"].values
+    assert times[0] >= 0.0 and np.all(np.diff(times) > 0)  # seconds, in order
+    assert idata.posterior_predictive[speed].dims == ("chain", "draw", f"{speed}_time")
+    table = az.summary(idata, var_names=["K", "B"], round_to="none")
+    assert 0 < table.loc["B", "sd"] < table.loc["B", "mean"]  # B is not "0.000"
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Estimated shape parameter of Pareto",
+                                category=UserWarning)
+        warnings.filterwarnings("ignore", message="Passing a dict or None as alias_mapping")
+        loo = az.loo(idata, var_name=speed, pointwise=True)
+        assert loo.loo_i.shape == times.shape and np.isfinite(loo.elpd_loo)
+        pit = az.loo_pit(idata, y=speed)
+        assert pit.shape == times.shape and np.all((pit >= 0) & (pit <= 1))
+        import matplotlib.pyplot as plt
+
+        az.plot_ppc(idata, var_names=[speed], num_pp_samples=20)
+        az.plot_loo_pit(idata, y=speed)
+        plt.close("all")
 
 
 @pytest.mark.slow

@@ -3,6 +3,7 @@ headline a result shows, and arguments refused before any work."""
 
 from __future__ import annotations
 
+import os
 import re
 import warnings
 from pathlib import Path
@@ -139,3 +140,66 @@ def test_a_session_changed_in_memory_is_fitted_but_not_written_as_a_run(tmp_path
     with pytest.raises(pmdc_bayes.UsageError, match="changed in memory"):
         result.write(tmp_path / "run")
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.slow
+def test_fit_computes_in_64_bits_and_leaves_the_callers_jax_setting_as_it_was():
+    """In a fresh interpreter, JAX starts in 32-bit mode (the test suite's conftest
+    switches 64-bit on for itself, so this runs apart): the fit still computes in 64
+    bits, gets the demo's K to its sd, and JAX is still in 32-bit mode afterwards."""
+    import subprocess
+    import sys
+
+    code = """
+import jax, numpy as np, pmdc_bayes
+assert not jax.config.jax_enable_x64
+r = pmdc_bayes.fit("demo", mcmc=False, progress=False)
+assert not jax.config.jax_enable_x64 and jax.numpy.zeros(1).dtype == np.float32
+assert np.asarray(r.fit.theta).dtype == np.float64 and np.asarray(r.fit.cov_log).dtype == np.float64
+p = r.summary["parameters"]["K"]
+assert r.summary["fit"]["status"] == "converged", r.summary["fit"]["message"]
+assert abs(p["map"] - 0.062) < 3 * p["map_sd"] and p["map_sd"] < 1e-5, p
+print("ok")
+"""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("JAX_")}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=600, env=env)
+    assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-2000:]
+
+
+@pytest.mark.slow
+def test_use_cache_keeps_compiled_programs_for_a_later_interpreter(tmp_path):
+    """pmdc_bayes.use_cache(dir) from Python: the first interpreter's fit stores its
+    programs there; a second interpreter's fit loads them instead of writing anew and
+    finds the same MAP to the last digit; JAX's 64-bit mode is left off in both."""
+    import json
+    import subprocess
+    import sys
+
+    from conftest import write_session
+
+    session = write_session(tmp_path / "sess")
+    cache_dir = tmp_path / "programs"
+    code = f"""
+import json, jax, pmdc_bayes
+from jax import export
+exported, real = [], export.export
+export.export = lambda *a, **k: exported.append(1) or real(*a, **k)  # count the exports
+root = pmdc_bayes.use_cache({str(cache_dir)!r})
+r = pmdc_bayes.fit({str(session)!r}, mcmc=False, progress=False)
+assert not jax.config.jax_enable_x64
+print(json.dumps({{"root": str(root), "K": r.values()["map"]["K"], "exported": len(exported)}}))
+"""
+    runs = []
+    for _ in range(2):
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              timeout=600, env=dict(os.environ, PMDC_BAYES_CACHE="/nonexistent"))
+        assert done.returncode == 0, done.stderr[-2000:]
+        stored = {p: p.stat().st_mtime_ns for p in cache_dir.glob("export/*/*.jaxexport")}
+        runs.append((json.loads(done.stdout.strip().splitlines()[-1]), stored))
+    (first, stored1), (second, stored2) = runs
+    assert first["root"] == str(cache_dir) and stored1  # programs were written there
+    assert first["exported"] == len(stored1)
+    # the second interpreter loaded them: it traced and exported none, rewrote none
+    assert second["exported"] == 0 and stored2 == stored1
+    assert second["K"] == first["K"]

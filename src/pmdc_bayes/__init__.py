@@ -19,6 +19,7 @@ __all__ = [
     "read_run",
     "run_fit",
     "simulate_session",
+    "use_cache",
     "write_report",
     "__version__",
 ]
@@ -36,6 +37,7 @@ _LAZY = {
     "fit_session": ".pipeline",
     "run_fit": ".pipeline",
     "simulate_session": ".simulate.session",
+    "use_cache": ".cachedir",
     "write_report": ".report",
 }
 

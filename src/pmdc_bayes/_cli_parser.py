@@ -160,13 +160,14 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                     "[\"trace\", ...] "
                     "names the traces), speed-gain, speed-offset, current-gain or "
                     "current-offset (a calibration error of the traces' sensor), "
-                    "source-resistance (the logged voltage is the supply's); same as "
-                    "[model] in session.toml")
+                    "source-resistance (the logged voltage is the supply's), "
+                    "current-limit (the driver's, fitted; current_limit = A in [model] "
+                    "gives its setting); same as [model] in session.toml")
     ft.add_argument("--compare", action="store_true",
                     help="fit the candidate sets of rig non-idealities (ideal, + dead-time, "
-                    "+ speed-lag, + voltage-drop, + voltage-drop with either), check each for "
-                    "adequacy, compare the adequate ones by LOO, and run the simplest "
-                    "adequate one")
+                    "+ speed-lag, + voltage-drop, + voltage-drop with either, + unknown-load, "
+                    "+ current-limit), check each for adequacy, compare the adequate ones "
+                    "by LOO, and run the simplest adequate one")
     ft.add_argument("--allow-inadequate", action="store_true",
                     help="go on (sample the posterior, exit 0) even when the adequacy checks "
                     "reject the model; every value stays labelled as conditional on it")

@@ -5,7 +5,7 @@ scale) and the findings."""
 from __future__ import annotations
 
 from ._format import row_format
-from ._headline import headline_rows
+from ._headline import determinability, fit_lines, headline_rows, pi_loop_text
 from .io.units import display_unit
 
 __all__ = ["print_fit", "print_adequacy"]
@@ -63,10 +63,13 @@ def print_fit(summary: dict, out) -> bool:
     if off:
         print(f"The closed form is off by more than 2 sd: {', '.join(off)}.")
     if "pi_loop" in summary:
-        from .physics.loop import describe_pi_loop
-
-        print(describe_pi_loop(summary["pi_loop"]) + ".")
-    for line in summary["identifiability"]["findings"]:
+        print(pi_loop_text(summary["pi_loop"]) + ".")
+    fits = fit_lines(summary)
+    if fits:
+        print("Fit % per trace (closed form → MAP):")
+        for line in fits:
+            print(line)
+    for line in determinability(summary):
         print(f"- {line}")
     for row in summary.get("laplace_check", []):
         if row["flagged"]:

@@ -1,7 +1,9 @@
 """The headline of a fit, as text and as HTML: the verdict first, then each parameter
-rounded to its uncertainty beside the closed form and how far the closed form is off.
+rounded to its uncertainty beside the closed form and how far the closed form is off,
+the fit % of each trace (closed form against MAP) and what the data cannot determine.
 
-What ``repr`` and a notebook show for a :class:`~pmdc_bayes.RunResult`.
+What ``repr`` and a notebook show for a :class:`~pmdc_bayes.RunResult`, what
+``pmdc-bayes fit`` prints and what the report's first section, "At a glance", holds.
 """
 
 from __future__ import annotations
@@ -9,10 +11,15 @@ from __future__ import annotations
 import html
 import math
 
-from ._format import row_format
+from ._format import off_by, row_format, spread_format
 from .io.units import display_unit
 
-__all__ = ["headline_rows", "headline_text", "headline_html"]
+__all__ = ["headline_rows", "fit_table", "fit_lines", "determinability", "pi_loop_text",
+           "headline_text", "headline_html"]
+
+EVERYTHING_DETERMINED = ("The data determine every parameter: no weakly constrained "
+                         "combination, none set by its prior or bench value alone, no "
+                         "strongly correlated pair.")
 
 
 def _verdict(summary: dict) -> str:
@@ -21,11 +28,6 @@ def _verdict(summary: dict) -> str:
         return "model adequate: the data do not reject the fitted model"
     return "MODEL INADEQUATE: the data reject the fitted model; the values below are " \
            "conditional on it"
-
-
-def _signed(x: float) -> str:
-    """Two significant digits: +24, -1.8, +0.034, +256; below 0.001 one digit, +3e-05."""
-    return f"{x:+.0f}" if abs(x) >= 10 else f"{x:+.2g}" if abs(x) >= 1e-3 else f"{x:+.0e}"
 
 
 def headline_rows(summary: dict) -> list[dict]:
@@ -40,15 +42,79 @@ def headline_rows(summary: dict) -> list[dict]:
         f = row_format(est, sd)
         cf = p.get("closed_form")
         off, nsd = "", None
-        if all(x is not None and math.isfinite(x) for x in (cf, est, sd)) and est and sd > 0:
-            pct, nsd = 100.0 * (cf - est) / abs(est), (cf - est) / sd
-            off = f"{_signed(pct)} %, {_signed(nsd)} sd"
+        parts = off_by(cf, est, sd)
+        if parts is not None:
+            nsd = (cf - est) / sd
+            off = f"{parts[0]} %, {parts[1]} sd"
         rows.append({"name": name, "estimate": f.value(est), "sd": f.sd(sd),
                      "unit": f"{f.suffix}{display_unit(p['unit'])}".strip(),
                      "closed_form": f.value(cf) if cf is not None else "—", "off": off,
                      "off_sd": nsd,
                      "source": "posterior mean" if post else "MAP"})
     return rows
+
+
+def _percent(x) -> str:
+    return f"{x:.1f}" if x is not None and math.isfinite(x) else "—"
+
+
+def fit_table(summary: dict) -> tuple[tuple, list[tuple]]:
+    """The fit % (MATLAB's compare) of each trace's channels, closed form and MAP side
+    by side: ``(header, rows)``, one row per trace (channels named ``"trace: what"``),
+    cells already strings; no rows without per-channel statistics."""
+    traces: dict[str, dict] = {}
+    for name, c in summary.get("adequacy", {}).get("channels", {}).items():
+        if c.get("fit_percent_map") is None:
+            continue
+        trace, _, what = name.rpartition(": ")
+        traces.setdefault(trace or name, {})[what or "signal"] = (
+            _percent(c.get("fit_percent_closed_form")), _percent(c["fit_percent_map"]))
+    kinds = list(dict.fromkeys(w for chans in traces.values() for w in chans))
+    header = ("trace", *(f"{w}: {m}" for w in kinds for m in ("closed form", "MAP")))
+    rows = [(trace, *(x for w in kinds for x in chans.get(w, ("", ""))))
+            for trace, chans in traces.items()]
+    return header, rows
+
+
+def determinability(summary: dict) -> list[str]:
+    """What the data cannot determine, in sentences; that they determine everything
+    when the identifiability analysis found nothing."""
+    ident = summary.get("identifiability")
+    if ident is None:
+        return []
+    return list(ident.get("findings") or []) or [EVERYTHING_DETERMINED]
+
+
+def fit_lines(summary: dict) -> list[str]:
+    """:func:`fit_table` as indented lines for a terminal, ``"  trace: speed 96.4 → 99.2"``."""
+    header, rows = fit_table(summary)
+    kinds = [h.split(": ")[0] for h in header[1::2]]
+    return [f"  {r[0]}: " + ", ".join(f"{w} {cf} → {m}" for w, cf, m
+                                      in zip(kinds, r[1::2], r[2::2], strict=True) if m)
+            for r in rows]
+
+
+def pi_loop_text(rec: dict) -> str:
+    """One line for people on a PI loop's margins (``summary["pi_loop"]``): at the
+    estimate and their 94 % range over posterior draws, each kind of margin written to
+    the precision of that range's width."""
+    def margin(x, f, unit):
+        return "∞" if x is None else f"{f.value(x)}{unit}"
+
+    a, d = rec["at_estimate"], rec.get("over_draws")
+    pm, gm = (d["phase_margin_deg"], d["gain_margin_db"]) if d else ((None,) * 3,) * 2
+    fp = spread_format(pm[0], pm[2])
+    fg = spread_format(gm[0], gm[2])
+    text = (f"PI loop kp={rec['kp']:g}, ki={rec['ki']:g}"
+            + (f", delay {rec['delay'] * 1e3:g} ms" if rec["delay"] else "")
+            + f": phase margin {margin(a['phase_margin_deg'], fp, '°')}, gain margin "
+              f"{margin(a['gain_margin_db'], fg, ' dB')}")
+    if not d:
+        return text + " (no posterior draws: no spread)"
+    return text + (f"; over {d['n']} posterior draws, 94 % of phase margins in "
+                   f"[{margin(pm[0], fp, '°')}, {margin(pm[2], fp, '°')}], of gain margins in "
+                   f"[{margin(gm[0], fg, ' dB')}, {margin(gm[2], fg, ' dB')}]; "
+                   f"{100 * d['share_pm_below_45']:.0f} % of draws under 45°")
 
 
 def headline_text(summary: dict) -> str:
@@ -63,6 +129,10 @@ def headline_text(summary: dict) -> str:
         lines.append(f"{r['name']:<{w}}{r['estimate']:>12}{r['sd']:>10}  {r['unit']:<18}"
                      f"{r['closed_form']:>12}  {r['off']}")
     lines.append(f"(values: {rows[0]['source'] if rows else '—'})")
+    fits = fit_lines(summary)
+    if fits:
+        lines += ["fit % per trace (closed form → MAP):", *fits]
+    lines += [f"- {x}" for x in determinability(summary)]
     return "\n".join(lines)
 
 
@@ -75,9 +145,16 @@ def headline_html(summary: dict) -> str:
         f"<td style='text-align:right'>± {e(r['sd'])}</td><td>{e(r['unit'])}</td>"
         f"<td style='text-align:right'>{e(r['closed_form'])}</td><td>{e(r['off'])}</td></tr>"
         for r in rows)
+    header, fits = fit_table(summary)
+    fit_html = ("<p>fit % per trace</p><table><thead><tr>"
+                + "".join(f"<th>{e(h)}</th>" for h in header) + "</tr></thead><tbody>"
+                + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>"
+                          for r in fits) + "</tbody></table>") if fits else ""
+    notes = "".join(f"<li>{e(x)}</li>" for x in determinability(summary))
     return (f"<div><p><b>pmdc-bayes fit of {e(str(session.get('name', '?')))}</b> "
             f"({e(str(session.get('friction', '?')))} friction): {e(_verdict(summary))}</p>"
             "<table><thead><tr><th>parameter</th><th>value</th><th>sd</th><th>unit</th>"
             "<th>closed form</th><th>closed form off by</th></tr></thead>"
             f"<tbody>{body}</tbody></table>"
-            f"<p>values: {e(rows[0]['source'] if rows else '—')}</p></div>")
+            f"<p>values: {e(rows[0]['source'] if rows else '—')}</p>{fit_html}"
+            + (f"<ul>{notes}</ul>" if notes else "") + "</div>")

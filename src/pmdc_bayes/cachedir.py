@@ -17,7 +17,8 @@ import time
 import traceback
 from pathlib import Path
 
-__all__ = ["location", "enable", "save_traceback", "info", "clear", "prune", "max_bytes"]
+__all__ = ["location", "enable", "use_cache", "save_traceback", "info", "clear", "prune",
+           "max_bytes"]
 
 _OWNED = ("export", "xla", "logs")
 _PROGRAMS = ("export", "xla")
@@ -49,6 +50,28 @@ def enable() -> bool:
     except OSError:
         return False
     return True
+
+
+def use_cache(path=None) -> Path:
+    """From Python: keep compiled programs on disk, as ``pmdc-bayes fit`` does, so that
+    a later interpreter (a restarted notebook, another script) fitting sessions of the
+    same shape skips the compilation.
+
+    Parameters
+    ----------
+    path : the cache directory; by default the command line's (``$PMDC_BAYES_CACHE`` or
+        ``~/.cache/pmdc-bayes``), so ``pmdc-bayes cache info|clear`` see it.
+
+    Returns the directory.  Call it before the first fit of the session's shape: what
+    was compiled before stays in memory only.  It sets JAX's persistent compilation
+    cache directory, a process-wide JAX setting, and nothing else (JAX's 64-bit mode is
+    left as it is).  Raises ``OSError`` when the directory cannot be created.
+    """
+    from .inference import cache
+
+    root = location() if path is None else Path(path)
+    cache.enable(root)
+    return root
 
 
 def save_traceback() -> str:

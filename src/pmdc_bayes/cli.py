@@ -17,6 +17,7 @@ from ._cli_parser import build_parser
 from ._console import print_fit
 from ._errors import SessionError, UsageError
 from .io.bundled import session_path
+from .io.units import display_unit
 from .rundir import check_writable
 
 __all__ = ["main"]
@@ -40,20 +41,21 @@ def _cmd_closed_form(args) -> int:
     num, den = cf.tf22()
     print(f"Closed-form identification (reference paper, Section III): {session.motor}")
     print(f"{'parameter':<12}{'value':>14}  {'unit':<16}source")
-    rows = [
-        ("Ra", f"{cf.Ra:.4g}", "ohm", cf.used["Ra"]),
+    rows = [  # to the paper's printed precision (the method states no uncertainty)
+        ("Ra", f"{cf.Ra:.4g}", display_unit("ohm"), cf.used["Ra"]),
         ("La", f"{cf.La * 1e3:.4g}", "mH", cf.used["La"]),
-        ("Kt, Kb", f"{cf.K:.4g}", "N*m/A, V*s/rad", cf.used["K"]),
-        ("B", f"{cf.B:.4e}", "N*m*s/rad", cf.used["B"]),
-        ("J", f"{cf.J:.4e}", "kg*m^2", cf.used["J"]),
-        ("tau", f"{cf.tau:.4g}", "s", cf.used["tau"]),
-        ("G", f"{cf.G:.4g}", "rad/s per V", "equation (10)"),
+        ("Kt, Kb", f"{cf.K:.4g}", f"{display_unit('N*m/A')}, {display_unit('V*s/rad')}",
+         cf.used["K"]),
+        ("B", f"{cf.B:.4e}", display_unit("N*m*s/rad"), cf.used["B"]),
+        ("J", f"{cf.J:.4e}", display_unit("kg*m^2"), cf.used["J"]),
+        ("τ", f"{cf.tau:.4g}", "s", cf.used["tau"]),
+        ("G", f"{cf.G:.4g}", display_unit("rad/s/V"), "equation (10)"),
     ]
     for name, val, unit, src in rows:
         print(f"{name:<12}{val:>14}  {unit:<16}{src}")
     print(
-        "Transfer function (22): w(s)/Va(s) = "
-        f"{num[0]:.4g} / ({den[0]:.4g} s^2 + {den[1]:.4g} s + {den[2]:.4g})"
+        "Transfer function (22): ω(s)/Va(s) = "
+        f"{num[0]:.4g} / ({den[0]:.4g} s² + {den[1]:.4g} s + {den[2]:.4g})"
     )
     return code
 

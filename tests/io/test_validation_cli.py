@@ -73,7 +73,8 @@ STEP_UNITS = 'units = { time = "s", speed = "rpm", current = "A", voltage = "V" 
 # (case id, mutation, substrings the one-line error must contain)
 CASES = [
     # files and directories
-    ("missing-directory", _missing_dir, ["no_such_session", "no such session directory"]),
+    ("missing-directory", _missing_dir, ["no_such_session", "no such session directory",
+                                         "bundled session (paper, demo, bench)"]),
     ("missing-session-toml", _delete(TOML), [TOML, "file not found", "must hold session.toml"]),
     ("missing-trace-csv", _delete("step.csv"), ["step.csv", "file not found"]),
     ("missing-table-csv", _delete("sweep.csv"), ["sweep.csv", "file not found"]),
@@ -266,3 +267,20 @@ def test_a_malformed_sampling_limit_is_bad_input(bad, capsys):
         main(["fit", "demo", "--max-sampling-seconds", bad])
     assert exc.value.code == 2
     assert "--max-sampling-seconds" in capsys.readouterr().err
+
+
+def test_fit_help_names_every_non_ideality_and_every_candidate_of_compare():
+    import re
+
+    from pmdc_bayes._cli_parser import build_parser
+    from pmdc_bayes.io.session import NUISANCES
+    from pmdc_bayes.selection import CANDIDATES
+
+    commands = dict.fromkeys(("closed-form", "simulate", "fit", "report", "cache"))
+    fit = build_parser(commands)._subparsers._group_actions[0].choices["fit"]
+    helps = {a.dest: " ".join(a.help.split()) for a in fit._actions if a.help}
+    for name in NUISANCES:
+        assert re.search(rf"\b{name.replace('_', '-')}\b", helps["add"]), name
+    for label, nuisances in CANDIDATES:
+        if len(nuisances) == 1:  # each single non-ideality tried is named, as '+ name'
+            assert f"+ {nuisances[0].replace('_', '-')}" in helps["compare"], label

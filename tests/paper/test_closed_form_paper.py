@@ -81,7 +81,10 @@ def test_closed_form_text_output():
     proc = _cli("closed-form", "paper")
     assert proc.returncode == 0, proc.stderr
     assert "0.062" in proc.stdout and "5.6630e-05" in proc.stdout
-    assert "105.1 / (0.005621 s^2 + 8.501 s + 7.329)" in proc.stdout
+    assert "ω(s)/Va(s) = 105.1 / (0.005621 s² + 8.501 s + 7.329)" in proc.stdout
+    # units as everywhere else the package shows them (io.units' display table)
+    assert "N·m/A, V·s/rad" in proc.stdout and "kg·m²" in proc.stdout and " Ω " in proc.stdout
+    assert "*" not in proc.stdout and "^" not in proc.stdout and "tau" not in proc.stdout
 
 
 @pytest.mark.parametrize("args", [["--help"], ["closed-form", "--help"]])

@@ -37,16 +37,50 @@ def _page(spacer_px: int) -> str:
             f'<div style="height:{spacer_px}px"></div>'
             '<h2 id="s0">At a glance</h2><p>Model adequate: the data do not reject the '
             "fitted model.</p><h3>Parameters</h3><table><tr><th>parameter</th></tr>"
-            "<tr><td>Ra</td></tr><tr><td>K</td></tr></table></body></html>")
+            "<tr><td>Ra</td></tr><tr><td>K</td></tr></table><p>Fit % per trace</p>"
+            "<h2>Model adequacy</h2></body></html>")
 
 
 def test_chromium_lays_out_what_the_check_measures(tmp_path):
     if check.browser() is None:
         pytest.skip("no Chromium installed (apt-get install chromium)")
-    for spacer, fine in ((10, True), (1500, False)):
+    # a table ending between the 757 px headless Chromium would give the page of a
+    # 900 px window and the 900 px the screenshot shows is on the first screen
+    for spacer, fine in ((10, True), (600, True), (1500, False)):
         page = tmp_path / f"page{spacer}.html"
         page.write_text(_page(spacer), encoding="utf-8")
         m = check.measure(page)
+        assert m["viewport"] == [1280, 900]  # the page gets the whole 1280×900 window
         assert m["table_rows"] == ["parameter", "Ra", "K"]
+        assert m["table_bottom"] < m["section_bottom"] < m["table_bottom"] + 200
+        if spacer == 600:
+            assert 757 < m["table_bottom"] < 900, m
         assert (check.verdict(m) == []) is fine, m
         assert (check.main([str(page)]) == 0) is fine
+
+
+def test_chromium_runs_isolated_with_a_fresh_profile_each_time(tmp_path, monkeypatch):
+    """No network traffic of its own (QUIC, first run, background, component updates,
+    sync) and a new, empty --user-data-dir for every page, removed afterwards."""
+    calls = []
+
+    def run(cmd, **kwargs):
+        profile = next(Path(a.split("=", 1)[1]) for a in cmd
+                       if a.startswith("--user-data-dir="))
+        calls.append((cmd, profile, profile.is_dir() and not any(profile.iterdir())))
+        return check.subprocess.CompletedProcess(cmd, 0, stdout="", stderr="")
+
+    monkeypatch.setattr(check.subprocess, "run", run)
+    page = tmp_path / "page.html"
+    for _ in range(2):
+        check._chromium("chromium", page, "--dump-dom")
+    for cmd, _, fresh in calls:
+        assert fresh
+        for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                     "--no-first-run", "--disable-background-networking",
+                     "--disable-component-update", "--disable-sync", "--window-size=1280,900",
+                     "--hide-scrollbars"):
+            assert flag in cmd
+        assert cmd[-1] == page.as_uri()
+    (_, first, _), (_, second, _) = calls
+    assert first != second and not first.exists() and not second.exists()

@@ -93,9 +93,10 @@ def test_the_report_opens_with_the_answer(demo_run):
     assert b[3] == "×1e-6 N·m·s/rad" and float(b[1]) == pytest.approx(45.0, abs=0.5)
     off_pct, off_sd = re.match(r"\+(\d+) %, \+(\d+) sd", b[5]).groups()
     assert 15 < int(off_pct) < 35 and int(off_sd) > 50
-    fits = _table_rows(md, "Fit % per channel")
-    assert {r[0] for r in fits} >= {"load_change: speed", "step_12v97: current"}
-    assert all(float(r[2]) > 85 for r in fits)
+    fits = _table_rows(md, "Fit % per trace")
+    assert {r[0] for r in fits} == {"step_12v97", "step_6v49", "load_change", "current_capture"}
+    assert all(float(r[2]) > 85 and float(r[4]) > 85 for r in fits)  # speed and current, MAP
+    assert "- The data determine every parameter" in first
 
 
 def test_the_first_screen_in_a_browser_shows_the_verdict_and_the_headline(demo_run, tmp_path):
@@ -106,6 +107,9 @@ def test_the_first_screen_in_a_browser_shows_the_verdict_and_the_headline(demo_r
     m = check.measure(demo_run / "report.html", screenshot=tmp_path / "first.png")
     assert check.verdict(m) == []
     assert m["table_rows"][1:] == ["Ra", "La", "K", "B", "J", "Tc"]
+    # the whole of 'At a glance' (fit % per trace, what the data cannot determine too)
+    # lies within the 1280×900 window
+    assert m["section_bottom"] <= check.HEIGHT
     assert (tmp_path / "first.png").read_bytes().startswith(PNG_MAGIC)
 
 

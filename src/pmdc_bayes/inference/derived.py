@@ -11,7 +11,19 @@ import numpy as np
 from ..physics import motor
 from .diagnostics import HDI_PROB, az
 
-__all__ = ["derived_quantities", "derived_draws"]
+__all__ = ["derived_quantities", "derived_draws", "LABELS"]
+
+# How each derived quantity (keyed as in ``summary.json``) is named to people.
+LABELS = {
+    "tau_m": "mechanical time constant τm",
+    "tau_e": "electrical time constant τe",
+    "gain": "steady gain G",
+    "no_load_speed": "no-load speed ω0",
+    "no_load_current": "no-load current i0",
+    "stall_torque": "stall torque",
+    "stall_current": "stall current",
+    "Kv": "speed constant Kv",
+}
 
 
 def derived_draws(draws_si: dict[str, np.ndarray], *, voltage: float) -> dict:

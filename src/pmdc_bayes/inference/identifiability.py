@@ -33,7 +33,8 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
         if eig[k] >= WEAK_EIGENVALUE * eig.max():
             break
         v = vec[:, k] / np.abs(vec[:, k]).max()
-        terms = [f"{v[j]:+.2f}·log {names[j]}" for j in np.argsort(-np.abs(v)) if abs(v[j]) > 0.1]
+        terms = [f"{v[j]:+.2f}·{_coordinate(model, names[j])}" for j in np.argsort(-np.abs(v))
+                 if abs(v[j]) > 0.1]
         weak.append({"eigenvalue": float(eig[k]), "direction": dict(zip(names, map(float, v)))})
         findings.append(f"The data barely constrain the combination {' '.join(terms)} "
                         f"(correlation-matrix eigenvalue {eig[k]:.1e}).")
@@ -60,6 +61,12 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
             "prior_dominated": prior_bound,
             "posterior_to_prior_width": dict(zip(names, map(float, ratio))),
             "findings": findings}
+
+
+def _coordinate(model: SessionModel, name: str) -> str:
+    """How a parameter enters the fit's coordinates: ``log K`` for a positive one, the
+    parameter itself for one that may be zero or negative (a dead time, an offset)."""
+    return f"log {name}" if model.registry[name].transform == "log" else name
 
 
 def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: float):

@@ -22,7 +22,7 @@ from ._text import read_text
 from ._toml import Table as _Table
 from ._toml import describe as _describe
 from ._traces import read_traces
-from .bundled import session_path
+from .bundled import BUNDLED, session_path
 from .session import (
     FRICTION_MODELS,
     LA_ASSUMED,
@@ -67,7 +67,8 @@ def _locate(path) -> Path:
     if p.is_file():
         return p.resolve()
     raise SessionError(p, "no such session directory or file; pass a directory holding "
-                       "session.toml, or 'paper' for the bundled paper session")
+                       "session.toml, or the name of a bundled session ("
+                       + ", ".join(BUNDLED) + ")")
 
 
 def _read_toml(toml: Path) -> dict:

@@ -44,6 +44,9 @@ DISPLAY: dict[str, str] = {
     "ohm": "Ω", "H": "H", "V*s/rad": "V·s/rad", "N*m/A": "N·m/A", "N*m*s/rad": "N·m·s/rad",
     "kg*m^2": "kg·m²", "N*m": "N·m", "s": "s", "rad/s": "rad/s", "A": "A", "V": "V",
     "rad/s/V": "rad/s per V", "rpm/V": "rpm/V", "1": "", "rad": "rad",
+    # the coefficients of the transfer functions (7) and (22)
+    "H*kg*m^2": "H·kg·m²", "ohm*kg*m^2": "Ω·kg·m²", "(V*s/rad)^2": "(V·s/rad)²",
+    "rad/s^2/A": "rad/s² per A", "ohm/s": "Ω/s",
 }
 
 

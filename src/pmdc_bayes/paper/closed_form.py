@@ -257,7 +257,7 @@ def closed_form(session: Session) -> ClosedForm:
                             "the closed-form method needs a step: add a [[trace]] with "
                             "kind = \"step\" or a [[step_reading]]", where="trace")
     J = j_from_tau(tau, Ra, B, K)
-    used["J"] = "equation (9) from tau"
+    used["J"] = "equation (9) from τ"
     check_physical(session, Ra, La, K, B, tau, used)
     if not session.step_readings:
         check_trace(session, tr, K, B, Ra)

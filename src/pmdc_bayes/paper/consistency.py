@@ -42,7 +42,8 @@ def consistency_checks(session: Session, cf: ClosedForm) -> dict:
         label = "the no-load steady points"
         if tables:
             tab = max(tables, key=lambda t: t.voltage.size)
-            sel_v, sel_w, label = tab.voltage, tab.speed, f"table {tab.name!r}"
+            sel_v, sel_w = tab.voltage, tab.speed
+            label = f"the rows of table {tab.name!r}"
         else:
             sel_v, sel_w = v[sel], w[sel]
         slope, offset = np.polyfit(sel_v, sel_w, 1)
@@ -50,14 +51,15 @@ def consistency_checks(session: Session, cf: ClosedForm) -> dict:
         F.append(f"The closed-form parameters give a gain G = {cf.G:.3g} rad/s per V (10); "
                  f"{label} rise at {slope:.3g} rad/s per V ({100 * (cf.G / slope - 1):+.0f} %).")
         if offset < 0 and abs(offset) > 0.05 * np.abs(sel_w).max():
-            F.append(f"{label.capitalize()} lie on ω ≈ {slope:.4g}·Va {offset:+.3g} rad/s: an "
-                     f"offset at zero voltage that purely viscous friction cannot produce (a "
-                     f"Coulomb friction torque or a brush voltage drop can).")
+            F.append(f"{label[0].upper()}{label[1:]} lie on ω ≈ {slope:.4g}·Va "
+                     f"{offset:+.3g} rad/s: an offset at zero voltage that purely viscous "
+                     "friction cannot produce (a Coulomb friction torque or a brush voltage "
+                     "drop can).")
         pred = cf.G * sel_v
         rel = (pred - sel_w) / sel_w
         out["closed_form_steady_error"] = [float(x) for x in rel]
-        F.append(f"The closed-form parameters put {label}'s speeds {100 * rel.min():+.1f} % to "
-                 f"{100 * rel.max():+.1f} % from the measured ones.")
+        F.append(f"The closed-form parameters put the speeds of {label} {100 * rel.min():+.1f} % "
+                 f"to {100 * rel.max():+.1f} % from the measured ones.")
     for volt in np.unique(v):
         at = (v == volt) & (np.abs(v - volt) < 1e-9)
         if np.unique(tl[at]).size >= 2:

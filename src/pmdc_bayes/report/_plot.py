@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import functools
 import io
-import math
 import warnings
 
 import matplotlib
@@ -19,6 +18,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import NullLocator
 
+from .._format import row_format
 from ..io.units import display_unit
 
 __all__ = ["subplots", "styled", "png", "COLORS", "LABELS", "scale_of",
@@ -59,16 +59,12 @@ def png(fig) -> bytes:
 
 
 def scale_of(name: str, value: float, unit: str) -> tuple[float, str]:
-    """A power-of-ten factor and an axis label for a parameter, e.g. ``J (10⁻⁴ kg·m²)``;
-    ``unit`` is the SI unit as written in ``summary.json``."""
-    unit = display_unit(unit)
-    if value == 0 or not math.isfinite(value):
-        return 1.0, f"{name} ({unit})"
-    e = math.floor(math.log10(abs(value)))
-    if -1 <= e <= 2:
-        return 1.0, f"{name} ({unit})"
-    sup = str(e).translate(str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹"))
-    return 10.0**-e, f"{name} (10{sup} {unit})"
+    """A factor and an axis label for a parameter on the tables' scale, e.g.
+    ``J (×1e-6 kg·m²)`` for 5.9e-4 (a power of 1000 outside [0.1, 10⁴), as
+    :func:`pmdc_bayes._format.row_format` chooses); ``unit`` is the SI unit as written in
+    ``summary.json``."""
+    f = row_format(value, None)
+    return 10.0 ** -f.exponent, f"{name} ({f.suffix}{display_unit(unit)})"
 
 
 def arviz_plot(fn, *args, **kwargs):

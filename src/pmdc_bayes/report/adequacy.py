@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from .._format import row_format
+from ..io.units import display_unit
 from ._doc import Bullets, Paragraph, Section, Table, fmt
 
-__all__ = ["adequacy_section", "selection_section", "CONDITIONAL"]
+__all__ = ["adequacy_section", "selection_section", "bench_table", "CONDITIONAL"]
 
 CONDITIONAL = ("Every value and interval below is CONDITIONAL on a model the data reject "
                "(see 'Model adequacy'): treat them as a description of the misfit, not as "
@@ -47,7 +49,7 @@ def adequacy_section(ctx) -> Section | None:
         rows.append((name, fmt(c["fitted_sd"], 2), fmt(c["model_free_sd"], 2),
                      f"{c['inflation']:.2f}", _p(c["whiteness"]["p_value"]),
                      f"{100 * c['systematic_fraction']:.2g}",
-                     fmt(c["fit_percent_closed_form"], 3), fmt(c["fit_percent_map"], 3)))
+                     _percent(c["fit_percent_closed_form"]), _percent(c["fit_percent_map"])))
     sec.add(Table("Per channel", ("channel", "fitted noise sd", "model-free sd", "ratio",
                                   "Ljung-Box p", "systematic misfit (% span)",
                                   "fit % closed form", "fit % MAP"), tuple(rows),
@@ -56,10 +58,29 @@ def adequacy_section(ctx) -> Section | None:
                   "Ljung-Box p < 0.001) and material (systematic part above 1.5 % of the span)."))
     bench = a.get("bench", {})
     if bench:
-        sec.add(Table("Bench values", ("parameter", "bench", "fitted", "bench sd away"),
-                      tuple((k, f"{fmt(b['bench'])} ± {fmt(b['bench_sd'], 2)} {b['unit']}",
-                             fmt(b["fitted"]), f"{b['z']:+.1f}") for k, b in bench.items())))
+        sec.add(bench_table(ctx, bench))
     return sec
+
+
+def _percent(x) -> str:
+    """A fit %, to a tenth as in 'At a glance'."""
+    return "—" if x is None else f"{x:.1f}"
+
+
+def bench_table(ctx, bench: dict) -> Table:
+    """Each bench value beside the fitted one: a row on one scale, the bench value
+    rounded to its own sd, the fitted value to the fit's."""
+    rows = []
+    for k, b in bench.items():
+        f = row_format(b["fitted"], ctx.sd(k) if k in ctx.summary["parameters"] else None)
+        fb = f.same_scale(b["bench_sd"])
+        rows.append((k, f"{f.suffix}{display_unit(b['unit'])}".strip(),
+                     f"{fb.value(b['bench'])} ± {fb.sd(b['bench_sd'])}", f.value(b["fitted"]),
+                     f"{b['z']:+.1f}"))
+    return Table("Bench values", ("parameter", "unit", "bench ± sd", "fitted",
+                                  "bench sd away"), tuple(rows),
+                 "Each value rounded to its own uncertainty: the bench value to the bench "
+                 "sd, the fitted value to the fit's sd.")
 
 
 def selection_section(ctx) -> Section | None:

@@ -28,15 +28,11 @@ def _safe(name: str) -> str:
     return re.sub(r"[^\w.-]+", "_", name)
 
 
-def _percent(x) -> str:
-    return f"{x:.1f}" if x is not None and np.isfinite(x) else "—"
-
-
 def _glance(ctx) -> Section:
     """The answer before any detail: the verdict, each parameter rounded to its
     uncertainty beside the closed form and its error, the fit % per channel and what the
     data cannot determine."""
-    from .._headline import headline_rows
+    from .._headline import determinability, fit_table, headline_rows
 
     s = ctx.summary
     sec = Section("At a glance")
@@ -53,17 +49,15 @@ def _glance(ctx) -> Section:
         tuple((r["name"], r["estimate"], r["sd"], r["unit"], r["closed_form"], r["off"])
               for r in rows),
         "Each value rounded to its uncertainty; a row's numbers share its scale."))
-    fits = [(name, c["fit_percent_closed_form"], c["fit_percent_map"])
-            for name, c in s.get("adequacy", {}).get("channels", {}).items()
-            if c.get("fit_percent_map") is not None]
+    header, fits = fit_table(s)
     if fits:
-        sec.add(Table("Fit % per channel", ("channel", "closed form", "MAP"), tuple(
-            (name, _percent(cf), _percent(m)) for name, cf, m in fits),
-            "100 × (1 − ‖y − ŷ‖ / ‖y − mean(y)‖), as MATLAB's compare."))
-    findings = s.get("identifiability", {}).get("findings", [])
-    if findings:
+        sec.add(Table("Fit % per trace", header, tuple(fits),
+                      "100 × (1 − ‖y − ŷ‖ / ‖y − mean(y)‖), as MATLAB's compare, for each "
+                      "channel the trace logged."))
+    lines = determinability(s)
+    if lines:
         sec.add(Paragraph("What the data can and cannot determine:"))
-        sec.add(Bullets(tuple(findings)))
+        sec.add(Bullets(tuple(lines)))
     return sec
 
 
@@ -213,12 +207,13 @@ def _export(ctx) -> tuple[Section, dict]:
     band = ("the 94 % band over posterior draws (the parameters' uncertainty alone, no "
             "noise)" if ctx.has_posterior else "no band (no posterior was sampled)")
     sec.add(Figure("response", f"The speed's response to the voltage, ω/Va of (7), at the "
-                   f"{ctx.best_label}, with {band} and the {ctx.cf_label}'s. Coulomb "
-                   "friction is not part of the linear model.", response_figure(ctx)))
+                   f"{ctx.best_label}, with {band}, beside the response of the "
+                   f"{ctx.cf_label}. Coulomb friction is not part of the linear model.",
+                   response_figure(ctx)))
     if "pi_loop" in ctx.summary:
-        from ..physics.loop import describe_pi_loop
+        from .._headline import pi_loop_text
 
-        sec.add(Paragraph(describe_pi_loop(ctx.summary["pi_loop"]) + " (fit --pi)."))
+        sec.add(Paragraph(pi_loop_text(ctx.summary["pi_loop"]) + " (fit --pi)."))
     return sec, model
 
 

@@ -12,13 +12,19 @@ difference to the method's known weaknesses, each with its numbers:
   and J inherits the errors of B, K and Ra through ``(B·Ra + K²)/Ra``;
 - Tc: the closed form has none.
 
-The decompositions are exact sums (the listed parts plus a stated remainder).
+The decompositions are exact sums (the listed parts plus a stated remainder).  Each
+amount of a parameter is written as the tables write that parameter: on its row's
+scale, to the decimals its sd supports.
 """
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
+from .._format import off_by, row_format, value_sd
+from ..io.units import display_unit
 from ..paper.checks import turns
 from ..paper.closed_form import kb_from_chopper, steady_rows_with_current
 from ..physics.motor import time_constant
@@ -46,6 +52,16 @@ def _cf_point(session):
     return np.atleast_1d(v), np.atleast_1d(i), np.atleast_1d(w), label
 
 
+def _amount(ctx, name: str, x: float, *, sign: bool = True) -> str:
+    """An amount of parameter ``name`` (SI) with its unit, on the scale and to the
+    decimals of that parameter's row in the tables (``+0.0208 ×1e-3 V·s/rad``)."""
+    f = row_format(ctx.best[name], ctx.sd(name))
+    text = f.value(x)
+    if sign and not text.startswith("-") and text != "—":
+        text = "+" + text
+    return f"{text} {f.suffix}{display_unit(ctx.unit(name))}"
+
+
 def _k_causes(ctx, ref, label):
     V, Ia, w, where = _cf_point(ctx.session)
     cf = ctx.cf
@@ -53,14 +69,16 @@ def _k_causes(ctx, ref, label):
     k_ra = float(np.mean(kb_from_chopper(V, 1.0, Ia, w, ref["Ra"])))
     gap = cf.K - ref["K"]
     V, Ia, w_mean = float(np.mean(V)), float(np.mean(Ia)), float(np.mean(w))
+    k = functools.partial(_amount, ctx, "K")
+    ra = functools.partial(_amount, ctx, "Ra", sign=False)
     out = [f"Equation (20) at {where} (Va = {V:.4g} V, Ia = {Ia:.4g} A, ω = {w_mean:.4g} rad/s) "
-           f"with the bench Ra = {cf.Ra:.4g} Ω gives K = {k_raw:.5g} V·s/rad; with the "
-           f"{label} Ra = {ref['Ra']:.4g} Ω it gives {k_ra:.5g}, so Ra accounts for "
-           f"{k_raw - k_ra:+.3g} of the {gap:+.3g} V·s/rad difference."]
+           f"with the bench Ra = {ra(cf.Ra)} gives K = {k(k_raw, sign=False)}; with the "
+           f"{label} Ra = {ra(ref['Ra'])} it gives {k(k_ra, sign=False)}, so Ra accounts for "
+           f"{k(k_raw - k_ra)} of the {k(gap)} difference."]
     if abs(cf.K - k_raw) > 0:
-        out.append(f"Rounding K to the published digits changes it by {cf.K - k_raw:+.3g}.")
+        out.append(f"Rounding K to the published digits changes it by {k(cf.K - k_raw)}.")
     rest = gap - (k_raw - k_ra) - (cf.K - k_raw)
-    out.append(f"The remaining {rest:+.3g} V·s/rad is the single operating point's "
+    out.append(f"The remaining {k(rest)} is the single operating point's "
                f"disagreement with the rest of the data (one reading, no averaging).")
     return out
 
@@ -71,14 +89,15 @@ def _b_causes(ctx, ref, label):
     gap = cf.B - ref["B"]
     k_part = float(np.mean((cf.K - ref["K"]) * Ia / w))
     inv_w, w = float(np.mean(1.0 / w)), float(np.mean(w))
-    out = [f"Equation (19), B = K·Ia/ω at {where}, inherits K's error: {k_part:+.3g} "
-           f"N·m·s/rad of the {gap:+.3g} N·m·s/rad difference."]
+    b = functools.partial(_amount, ctx, "B")
+    out = [f"Equation (19), B = K·Ia/ω at {where}, inherits K's error: {b(k_part)} "
+           f"of the {b(gap)} difference."]
     lump = 0.0
     if "Tc" in ref:
         lump = ref["Tc"] * inv_w
         out.append(f"It lumps all friction at that point into B: the Coulomb torque "
-                   f"Tc = {ref['Tc']:.3g} N·m at ω = {w:.4g} rad/s looks like "
-                   f"Tc/ω = {lump:+.3g} N·m·s/rad of viscous friction.")
+                   f"Tc = {_amount(ctx, 'Tc', ref['Tc'], sign=False)} at ω = {w:.4g} rad/s "
+                   f"looks like Tc/ω = {b(lump)} of viscous friction.")
     else:
         cons = ctx.summary.get("consistency", {})
         off, slope = cons.get("steady_offset"), cons.get("steady_slope")
@@ -87,11 +106,11 @@ def _b_causes(ctx, ref, label):
             out.append(f"Friction that does not grow with speed is lumped into B: the steady "
                        f"points' offset of {off:.3g} rad/s at 0 V is what a constant friction "
                        f"torque of about {t_eq:.3g} N·m would cause, which at ω = {w:.4g} rad/s "
-                       f"looks like {t_eq * inv_w:+.3g} N·m·s/rad of viscous friction. The viscous "
+                       f"looks like {b(t_eq * inv_w)} of viscous friction. The viscous "
                        f"model fitted here lumps it too, so it biases both values rather than "
                        f"their difference; fit with --friction coulomb to separate it.")
     rest = gap - k_part - lump
-    out.append(f"The remaining {rest:+.3g} N·m·s/rad is the operating point's reading "
+    out.append(f"The remaining {b(rest)} is the operating point's reading "
                f"against the other data.")
     return out
 
@@ -120,17 +139,18 @@ def _j_causes(ctx, ref, label):
     read_part = (cf.tau - tau_ref) * d_cf
     par_part = tau_ref * (d_cf - d_ref)
     src, dt, from_rest = _tau_source(ctx)
+    j = functools.partial(_amount, ctx, "J")
     out = [f"Equation (9) turns the 63.2 % reading τ = {cf.tau:.4g} s ({src}) into J; the "
            f"{label} parameters give τ = {tau_ref:.4g} s, and the difference accounts for "
-           f"{read_part:+.3g} of the {gap:+.3g} kg·m² difference.",
+           f"{j(read_part)} of the {j(gap)} difference.",
            f"The closed-form B, K and Ra enter through (B·Ra + K²)/Ra "
-           f"({100 * (d_cf / d_ref - 1):+.2g} %): {par_part:+.3g} kg·m².",
+           f"({100 * (d_cf / d_ref - 1):+.2g} %): {j(par_part)}.",
            f"La is neglected in the first-order τ: the full response lags by about "
-           f"τe = La/Ra = {tau_e * 1e3:.3g} ms, worth {tau_e * d_cf:+.2g} kg·m²."]
+           f"τe = La/Ra = {tau_e * 1e3:.3g} ms, worth {j(tau_e * d_cf)}."]
     if dt is not None:
         out.append(f"The 63.2 % crossing is quantised by the sampling interval "
                    f"{dt * 1e3:.3g} ms (±{dt / 2 * 1e3:.2g} ms, {100 * dt / 2 / cf.tau:.2g} % "
-                   f"of τ, up to {dt / 2 * d_cf:.2g} kg·m²).")
+                   f"of τ, up to {j(dt / 2 * d_cf, sign=False)}).")
     else:
         out.append("The reading was taken off a plot: its resolution is not recorded (a "
                    "time printed to 0.01 s is ±0.005 s, "
@@ -141,18 +161,21 @@ def _j_causes(ctx, ref, label):
     return out
 
 
-def _bench_causes(ctx, name, ref, label, unit):
+def _bench_causes(ctx, name, ref, label):
     m = getattr(ctx.session, name)
+    unit = display_unit(ctx.unit(name))
     z_bench = (m.value - ref[name]) / m.sd
     sd = ctx.sd(name)
     better = m.sd / sd if sd > 0 else float("inf")
-    text = (f"The closed form takes the bench measurement ({m.value:.4g} ± {m.sd:.2g} {unit}); "
+    text = (f"The closed form takes the bench measurement ({value_sd(m.value, m.sd)} {unit}); "
             f"it is {z_bench:+.2g} bench sd from the {label}.")
     if better > 1.5:
         text += (f" The traces determine {name} {better:.3g} times more precisely than the "
                  f"bench.")
     else:
-        text += f" The data add little to the bench measurement ({name} sd {sd:.2g} {unit})."
+        f = row_format(sd, sd)
+        text += (f" The data add little to the bench measurement ({name} sd "
+                 f"{f.sd(sd)} {f.suffix}{unit}).")
     return [text]
 
 
@@ -164,14 +187,13 @@ def compare_closed_form(ctx) -> list[dict]:
     """
     ref, label = ctx.best, ctx.best_label
     rows = []
-    units = {"Ra": "Ω", "La": "H"}
     for name in [n for n in ctx.names if n in ctx.values["closed_form"]]:
         cf = ctx.values["closed_form"][name]
         sd = ctx.sd(name)
         z = (cf - ref[name]) / sd if sd > 0 else float("nan")
         rel = cf / ref[name] - 1.0 if ref[name] != 0 else float("nan")
-        if name in units:
-            causes = _bench_causes(ctx, name, ref, label, units[name])
+        if name in ("Ra", "La"):  # bench measurements, taken as they are
+            causes = _bench_causes(ctx, name, ref, label)
         elif name == "K":
             causes = _k_causes(ctx, ref, label)
         elif name == "B":
@@ -180,11 +202,13 @@ def compare_closed_form(ctx) -> list[dict]:
             causes = _j_causes(ctx, ref, label)
         else:
             causes = [f"The closed form has no Coulomb friction (Tc = 0); the data put it at "
-                      f"{ref['Tc']:.3g} N·m, {ref['Tc'] / sd:.3g} sd from zero. At the "
+                      f"{_amount(ctx, 'Tc', ref['Tc'], sign=False)}, {ref['Tc'] / sd:.3g} sd "
+                      "from zero. At the "
                       "closed form's operating point it is lumped into B (see B)."]
-        head = (f"{name}: the closed form is {100 * rel:+.3g} % from the {label}, "
-                f"{z:+.3g} sd." if name != "Tc" else
-                f"Tc: the closed form's implicit 0 is {z:+.3g} sd from the {label}.")
+        pct, nsd = off_by(cf, ref[name], sd) or ("—", "—")
+        head = (f"{name}: the closed form is {pct} % from the {label}, {nsd} sd."
+                if name != "Tc" else
+                f"Tc: the closed form's implicit 0 is {nsd} sd from the {label}.")
         rows.append({"name": name, "closed_form": cf, "reference": ref[name], "sd": sd,
                      "z": z, "relative": rel, "headline": head, "causes": causes})
     return rows

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._format import row_format
 from ..io.units import display_unit
 from ._plot import (
     COLORS,
@@ -167,8 +168,11 @@ def forest_figure(ctx, rows) -> bytes:
     ax.xaxis.set_minor_locator(NullLocator())
     ax.axvline(0.0, color="k", lw=0.7)
     ax.set_yticks(range(len(names)))
-    ax.set_yticklabels([f"{n} ({display_unit(ctx.unit(n))})\n{ref[n]:.4g}"
-                        for n in reversed(names)])
+    labels = []
+    for n in reversed(names):  # each value rounded to its uncertainty, as in the tables
+        f = row_format(ref[n], ctx.sd(n))
+        labels.append(f"{n} ({f.suffix}{display_unit(ctx.unit(n))})\n{f.value(ref[n])}")
+    ax.set_yticklabels(labels)
     ax.set_ylim(-0.7, len(names) - 0.3)
     ax.set_xlabel(f"difference from the {ctx.best_label} (%, linear within ±{lin:.2g} %, "
                   "logarithmic beyond)")

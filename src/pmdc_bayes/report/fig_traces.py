@@ -66,7 +66,8 @@ def trace_figure(tp: TracePrediction, cf_label: str = LABELS["closed_form"]) -> 
         _channel(axes[2 * k], axes[2 * k + 1], tp, c, t, cf_label)
     axes[-1].set_xlabel(tlabel)
     held = " — held out of the fit" if tp.held_out else ""
-    fig.suptitle(f"Trace {tp.trace.name!r} ({tp.trace.kind}){held}", y=0.995)
+    kind = tp.trace.kind.replace("_", " ")  # the session's kind name, in words
+    fig.suptitle(f"Trace {tp.trace.name!r} ({kind}){held}", y=0.995)
     h1, l1 = axes[0].get_legend_handles_labels()
     h2, l2 = axes[1].get_legend_handles_labels()
     fig.legend(h1 + h2, l1 + l2, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.975),

@@ -12,14 +12,16 @@ __all__ = ["render_html"]
 _CSS = """
 body { font-family: system-ui, sans-serif; max-width: 1000px; margin: 2em auto;
        padding: 0 1em; color: #222; line-height: 1.45; }
-h1 { font-size: 1.6em; } h2 { border-bottom: 1px solid #ccc; margin-top: 2em; }
+h1 { font-size: 1.35em; margin: 0 0 0.3em; }
+h2 { border-bottom: 1px solid #ccc; margin-top: 2em; } nav + h2 { margin-top: 0.8em; }
+h3 { margin: 0.8em 0 0.3em; }
 table { border-collapse: collapse; margin: 0.5em 0; font-size: 0.9em; }
 th, td { border: 1px solid #ccc; padding: 0.25em 0.5em; text-align: left; }
 th { background: #f3f3f3; } td { font-variant-numeric: tabular-nums; }
 figure { margin: 1em 0; } figure img { max-width: 100%; }
 figcaption, .note { font-size: 0.85em; color: #555; }
 nav ul { display: flex; flex-wrap: wrap; gap: 0 1.2em; list-style: none; padding: 0;
-         font-size: 0.9em; }
+         margin: 0; font-size: 0.9em; }
 """
 
 

@@ -5,14 +5,15 @@ from __future__ import annotations
 import numpy as np
 
 from ..physics.motor import gain, tf_full, time_constant
+from ..inference.derived import LABELS as DERIVED_LABELS
 from ..inference.derived import derived_draws
-from .._format import row_format
-from ._doc import Table, fmt, pm
-from ..io.units import display_unit
+from .._format import off_by, row_format
+from ._doc import Table, fmt
+from ..io.units import SI_UNIT, display_unit
 from .predictive import METHODS
 
 __all__ = ["parameter_table", "derived_table", "diagnostics_table", "rms_table",
-           "transfer_table", "comparison_table", "holdout_table", "TABLE_TITLES"]
+           "transfer_table", "comparison_table", "holdout_table", "laplace_sd", "TABLE_TITLES"]
 
 TABLE_TITLES = {
     "parameters": "Parameters",
@@ -20,9 +21,12 @@ TABLE_TITLES = {
     "diagnostics": "Diagnostics and gates",
     "rms": "Per-trace RMS error",
     "transfer": "Transfer functions",
-    "comparison": "Closed form against the posterior",
+    "comparison": "Closed form against the fit",
     "holdout": "Hold-out validation",
 }
+
+
+_MOTOR = ("Ra", "La", "K", "B", "J", "Tc")  # named as in the paper; the rig's are explained
 
 
 def parameter_table(ctx) -> Table:
@@ -52,26 +56,71 @@ def parameter_table(ctx) -> Table:
             "approximation at the MAP. "
             + ("Posterior: emcee ensemble; R-hat is ArviZ's rank-normalised split R-hat with "
                "walkers as chains." if post else "No posterior was sampled (--no-mcmc)."))
+    rig = [f"{n}: {ctx.model.registry[n].description}" for n in ctx.names
+           if n not in _MOTOR and ctx.model.registry[n].description]
+    if rig:
+        note += " The rig's parameters (named as in summary.json): " + "; ".join(rig) + "."
     return Table(TABLE_TITLES["parameters"], tuple(header), tuple(rows), note)
 
 
+def laplace_sd(ctx, quantities) -> dict:
+    """The sd of each quantity of the parameters under the Laplace approximation at
+    the MAP, linearised: ``sqrt(g·Σ·g)`` with ``g`` the quantity's gradient (central
+    differences) and ``Σ`` the parameters' covariance.  ``quantities`` maps a dict of
+    SI arrays (one entry per parameter) to ``{name: array}``."""
+    names, v0 = list(ctx.names), ctx.values["map"]
+    steps = np.array([1e-6 * abs(v0[n]) or 1e-12 for n in names])
+    cols = {n: np.full(2 * len(names), v0[n], dtype=float) for n in names}
+    for k, n in enumerate(names):
+        cols[n][2 * k] += steps[k]
+        cols[n][2 * k + 1] -= steps[k]
+    cov = ctx.covariance()
+    out = {}
+    for q, x in quantities(cols).items():
+        g = (np.asarray(x)[0::2] - np.asarray(x)[1::2]) / (2.0 * steps)
+        out[q] = float(np.sqrt(max(g @ cov @ g, 0.0)))
+    return out
+
+
+def _derived(values: dict, voltage: float) -> dict:
+    return {q: x for q, (_, x) in derived_draws(values, voltage=voltage).items()}
+
+
 def derived_table(ctx) -> Table:
+    """Time constants, gain, no-load and stall quantities: each row rounded to the
+    quantity's posterior sd (the Laplace sd at the MAP without a posterior)."""
     d = ctx.summary.get("derived") or {}
     voltage = d.get("voltage") or ctx.summary.get("derived_voltage") or 12.0
     q = d.get("quantities", {})
     single = {k: derived_draws({n: np.array([v]) for n, v in ctx.values[m].items()},
                                voltage=voltage) for k, m in (("cf", "closed_form"), ("map", "map"))}
+    laplace = {} if q else laplace_sd(ctx, lambda v: _derived(v, voltage))
     rows = []
-    for name, (unit, _) in single["map"].items():
+    for name, (unit, x_map) in single["map"].items():
         r = q.get(name, {})
-        rows.append((name, unit, fmt(single["cf"][name][1][0]), fmt(single["map"][name][1][0]),
-                     pm(r.get("mean"), r.get("sd")),
-                     f"[{fmt(r.get('hdi_3%'))}, {fmt(r.get('hdi_97%'))}]" if r else "—"))
-    note = (f"No-load and stall quantities at {voltage:.4g} V. Posterior columns are computed "
-            "draw by draw, so they carry the correlations of the parameters."
-            + ("" if q else " No posterior was sampled (--no-mcmc)."))
-    return Table(TABLE_TITLES["derived"], ("quantity", "unit", "closed form", "MAP",
-                                           "posterior mean ± sd", "94 % HDI"), tuple(rows), note)
+        est = r.get("mean", float(x_map[0]))
+        sd = r.get("sd") if r else laplace.get(name)
+        f = row_format(est, sd)
+        cells = [DERIVED_LABELS.get(name, name), f"{f.suffix}{display_unit(unit)}".strip(),
+                 f.value(float(single["cf"][name][1][0]))]
+        if r:
+            cells += [f.value(float(x_map[0])), f"{f.value(r['mean'])} ± {f.sd(r['sd'])}",
+                      f.interval(r.get("hdi_3%"), r.get("hdi_97%"))]
+        else:
+            cells.append(f"{f.value(float(x_map[0]))} ± {f.sd(sd)}")
+        rows.append(tuple(cells))
+    header = ("quantity", "unit", "closed form",
+              *(("MAP", "posterior mean ± sd", "94 % HDI") if q else ("MAP ± sd (Laplace)",)))
+    note = (f"No-load and stall quantities at {voltage:.4g} V. Each row is rounded to its "
+            "uncertainty and written on one scale, given before the unit. "
+            + ("Posterior columns are computed draw by draw, so they carry the correlations "
+               "of the parameters." if q else "No posterior was sampled (--no-mcmc): the sd "
+               "is the Laplace approximation's, propagated linearly."))
+    return Table(TABLE_TITLES["derived"], header, tuple(rows), note)
+
+
+# The stages of a run (keys of summary.json's diagnostics.wall_s), as people name them.
+_STAGES = {"closed_form": "closed form", "map": "MAP", "mcmc": "MCMC"}
 
 
 def diagnostics_table(ctx) -> Table:
@@ -99,8 +148,12 @@ def diagnostics_table(ctx) -> Table:
                      r["note"] or "agrees within 20 %"))
     wall = diag.get("wall_s", {})
     if wall:
-        rows.append(("wall time (s)", ", ".join(f"{k} {v:.1f}" for k, v in wall.items()), ""))
+        rows.append(("wall time (s)", ", ".join(f"{_STAGES.get(k, k.replace('_', ' '))} "
+                                                f"{v:.1f}" for k, v in wall.items()), ""))
     return Table(TABLE_TITLES["diagnostics"], ("check", "result", "detail"), tuple(rows))
+
+
+_KIND = {"speed": "speed", "current": "current", "position": "angle"}  # channel -> unit kind
 
 
 def rms_table(preds, *, title=TABLE_TITLES["rms"], note="") -> Table:
@@ -108,7 +161,7 @@ def rms_table(preds, *, title=TABLE_TITLES["rms"], note="") -> Table:
     rows = []
     for tp in preds:
         for c in tp.channels:
-            unit = {"speed": "rad/s", "current": "A", "position": "rad"}[c]
+            unit = display_unit(SI_UNIT[_KIND[c]])
             cells = [tp.trace.name, f"{c} ({unit})", fmt(tp.noise[c], 3)]
             cells += [fmt(tp.rms[m][c], 4) for m in methods]
             cells.append(f"{100 * tp.coverage[c]:.0f} %" if tp.coverage else "—")
@@ -127,57 +180,73 @@ def holdout_table(ctx) -> Table:
     return rms_table(ctx.holdout, title=TABLE_TITLES["holdout"], note=note)
 
 
-def _tf_draws(ctx):
-    vals = ctx.draws if ctx.draws is not None else None
-    if vals is None:
-        return None
-    d = {n: vals[:, k] for k, n in enumerate(ctx.names)}
+# The coefficients of (7), (8) and (22): label and SI unit (io.units' display table).
+_TF = (("(7) numerator K", "V*s/rad"), ("(7) s² coefficient La·J", "H*kg*m^2"),
+       ("(7) s coefficient La·B + Ra·J", "ohm*kg*m^2"),
+       ("(7) constant Ra·B + K²", "(V*s/rad)^2"), ("(8) gain G", "rad/s/V"),
+       ("(8) time constant τ", "s"), ("(22) numerator K/J", "rad/s^2/A"),
+       ("(22) s² coefficient La", "H"), ("(22) s coefficient (La·B + Ra·J)/J", "ohm"),
+       ("(22) constant (Ra·B + K²)/J", "ohm/s"))
+
+
+def _tf_coefficients(d: dict) -> dict:
+    """The coefficients of :data:`_TF` from parameter values or arrays of them (SI)."""
     num, den = tf_full(d["Ra"], d["La"], d["K"], d["B"], d["J"])
-    return {"(7) numerator K": num[0], "(7) s² coefficient La·J": den[0],
-            "(7) s coefficient La·B + Ra·J": den[1], "(7) constant Ra·B + K²": den[2],
-            "(8) gain G": gain(d["Ra"], d["K"], d["B"]),
-            "(8) time constant τ": time_constant(d["Ra"], d["K"], d["B"], d["J"]),
-            "(22) numerator K/J": num[0] / d["J"], "(22) s² coefficient La": den[0] / d["J"],
-            "(22) s coefficient (La·B + Ra·J)/J": den[1] / d["J"],
-            "(22) constant (Ra·B + K²)/J": den[2] / d["J"]}
-
-
-def _tf_point(v):
-    num, den = tf_full(v["Ra"], v["La"], v["K"], v["B"], v["J"])
-    out = [num[0], *den, gain(v["Ra"], v["K"], v["B"]),
-           time_constant(v["Ra"], v["K"], v["B"], v["J"]), num[0] / v["J"], *(den / v["J"])]
-    return out
+    values = (num[0], den[0], den[1], den[2], gain(d["Ra"], d["K"], d["B"]),
+              time_constant(d["Ra"], d["K"], d["B"], d["J"]), num[0] / d["J"],
+              den[0] / d["J"], den[1] / d["J"], den[2] / d["J"])
+    return {label: np.asarray(v, dtype=float) for (label, _), v in zip(_TF, values, strict=True)}
 
 
 def transfer_table(ctx) -> Table:
-    draws = _tf_draws(ctx)
-    names = ["(7) numerator K", "(7) s² coefficient La·J", "(7) s coefficient La·B + Ra·J",
-             "(7) constant Ra·B + K²", "(8) gain G", "(8) time constant τ",
-             "(22) numerator K/J", "(22) s² coefficient La",
-             "(22) s coefficient (La·B + Ra·J)/J", "(22) constant (Ra·B + K²)/J"]
-    units = ["V·s/rad", "H·kg·m²", "Ω·kg·m²", "(V·s/rad)²", "rad/s per V", "s",
-             "(7) ÷ kg·m²", "H", "(7) ÷ kg·m²", "(7) ÷ kg·m²"]
-    cf, mp = _tf_point(ctx.values["closed_form"]), _tf_point(ctx.values["map"])
+    """The transfer functions' coefficients, each row rounded to the coefficient's
+    posterior sd (the Laplace sd at the MAP without a posterior)."""
+    cf, mp = _tf_coefficients(ctx.values["closed_form"]), _tf_coefficients(ctx.values["map"])
+    draws = None
+    if ctx.draws is not None:
+        draws = _tf_coefficients({n: ctx.draws[:, k] for k, n in enumerate(ctx.names)})
+    laplace = {} if draws else laplace_sd(ctx, _tf_coefficients)
     rows = []
-    for k, n in enumerate(names):
-        post = (pm(float(np.mean(draws[n])), float(np.std(draws[n], ddof=1))) if draws
-                else "—")
-        rows.append((n, units[k], fmt(cf[k]), fmt(mp[k]), post))
+    for label, unit in _TF:
+        if draws:
+            mean, sd = float(np.mean(draws[label])), float(np.std(draws[label], ddof=1))
+        else:
+            mean, sd = float(mp[label]), laplace[label]
+        f = row_format(mean, sd)
+        cells = [label, f"{f.suffix}{display_unit(unit)}".strip(), f.value(float(cf[label]))]
+        cells += ([f.value(float(mp[label])), f"{f.value(mean)} ± {f.sd(sd)}"] if draws
+                  else [f"{f.value(mean)} ± {f.sd(sd)}"])
+        rows.append(tuple(cells))
     note = ("ω(s)/Va(s) = K / ((La·s + Ra)(J·s + B) + K²) (7); G/(τ·s + 1) with La neglected "
-            "(8); (22) is (7) with numerator and denominator divided by J. Posterior columns: "
-            "mean ± sd of each coefficient over the draws; with Coulomb friction the transfer "
-            "functions describe the motion about a running operating point (Tc is a constant "
-            "disturbance torque).")
-    return Table(TABLE_TITLES["transfer"], ("coefficient", "unit", "closed form", "MAP",
-                                            "posterior mean ± sd"), tuple(rows), note)
+            "(8); (22) is (7) with numerator and denominator divided by J. Each row is "
+            "rounded to its uncertainty, on one scale given before the unit. "
+            + ("Posterior columns: mean ± sd of each coefficient over the draws" if draws else
+               "No posterior was sampled (--no-mcmc): the sd is the Laplace approximation's, "
+               "propagated linearly")
+            + "; with Coulomb friction the transfer functions describe the motion about a "
+            "running operating point (Tc is a constant disturbance torque).")
+    header = ("coefficient", "unit", "closed form",
+              *(("MAP", "posterior mean ± sd") if draws else ("MAP ± sd (Laplace)",)))
+    return Table(TABLE_TITLES["transfer"], header, tuple(rows), note)
+
+
+def _distance(r: dict) -> tuple[str, str]:
+    """(distance in sd, relative difference in %) of a comparison row, as the headline
+    writes them (0 below a hundredth of an sd)."""
+    parts = off_by(r["closed_form"], r["reference"], r["sd"])
+    return ("—", "—") if parts is None else (parts[1], f"{parts[0]} %")
 
 
 def comparison_table(ctx, rows) -> Table:
+    """The closed form against the reference (posterior mean, else MAP), each row
+    rounded to the parameter's sd, on one scale given before the unit."""
     out = []
     for r in rows:
-        out.append((r["name"], fmt(r["closed_form"]), fmt(r["reference"]), fmt(r["sd"], 2),
-                    f"{r['z']:+.3g}", f"{100 * r['relative']:+.3g} %"))
+        f = row_format(r["reference"], r["sd"])
+        out.append((r["name"], f"{f.suffix}{display_unit(ctx.unit(r['name']))}".strip(),
+                    f.value(r["closed_form"]), f.value(r["reference"]), f.sd(r["sd"]),
+                    *_distance(r)))
     return Table(TABLE_TITLES["comparison"],
-                 ("parameter", "closed form", ctx.best_label, "sd", "distance (sd)",
+                 ("parameter", "unit", "closed form", ctx.best_label, "sd", "distance (sd)",
                   "relative difference"), tuple(out),
                  "distance = (closed form − reference)/sd; the causes follow below.")
