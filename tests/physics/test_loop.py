@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pmdc_bayes._headline import pi_loop_text
 from pmdc_bayes.cli import main
-from pmdc_bayes.physics.loop import describe_pi_loop, pi_loop, pi_margins
+from pmdc_bayes.physics.loop import pi_loop, pi_margins
 
 control = pytest.importorskip("control")
 
@@ -54,14 +55,14 @@ def test_the_spread_over_draws_brackets_the_estimate_and_counts_the_risky_draws(
            ["phase_margin_deg"] for d in draws]
     assert over["share_pm_below_45"] == pytest.approx(np.mean(np.array(pms) < 45))
     assert 0 < over["share_pm_below_45"] < 1
-    text = describe_pi_loop(rec)
+    text = pi_loop_text(rec)
     assert text.startswith("PI loop kp=2, ki=40, delay 5 ms: phase margin ")
     # without a delay the gain margin is infinite, and JSON gets None for it
     rec = pi_loop(0.5, 5.0, 0.0, MOTOR, draws[:5])
     assert rec["at_estimate"]["gain_margin_db"] is None
     assert rec["over_draws"]["gain_margin_db"] == [None, None, None]
-    assert "gain margin ∞" in describe_pi_loop(rec)
-    assert describe_pi_loop(pi_loop(0.5, 5.0, 0.0, MOTOR)).endswith(
+    assert "gain margin ∞" in pi_loop_text(rec)
+    assert pi_loop_text(pi_loop(0.5, 5.0, 0.0, MOTOR)).endswith(
         "(no posterior draws: no spread)")
 
 

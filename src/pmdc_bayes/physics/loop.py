@@ -12,7 +12,7 @@ import numpy as np
 
 from .motor import tf_full
 
-__all__ = ["pi_margins", "pi_loop", "describe_pi_loop", "FREQUENCIES"]
+__all__ = ["pi_margins", "pi_loop", "FREQUENCIES"]
 
 FREQUENCIES = np.logspace(-4, 8, 4801)  # rad/s: 400 points a decade
 
@@ -93,25 +93,3 @@ def pi_loop(kp: float, ki: float, delay: float, best: dict, draws=None) -> dict:
             "share_gm_below_6db": float(np.mean(gm < 6.0)),
         }
     return out
-
-
-def describe_pi_loop(rec: dict) -> str:
-    """One line for people: the margins at the estimate and their 94 % range."""
-    def deg(x):
-        return "∞" if x is None else f"{x:.3g}°"
-
-    def db(x):
-        return "∞" if x is None else f"{x:.3g} dB"
-
-    a = rec["at_estimate"]
-    text = (f"PI loop kp={rec['kp']:g}, ki={rec['ki']:g}"
-            + (f", delay {rec['delay'] * 1e3:g} ms" if rec["delay"] else "")
-            + f": phase margin {deg(a['phase_margin_deg'])}, gain margin "
-              f"{db(a['gain_margin_db'])}")
-    d = rec.get("over_draws")
-    if not d:
-        return text + " (no posterior draws: no spread)"
-    pm, gm = d["phase_margin_deg"], d["gain_margin_db"]
-    return text + (f"; over {d['n']} posterior draws, 94 % of phase margins in "
-                   f"[{deg(pm[0])}, {deg(pm[2])}], of gain margins in [{db(gm[0])}, "
-                   f"{db(gm[2])}]; {100 * d['share_pm_below_45']:.0f} % of draws under 45°")
