@@ -105,6 +105,9 @@ def test_compare_picks_the_dead_time_and_runs_it(session, tmp_path):
     assert proc.stdout.startswith("Model adequate")
     assert "Candidate models (--compare)" in proc.stdout
     assert "Recommended: dead time" in proc.stdout
+    # the rig's parameters are named in words under the table
+    assert "The rig's parameters: dead_time_step_12v: dead time of trace 'step_12v'" \
+        in proc.stdout
     summary = json.loads((out / "summary.json").read_text())
     sel = summary["model_selection"]
     assert sel["recommended"] == "dead time" and sel["nuisances"] == ["dead_time"]

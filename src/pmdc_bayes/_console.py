@@ -58,6 +58,10 @@ def print_fit(summary: dict, out) -> bool:
             line += (f"{f.value(row['mean']):>13}{f.sd(row['sd']):>11}{hdi:>26}"
                      f"{row['r_hat']:>7.3f}{row['ess_bulk']:>7.0f}")
         print(f"{line}  {f.suffix}{display_unit(row['unit'])}")
+    rig = [f"{name}: {row['description']}" for name, row in summary["parameters"].items()
+           if row.get("block", "motor") not in ("motor", "friction") and row.get("description")]
+    if rig:
+        print("The rig's parameters: " + "; ".join(rig) + ".")
     off = [f"{r['name']} {r['off'].replace(', ', ' (')})" for r in headline_rows(summary)
            if r["off_sd"] is not None and abs(r["off_sd"]) > 2]
     if off:

@@ -122,6 +122,8 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     params = {}
     for name in model.names:
         params[name] = {"unit": model.registry[name].unit,
+                        "description": model.registry[name].description,
+                        "block": model.registry[name].block,
                         "closed_form": cf.params().get(name) if cf.applicable else None,
                         "map": fit.values[name], "map_sd": fit.sd[name]}
         if not adequacy.ok:
