@@ -210,8 +210,9 @@ def _finish(model, states, origins, evaluate) -> FitResult:
     sd_log = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     corr = cov / np.outer(sd_log, sd_log)
     vals = model.registry.to_values(theta)
-    values = dict(zip(model.names, map(float, vals)))
-    sd = dict(zip(model.names, map(float, model.registry.sd_values(theta, sd_log))))
+    values = dict(zip(model.names, map(float, vals), strict=True))
+    sd = dict(zip(model.names, map(float, model.registry.sd_values(theta, sd_log)),
+                  strict=True))
     noise = {c.name: float(1.0 / np.sqrt(w[k])) for k, c in enumerate(model.channels) if c.n > 0}
     reasons = []
     if not np.isfinite(logp[best]):

@@ -24,12 +24,13 @@ from ..io.session import Session
 from ..paper.closed_form import ClosedForm
 from ..physics import motor
 from ..physics.experiment import steady_points
-from ..physics.solution import Params, experiment_from_traces, real_modes, simulate_padded
+from ..physics.solution import Params, experiment_from_traces, real_modes
 from . import cache as _cache
 from .channels import SteadyBlock, blocks_for, entry_weights
 from .noise import Channel, noise_scale
 from .nuisances import RigEffects, coast_down_specs, nuisance_specs, position_specs
 from .params import PRIOR_FACTOR, Registry, motor_registry
+from .predictions import Predictions
 from .seed import drop_seed, motor_seed
 
 __all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale"]
@@ -38,7 +39,7 @@ NU0 = 2.0
 BATCH_CHUNK = 4  # parameter vectors evaluated together inside a batch (see benchmarks/)
 
 
-class SessionModel(RigEffects):
+class SessionModel(RigEffects, Predictions):
     """Predictions, residuals and log-posterior of a session as functions of θ.
 
     Build with :func:`build_model`.  The likelihood is composed of the blocks of
@@ -228,40 +229,6 @@ class SessionModel(RigEffects):
                  for r, m, ch in self._parts(theta, d, fast)]
         prior = self.registry.prior_residuals(theta, d["prior_centre"], d["prior_scale"])
         return jnp.concatenate(parts + [prior])
-
-    @x64
-    def predict(self, theta, *, coulomb: bool | None = None):
-        """Per trace ``(ia, ω)`` in time order (A, rad/s), as NumPy arrays."""
-        if self.exp is None:
-            return []
-        c = self.coulomb_path if coulomb is None else coulomb
-        def run(t, d):
-            d = d["traces"]
-            ia, w = simulate_padded(self.circuit(t), self.inputs(t, d["exp"]), coulomb=c,
-                                    limit=self.limit(t))
-            ia, w = self.sensed(t, ia, w, d)
-            return d["exp"].unpad(ia), d["exp"].unpad(w)
-
-        fn = self.compiled(f"predict-coulomb={c}", lambda: jax.jit(run))
-        ia, w = fn(jnp.asarray(theta), self.data)
-        return list(zip(self.exp.split(ia), self.exp.split(w)))
-
-    @x64
-    def predict_angles(self, theta) -> list:
-        """Per trace the angle a position sensor would read (rad, its fitted offset
-        included), in time order; None for a trace without one."""
-        block = self.blocks[0] if self.exp is not None else None
-        if block is None or not block.offsets:
-            return [None] * len(self.session.traces)
-
-        def run(t, d):
-            d = d["traces"]
-            return d["exp"].unpad(d["position"] - block.residuals(self, t, d)[2])
-
-        angle = self.compiled("predict-angle", lambda: jax.jit(run))(jnp.asarray(theta),
-                                                                      self.data)
-        return [a if tr.position is not None else None
-                for tr, a in zip(self.session.traces, self.exp.split(angle), strict=True)]
 
     def padded_log_density(self, theta, *, data=None) -> list:
         """Gaussian log-density of every observation, in each block's layout, at its

@@ -1,0 +1,67 @@
+"""What the fitted model predicts the sensors read: the traces' currents, speeds and
+angles at a θ, for the adequacy checks, the residual tables and the report."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._x64 import x64
+from ..physics.solution import simulate_padded
+
+__all__ = ["Predictions"]
+
+
+class Predictions:
+    """The prediction methods of :class:`~pmdc_bayes.inference.objective.SessionModel`
+    (a mixin: it reads the model's session, experiment, blocks and rig effects)."""
+
+    @x64
+    def predict(self, theta, *, coulomb: bool | None = None):
+        """Per trace ``(ia, ω)`` in time order (A, rad/s, as the sensors read them), as
+        NumPy arrays; ``coulomb`` overrides the model's friction path."""
+        if self.exp is None:
+            return []
+        c = self.coulomb_path if coulomb is None else coulomb
+        if c == self.coulomb_path:
+            ia, w, _ = self._predicted(theta)
+            return list(zip(self.exp.split(ia), self.exp.split(w), strict=True))
+
+        def run(t, d):
+            d = d["traces"]
+            ia, w = simulate_padded(self.circuit(t), self.inputs(t, d["exp"]), coulomb=c,
+                                    limit=self.limit(t))
+            ia, w = self.sensed(t, ia, w, d)
+            return d["exp"].unpad(ia), d["exp"].unpad(w)
+
+        fn = self.compiled(f"predict-coulomb={c}", lambda: jax.jit(run))
+        ia, w = fn(jnp.asarray(theta), self.data)
+        return list(zip(self.exp.split(ia), self.exp.split(w), strict=True))
+
+    @x64
+    def predict_angles(self, theta) -> list:
+        """Per trace the angle a position sensor would read (rad, its fitted offset
+        included), in time order; None for a trace without one."""
+        block = self.blocks[0] if self.exp is not None else None
+        if block is None or not block.offsets:
+            return [None] * len(self.session.traces)
+        angle = self._predicted(theta)[2]
+        return [a if tr.position is not None else None
+                for tr, a in zip(self.session.traces, self.exp.split(angle), strict=True)]
+
+    def _predicted(self, theta):
+        """``(ia, ω, angle)`` of every trace in time order, from the trace block's own
+        residuals (observation − residual; a channel not logged is 0 there): one
+        compiled program serves both :meth:`predict` and :meth:`predict_angles`."""
+        block = self.blocks[0]
+
+        def run(t, d):
+            d = d["traces"]
+            r = block.residuals(self, t, d)
+            return tuple(d["exp"].unpad(d[k] - x)
+                         for k, x in zip(("current", "speed", "position"), (r[1], r[0], r[2]),
+                                         strict=True))
+
+        out = self.compiled("predict", lambda: jax.jit(run))(jnp.asarray(theta), self.data)
+        return tuple(np.asarray(x) for x in out)
