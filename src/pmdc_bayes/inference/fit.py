@@ -18,7 +18,7 @@ import numpy as np
 
 from .._x64 import x64
 from .lm import GaussNewton, Terms, levenberg_marquardt
-from .objective import NU0, SessionModel
+from .objective import SessionModel, noise_weights
 
 __all__ = ["FitResult", "fit_map", "laplace"]
 
@@ -103,12 +103,6 @@ def _far_below(start, best: float) -> bool:
     or a slow crawl, not worth finishing."""
     return start.steps >= ABANDON_AFTER and np.isfinite(best) and (
         start.lp < best - max(RELEVANT, 1e-2 * abs(best)))
-
-
-def _weights(model: SessionModel, ss) -> np.ndarray:
-    """Per-channel 1/σ_c² at sums of squares ``ss``: the posterior mode of σ_c²."""
-    n = np.asarray(model.n_obs)
-    return np.where(n > 0, (n + NU0) / (NU0 * np.asarray(model.s0) ** 2 + np.asarray(ss)), 0.0)
 
 
 @x64
@@ -206,7 +200,7 @@ def _finish(model, states, origins, evaluate) -> FitResult:
     starts = [{"start": i, "origin": origins[i], "log_posterior": float(logp[i]),
                "agrees": bool(agree[i]), "solver_ok": bool(ok[i]), "steps": st.steps,
                "stopped": st.stopped} for i, st in enumerate(states)]
-    w = _weights(model, terms.ss)
+    w = noise_weights(np.asarray(terms.ss), np.asarray(model.n_obs), np.asarray(model.s0))
     sd_log = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     corr = cov / np.outer(sd_log, sd_log)
     vals = model.registry.to_values(theta)

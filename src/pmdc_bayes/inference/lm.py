@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .channels import entry_weights
+from .objective import NU0, integrated_log_likelihood, noise_weights
 
 __all__ = ["gauss_newton", "GaussNewton", "Terms", "levenberg_marquardt", "Start"]
 
@@ -57,8 +58,6 @@ def gauss_newton(model, theta, *, data=None):
     squares, converging only linearly).  The prior's standardised residuals ``p`` add
     ``−J_pᵀp`` and the log-Jacobian's constant gradient.
     """
-    from .objective import NU0
-
     d = model.data if data is None else data
     n_ch = len(model.channels)
 
@@ -74,7 +73,7 @@ def gauss_newton(model, theta, *, data=None):
     ss = jax.ops.segment_sum(r * r, cid, num_segments=n_ch)
     G = jax.ops.segment_sum(jac * r[:, None], cid, num_segments=n_ch)
     n, s0 = d["n_obs"], d["s0"]
-    w = jnp.where(n > 0, (n + NU0) / (NU0 * s0**2 + ss), 0.0)
+    w = noise_weights(ss, n, s0)
     sw = jnp.sqrt(w)[cid]
     jw = jac * sw[:, None]
 
@@ -84,8 +83,7 @@ def gauss_newton(model, theta, *, data=None):
     jp = jax.jacfwd(prior_residuals)(theta)
     log_prior = model.log_prior(theta, data=d)
     grad_prior = jax.grad(lambda t: model.log_prior(t, data=d))(theta)
-    lp = log_prior + jnp.sum(jnp.where(n > 0, -0.5 * (n + NU0) * jnp.log(NU0 * s0**2 + ss),
-                                       0.0))
+    lp = log_prior + jnp.sum(integrated_log_likelihood(ss, n, s0))
     grad = grad_prior - w @ G
     H = jw.T @ jw + jp.T @ jp
     # the curvature given up by not knowing each channel's noise level (see fit.laplace)

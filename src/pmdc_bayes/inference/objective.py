@@ -33,10 +33,27 @@ from .params import PRIOR_FACTOR, Registry, motor_registry
 from .predictions import Predictions
 from .seed import drop_seed, motor_seed
 
-__all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale"]
+__all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale",
+           "integrated_log_likelihood", "noise_weights"]
 
 NU0 = 2.0
 BATCH_CHUNK = 4  # parameter vectors evaluated together inside a batch (see benchmarks/)
+
+
+def integrated_log_likelihood(ss, n, s0):
+    """Per channel ``−(n_c + ν0)/2 · log(ν0·s0_c² + SS_c)``: the Gaussian likelihood of a
+    channel's ``n_c`` residuals with sum of squares ``SS_c``, its noise level integrated
+    out (0 for a channel without observations).  Works on JAX or NumPy arrays."""
+    xp = jnp if isinstance(ss, jax.Array) else np
+    return xp.where(n > 0, -0.5 * (n + NU0) * xp.log(NU0 * s0**2 + ss), 0.0)
+
+
+def noise_weights(ss, n, s0):
+    """Per channel ``w_c = (n_c + ν0)/(ν0·s0_c² + SS_c)``: ``1/σ_c²`` at the posterior
+    mode of the noise level, and the channel's weight in the log-likelihood's gradient
+    (0 for a channel without observations)."""
+    xp = jnp if isinstance(ss, jax.Array) else np
+    return xp.where(n > 0, (n + NU0) / (NU0 * s0**2 + ss), 0.0)
 
 
 class SessionModel(RigEffects, Predictions):
@@ -186,8 +203,7 @@ class SessionModel(RigEffects, Predictions):
         """Σ_c −(n_c + ν0)/2 · log(ν0·s0_c² + SS_c): Gaussian noise, σ_c integrated out."""
         d = self._d(data)
         ss = self.sums_of_squares(theta, fast=fast, data=d)
-        n, s0 = d["n_obs"], d["s0"]
-        return jnp.sum(jnp.where(n > 0, -0.5 * (n + NU0) * jnp.log(NU0 * s0**2 + ss), 0.0))
+        return jnp.sum(integrated_log_likelihood(ss, d["n_obs"], d["s0"]))
 
     def log_posterior(self, theta, *, fast: bool = False, data=None):
         """Log-posterior (up to a constant); −inf wherever the model is not finite."""
@@ -213,12 +229,6 @@ class SessionModel(RigEffects, Predictions):
                 batch_size=BATCH_CHUNK)
 
         return jax.lax.cond(ok, over(True), over(False), thetas)
-
-    def weights(self, theta, *, data=None):
-        """Per-channel weights 1/σ_c² at θ: the posterior mode of σ_c² given SS_c."""
-        d = self._d(data)
-        ss = self.sums_of_squares(theta, data=d)
-        return (d["n_obs"] + NU0) / (NU0 * d["s0"] ** 2 + ss)
 
     def weighted_residuals(self, theta, weights, *, fast: bool = False, data=None):
         """Residual vector whose half squared norm is the negative log-posterior at fixed
