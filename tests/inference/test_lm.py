@@ -104,3 +104,28 @@ def test_a_crawl_along_a_narrow_curved_valley_stops_within_the_resolution():
     assert s.converged, s.stopped
     assert s.lp >= -lm.RESOLUTION * 2
     assert s.steps < lm.MAX_STEPS
+
+
+def test_two_finals_are_one_optimum_unless_a_valley_separates_them():
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.fit import _modes
+
+    cov = np.diag([1e-4, 1e-4])  # narrow Laplace widths: the finals are many sds apart
+    thetas = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    ok = np.array([True, True])
+
+    def well(theta):  # a double well: optima at x = ±1, a dip of 50 at x = 0
+        return SimpleNamespace(lp=-50.0 * (theta[0] ** 2 - 1.0) ** 2)
+
+    def ridge(theta):  # flat along x: the two finals lie on one ridge
+        return SimpleNamespace(lp=-50.0 * theta[1] ** 2)
+
+    logp = np.array([0.0, -0.1])
+    modes, label = _modes(thetas, logp, ok, cov, well)
+    assert modes == [0, 1] and label == [0, 1]
+    modes, label = _modes(thetas, logp, ok, cov, ridge)
+    assert modes == [0] and label == [0, 0]
+    # a start that did not converge belongs to no optimum
+    modes, label = _modes(thetas, logp, np.array([True, False]), cov, well)
+    assert modes == [0] and label == [0, -1]
