@@ -63,9 +63,31 @@ def test_binomial_band():
     assert stats.binom.cdf(hi, 100, 0.9) - stats.binom.cdf(lo - 1, 100, 0.9) >= 0.99
 
 
+def _record(hits: dict, post, truth: dict) -> None:
+    """Whether each parameter's central LEVEL interval of ``post`` covers ``truth``."""
+    tail = (1.0 - LEVEL) / 2.0
+    for name, draws in post.draws_si().items():
+        lo, hi = np.quantile(draws, [tail, 1.0 - tail])
+        hits.setdefault(name, []).append(bool(lo <= truth[name] <= hi))
+
+
+def _assert_covered(hits: dict) -> int:
+    """The pooled count of covering intervals lies in the 99 % binomial band; returns
+    how many intervals there were."""
+    per_parameter = {k: float(np.mean(v)) for k, v in hits.items()}
+    covered = sum(sum(v) for v in hits.values())
+    n = sum(len(v) for v in hits.values())
+    lo, hi = binomial_band(n)
+    print(f"coverage of {LEVEL:.0%} intervals: {covered}/{n} = {covered / n:.3f}, 99 % band "
+          f"[{lo}, {hi}]; per parameter {per_parameter}")  # shown with pytest -s
+    assert lo <= covered <= hi, (
+        f"{covered} of {n} intervals cover the truth ({covered / n:.3f}); the 99 % band "
+        f"for {LEVEL:.0%} is [{lo}, {hi}]; per parameter: {per_parameter}")
+    return n
+
+
 @pytest.mark.slow
 def test_central_90_percent_intervals_cover_the_truth(tmp_path):
-    tail = (1.0 - LEVEL) / 2.0
     hits: dict[str, list[bool]] = {}
     for i, motor in enumerate(prior_motors(N_MOTORS)):
         session = load_session(simulate_session(plan_for(motor, seed=1000 + i),
@@ -74,19 +96,8 @@ def test_central_90_percent_intervals_cover_the_truth(tmp_path):
         fit = fit_map(model)
         assert fit.ok, f"{motor.name}: {fit.message}"
         post = sample_posterior(model, fit, seed=i, max_steps=MAX_STEPS, progress=False)
-        for name, draws in post.draws_si().items():
-            lo, hi = np.quantile(draws, [tail, 1.0 - tail])
-            hits.setdefault(name, []).append(bool(lo <= session.truth[name] <= hi))
-    per_parameter = {k: float(np.mean(v)) for k, v in hits.items()}
-    covered = sum(sum(v) for v in hits.values())
-    n = sum(len(v) for v in hits.values())
-    lo, hi = binomial_band(n)
-    print(f"coverage of {LEVEL:.0%} intervals: {covered}/{n} = {covered / n:.3f}, 99 % band "
-          f"[{lo}, {hi}]; per parameter {per_parameter}")  # shown with pytest -s
-    assert n == N_MOTORS * len(model.names)
-    assert lo <= covered <= hi, (
-        f"{covered} of {n} intervals cover the truth ({covered / n:.3f}); the 99 % band "
-        f"for {LEVEL:.0%} is [{lo}, {hi}]; per parameter: {per_parameter}")
+        _record(hits, post, session.truth)
+    assert _assert_covered(hits) == N_MOTORS * len(model.names)
 
 
 N_RIGS = 12
@@ -106,7 +117,6 @@ def test_intervals_cover_the_truth_with_a_dead_time_and_a_voltage_drop_fitted():
     from pmdc_bayes.simulate.bench import bench_session
     from pmdc_bayes.simulate.cases import random_motor
 
-    tail = (1.0 - LEVEL) / 2.0
     hits: dict[str, list[bool]] = {}
     rng = np.random.default_rng(20261124)
     for i in range(N_RIGS):
@@ -123,16 +133,6 @@ def test_intervals_cover_the_truth_with_a_dead_time_and_a_voltage_drop_fitted():
         fit = fit_map(model)
         assert fit.ok, f"rig {i}: {fit.message}"
         post = sample_posterior(model, fit, seed=i, max_steps=MAX_STEPS, progress=False)
-        for name, draws in post.draws_si().items():
-            lo, hi = np.quantile(draws, [tail, 1.0 - tail])
-            hits.setdefault(name, []).append(bool(lo <= truth[name] <= hi))
-    per_parameter = {k: float(np.mean(v)) for k, v in hits.items()}
-    covered = sum(sum(v) for v in hits.values())
-    n = sum(len(v) for v in hits.values())
-    lo, hi = binomial_band(n)
-    print(f"coverage of {LEVEL:.0%} intervals: {covered}/{n} = {covered / n:.3f}, 99 % band "
-          f"[{lo}, {hi}]; per parameter {per_parameter}")
+        _record(hits, post, truth)
     assert set(hits) >= {"Vdrop", "dead_time_step_12v", "dead_time_step_6v", "K", "J"}
-    assert lo <= covered <= hi, (
-        f"{covered} of {n} intervals cover the truth ({covered / n:.3f}); the 99 % band "
-        f"for {LEVEL:.0%} is [{lo}, {hi}]; per parameter: {per_parameter}")
+    assert _assert_covered(hits) == N_RIGS * len(model.names)
