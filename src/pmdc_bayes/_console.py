@@ -5,10 +5,10 @@ scale) and the findings."""
 from __future__ import annotations
 
 from ._format import row_format
-from ._headline import determinability, fit_lines, headline_rows, pi_loop_text
+from ._headline import determinability, fit_lines, headline_rows, pi_loop_text, spread_text
 from .io.units import display_unit
 
-__all__ = ["print_fit", "print_adequacy"]
+__all__ = ["print_fit", "print_adequacy", "gate_failure_text"]
 
 
 def print_adequacy(adequacy: dict) -> bool:
@@ -79,5 +79,26 @@ def print_fit(summary: dict, out) -> bool:
         if row["flagged"]:
             print(f"- {row['name']}: posterior sd is {row['ratio']:.2f} x the Laplace sd "
                   f"({row['note']}).")
+    spread = spread_text(summary.get("diagnostics", {}))
+    if spread:
+        print(f"- {spread}.")
     print(f"Wrote {out}")
     return adequate
+
+
+def gate_failure_text(diag: dict, n_params: int) -> str:
+    """The posterior's failed gates in one line: the run's stop, how many parameters
+    miss R-hat or ESS (summary.json lists each), and the widest direction."""
+    failures = list(diag.get("failures", []))
+    capped = [f for f in failures if f.startswith("run capped: ")]
+    per_param = [f for f in failures if not f.startswith("run capped: ")]
+    names = list(dict.fromkeys(f.split(": ", 1)[0] for f in per_param))
+    parts = [f[len("run capped: "):] for f in capped]
+    if names:
+        parts.append(f"R-hat or ESS short of the gates for {len(names)} of {n_params} "
+                     f"parameters ({per_param[0]}{', …' if len(per_param) > 1 else ''}; "
+                     "summary.json lists each)")
+    spread = spread_text(diag)
+    if spread:
+        parts.append(spread)
+    return "; ".join(parts)

@@ -15,7 +15,9 @@ from ._format import off_by, row_format, spread_format
 from .io.units import display_unit
 
 __all__ = ["headline_rows", "fit_table", "fit_lines", "determinability", "pi_loop_text",
-           "headline_text", "headline_html"]
+           "spread_text", "headline_text", "headline_html"]
+
+SPREAD_WORTH_SAYING = 2.0  # posterior sd over Laplace sd along the widest direction
 
 EVERYTHING_DETERMINED = ("The data determine every parameter: no weakly constrained "
                          "combination, none set by its prior or bench value alone, no "
@@ -115,6 +117,19 @@ def pi_loop_text(rec: dict) -> str:
                    f"[{margin(pm[0], fp, '°')}, {margin(pm[2], fp, '°')}], of gain margins in "
                    f"[{margin(gm[0], fg, ' dB')}, {margin(gm[2], fg, ' dB')}]; "
                    f"{100 * d['share_pm_below_45']:.0f} % of draws under 45°")
+
+
+def spread_text(diag: dict) -> str:
+    """The widest direction of the posterior beyond the Laplace approximation, in words,
+    when it is worth saying (empty otherwise)."""
+    wide = diag.get("widest_direction")
+    if not wide or wide["ratio"] < SPREAD_WORTH_SAYING:
+        return ""
+    names = wide["parameters"]
+    shown = ", ".join(names[:6]) + (f" and {len(names) - 6} more" if len(names) > 6 else "")
+    return (f"along {shown} together the posterior spreads {wide['ratio']:.1f} times as far "
+            "as the Laplace approximation: a combination the data barely constrain, slow "
+            "to sample, whose Laplace sd is too small")
 
 
 def headline_text(summary: dict) -> str:

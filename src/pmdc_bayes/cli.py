@@ -14,7 +14,7 @@ from pathlib import Path
 
 from . import _signals, cachedir
 from ._cli_parser import build_parser
-from ._console import print_fit
+from ._console import gate_failure_text, print_fit
 from ._errors import SessionError, UsageError
 from .io.bundled import session_path
 from .io.units import display_unit
@@ -154,8 +154,8 @@ def _fit_one(args, path, out) -> tuple[int, dict, Path]:
     diag = summary["diagnostics"]
     if diag.get("gates_passed") is False and not args.allow_unconverged:
         print("pmdc-bayes: error: the posterior failed its convergence gates: "
-              + "; ".join(diag["failures"]) + " (rerun with --allow-unconverged to accept)",
-              file=sys.stderr)
+              + gate_failure_text(diag, len(summary["parameters"]))
+              + " (rerun with --allow-unconverged to accept)", file=sys.stderr)
         status = EXIT_FAILED
     return status, summary, out
 

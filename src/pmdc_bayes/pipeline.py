@@ -261,6 +261,7 @@ def _reference_voltage(session) -> float:
 
 def _posterior_stage(model, fit, *, seed, progress, max_seconds=None):
     from .inference.derived import derived_quantities
+    from .inference.diagnostics import widest_direction
     from .inference.sampling import compare_laplace, gates, sample_posterior, summarize
 
     post = sample_posterior(model, fit, seed=seed, progress=progress, max_seconds=max_seconds)
@@ -279,6 +280,7 @@ def _posterior_stage(model, fit, *, seed, progress, max_seconds=None):
             "n_walkers": int(post.draws.shape[0]), "n_steps": int(post.n_steps),
             "burn_in": int(post.burn_in), "capped": bool(post.capped),
             "sampler_message": post.message,
+            "widest_direction": widest_direction(fit, post.draws_log),
         },
     }
     return post, stats

@@ -16,7 +16,8 @@ with warnings.catch_warnings():
     warnings.filterwarnings("ignore", message=r"\s*ArviZ is undergoing", category=FutureWarning)
     import arviz as az
 
-__all__ = ["R_HAT_MAX", "ESS_MIN", "summarize", "gates", "compare_laplace", "loo_compare", "format_loo", "az"]
+__all__ = ["R_HAT_MAX", "ESS_MIN", "summarize", "gates", "compare_laplace", "widest_direction",
+           "loo_compare", "format_loo", "az"]
 
 HDI_PROB = 0.94
 LAPLACE_TOLERANCE = 0.2
@@ -71,6 +72,45 @@ def compare_laplace(fit, summary: dict, *, tolerance: float = LAPLACE_TOLERANCE)
                      "flagged": flagged,
                      "note": "non-Gaussian or banana-shaped posterior" if flagged else ""})
     return rows
+
+
+def widest_direction(fit, draws_log, *, share: float = 0.3) -> dict | None:
+    """The combination of parameters along which the posterior spreads furthest beyond
+    the Laplace approximation, judged jointly rather than one parameter at a time.
+
+    ``draws_log`` are posterior draws in log space (θ), ``(..., P)``.  The generalised
+    eigenproblem of the draws' covariance against ``fit.cov_log`` gives, for its largest
+    eigenvalue λ, the ratio ``sqrt(λ)`` of the posterior's sd to the Laplace sd along
+    that direction, and the direction itself.  A ridge the data barely constrain (a
+    prior-bound inductance trading against dead times, say) shows here as a ratio of
+    several even when each parameter's own sd looks close to its Laplace sd.
+
+    Returns ``{"ratio", "parameters", "weights"}`` — the parameters whose weight in the
+    direction (in posterior sd units) is at least ``share`` of the largest, largest
+    first — or None when there are too few draws (fewer than 5 per dimension) or the
+    Laplace covariance is singular.
+    """
+    x = np.asarray(draws_log, dtype=float).reshape(-1, np.shape(draws_log)[-1])
+    n, p = x.shape
+    if n < 5 * p:
+        return None
+    try:
+        root = np.linalg.cholesky(np.asarray(fit.cov_log, dtype=float))
+    except np.linalg.LinAlgError:
+        return None
+    inv_root = np.linalg.inv(root)
+    post = np.atleast_2d(np.cov(x.T))
+    vals, vecs = np.linalg.eigh(inv_root @ post @ inv_root.T)
+    direction = root @ vecs[:, -1]
+    sd = np.sqrt(np.clip(np.diag(post), 1e-300, None))
+    weights = direction / sd
+    weights = weights / np.max(np.abs(weights))
+    order = np.argsort(-np.abs(weights))
+    names = list(fit.names)
+    keep = [int(k) for k in order if abs(weights[k]) >= share]
+    return {"ratio": float(np.sqrt(max(vals[-1], 0.0))),
+            "parameters": [names[k] for k in keep],
+            "weights": {names[k]: float(weights[k]) for k in keep}}
 
 
 def _reff(idata) -> float:

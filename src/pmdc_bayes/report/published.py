@@ -3,8 +3,8 @@
 The paper's simulated speeds are not data (they are the paper's model output, so the
 session leaves them out and the fit never sees them); the report shows them beside
 the fitted lines so that their disagreement with Table I is visible.  Source:
-Tun & Naing, *PMDC Motor Modeling and Parameter Identification for Control Purpose*;
-see ``/work/shared/reference/paper.md`` (Table II and Figure 6).
+Tun & Naing, *PMDC Motor Modeling and Parameter Identification for Control Purpose*,
+Table II and Figure 6.
 """
 
 from __future__ import annotations

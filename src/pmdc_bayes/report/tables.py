@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..physics.motor import gain, tf_full, time_constant
+from .._format import off_by, row_format
+from .._headline import spread_text
 from ..inference.derived import LABELS as DERIVED_LABELS
 from ..inference.derived import derived_draws
-from .._format import off_by, row_format
-from ._doc import Table, fmt
 from ..io.units import SI_UNIT, display_unit
+from ..physics.motor import gain, tf_full, time_constant
+from ._doc import Table, fmt
 from .predictive import METHODS
 
 __all__ = ["parameter_table", "derived_table", "diagnostics_table", "rms_table",
@@ -146,6 +147,12 @@ def diagnostics_table(ctx) -> Table:
     for r in s.get("laplace_check", []):
         rows.append((f"Laplace check {r['name']}", f"posterior/Laplace sd {r['ratio']:.3f}",
                      r["note"] or "agrees within 20 %"))
+    wide = diag.get("widest_direction")
+    if wide:
+        rows.append(("Laplace check, jointly",
+                     f"posterior/Laplace sd {wide['ratio']:.3f} along "
+                     + ", ".join(wide["parameters"]),
+                     spread_text(diag) or "agrees within a factor of 2"))
     wall = diag.get("wall_s", {})
     if wall:
         rows.append(("wall time (s)", ", ".join(f"{_STAGES.get(k, k.replace('_', ' '))} "
