@@ -184,9 +184,10 @@ def _cmd_report(args) -> int:
     check_writable(run_dir, what="copy the run to a writable place and report there")
     if not args.no_cache:
         cachedir.enable()
-    paths = write_report(run_dir)
-    print(f"Wrote {paths['html']}, {paths['markdown'].name}, {paths['controller'].name} and "
-          f"{len(paths['figures'])} figures in {run_dir / 'figures'}")
+    paths = write_report(run_dir, say=_stage_printer(args))
+    if not args.quiet:
+            print(f"Wrote {paths['html']}, {paths['markdown'].name}, {paths['controller'].name} "
+              f"and {len(paths['figures'])} figures in {run_dir / 'figures'}")
     return 0
 
 

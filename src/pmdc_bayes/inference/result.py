@@ -224,7 +224,8 @@ def _read_posterior(run_dir: Path, names) -> tuple:
 @x64
 def read_run(run_dir) -> RunResult:
     """The :class:`RunResult` of a finished run directory (the session is re-read from
-    the path its summary records)."""
+    the run's own copy, or from the path its summary records when it holds no intact
+    copy)."""
     run_dir = Path(run_dir)
     summary = read_summary(run_dir)
     info = summary["session"]
