@@ -36,7 +36,7 @@ def test_the_key_changes_with_any_traced_library(monkeypatch):
 
     before = cache._source_hash()
     real = metadata.version
-    for lib in ("jaxlib", "optimistix", "equinox", "lineax", "diffrax"):
+    for lib in ("jax", "jaxlib", "optimistix", "equinox", "lineax", "diffrax"):
         monkeypatch.setattr(metadata, "version",
                             lambda name, lib=lib: "0.0.0" if name == lib else real(name))
         assert cache._source_hash() != before, lib
