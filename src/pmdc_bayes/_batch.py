@@ -16,7 +16,8 @@ from ._errors import UsageError
 from .io.bundled import passed_over, session_path
 from .rundir import is_run_dir
 
-__all__ = ["LotEntry", "expand_sessions", "bundled_note", "lot_outs", "lot_table", "write_lot", "STATUS"]
+__all__ = ["LotEntry", "expand_sessions", "bundled_note", "lot_outs", "lot_table", "write_lot",
+           "STATUS"]
 
 STATUS = {0: "ok", 1: "failed gates", 2: "bad input", 3: "model inadequate"}
 _PARAMS = ("Ra", "La", "K", "B", "J", "Tc")

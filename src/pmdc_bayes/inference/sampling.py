@@ -218,8 +218,9 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
         (evenly thinned along each chain).
     max_seconds : a limit on the sampling's wall time (checked between chunks of
         steps); a run stopped by it is ``capped``, and ``message`` says what the
-        stopping rule still lacked (:func:`~pmdc_bayes.inference.stopping.stop_message`).  A run that converges first does not depend on it; one
-        it stops depends on the machine's speed.
+        stopping rule still lacked (:func:`~pmdc_bayes.inference.stopping.stop_message`).
+        A run that converges first does not depend on it; one it stops depends on the
+        machine's speed.
     """
     t_start = time.perf_counter()
     ndim = len(model.names)

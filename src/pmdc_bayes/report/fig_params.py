@@ -17,7 +17,8 @@ from ._plot import (
     subplots,
 )
 
-__all__ = ["corner_figure", "forest_figure", "forest_points", "chains_figure", "ranks_figure", "CORNER_NAMES"]
+__all__ = ["corner_figure", "forest_figure", "forest_points", "chains_figure", "ranks_figure",
+           "CORNER_NAMES"]
 
 CORNER_NAMES = ("J", "B", "K", "Tc")
 _N_SCATTER = 3000
