@@ -1,4 +1,5 @@
 import os
+import shutil
 import tempfile
 
 import jax
@@ -6,8 +7,17 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 # Commands run by the tests (in this process or as subprocesses) keep their compiled
-# programs in a cache of this test run, never in the user's home directory.
-os.environ.setdefault("PMDC_BAYES_CACHE", tempfile.mkdtemp(prefix="pmdc-bayes-test-cache-"))
+# programs in a cache of this test run, never in the user's home directory; it is
+# removed when the run ends.
+_TEST_CACHE = None
+if "PMDC_BAYES_CACHE" not in os.environ:
+    _TEST_CACHE = tempfile.mkdtemp(prefix="pmdc-bayes-test-cache-")
+    os.environ["PMDC_BAYES_CACHE"] = _TEST_CACHE
+
+
+def pytest_sessionfinish(session, exitstatus):
+    if _TEST_CACHE is not None:
+        shutil.rmtree(_TEST_CACHE, ignore_errors=True)
 
 # Shared fixtures: a small valid session written into ``tmp_path``.  Tests break one
 # thing of it at a time (a key, a unit, a CSV cell) and check the error.

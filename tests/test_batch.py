@@ -13,6 +13,7 @@ from pmdc_bayes import UsageError
 from pmdc_bayes._batch import expand_sessions, lot_outs
 from pmdc_bayes.cli import main
 from pmdc_bayes.io.bundled import bundled_session_dir
+from pmdc_bayes.rundir import RUN_MARKER
 
 
 def _lot(tmp_path, broken=True):
@@ -40,6 +41,35 @@ def test_a_folder_of_sessions_is_its_sessions_in_name_order(tmp_path):
         expand_sessions([str(lot / "m1"), str(lot / "m1" / ".." / "m1")])
     with pytest.raises(UsageError, match="neither a session"):
         expand_sessions([str(lot / "notes")])
+
+
+def test_a_local_directory_named_like_a_bundled_session_hides_it_only_if_a_session(
+        tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    run = tmp_path / "demo"  # as 'pmdc-bayes fit demo --out demo' leaves it
+    shutil.copytree(bundled_session_dir("paper"), run / "session")
+    (run / RUN_MARKER).write_text("", encoding="utf-8")
+    notes = []
+    assert expand_sessions(["demo"], note=notes.append) == [bundled_session_dir("demo")]
+    assert len(notes) == 1 and "bundled session 'demo'" in notes[0]
+    assert "./demo here is a run directory" in notes[0]
+    with pytest.raises(UsageError, match="a run directory written by 'pmdc-bayes fit'"):
+        expand_sessions(["./demo"])
+    # a folder of sessions named so is the lot only when named as a path
+    shutil.copytree(bundled_session_dir("paper"), tmp_path / "paper" / "m1")
+    notes.clear()
+    assert expand_sessions(["paper"], note=notes.append) == [bundled_session_dir("paper")]
+    assert len(notes) == 1 and "write ./paper for the local one" in notes[0]
+    assert [p.name for p in expand_sessions(["./paper"])] == ["m1"]
+    # a session directory of that name is the user's, without a note
+    shutil.copytree(bundled_session_dir("paper"), tmp_path / "bench")
+    notes.clear()
+    assert [p.resolve() for p in expand_sessions(["bench"], note=notes.append)] == [
+        tmp_path / "bench"]
+    assert notes == []
+    assert main(["closed-form", "demo", "--json"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "pmdc-bayes: note: using the bundled session 'demo'" in err
 
 
 def test_runs_are_named_after_their_sessions_and_an_earlier_lot_is_kept(tmp_path):

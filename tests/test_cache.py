@@ -36,12 +36,28 @@ def test_the_key_changes_with_any_traced_library(monkeypatch):
 
     before = cache._source_hash()
     real = metadata.version
-    for lib in ("jaxlib", "optimistix", "equinox", "lineax", "diffrax"):
+    for lib in ("jax", "jaxlib", "optimistix", "equinox", "lineax", "diffrax"):
         monkeypatch.setattr(metadata, "version",
                             lambda name, lib=lib: "0.0.0" if name == lib else real(name))
         assert cache._source_hash() != before, lib
     monkeypatch.setattr(metadata, "version", real)
     assert cache._source_hash() == before
+
+
+def test_a_test_run_leaves_no_cache_directory_behind(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    tests = Path(__file__).resolve().parent
+    env = {k: v for k, v in os.environ.items() if k != "PMDC_BAYES_CACHE"}
+    env["TMPDIR"] = str(tmp_path)
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+         f"{tests / 'test_format.py'}::test_without_an_sd_six_significant_digits"],
+        cwd=tests.parent, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert list(tmp_path.glob("pmdc-bayes-test-cache-*")) == []
 
 
 def test_a_damaged_entry_is_rebuilt(disk_cache):

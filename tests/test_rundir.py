@@ -152,6 +152,24 @@ def test_the_session_copy_keeps_places_and_detects_changes(session_dir, tmp_path
     assert changed_files(session_dir, hashes) == ["step.csv", "sweep.csv"]
 
 
+def test_report_names_the_damaged_file_of_the_runs_copy(session_dir, tmp_path, capsys):
+    from pmdc_bayes.cli import main
+    from pmdc_bayes.io.loader import load_session
+
+    run = tmp_path / "run"
+    hashes = copy_session(load_session(session_dir), run)
+    (run / RUN_MARKER).write_text("", encoding="utf-8")
+    (run / "summary.json").write_text(json.dumps(
+        {"session": {"path": str(session_dir), "files": hashes}, "parameters": {}, "fit": {}}))
+    with (run / "session" / "step.csv").open("a") as fh:
+        fh.write("1.51,1000.0,0.05\n")
+    session_dir.rename(tmp_path / "moved")
+    assert main(["report", str(run), "--no-cache"]) == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith(f"pmdc-bayes: error: {run / 'session' / 'step.csv'}: differs from "
+                           "the SHA-256 the fit recorded"), line
+
+
 # --- through the command line, on one fitted run of a small session ----------------------
 
 def _fit_cli(*args, **kw):

@@ -13,9 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ._errors import UsageError
-from .io.bundled import session_path
+from .io.bundled import passed_over, session_path
+from .rundir import is_run_dir
 
-__all__ = ["LotEntry", "expand_sessions", "lot_outs", "lot_table", "write_lot", "STATUS"]
+__all__ = ["LotEntry", "expand_sessions", "bundled_note", "lot_outs", "lot_table", "write_lot",
+           "STATUS"]
 
 STATUS = {0: "ok", 1: "failed gates", 2: "bad input", 3: "model inadequate"}
 _PARAMS = ("Ra", "La", "K", "B", "J", "Tc")
@@ -33,15 +35,22 @@ class LotEntry:
     error: str = ""
 
 
-def expand_sessions(args) -> list[Path]:
+def expand_sessions(args, *, note=None) -> list[Path]:
     """The session directories named: each argument a session directory, a bundled
     session's name, or a folder whose subfolders hold sessions (in name order); the
-    bundled default for none."""
+    bundled default for none.  A run directory is neither a session nor a folder of them.
+    ``note(text)`` hears of each bundled session used in place of a local directory of
+    its name that holds no session."""
     if not args:
         return [session_path(None)]
     found = []
     for arg in args:
         p = session_path(arg)
+        if note is not None and (local := passed_over(arg)) is not None:
+            note(bundled_note(arg, local, p))
+        if is_run_dir(p):
+            raise UsageError(f"{p}: a run directory written by 'pmdc-bayes fit', not a "
+                             "session; pass the session directory it was fitted from")
         if p.is_dir() and not (p / "session.toml").exists():
             subs = sorted(d for d in p.iterdir() if (d / "session.toml").is_file())
             if not subs:
@@ -55,6 +64,16 @@ def expand_sessions(args) -> list[Path]:
     if twice is not None:
         raise UsageError(f"{twice}: named twice; give each session once")
     return found
+
+
+def bundled_note(name: str, local: Path, used: Path) -> str:
+    """One line saying that the bundled session ``name`` (at ``used``) is used, not the
+    local ``local`` of the same name, and why."""
+    what = ("a run directory" if is_run_dir(local) else "a directory without session.toml"
+            if local.is_dir() else "not a directory")
+    how = f"; write ./{name} for the local one" if what.endswith("session.toml") else ""
+    return (f"using the bundled session '{name}' ({used}): ./{name} here is {what}, "
+            f"not a session{how}")
 
 
 def lot_outs(paths: list[Path], out: Path | None, force: bool) -> list[Path | None]:

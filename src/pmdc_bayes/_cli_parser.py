@@ -73,6 +73,15 @@ def _pi(text: str) -> tuple[float, float, float]:
     return (values[0], values[1], values[2] if len(values) == 3 else 0.0)
 
 
+def _talk(parser, lines: str) -> None:
+    """--quiet and --verbose, of the same meaning for every command that has them."""
+    talk = parser.add_mutually_exclusive_group()
+    talk.add_argument("--quiet", "-q", action="store_true",
+                      help="print nothing but errors (the run directory holds everything)")
+    talk.add_argument("--verbose", "-v", action="store_true",
+                      help=f"{lines} even when not on a terminal (e.g. into a log)")
+
+
 def build_parser(commands: dict) -> argparse.ArgumentParser:
     """The argument parser; ``commands`` maps each sub-command to the function that runs it."""
     p = _Parser(
@@ -173,23 +182,21 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                     "reject the model; every value stays labelled as conditional on it")
     ft.add_argument("--no-cache", action="store_true",
                     help="neither read nor store compiled programs in the cache directory")
-    talk = ft.add_mutually_exclusive_group()
-    talk.add_argument("--quiet", "-q", action="store_true",
-                      help="print nothing but errors (the run directory holds everything)")
-    talk.add_argument("--verbose", "-v", action="store_true",
-                      help="a line per stage and the sampler's bar even when not on a "
-                      "terminal (e.g. into a log)")
+    _talk(ft, "a line per stage and the sampler's bar")
     ft.set_defaults(func=commands['fit'])
     rp = sub.add_parser(
         "report",
         help="regenerate the uncertainty report of a finished run",
         description="Write RUN_DIR/report.html (self-contained), RUN_DIR/report.md, "
         "RUN_DIR/figures/*.png and RUN_DIR/controller.json from RUN_DIR/summary.json, "
-        "RUN_DIR/posterior.nc (if present) and the session the summary names.",
+        "RUN_DIR/posterior.nc (if present) and the run's own copy of the session "
+        "(RUN_DIR/session, checked against the SHA-256 summary.json records; the original "
+        "session, checked alike, only when the run holds no intact copy).",
     )
     rp.add_argument("run_dir", metavar="RUN_DIR", help="a directory written by 'pmdc-bayes fit'")
     rp.add_argument("--no-cache", action="store_true",
                     help="neither read nor store compiled programs in the cache directory")
+    _talk(rp, "a line per stage")
     rp.set_defaults(func=commands['report'])
     ch = sub.add_parser(
         "cache",

@@ -32,6 +32,7 @@ def _cmd_closed_form(args) -> int:
     from .io.loader import load_session
     from .paper.closed_form import closed_form
 
+    _note_bundled(args.session)
     session = load_session(session_path(args.session))
     cf = closed_form(session)
     code = _closed_form_warnings(cf)
@@ -67,6 +68,19 @@ def _closed_form_warnings(cf) -> int:
     return EXIT_FAILED if cf.warnings else 0
 
 
+def _note(text: str) -> None:
+    print(f"pmdc-bayes: note: {text}", file=sys.stderr, flush=True)
+
+
+def _note_bundled(arg) -> None:
+    """Say so when a bundled session is used in place of a local non-session of its name."""
+    from ._batch import bundled_note
+    from .io.bundled import passed_over
+
+    if (local := passed_over(arg)) is not None:
+        _note(bundled_note(arg, local, session_path(arg)))
+
+
 def _cmd_simulate(args) -> int:
     from .simulate.session import simulate_session
 
@@ -84,7 +98,7 @@ def _cmd_fit(args) -> int:
     if args.compare and args.add:
         raise UsageError("--compare chooses the non-idealities itself; drop --add (or drop "
                          "--compare to fit the ones you name)")
-    paths = expand_sessions(args.session)
+    paths = expand_sessions(args.session, note=None if args.quiet else _note)
     if not args.no_cache:
         cachedir.enable()
     if len(paths) == 1:
@@ -170,9 +184,10 @@ def _cmd_report(args) -> int:
     check_writable(run_dir, what="copy the run to a writable place and report there")
     if not args.no_cache:
         cachedir.enable()
-    paths = write_report(run_dir)
-    print(f"Wrote {paths['html']}, {paths['markdown'].name}, {paths['controller'].name} and "
-          f"{len(paths['figures'])} figures in {run_dir / 'figures'}")
+    paths = write_report(run_dir, say=_stage_printer(args))
+    if not args.quiet:
+            print(f"Wrote {paths['html']}, {paths['markdown'].name}, {paths['controller'].name} "
+              f"and {len(paths['figures'])} figures in {run_dir / 'figures'}")
     return 0
 
 

@@ -27,6 +27,7 @@ from pmdc_bayes.inference.sampling import (  # noqa: E402
     sample_posterior,
     summarize,
 )
+from pmdc_bayes.inference.stopping import stop_message  # noqa: E402
 from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
 
 TRUTH = {"Ra": 8.5, "La": 5.6e-3, "K": 0.062, "B": 4.5e-5, "J": 5.9e-4}
@@ -91,6 +92,30 @@ def test_a_sampler_out_of_time_stops_with_the_reason_and_a_usable_record(tiny):
     a = sample_posterior(model, fit, seed=5, **QUICK)
     b = sample_posterior(model, fit, seed=5, max_seconds=3600.0, **QUICK)
     np.testing.assert_array_equal(a.draws, b.draws)
+
+
+def test_a_chain_long_enough_stopped_early_says_what_it_still_lacks(tiny):
+    """Stopped at its first check, 200 steps long and 1 × τ_max asked for: the chain is
+    long enough, so the reason is τ not yet seen to settle, never fewer steps than were
+    run."""
+    model, fit = tiny
+    post = sample_posterior(model, fit, seed=5, max_steps=10**6, min_tau_multiple=1.0,
+                            progress=False, max_seconds=0.0)
+    assert post.capped and post.n_steps == 200
+    assert "but τ estimated only once, not yet seen to settle" in post.message, post.message
+    assert "would be needed" not in post.message
+    kw = {"min_tau_multiple": 50.0, "elapsed": 60.0, "max_seconds": 60.0}
+    names = ("Ra", "J")
+    settled = stop_message(2000, [3.0, 20.0], names, settled=True, **kw)
+    assert "× τ_max long with τ settled (slowest parameter J, τ ≈ 20 steps)" in settled
+    assert "not yet at the gates (R-hat ≤ 1.01" in settled and "would be needed" not in settled
+    short = stop_message(200, [3.0, 20.0], names, settled=True, **kw)
+    assert "about 1000 steps, ~300 s here, would be needed" in short
+    capped = stop_message(2000, [3.0, 20.0], names, settled=False, min_tau_multiple=50.0,
+                          max_steps=2000)
+    assert capped.startswith("stopped at max_steps=2000, the chain 100 × τ_max long but τ "
+                             "still changing by more than 5 % between checks")
+    assert "--max-sampling-seconds" not in capped
 
 
 def test_impossible_parameters_have_minus_inf_log_posterior(tiny):

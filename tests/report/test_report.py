@@ -204,6 +204,23 @@ def test_no_posterior_report_says_so(tmp_path):
     assert paths["html"] == out / "report.html"
 
 
+def test_report_quiet_prints_nothing_and_verbose_a_line_per_stage(tmp_path, capsys):
+    out = tmp_path / "nomcmc"
+    run_fit(bundled_session_dir("paper"), out=out, mcmc=False, allow_inadequate=True)
+    capsys.readouterr()
+    assert main(["report", str(out), "--quiet", "--no-cache"]) == 0
+    assert capsys.readouterr() == ("", "")
+    assert main(["report", str(out), "-v", "--no-cache"]) == 0
+    text = capsys.readouterr()
+    assert text.out.startswith("Wrote ")
+    stages = text.err.splitlines()
+    assert len(stages) == 3 and all(line.startswith("pmdc-bayes: [") for line in stages)
+    assert "its copy of the session" in stages[0]
+    with pytest.raises(SystemExit) as exc:  # one or the other, as for fit
+        main(["report", str(out), "-q", "-v"])
+    assert exc.value.code == 2
+
+
 @pytest.mark.slow
 def test_the_report_leads_with_the_verdict(demo_run, paper_run):
     """Before any number: 'adequate' on the demo; on the paper (viscous, steady line

@@ -183,6 +183,22 @@ def test_the_forest_figure_labels_each_value_rounded_to_its_sd(monkeypatch):
         _ctx(True).best["B"])
 
 
+def test_the_forest_plot_marks_the_closed_form_only_where_it_has_a_value(monkeypatch):
+    ctx = _ctx(True)  # the closed form has no Tc: None in the summary, as in the tables
+    points = fig_params.forest_points(ctx)
+    assert list(points) == list(NAMES)
+    assert points["Tc"]["closed_form"] is None
+    assert points["K"]["closed_form"] == pytest.approx(
+        100.0 * (CF["K"] / ctx.best["K"] - 1.0), rel=1e-12)
+    lo, hi = points["K"]["map_2sd"]
+    assert lo < points["K"]["map"] < hi and points["K"]["truth"] is None
+    monkeypatch.setattr(fig_params, "png", lambda fig: fig)
+    ax = fig_params.forest_figure(ctx, None).axes[0]
+    squares = [line for line in ax.get_lines() if line.get_marker() == "s"]
+    assert len(squares) == len(NAMES) - 1  # one per parameter but Tc, none at -100 %
+    assert all(line.get_xdata()[0] > -100.0 for line in squares)
+
+
 def test_a_value_in_running_text_carries_its_scale_after_the_sd():
     assert value_sd(5.955208e-3, 2e-4) == "5.96 ± 0.20 ×1e-3"
     assert value_sd(8.34727, 0.1) == "8.35 ± 0.10"

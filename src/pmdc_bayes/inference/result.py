@@ -165,19 +165,30 @@ def read_summary(run_dir: Path) -> dict:
 
 
 def _run_session(run_dir: Path, info: dict):
-    """The session a run was fitted on: the run's own copy when it has one, else the
-    original, refused if it changed since the fit; with the nuisances the fit added."""
+    """The session a run was fitted on: the run's own copy when it is intact, else the
+    original, refused if it changed since the fit (naming the copy's damaged file when
+    there is a copy); with the nuisances the fit added."""
     copy = run_dir / SESSION_COPY
     hashes = info.get("files") or {}
-    if (copy / "session.toml").is_file() and not changed_files(copy, hashes):
-        session = load_session(copy)
-    else:
-        changed = changed_files(Path(info["path"]), hashes)
-        if changed:
-            raise UsageError(f"{Path(info['path']) / changed[0]}: changed or missing since the "
-                             f"fit of {run_dir} (the run holds no intact copy); rerun "
-                             "'pmdc-bayes fit' on the session as it is now")
-        session = load_session(info["path"])
+    damaged = changed_files(copy, hashes) if (copy / "session.toml").is_file() else None
+    if damaged == []:
+        return _with_nuisances(load_session(copy), run_dir, info)
+    changed = changed_files(Path(info["path"]), hashes)
+    if changed and damaged:
+        bad = copy / damaged[0]
+        how = "is missing" if not bad.exists() else "differs from the SHA-256 the fit recorded"
+        raise UsageError(f"{bad}: {how} in the run's copy of the session (and the original "
+                         f"{Path(info['path'])} changed or moved since the fit); restore the "
+                         "file or rerun 'pmdc-bayes fit'")
+    if changed:
+        raise UsageError(f"{Path(info['path']) / changed[0]}: changed or missing since the "
+                         f"fit of {run_dir} (the run holds no intact copy); rerun "
+                         "'pmdc-bayes fit' on the session as it is now")
+    return _with_nuisances(load_session(info["path"]), run_dir, info)
+
+
+def _with_nuisances(session, run_dir: Path, info: dict):
+    """``session`` with the nuisances and loaded traces the summary records."""
     if "nuisances" in info:
         names = info["nuisances"]
         if not isinstance(names, list) or not set(names) <= set(NUISANCES):
@@ -213,7 +224,8 @@ def _read_posterior(run_dir: Path, names) -> tuple:
 @x64
 def read_run(run_dir) -> RunResult:
     """The :class:`RunResult` of a finished run directory (the session is re-read from
-    the path its summary records)."""
+    the run's own copy, or from the path its summary records when it holds no intact
+    copy)."""
     run_dir = Path(run_dir)
     summary = read_summary(run_dir)
     info = summary["session"]

@@ -34,6 +34,7 @@ from .diagnostics import (
     summarize,
 )
 from .idata import LL_DRAWS, to_inference_data
+from .stopping import TAU_RTOL, stop_message
 
 __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
            "compare_laplace", "loo_compare", "format_loo", "default_moves",
@@ -41,8 +42,6 @@ __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "g
 
 CHUNK = 200  # steps between autocorrelation checks while the chain is too short to stop
 CHECK = 100  # steps between checks once it is long enough
-TAU_RTOL = 0.05  # relative change of τ between checks that counts as settled
-
 
 
 class LaplaceIndependenceMove(emcee.moves.MHMove):
@@ -218,9 +217,10 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     ll_draws : at most this many draws carry the pointwise log-likelihood in ``idata``
         (evenly thinned along each chain).
     max_seconds : a limit on the sampling's wall time (checked between chunks of
-        steps); a run stopped by it is ``capped``, and ``message`` says how long the
-        chain would have needed.  A run that converges first does not depend on it; one
-        it stops depends on the machine's speed.
+        steps); a run stopped by it is ``capped``, and ``message`` says what the
+        stopping rule still lacked (:func:`~pmdc_bayes.inference.stopping.stop_message`).
+        A run that converges first does not depend on it; one it stops depends on the
+        machine's speed.
     """
     t_start = time.perf_counter()
     ndim = len(model.names)
@@ -242,7 +242,7 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     state = emcee.State(p0, log_prob=lp0)
 
     names = tuple(model.names)
-    tau_prev, converged, steps = None, False, 0
+    tau_prev, converged, settled, steps = None, False, None, 0
     bar = tqdm(total=max_steps, disable=not progress, file=sys.stderr, unit="step")
     t_loop, out_of_time = time.perf_counter(), False
     with bar:
@@ -259,7 +259,7 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
             bar.total = int(min(max_steps, max(steps + CHECK, min_tau_multiple * tau.max())))
             bar.set_postfix(tau_max=f"{tau.max():.0f}")
             if tau_prev is not None:
-                settled = np.all(np.abs(tau - tau_prev) < TAU_RTOL * tau)
+                settled = bool(np.all(np.abs(tau - tau_prev) < TAU_RTOL * tau))
                 if settled and steps >= min_tau_multiple * tau.max() and _gates_met(
                         sampler, math.ceil(2.0 * tau.max())):
                     converged = True
@@ -269,25 +269,10 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                 out_of_time = True
                 break
 
-    worst = names[int(np.argmax(tau))]
-    if converged:
-        message = (f"converged after {steps} steps: {steps / tau.max():.0f} × τ_max "
-                   f"(τ_max {tau.max():.1f} steps, {worst})")
-    elif out_of_time:
-        elapsed = time.perf_counter() - t_loop
-        need = min_tau_multiple * tau.max()
-        message = (f"stopped after {elapsed:.0f} s of sampling (the limit, "
-                   f"{max_seconds:g} s; {steps} steps) before the chain was "
-                   f"{min_tau_multiple:g} × τ_max long with τ settled; slowest parameter "
-                   f"{worst} (τ ≈ {tau.max():.0f} steps, so about {need:.0f} steps, "
-                   f"~{need / steps * elapsed:.0f} s here, would be needed): its posterior "
-                   "may be far from Gaussian or poorly identified by the data; raise the "
-                   "limit (--max-sampling-seconds) to wait for it")
-    else:
-        message = (f"stopped at max_steps={max_steps} before the chain was "
-                   f"{min_tau_multiple:g} × τ_max long with τ settled; slowest parameter "
-                   f"{worst} (τ ≈ {tau.max():.0f} steps, so {min_tau_multiple * tau.max():.0f}"
-                   " steps would be needed): it may be poorly identified by the data")
+    message = stop_message(steps, tau, names, min_tau_multiple=min_tau_multiple,
+                           settled=settled, converged=converged, max_steps=max_steps,
+                           **({"elapsed": time.perf_counter() - t_loop,
+                               "max_seconds": max_seconds} if out_of_time else {}))
     burn = min(math.ceil(2.0 * tau.max()), steps // 2)
     chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)  # (walkers, draws, P)
     lp = np.swapaxes(sampler.get_log_prob(discard=burn), 0, 1)

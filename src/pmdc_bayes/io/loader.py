@@ -207,8 +207,8 @@ def load_session(path) -> Session:
     ----------
     path : str or Path
         A session directory holding ``session.toml``, or the ``session.toml`` itself,
-        or the name of a bundled session (``"demo"``, ``"paper"``, ``"bench"``) when no
-        such directory exists here.
+        or the name of a bundled session (``"demo"``, ``"paper"``, ``"bench"``) when
+        nothing of that name here holds a session.toml (``./demo`` names a local one).
 
     Returns
     -------

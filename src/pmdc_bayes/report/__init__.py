@@ -3,7 +3,7 @@
 
 :func:`write_report` regenerates everything from ``summary.json``, ``posterior.nc``
 (optional: without it the posterior parts are skipped and the report says so) and the
-session the summary names.  Matplotlib is used here only, with the Agg backend.
+run's own copy of the session.  Matplotlib is used here only, with the Agg backend.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def _figures(sections):
 
 
 @x64
-def write_report(run_dir, *, result=None, into=None) -> dict[str, Path]:
+def write_report(run_dir, *, result=None, into=None, say=None) -> dict[str, Path]:
     """Write the report of a run; return the paths written.
 
     Parameters
@@ -71,12 +71,17 @@ def write_report(run_dir, *, result=None, into=None) -> dict[str, Path]:
     run_dir : the run directory (read when ``result`` is not given; named in the report).
     result : the run's :class:`~pmdc_bayes.inference.result.RunResult`, when in memory.
     into : where to write (default ``run_dir``), e.g. a run directory still being built.
+    say : called with a line as each stage starts (None: silent).
 
     Keys of the result: ``html``, ``markdown``, ``controller`` and ``figures`` (a list).
     Raises :class:`pmdc_bayes.UsageError` when ``run_dir`` holds no usable run.
     """
+    say = say or (lambda text: None)
+    if result is None:
+        say(f"reading {run_dir}: summary.json, its copy of the session, posterior.nc")
     ctx = load_context(run_dir) if result is None else context_from_result(result, run_dir)
     dest = Path(run_dir if into is None else into)
+    say("drawing the figures and building the tables")
     sections, model = build_sections(ctx)
     s = ctx.summary["session"]
     title = f"pmdc-bayes report: {s['motor']} (session {s['name']!r})"
@@ -85,6 +90,7 @@ def write_report(run_dir, *, result=None, into=None) -> dict[str, Path]:
         raise UsageError(f"{figdir}: a file where the report's figures go; move it away "
                          "and rerun")
     figdir.mkdir(exist_ok=True)
+    say(f"writing report.html, report.md, {CONTROLLER_FILE} and the figures into {dest}")
     figs = []
     for fig in _figures(sections):
         path = figdir / f"{fig.name}.png"

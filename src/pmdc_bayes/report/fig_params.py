@@ -17,7 +17,8 @@ from ._plot import (
     subplots,
 )
 
-__all__ = ["corner_figure", "forest_figure", "chains_figure", "ranks_figure", "CORNER_NAMES"]
+__all__ = ["corner_figure", "forest_figure", "forest_points", "chains_figure", "ranks_figure",
+           "CORNER_NAMES"]
 
 CORNER_NAMES = ("J", "B", "K", "Tc")
 _N_SCATTER = 3000
@@ -125,39 +126,65 @@ def corner_figure(ctx) -> bytes:
     return png(fig)
 
 
+def forest_points(ctx) -> dict[str, dict]:
+    """What the forest plot shows of each positive (log-transformed) parameter, in %
+    relative to the reference (posterior mean, else MAP): ``map`` and its ± 2 sd
+    interval ``map_2sd``; ``hdi`` (the posterior 94 % HDI), ``closed_form`` and ``truth``
+    only where there is one (None otherwise: the closed form has no Tc, as the tables
+    say)."""
+    ref, params = ctx.best, ctx.summary["parameters"]
+    out = {}
+    for n in (n for n in ctx.names if ctx.model.registry[n].transform == "log"):
+        p = params[n]
+
+        def rel(v, n=n):
+            return None if v is None else 100.0 * (v / ref[n] - 1.0)
+
+        m, s = p["map"], p["map_sd"]
+        out[n] = {"map": rel(m), "map_2sd": (rel(m - 2 * s), rel(m + 2 * s)),
+                  "hdi": (rel(p["hdi_3%"]), rel(p["hdi_97%"])) if "hdi_3%" in p else None,
+                  "closed_form": rel(p.get("closed_form")),
+                  "truth": rel(ctx.truth.get(n)) if ctx.truth else None}
+    return out
+
+
 @styled
 def forest_figure(ctx, rows) -> bytes:
     """PNG: every parameter relative to the reference (posterior mean, else MAP), in %:
-    closed form, MAP ± 2 sd, posterior 94 % HDI and truth.  The axis is symmetric-log,
-    linear within the widest ± 2 sd interval, so narrow intervals and far closed-form
-    values are both visible.  Only the positive (log-transformed) parameters: a
-    nuisance that may be zero (a dead time, a voltage drop) has no relative scale and
-    is in the tables."""
+    closed form, MAP ± 2 sd, posterior 94 % HDI and truth (:func:`forest_points`).  The
+    axis is symmetric-log, linear within the widest ± 2 sd interval, so narrow intervals
+    and far closed-form values are both visible.  Only the positive (log-transformed)
+    parameters: a nuisance that may be zero (a dead time, a voltage drop) has no
+    relative scale and is in the tables."""
     ref = ctx.best
-    params = ctx.summary["parameters"]
-    names = [n for n in ctx.names if ctx.model.registry[n].transform == "log"]
+    points = forest_points(ctx)
+    names = list(points)
     fig, ax = subplots(figsize=(8.5, 0.75 * len(names) + 1.6))
     lin = 0.0
+    labelled = set()
+
+    def label(what, text):
+        if what in labelled:
+            return None
+        labelled.add(what)
+        return text
+
     for k, n in enumerate(names):
-        y = len(names) - 1 - k
-        rel = lambda v, n=n: 100.0 * (v / ref[n] - 1.0)  # noqa: E731
-        m, s = params[n]["map"], params[n]["map_sd"]
-        lin = max(lin, abs(rel(m + 2 * s)), abs(rel(m - 2 * s)))
-        ax.errorbar(rel(m), y + 0.15, xerr=[[rel(m) - rel(m - 2 * s)], [rel(m + 2 * s) - rel(m)]],
-                    fmt="P", color=COLORS["map"], ms=6, capsize=3,
-                    label="MAP ± 2 sd (Laplace)" if k == 0 else None)
-        if "hdi_3%" in params[n]:
-            lo, hi = rel(params[n]["hdi_3%"]), rel(params[n]["hdi_97%"])
-            ax.plot([lo, hi], [y - 0.05] * 2, "-", color=COLORS["mean"], lw=4,
-                    label="posterior 94 % HDI" if k == 0 else None)
+        y, pt = len(names) - 1 - k, points[n]
+        m, (lo, hi) = pt["map"], pt["map_2sd"]
+        lin = max(lin, abs(lo), abs(hi))
+        ax.errorbar(m, y + 0.15, xerr=[[m - lo], [hi - m]], fmt="P", color=COLORS["map"],
+                    ms=6, capsize=3, label=label("map", "MAP ± 2 sd (Laplace)"))
+        if pt["hdi"] is not None:
+            ax.plot(pt["hdi"], [y - 0.05] * 2, "-", color=COLORS["mean"], lw=4,
+                    label=label("hdi", "posterior 94 % HDI"))
             ax.plot(0.0, y - 0.05, "o", color="white", mec=COLORS["mean"], ms=5)
-        cf = ctx.values["closed_form"].get(n)
-        if cf is not None:
-            ax.plot(rel(cf), y - 0.22, "s", color=COLORS["closed_form"], ms=6, mec="k",
-                    mew=0.5, label=ctx.cf_label if k == 0 else None)
-        if ctx.truth and ctx.truth.get(n) is not None:
-            ax.plot(rel(ctx.truth[n]), y, "*", color=COLORS["truth"], ms=10, mec="k", mew=0.5,
-                    label="truth" if k == 0 else None)
+        if pt["closed_form"] is not None:
+            ax.plot(pt["closed_form"], y - 0.22, "s", color=COLORS["closed_form"], ms=6,
+                    mec="k", mew=0.5, label=label("closed_form", ctx.cf_label))
+        if pt["truth"] is not None:
+            ax.plot(pt["truth"], y, "*", color=COLORS["truth"], ms=10, mec="k", mew=0.5,
+                    label=label("truth", "truth"))
     lin = max(lin, 1e-3) * 1.2
     ax.set_xscale("symlog", linthresh=lin)
     lo, hi = ax.get_xlim()
