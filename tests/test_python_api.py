@@ -101,19 +101,19 @@ def test_a_session_shows_what_it_holds_not_its_arrays():
                                        "0.15 s, logged=['position'])")
 
 
-def test_the_cli_says_where_the_closed_form_is_off_by_more_than_2_sd(capsys):
+def test_the_cli_prints_the_headline_a_result_shows_then_the_details(capsys):
     from pmdc_bayes._console import print_fit
+    from pmdc_bayes._headline import headline_text
 
     summary = dict(_summary(post=False), fit={"message": "converged"},
                    identifiability={"findings": []})
     summary["session"]["motor"] = "m"
     summary["adequacy"]["findings"] = []
     print_fit(summary, "run")
-    assert ("The closed form is off by more than 2 sd: K +0.034 % (+6.5 sd)."
-            in capsys.readouterr().out)
-    summary["parameters"]["K"]["closed_form"] = 0.0619992  # 0.03 sd off: not worth a line
-    print_fit(summary, "run")
-    assert "closed form is off" not in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert headline_text(summary) in out  # the same lines as repr(result) and the report's
+    assert "+0.034 %, +6.5 sd" in out  # the closed form's error, in % and in sd
+    assert out.index(headline_text(summary)) < out.index("Details of the fit of m")
 
 
 def test_a_session_changed_in_memory_is_fitted_but_not_written_as_a_run(tmp_path):

@@ -1,11 +1,13 @@
 """What ``pmdc-bayes fit`` prints: the verdict before any number, the candidate models
-of ``--compare``, the parameter table (each row rounded to its uncertainty, on one
-scale) and the findings."""
+of ``--compare``, the headline a result's repr and the report open with (each value
+rounded to its uncertainty beside the closed form and its error, the fit % per trace,
+what the data cannot determine), then the details (MAP and posterior columns) and the
+findings."""
 
 from __future__ import annotations
 
 from ._format import row_format
-from ._headline import determinability, fit_lines, headline_rows, pi_loop_text, spread_text
+from ._headline import headline_text, pi_loop_text, spread_text
 from .io.units import display_unit
 
 __all__ = ["print_fit", "print_adequacy", "gate_failure_text"]
@@ -38,8 +40,11 @@ def print_fit(summary: dict, out) -> bool:
         print("Candidate models (--compare):")
         for line in format_selection(summary["model_selection"]):
             print(f"  {line}")
-    print(f"Fit of {summary['session']['motor']} ({summary['session']['friction']} friction): "
-          f"{summary['fit']['message']}")
+    print(headline_text(summary))
+    if "pi_loop" in summary:
+        print(pi_loop_text(summary["pi_loop"]) + ".")
+    print(f"\nDetails of the fit of {summary['session']['motor']} "
+          f"({summary['session']['friction']} friction): {summary['fit']['message']}")
     has_post = "mean" in next(iter(summary["parameters"].values()))
     width = max([9] + [len(n) for n in summary["parameters"]]) + 1
     head = f"{'parameter':<{width}}{'closed form':>13}{'MAP':>13}{'± sd':>11}"
@@ -62,19 +67,6 @@ def print_fit(summary: dict, out) -> bool:
            if row.get("block", "motor") not in ("motor", "friction") and row.get("description")]
     if rig:
         print("The rig's parameters: " + "; ".join(rig) + ".")
-    off = [f"{r['name']} {r['off'].replace(', ', ' (')})" for r in headline_rows(summary)
-           if r["off_sd"] is not None and abs(r["off_sd"]) > 2]
-    if off:
-        print(f"The closed form is off by more than 2 sd: {', '.join(off)}.")
-    if "pi_loop" in summary:
-        print(pi_loop_text(summary["pi_loop"]) + ".")
-    fits = fit_lines(summary)
-    if fits:
-        print("Fit % per trace (closed form → MAP):")
-        for line in fits:
-            print(line)
-    for line in determinability(summary):
-        print(f"- {line}")
     for row in summary.get("laplace_check", []):
         if row["flagged"]:
             print(f"- {row['name']}: posterior sd is {row['ratio']:.2f} x the Laplace sd "

@@ -146,7 +146,7 @@ def headline_text(summary: dict) -> str:
     lines.append(f"(values: {rows[0]['source'] if rows else '—'})")
     fits = fit_lines(summary)
     if fits:
-        lines += ["fit % per trace (closed form → MAP):", *fits]
+        lines += ["Fit % per trace (closed form → MAP):", *fits]
     lines += [f"- {x}" for x in determinability(summary)]
     return "\n".join(lines)
 
