@@ -418,3 +418,19 @@ def test_fit_into_a_read_only_place_is_refused_before_the_fit(session_dir, tmp_p
         assert "MAP fit" not in err and "Traceback" not in err  # refused before fitting
     finally:
         subprocess.run(["umount", str(mount)], check=False)
+
+
+def test_a_run_record_gives_back_the_unknown_loads_and_their_parts(tmp_path):
+    from pmdc_bayes.inference.result import _with_nuisances
+    from pmdc_bayes.io.loader import load_session
+
+    session = load_session("bench")
+    info = {"nuisances": ["unknown_load"], "loaded_traces": ["step_6v"],
+            "load_kinds": {"step_6v": "viscous"}}
+    again = _with_nuisances(session, tmp_path, info)
+    assert again.unknown_load_traces() == ("step_6v",) and again.load_kind("step_6v") == "viscous"
+    info["load_kinds"] = {"step_6v": "eddy"}
+    with pytest.raises(UsageError, match="session.load_kinds is"):
+        _with_nuisances(session, tmp_path, info)
+    del info["load_kinds"]  # a run written before the kinds were recorded: both parts
+    assert _with_nuisances(session, tmp_path, info).load_kind("step_6v") == "both"

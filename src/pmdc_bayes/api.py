@@ -66,7 +66,8 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
     return result
 
 
-_RECORDED = {"nuisances", "loaded_traces", "friction"}  # the run's summary keeps these
+# what the run's summary keeps of the session
+_RECORDED = {"nuisances", "loaded_traces", "load_kinds", "friction"}
 
 
 def _same(a, b) -> bool:

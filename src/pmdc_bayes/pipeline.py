@@ -132,7 +132,8 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
         "session": {"name": session.name, "path": str(session.root), "motor": session.motor,
                     "friction": "coulomb" if model.coulomb else "viscous",
                     "holdout": list(holdout), "nuisances": list(session.nuisances),
-                    "loaded_traces": list(session.unknown_load_traces())},
+                    "loaded_traces": list(session.unknown_load_traces()),
+                    "load_kinds": dict(session.load_kinds)},
         "adequacy": adequacy.as_json(),
         "seed": seed,
         "parameters": params,
@@ -219,7 +220,8 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
                                       progress=progress, max_seconds=max_sampling_seconds)
         session_full = dataclasses.replace(session_full,
                                            nuisances=tuple(selection["nuisances"]),
-                                           loaded_traces=tuple(selection["loaded_traces"]))
+                                           loaded_traces=tuple(selection["loaded_traces"]),
+                                           load_kinds=())
     result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
                          holdout=holdout, compare_friction=compare_friction, progress=progress,
                          allow_inadequate=allow_inadequate, say=say,

@@ -58,7 +58,8 @@ def compare_nuisances(session: Session, *, friction: str | None = None, seed: in
     loaded = _suspect_traces(session)
     for name, nuisances in candidates:
         s = dataclasses.replace(session, nuisances=nuisances,
-                                loaded_traces=loaded if "unknown_load" in nuisances else ())
+                                loaded_traces=loaded if "unknown_load" in nuisances else (),
+                                load_kinds=())
         seed_cf = fit_seed(s)
         model = build_model(s, seed_cf, coulomb=coulomb)
         fit = fit_map(model, seed=seed)

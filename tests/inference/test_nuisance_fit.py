@@ -54,17 +54,21 @@ def test_nuisances_the_bench_lacks_come_out_zero():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("case", "index", "name"), [("unknown load", 0, "load_step_6v"),
-                                                     ("unknown viscous load", 1,
-                                                      "drag_step_6v")])
-def test_an_unknown_drag_on_one_trace_is_recovered(case, index, name):
+@pytest.mark.parametrize(("case", "index", "name", "kind"), [
+    ("unknown load", 0, "load_step_6v", "both"),
+    ("unknown viscous load", 1, "drag_step_6v", "both"),
+    ("unknown viscous load", 1, "drag_step_6v", "viscous")])
+def test_an_unknown_drag_on_one_trace_is_recovered(case, index, name, kind):
     """A brake on step_6v (a friction-like or a viscous drag, in the bench simulator's
-    stick-slip model): fitted as that trace's unknown load, the model is adequate, the
-    drag is recovered within 3 sd and the motor within 3 sd of the truth."""
+    stick-slip model): fitted as that trace's unknown load (both parts, or the viscous
+    part alone when the session says so), the model is adequate, the drag is recovered
+    within 3 sd and the motor within 3 sd of the truth."""
     session = dataclasses.replace(case_session(case), nuisances=("unknown_load",),
-                                  loaded_traces=("step_6v",))
+                                  loaded_traces=("step_6v",),
+                                  load_kinds=(("step_6v", kind),))
     cf = fit_seed(session)
     model = build_model(session, cf)
+    assert ("load_step_6v" in model.names) == (kind == "both")
     assert model.coulomb_path and not model.coulomb
     fit = fit_map(model)
     a = assess(model, fit, cf)

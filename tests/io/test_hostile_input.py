@@ -213,10 +213,36 @@ def test_unknown_loads_name_driven_traces(session_dir):
     replace_once(session_dir / TOML, 'unknown_load = ["step"]', 'unknown_load = ["stepp"]')
     proc = _run(session_dir)
     assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1
-    assert "model.unknown_load: expected true, false or a list of driven trace names (of " \
-        "'step')" in proc.stderr
+    assert "model.unknown_load: expected true, false, a list of driven trace names (of " \
+        "'step') or a table of them" in proc.stderr
     replace_once(session_dir / TOML, 'unknown_load = ["stepp"]', "unknown_load = true")
     assert load_session(session_dir).unknown_load_traces() == ("step",)
+
+
+def test_an_unknown_load_may_name_the_part_of_the_drag_to_fit(session_dir):
+    from pmdc_bayes.inference.nuisances import nuisance_specs
+    from pmdc_bayes.io.loader import load_session
+
+    with (session_dir / TOML).open("a") as fh:
+        fh.write('\n[model]\nunknown_load = { step = "viscous" }\n')
+    session = load_session(session_dir)
+    assert session.unknown_load_traces() == ("step",) and session.load_kind("step") == "viscous"
+    names = [p.name for p in nuisance_specs(session, b_seed=1e-5)]
+    assert "drag_step" in names and "load_step" not in names
+    replace_once(session_dir / TOML, '{ step = "viscous" }', '{ step = "constant" }')
+    names = [p.name for p in nuisance_specs(load_session(session_dir), b_seed=1e-5)]
+    assert "load_step" in names and "drag_step" not in names
+    for bad, says in (('{ step = "eddy" }', 'model.unknown_load.step: expected one of both, '
+                       'constant, viscous, got the string \'eddy\''),
+                      ('{ stepp = "viscous" }', "model.unknown_load.stepp: names no driven "
+                       "trace (of 'step')")):
+        text = (session_dir / TOML).read_text()
+        start = text.index("unknown_load = ")
+        end = text.index("\n", start)
+        (session_dir / TOML).write_text(text[:start] + f"unknown_load = {bad}" + text[end:])
+        proc = _run(session_dir)
+        assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
+        assert says in proc.stderr, proc.stderr
 
 
 def test_comment_lines_are_skipped_and_keep_line_numbers(session_dir):

@@ -56,19 +56,23 @@ def load_names(trace_name: str) -> tuple[str, str]:
 def _load_specs(session: Session, b_seed: float) -> list[ParamSpec]:
     """Per trace ``unknown_load`` names, ``load_<trace>`` (N·m), a friction-like constant
     drag (a brake, a rubbing coupling), and ``drag_<trace>`` (N·m·s/rad), a viscous one
-    (an eddy-current brake, a generator into a resistor).  Priors log-normal (a drag is
-    positive), a factor :data:`LOAD_PRIOR_FACTOR` wide, centred on
-    :data:`LOAD_PRIOR_SHARE` of the motor's seeded viscous drag, as a torque at the
-    trace's top speed for the constant part."""
+    (an eddy-current brake, a generator into a resistor); only the one the session asks
+    for when it names the trace's kind (``session.load_kind``), the other then zero.
+    Priors log-normal (a drag is positive), a factor :data:`LOAD_PRIOR_FACTOR` wide,
+    centred on :data:`LOAD_PRIOR_SHARE` of the motor's seeded viscous drag, as a torque
+    at the trace's top speed for the constant part."""
     specs = []
     for tr in session.traces:
         if tr.name not in session.unknown_load_traces():
             continue
         w_top = max(float(np.max(np.abs(tr.speed))), 1e-9)
         load, drag = load_names(tr.name)
+        kind = session.load_kind(tr.name)
         for name, unit, centre, what in (
                 (load, "N*m", LOAD_PRIOR_SHARE * b_seed * w_top, "constant"),
                 (drag, "N*m*s/rad", LOAD_PRIOR_SHARE * b_seed, "viscous")):
+            if kind not in ("both", what):
+                continue
             specs.append(ParamSpec(name, unit, "trace",
                                    Prior("lognormal", centre, float(np.log(LOAD_PRIOR_FACTOR)),
                                          "nuisance"), centre,
@@ -285,8 +289,8 @@ class RigEffects:
         loaded = self.session.unknown_load_traces()
         if loaded:
             v, zero = self.registry.values(theta), jnp.zeros(())
-            parts = [[v[n] if tr.name in loaded else zero for n in load_names(tr.name)]
-                     for tr in self.session.traces]
+            parts = [[v[n] if tr.name in loaded and n in v else zero
+                      for n in load_names(tr.name)] for tr in self.session.traces]
             tc, b = (jnp.stack([jnp.asarray(q[k]) for q in parts]) for k in (0, 1))
             known = exp.seg_b is not None
             exp = exp._replace(seg_b=b[exp.seg_trace] + (exp.seg_b if known else 0.0),

@@ -19,7 +19,7 @@ import numpy as np
 from .._errors import UsageError
 from .._x64 import x64
 from ..io.loader import load_session
-from ..io.session import NUISANCES, Session
+from ..io.session import LOAD_KINDS, NUISANCES, Session
 from ..paper.closed_form import ClosedForm
 from ..rundir import SESSION_COPY, changed_files
 from .fit import FitResult
@@ -199,8 +199,15 @@ def _with_nuisances(session, run_dir: Path, info: dict):
             raise UsageError(f"{run_dir / 'summary.json'}: session.loaded_traces is "
                              f"{loaded!r}, not a list of the session's traces; rerun "
                              "'pmdc-bayes fit'")
+        kinds = info.get("load_kinds") or {}
+        if (not isinstance(kinds, dict) or not set(kinds) <= set(loaded)
+                or not set(kinds.values()) <= set(LOAD_KINDS)):
+            raise UsageError(f"{run_dir / 'summary.json'}: session.load_kinds is {kinds!r}, "
+                             "not a table of loaded traces to constant, viscous or both; "
+                             "rerun 'pmdc-bayes fit'")
         session = dataclasses.replace(session, nuisances=tuple(names),
-                                      loaded_traces=tuple(loaded))
+                                      loaded_traces=tuple(loaded),
+                                      load_kinds=tuple(kinds.items()))
     return session
 
 

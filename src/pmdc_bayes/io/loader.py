@@ -28,6 +28,7 @@ from .session import (
     LA_ASSUMED,
     LA_PRIOR_LOG_SD,
     LA_TIME_CONSTANT,
+    LOAD_KINDS,
     NUISANCES,
     Measurement,
     OperatingPoint,
@@ -152,20 +153,32 @@ def _limit_setting(mt) -> float | None:
     return float(value)
 
 
-def _loaded_traces(mt: _Table, traces) -> tuple[str, ...]:
-    """``[model] unknown_load``: true (every driven trace), false, or a list of names of
-    driven traces; the names given (empty for true or false)."""
+def _loaded_traces(mt: _Table, traces) -> tuple[tuple[str, ...], tuple[tuple[str, str], ...]]:
+    """``[model] unknown_load``: true (every driven trace), false, a list of names of
+    driven traces, or a table of such names to the parts of the drag to fit
+    (:data:`LOAD_KINDS`: ``{ step_9v = "viscous" }``); the names given (empty for true
+    or false) and, for a table, each name's kind."""
     value = mt.data.get("unknown_load", False)
     if isinstance(value, bool):
-        return ()
+        return (), ()
     names = [t.name for t in traces]
+    example = f"[{names[0]!r}]" if names else "true"
+    if isinstance(value, dict) and value:
+        for name, kind in value.items():
+            if name not in names:
+                mt.fail(f"unknown_load.{name}", f"names no driven trace (of "
+                        f"{', '.join(map(repr, names))}); use a trace's name")
+            if kind not in LOAD_KINDS:
+                mt.fail(f"unknown_load.{name}", f"expected one of {', '.join(LOAD_KINDS)}, "
+                        f"got {_describe(kind)}; write e.g. {name} = \"viscous\"")
+        return tuple(value), tuple((k, v) for k, v in value.items())
     if (not isinstance(value, list) or not value
             or not all(isinstance(v, str) and v in names for v in value)):
-        example = f"[{names[0]!r}]" if names else "true"
-        mt.fail("unknown_load", f"expected true, false or a list of driven trace names "
-                f"(of {', '.join(map(repr, names))}), got {_describe(value)}; write e.g. "
+        mt.fail("unknown_load", f"expected true, false, a list of driven trace names "
+                f"(of {', '.join(map(repr, names))}) or a table of them to \"constant\", "
+                f"\"viscous\" or \"both\", got {_describe(value)}; write e.g. "
                 f"unknown_load = {example}")
-    return tuple(dict.fromkeys(value))
+    return tuple(dict.fromkeys(value)), ()
 
 
 def _truth(path: Path) -> dict | None:
@@ -248,13 +261,13 @@ def load_session(path) -> Session:
                 cf.fail("K_decimals", f"expected a whole number >= 0, got {_describe(d)}; "
                         "write e.g. K_decimals = 3")
             options["K_decimals"] = d
-    nuisances, loaded, limit_setting = (), (), None
+    nuisances, loaded, kinds, limit_setting = (), (), (), None
     mt = top.table("model", required=False)
     traces, coast_downs = read_traces(top, root)
     _unique(traces + coast_downs, "trace", toml)
     if mt is not None:
         mt.check_keys(NUISANCES)
-        loaded = _loaded_traces(mt, traces)
+        loaded, kinds = _loaded_traces(mt, traces)
         limit_setting = _limit_setting(mt)
         for key in NUISANCES:
             flag = mt.data.get(key, False)
@@ -266,6 +279,7 @@ def load_session(path) -> Session:
         name=root.name,
         nuisances=nuisances,
         loaded_traces=loaded,
+        load_kinds=kinds,
         current_limit_setting=limit_setting,
         bench={k: m for k, m in measured.items() if k not in ("Ra", "La")},
         root=root,

@@ -22,11 +22,13 @@ __all__ = [
     "Trace",
     "Session",
     "FRICTION_MODELS",
+    "LOAD_KINDS",
 ]
 
 FRICTION_MODELS = ("viscous", "coulomb")
 
 
+LOAD_KINDS = ("both", "constant", "viscous")  # an unknown drag's fitted parts, per trace
 NUISANCES = ("dead_time", "voltage_drop", "speed_lag", "current_lag", "unknown_load",
              "speed_gain", "speed_offset", "current_gain", "current_offset",
              "source_resistance", "current_limit")
@@ -188,8 +190,10 @@ class Session:
     (:data:`NUISANCES`: ``"dead_time"`` per trace, ``"voltage_drop"``, a first-order
     lag of the speed or current sensor ``"speed_lag"``, ``"current_lag"``, an unknown
     drag ``"unknown_load"`` on the traces ``loaded_traces`` names, or on every driven
-    trace when it is empty, a driver's current limit ``"current_limit"``, centred on
-    ``current_limit_setting`` (A) when the user gave the driver's setting).
+    trace when it is empty (``load_kinds`` pairs a trace with ``"constant"`` or
+    ``"viscous"`` when its drag has only that part; ``"both"`` otherwise), a driver's
+    current limit ``"current_limit"``, centred on ``current_limit_setting`` (A) when the
+    user gave the driver's setting).
     ``bench`` holds the further bench measurements given (of ``"K"``, ``"J"``,
     ``"B"``), each a prior of the fit.  ``coast_downs`` are traces of kind
     ``"coast-down"``: the rotor running down with the armature open (speed only, no
@@ -213,6 +217,7 @@ class Session:
     coast_downs: tuple[Trace, ...] = ()
     loaded_traces: tuple[str, ...] = ()
     current_limit_setting: float | None = None
+    load_kinds: tuple[tuple[str, str], ...] = ()
 
     def __repr__(self) -> str:
         parts = [f"{self.name!r}", f"motor={self.motor!r}", f"friction={self.friction!r}",
@@ -263,6 +268,10 @@ class Session:
             Ra=Ra, traces=traces, La=La, K=K, J=J, B=B, motor=motor, friction=friction,
             steady=steady, operating_points=operating_points, model=model, name=name,
             directory=directory)
+
+    def load_kind(self, trace_name: str) -> str:
+        """Which parts of a loaded trace's unknown drag are fitted: :data:`LOAD_KINDS`."""
+        return dict(self.load_kinds).get(trace_name, "both")
 
     def unknown_load_traces(self) -> tuple[str, ...]:
         """The driven traces that carry an unknown drag of their own (``unknown_load``)."""
