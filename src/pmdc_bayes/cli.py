@@ -186,7 +186,7 @@ def _cmd_report(args) -> int:
         cachedir.enable()
     paths = write_report(run_dir, say=_stage_printer(args))
     if not args.quiet:
-            print(f"Wrote {paths['html']}, {paths['markdown'].name}, {paths['controller'].name} "
+        print(f"Wrote {paths['html']}, {paths['markdown'].name}, {paths['controller'].name} "
               f"and {len(paths['figures'])} figures in {run_dir / 'figures'}")
     return 0
 
