@@ -27,25 +27,32 @@ _PARETO_WARNING = r"Estimated shape parameter of Pareto distribution"
 
 
 def summarize(posterior) -> dict[str, dict[str, float]]:
-    """Per parameter (SI): mean, sd, 94 % HDI, bulk and tail ESS, R-hat.
+    """Per parameter (SI): mean, sd, 94 % HDI, bulk and tail ESS, R-hat, and the R-hat
+    across the independent ensembles (``r_hat_ensembles``) when there were several.
 
     Walkers count as chains; R-hat is the rank-normalised split R-hat of ArviZ.
     """
     table = az.summary(posterior.idata, var_names=list(posterior.names), hdi_prob=HDI_PROB,
                        round_to="none")
     cols = ["mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r_hat"]
-    return {name: {c: float(table.loc[name, c]) for c in cols} for name in posterior.names}
+    out = {name: {c: float(table.loc[name, c]) for c in cols} for name in posterior.names}
+    for name, value in (getattr(posterior, "r_hat_between", None) or {}).items():
+        out[name]["r_hat_ensembles"] = value
+    return out
 
 
 def gates(summary: dict, *, posterior=None, r_hat_max: float = R_HAT_MAX,
           ess_min: float = ESS_MIN) -> tuple[bool, list[str]]:
     """Whether the sample may be trusted, and why not in words, one message per failure.
 
-    ``posterior`` (optional) adds a failure when the run stopped at its step cap.
+    ``posterior`` (optional) adds a failure when the run stopped at its step cap, and
+    one per parameter whose R-hat across the run's independent ensembles
+    (``posterior.r_hat_between``) is above ``r_hat_max``.
     """
     failures = []
     if posterior is not None and posterior.capped:
         failures.append(f"run capped: {posterior.message}")
+    between = getattr(posterior, "r_hat_between", None) or {}
     for name, row in summary.items():
         r_hat, bulk, tail = row["r_hat"], row["ess_bulk"], row["ess_tail"]
         if not np.isfinite(r_hat) or r_hat > r_hat_max:
@@ -54,6 +61,10 @@ def gates(summary: dict, *, posterior=None, r_hat_max: float = R_HAT_MAX,
             failures.append(f"{name}: bulk ESS {bulk:.0f} < {ess_min:g}")
         if not np.isfinite(tail) or tail < ess_min:
             failures.append(f"{name}: tail ESS {tail:.0f} < {ess_min:g}")
+        rb = between.get(name, 1.0)
+        if not np.isfinite(rb) or rb > r_hat_max:
+            failures.append(f"{name}: R-hat {rb:.3f} > {r_hat_max} across the independent "
+                            "ensembles (they disagree)")
     return not failures, failures
 
 

@@ -1,7 +1,8 @@
 """Posterior sampling of a session model with emcee, and its ArviZ record.
 
-:func:`sample_posterior` runs an ensemble sampler (differential-evolution moves by
-default) started around the MAP, in chunks, until the chain is many
+:func:`sample_posterior` runs ensemble samplers (independence proposals from the
+Laplace approximation and differential-evolution moves by default) as independent
+ensembles (:mod:`.ensembles`) started around the MAP, in chunks, until the chain is many
 integrated autocorrelation times long and the autocorrelation estimate has settled,
 or until a step cap.  The result, :class:`Posterior`, carries its status in words;
 :func:`summarize` and :func:`gates` (in :mod:`pmdc_bayes.inference.diagnostics`) say whether it
@@ -33,6 +34,7 @@ from .diagnostics import (
     loo_compare,
     summarize,
 )
+from .ensembles import ENSEMBLES, Ensembles, r_hat_between
 from .idata import LL_DRAWS, to_inference_data
 from .stopping import TAU_RTOL, stop_message
 
@@ -106,6 +108,8 @@ class Posterior:
     capped : the run hit ``max_steps`` before the stopping rule; ``message`` says why.
     wall_time : seconds spent sampling (including the log-likelihood for ``idata``).
     idata : the ArviZ record (see :func:`to_inference_data`).
+    r_hat_between : per parameter, the R-hat across the independent ensembles the
+        walkers belong to (:mod:`.ensembles`); None when there was one ensemble.
     """
 
     names: tuple
@@ -120,6 +124,7 @@ class Posterior:
     message: str
     wall_time: float
     idata: az.InferenceData
+    r_hat_between: dict | None = None
 
     def draws_si(self) -> dict[str, np.ndarray]:
         """All draws of each parameter (SI), chains flattened."""
@@ -179,17 +184,20 @@ def _initial(fit, log_prob, n_walkers, rng, scale=1.0):
                      "density around the MAP; check that fit_map converged (fit.message)")
 
 
-def _gates_met(sampler, burn: int, *, r_hat_max: float = R_HAT_MAX,
+def _gates_met(sampler, burn: int, k: int = 1, *, r_hat_max: float = R_HAT_MAX,
                ess_min: float = ESS_MIN) -> bool:
     """Whether the chain so far (after ``burn``) already passes the convergence gates,
-    so that stopping now will not fail them (walkers count as chains)."""
+    so that stopping now will not fail them: over the walkers as chains, and across the
+    ``k`` independent ensembles."""
     chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
-    data = {f"p{k}": chain[..., k] for k in range(chain.shape[-1])}
+    data = {f"p{i}": chain[..., i] for i in range(chain.shape[-1])}
     r_hat = az.rhat(data)
     ess = az.ess(data, method="bulk")
     ess_tail = az.ess(data, method="tail")
+    between = r_hat_between(chain, k, list(data)) or {}
     return all(float(r_hat[v]) <= r_hat_max and float(ess[v]) >= ess_min
-               and float(ess_tail[v]) >= ess_min for v in data)
+               and float(ess_tail[v]) >= ess_min and between.get(v, 1.0) <= r_hat_max
+               for v in data)
 
 
 @x64
@@ -230,16 +238,17 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     if n_walkers < 2 * ndim:
         raise ValueError(f"n_walkers={n_walkers} is too few for {ndim} parameters; "
                          f"use at least {2 * ndim}")
+    # independent ensembles when each can have 2 walkers per parameter and an even count
+    k = ENSEMBLES if n_walkers % (2 * ENSEMBLES) == 0 and \
+        n_walkers // ENSEMBLES >= 2 * ndim else 1
     if progress is None:  # a terminal, or a notebook (where tqdm.auto draws a widget)
         progress = sys.stderr.isatty() or "ipykernel" in sys.modules
     batch_fn = _log_posterior_batch(model)
-    log_prob = _LogProb(batch_fn, max(1, n_walkers // 2))
+    log_prob = _LogProb(batch_fn, max(1, n_walkers // (2 * k)))
     rng = np.random.default_rng(seed)
     p0, lp0 = _initial(fit, log_prob, n_walkers, rng)
-    sampler = emcee.EnsembleSampler(n_walkers, ndim, log_prob, vectorize=True,
-                                    moves=default_moves(fit) if moves is None else moves)
-    sampler.random_state = np.random.RandomState(seed).get_state()
-    state = emcee.State(p0, log_prob=lp0)
+    sampler = Ensembles(k, n_walkers, ndim, log_prob, p0, lp0, seed=seed,
+                        moves=lambda j: default_moves(fit) if moves is None else moves)
 
     names = tuple(model.names)
     tau_prev, converged, settled, steps = None, False, None, 0
@@ -249,19 +258,18 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
         while steps < max_steps:
             long_enough = tau_prev is not None and steps >= min_tau_multiple * tau_prev.max()
             n = min(CHECK if long_enough else CHUNK, max_steps - steps)
-            state = sampler.run_mcmc(state, n, progress=False)
+            sampler.run_mcmc(n)
             _signals.check()  # an interrupt Python dropped in a callback stops here
             steps += n
             bar.update(n)
-            tau = np.asarray(sampler.get_autocorr_time(tol=0), dtype=float)
-            tau = np.where(np.isfinite(tau), tau, float(steps))
+            tau = sampler.get_autocorr_time()
             # the bar's length: what the stopping rule needs at the current τ, not the cap
             bar.total = int(min(max_steps, max(steps + CHECK, min_tau_multiple * tau.max())))
             bar.set_postfix(tau_max=f"{tau.max():.0f}")
             if tau_prev is not None:
                 settled = bool(np.all(np.abs(tau - tau_prev) < TAU_RTOL * tau))
                 if settled and steps >= min_tau_multiple * tau.max() and _gates_met(
-                        sampler, math.ceil(2.0 * tau.max())):
+                        sampler, math.ceil(2.0 * tau.max()), k):
                     converged = True
                     break
             tau_prev = tau
@@ -278,7 +286,9 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     lp = np.swapaxes(sampler.get_log_prob(discard=burn), 0, 1)
     acc = np.asarray(sampler.acceptance_fraction, dtype=float)
     idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws, seed=seed)
-    idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged))
+    idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged),
+                                 ensembles=k)
     return Posterior(names, model.registry.to_values(chain), chain, lp, acc,
                      dict(zip(names, map(float, tau), strict=True)), steps, burn,
-                     not converged, message, time.perf_counter() - t_start, idata)
+                     not converged, message, time.perf_counter() - t_start, idata,
+                     r_hat_between(chain, k, names))

@@ -55,8 +55,10 @@ def parameter_table(ctx) -> Table:
     note = ("Each row is rounded to its uncertainty (two significant digits of the sd) "
             "and written on one scale, given before the unit. MAP sd: Laplace "
             "approximation at the MAP. "
-            + ("Posterior: emcee ensemble; R-hat is ArviZ's rank-normalised split R-hat with "
-               "walkers as chains." if post else "No posterior was sampled (--no-mcmc)."))
+            + ("Posterior: emcee, two independent ensembles; R-hat is ArviZ's "
+               "rank-normalised split R-hat with walkers as chains, and the gates also ask "
+               "it of the ensembles, each one's walkers pooled (summary.json: "
+               "r_hat_ensembles)." if post else "No posterior was sampled (--no-mcmc)."))
     rig = [f"{n}: {ctx.model.registry[n].description}" for n in ctx.names
            if n not in _MOTOR and ctx.model.registry[n].description]
     if rig:
