@@ -46,6 +46,7 @@ from _common import (REPORT, ROOT, cli_command, load_baseline, replace_section, 
 from model_speed import _fmt_rate, _load, _machine, _measure, _per_trace_log_posterior  # noqa: E402
 
 from pmdc_bayes.inference.diagnostics import az  # noqa: E402
+from pmdc_bayes.inference.ensembles import ENSEMBLES  # noqa: E402
 from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.inference.fit import fit_map  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
@@ -501,7 +502,10 @@ def _section(m: dict, r: dict, quick: bool) -> str:
 
 
 def _moves_label() -> str:
-    return " + ".join(f"{type(m).__name__} {w:g}" for m, w in default_moves())
+    """The sampler's default moves (they need a fit only for their centre and scale)."""
+    stand_in = SimpleNamespace(theta=np.zeros(1), cov_log=np.eye(1))
+    moves = " + ".join(f"{type(m).__name__} {w:g}" for m, w in default_moves(stand_in))
+    return f"{ENSEMBLES} independent ensembles, {moves}"
 
 
 def _scaling_notes(rows) -> list[str]:
