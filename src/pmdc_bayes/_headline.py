@@ -126,6 +126,10 @@ def spread_text(diag: dict) -> str:
     if not wide or wide["ratio"] < SPREAD_WORTH_SAYING:
         return ""
     names = wide["parameters"]
+    if len(names) == 1:
+        return (f"in {names[0]} the posterior spreads {wide['ratio']:.1f} times as far as the "
+                "Laplace approximation: a parameter the data barely constrain (near a bound "
+                "or set by its prior), slow to sample, whose Laplace sd is too small")
     shown = ", ".join(names[:6]) + (f" and {len(names) - 6} more" if len(names) > 6 else "")
     return (f"along {shown} together the posterior spreads {wide['ratio']:.1f} times as far "
             "as the Laplace approximation: a combination the data barely constrain, slow "

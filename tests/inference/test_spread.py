@@ -66,3 +66,11 @@ def test_the_failed_gates_are_one_line_that_names_the_stop_the_count_and_the_rid
     assert gate_failure_text({"failures": ["K: bulk ESS 300 < 400"]}, 5) == (
         "R-hat or ESS short of the gates for 1 of 5 parameters (K: bulk ESS 300 < 400; "
         "summary.json lists each)")
+
+
+def test_a_single_parameter_wider_than_laplace_is_named_as_one():
+    wide = {"ratio": 5.6, "parameters": ["load_step_9v"], "weights": {"load_step_9v": 1.0}}
+    text = spread_text({"widest_direction": wide})
+    assert text.startswith("in load_step_9v the posterior spreads 5.6 times as far as the "
+                           "Laplace approximation: a parameter the data barely constrain")
+    assert "together" not in text and "combination" not in text
