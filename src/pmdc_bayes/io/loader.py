@@ -162,7 +162,6 @@ def _loaded_traces(mt: _Table, traces) -> tuple[tuple[str, ...], tuple[tuple[str
     if isinstance(value, bool):
         return (), ()
     names = [t.name for t in traces]
-    example = f"[{names[0]!r}]" if names else "true"
     if isinstance(value, dict) and value:
         for name, kind in value.items():
             if name not in names:
@@ -171,9 +170,10 @@ def _loaded_traces(mt: _Table, traces) -> tuple[tuple[str, ...], tuple[tuple[str
             if kind not in LOAD_KINDS:
                 mt.fail(f"unknown_load.{name}", f"expected one of {', '.join(LOAD_KINDS)}, "
                         f"got {_describe(kind)}; write e.g. {name} = \"viscous\"")
-        return tuple(value), tuple((k, v) for k, v in value.items())
+        return tuple(value), tuple(value.items())
     if (not isinstance(value, list) or not value
             or not all(isinstance(v, str) and v in names for v in value)):
+        example = f"[{names[0]!r}]" if names else "true"
         mt.fail("unknown_load", f"expected true, false, a list of driven trace names "
                 f"(of {', '.join(map(repr, names))}) or a table of them to \"constant\", "
                 f"\"viscous\" or \"both\", got {_describe(value)}; write e.g. "
