@@ -9,6 +9,7 @@ import resource
 import subprocess
 import sys
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -36,6 +37,19 @@ def replace_section(path: Path, title: str, section: str) -> None:
         new += ["", *after]
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(new) + "\n", encoding="utf-8")
+
+
+def write_table_section(title: str, intro: str, header, align, rows) -> None:
+    """Replace the ``## {title}`` section of ``reports/benchmarks.md`` with ``intro`` (a
+    paragraph that may hold ``{stamp}``, the UTC time now) and a table of ``rows`` under
+    ``header``, ``align`` giving each column's markdown alignment (``---`` or ``---:``);
+    say so on stdout."""
+    stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
+    lines = [f"## {title}", "", intro.replace("{stamp}", stamp), "",
+             "| " + " | ".join(header) + " |", "|" + "|".join(align) + "|"]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    replace_section(REPORT, title, "\n".join(lines) + "\n")
+    print(f"updated {REPORT}")
 
 
 def load_baseline():

@@ -28,10 +28,9 @@ import json
 import re
 import sys
 import tempfile
-from datetime import UTC, datetime
 from pathlib import Path
 
-from _common import REPORT, ROOT, cli_command, replace_section, run_measured
+from _common import ROOT, cli_command, run_measured, write_table_section
 
 from pmdc_bayes.simulate.session import simulate_session
 
@@ -97,25 +96,23 @@ def main(argv=None) -> int:
                   f"{len(r['covered'])} of {len(r['tried'])}", flush=True)
     if args.no_report:
         return 0
-    stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
-    lines = [f"## {SECTION}", "",
-             f"`python benchmarks/hard_posteriors.py` ({stamp}): a whole `pmdc-bayes fit` "
+    intro = ("`python benchmarks/hard_posteriors.py` ({stamp}): a whole `pmdc-bayes fit` "
              "per case with the default limit of 60 s of sampling, measured on the second "
              "of two runs sharing a compilation cache. Goal (issue 14): the posterior "
-             "passes its gates or stops with a reason within 60 s of sampling.", "",
-             "| case | exit | sampling (s) | steps | τ_max (steps) | gates | posterior sd / "
-             "Laplace sd, widest direction | truth in 94 % HDI |",
-             "|---|---:|---:|---:|---|---|---|---|"]
+             "passes its gates or stops with a reason within 60 s of sampling.")
+    header = ("case", "exit", "sampling (s)", "steps", "τ_max (steps)", "gates",
+              "posterior sd / Laplace sd, widest direction", "truth in 94 % HDI")
+    table = []
     for r in rows:
         wide = r["wide"] or {}
         along = ", ".join(wide.get("parameters", [])[:4])
         gates = "passed" if r["passed"] else f"failed ({r['failures']} findings)"
-        lines.append(f"| {r['label']} | {r['exit']} | {r['mcmc_s']:.1f} | {r['steps']} | "
-                     f"{r['tau']:.0f} ({r['worst']}) | {gates} | "
-                     f"{wide.get('ratio', float('nan')):.1f} along {along} | "
-                     f"{len(r['covered'])} of {len(r['tried'])} |")
-    replace_section(REPORT, SECTION, "\n".join(lines) + "\n")
-    print(f"updated {REPORT}")
+        table.append((r["label"], str(r["exit"]), f"{r['mcmc_s']:.1f}", str(r["steps"]),
+                      f"{r['tau']:.0f} ({r['worst']})", gates,
+                      f"{wide.get('ratio', float('nan')):.1f} along {along}",
+                      f"{len(r['covered'])} of {len(r['tried'])}"))
+    write_table_section(SECTION, intro, header,
+                        ["---", "---:", "---:", "---:", "---", "---", "---", "---"], table)
     return 0
 
 

@@ -19,11 +19,10 @@ import json
 import re
 import sys
 import tempfile
-from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
-from _common import REPORT, ROOT, cli_command, replace_section, run_measured
+from _common import ROOT, cli_command, run_measured, write_table_section
 
 from pmdc_bayes.simulate.session import simulate_session
 
@@ -88,24 +87,19 @@ def main(argv=None) -> int:
                       f"{m['ok']} ok; peak {m['peak_mib']:.0f} MiB", flush=True)
     if args.no_report:
         return 0
-    stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
-    lines = [f"## {SECTION}", "",
-             f"`python benchmarks/lot.py` ({stamp}): `pmdc-bayes fit LOT --out RUNS` on a "
+    intro = (f"`python benchmarks/lot.py` ({{stamp}}): `pmdc-bayes fit LOT --out RUNS` on a "
              f"folder of {args.motors} simulated demo-shaped motors (four traces, 10,204 "
              "samples, Coulomb friction; Ra, K, B, J, Tc each ±10 % around the demo's), "
              "in one process, reports written. Cold: an empty compilation cache; warm: the "
              "cache the cold run filled. Wall time of the whole command; per motor, the "
              "run's own `wall_s.total` (the first motor of a process pays the loading and "
-             "compiling). Goal (issue 14): ≥ 10 motors per minute with MCMC.", "",
-             "| run | wall (s) | motors/min | first motor (s) | later motors, median (s) "
-             "| ok | peak memory (MiB) |", "|---|---|---|---|---|---|---|"]
-    for name, m in rows:
-        per = m["per_motor"]
-        lines.append(f"| {name} | {m['wall']:.1f} | {m['per_minute']:.2f} | {per[0]:.1f} | "
-                     f"{np.median(per[1:]):.1f} | {m['ok']} of {m['n']} | "
-                     f"{m['peak_mib']:.0f} |")
-    replace_section(REPORT, SECTION, "\n".join(lines) + "\n")
-    print(f"updated {REPORT}")
+             "compiling). Goal (issue 14): ≥ 10 motors per minute with MCMC.")
+    header = ("run", "wall (s)", "motors/min", "first motor (s)", "later motors, median (s)",
+              "ok", "peak memory (MiB)")
+    table = [(name, f"{m['wall']:.1f}", f"{m['per_minute']:.2f}", f"{m['per_motor'][0]:.1f}",
+              f"{np.median(m['per_motor'][1:]):.1f}", f"{m['ok']} of {m['n']}",
+              f"{m['peak_mib']:.0f}") for name, m in rows]
+    write_table_section(SECTION, intro, header, ["---"] * len(header), table)
     return 0
 
 
