@@ -34,9 +34,10 @@ class Ensembles:
             raise ValueError(f"{n_walkers} walkers do not split into {k} ensembles")
         m = n_walkers // k
         seeds = np.random.SeedSequence(seed).generate_state(k)
-        self.k, self.samplers, self.states = k, [], []
+        self.k, self.samplers, self.states, self.moves = k, [], [], []
         for j in range(k):
-            s = emcee.EnsembleSampler(m, ndim, log_prob, vectorize=True, moves=moves(j))
+            self.moves.append(moves(j))
+            s = emcee.EnsembleSampler(m, ndim, log_prob, vectorize=True, moves=self.moves[j])
             s.random_state = np.random.RandomState(int(seeds[j]) if k > 1 else seed).get_state()
             self.samplers.append(s)
             self.states.append(emcee.State(p0[j * m:(j + 1) * m],
@@ -45,6 +46,21 @@ class Ensembles:
     def run_mcmc(self, n: int) -> None:
         self.states = [s.run_mcmc(st, n, progress=False)
                        for s, st in zip(self.samplers, self.states, strict=True)]
+
+    def adapt(self, **criteria) -> bool:
+        """Refit each ensemble's adaptable moves (those with ``refit(samples)`` and
+        ``misfits(samples, **criteria)``) that no longer describe the later half of the
+        ensemble's own chain so far, on those samples; whether any move changed.  The
+        chain before this point is then not a Markov chain of the final moves and must
+        be discarded."""
+        changed = False
+        for s, moves in zip(self.samplers, self.moves, strict=True):
+            chain = s.get_chain()
+            recent = chain[chain.shape[0] // 2:].reshape(-1, chain.shape[-1])
+            for move in (m[0] if isinstance(m, tuple) else m for m in (moves or ())):
+                if hasattr(move, "refit") and move.misfits(recent, **criteria):
+                    changed = bool(move.refit(recent)) or changed
+        return changed
 
     def get_chain(self, discard: int = 0) -> np.ndarray:
         """``(steps, walkers, P)``, every ensemble's walkers."""
@@ -57,13 +73,14 @@ class Ensembles:
     def acceptance_fraction(self) -> np.ndarray:
         return np.concatenate([s.acceptance_fraction for s in self.samplers])
 
-    def get_autocorr_time(self) -> np.ndarray:
+    def get_autocorr_time(self, discard: int = 0) -> np.ndarray:
         """Per parameter, the largest integrated autocorrelation time of the ensembles
-        (steps; the chain's length where it cannot be estimated)."""
+        over the steps after ``discard`` (steps; the chain's length where it cannot be
+        estimated)."""
         taus = []
         for s in self.samplers:
-            tau = np.asarray(s.get_autocorr_time(tol=0), dtype=float)
-            taus.append(np.where(np.isfinite(tau), tau, float(s.iteration)))
+            tau = np.asarray(s.get_autocorr_time(discard=discard, tol=0), dtype=float)
+            taus.append(np.where(np.isfinite(tau), tau, float(s.iteration - discard)))
         return np.max(taus, axis=0)
 
 

@@ -35,7 +35,8 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
         v = vec[:, k] / np.abs(vec[:, k]).max()
         terms = [f"{v[j]:+.2f}·{_coordinate(model, names[j])}" for j in np.argsort(-np.abs(v))
                  if abs(v[j]) > 0.1]
-        weak.append({"eigenvalue": float(eig[k]), "direction": dict(zip(names, map(float, v)))})
+        weak.append({"eigenvalue": float(eig[k]),
+                     "direction": dict(zip(names, map(float, v), strict=True))})
         findings.append(f"The data barely constrain the combination {' '.join(terms)} "
                         f"(correlation-matrix eigenvalue {eig[k]:.1e}).")
     ratio = sd_log / np.asarray(model.prior_sd)
@@ -59,7 +60,7 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
                     f"{_separate_hint(model, mech[a], mech[b])}")
     return {"condition_number": cond, "weak_directions": weak,
             "prior_dominated": prior_bound,
-            "posterior_to_prior_width": dict(zip(names, map(float, ratio))),
+            "posterior_to_prior_width": dict(zip(names, map(float, ratio), strict=True)),
             "findings": findings}
 
 

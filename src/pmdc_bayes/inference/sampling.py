@@ -16,7 +16,6 @@ import sys
 import time
 from dataclasses import dataclass
 
-import emcee
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -36,6 +35,7 @@ from .diagnostics import (
 )
 from .ensembles import ENSEMBLES, Ensembles, r_hat_between
 from .idata import LL_DRAWS, to_inference_data
+from .moves import LaplaceIndependenceMove, default_moves
 from .stopping import TAU_RTOL, stop_message
 
 __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
@@ -44,52 +44,9 @@ __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "g
 
 CHUNK = 200  # steps between autocorrelation checks while the chain is too short to stop
 CHECK = 100  # steps between checks once it is long enough
-
-
-class LaplaceIndependenceMove(emcee.moves.MHMove):
-    """Metropolis–Hastings independence proposals from the Laplace approximation.
-
-    Every walker proposes a fresh point from a multivariate Student-t (ν = 8) centred
-    on the MAP with the Laplace covariance (inflated by ``scale``), and accepts it with
-    the Hastings ratio ``p(x')·q(x) / (p(x)·q(x'))``.  When the posterior is close to
-    the Laplace Gaussian the acceptance is high and successive draws are nearly
-    independent; the heavier-than-Gaussian tails keep the ratio bounded where it is not.
-    """
-
-    def __init__(self, mean, cov, *, nu: float = 8.0, scale: float = 1.2):
-        self.mean = np.asarray(mean, dtype=float)
-        cov = np.asarray(cov, dtype=float) * scale**2 * (nu - 2.0) / nu
-        vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
-        vals = np.clip(vals, 1e-300, None)
-        self._root = vecs * np.sqrt(vals)
-        self._inv_root = vecs / np.sqrt(vals)
-        self.nu = float(nu)
-        super().__init__(self._propose)
-
-    def _log_q(self, x):
-        z = (x - self.mean) @ self._inv_root
-        return -0.5 * (self.nu + self.mean.size) * np.log1p(np.sum(z * z, axis=1) / self.nu)
-
-    def _propose(self, x0, random):
-        n, d = x0.shape
-        z = random.standard_normal((n, d))
-        g = random.chisquare(self.nu, size=n) / self.nu
-        x1 = self.mean + (z @ self._root.T) / np.sqrt(g)[:, None]
-        return x1, self._log_q(x0) - self._log_q(x1)
-
-
-def default_moves(fit=None):
-    """Half Laplace-independence proposals, half differential evolution (fresh instances).
-
-    Differential evolution alone gave τ ≈ 18–20 steps on the demo session (stretch:
-    ≈ 60); mixing in independence proposals from the Laplace approximation brings τ
-    to a few steps when the posterior is near-Gaussian, while DE keeps the chain
-    moving where it is not.  Without ``fit``, DE only.
-    """
-    if fit is None:
-        return [(emcee.moves.DEMove(), 1.0)]
-    return [(LaplaceIndependenceMove(fit.theta, fit.cov_log), 0.5),
-            (emcee.moves.DEMove(), 0.5)]
+ADAPT_UNTIL = 4 * CHUNK  # the independence proposals may be refitted up to here ...
+ADAPT_BELOW = 0.3  # ... while fewer than this share of their proposals are accepted,
+ADAPT_WIDER = 1.5  # or the chain spreads more than this times their sd in some direction
 
 
 @dataclass(frozen=True)
@@ -184,6 +141,12 @@ def _initial(fit, log_prob, n_walkers, rng, scale=1.0):
                      "density around the MAP; check that fit_map converged (fit.message)")
 
 
+def _burn_in(tau, steps: int, adapted: int) -> int:
+    """Steps discarded: those before the proposals' last refit, and 2 τ_max after it
+    (at most half of what follows)."""
+    return adapted + min(math.ceil(2.0 * float(np.max(tau))), (steps - adapted) // 2)
+
+
 def _gates_met(sampler, burn: int, k: int = 1, *, r_hat_max: float = R_HAT_MAX,
                ess_min: float = ESS_MIN) -> bool:
     """Whether the chain so far (after ``burn``) already passes the convergence gates,
@@ -252,42 +215,50 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
 
     names = tuple(model.names)
     tau_prev, converged, settled, steps = None, False, None, 0
+    adapted = 0  # the step of the proposals' last refit: the chain before it is burn-in
     bar = tqdm(total=max_steps, disable=not progress, file=sys.stderr, unit="step")
     t_loop, out_of_time = time.perf_counter(), False
     with bar:
         while steps < max_steps:
-            long_enough = tau_prev is not None and steps >= min_tau_multiple * tau_prev.max()
+            run = steps - adapted
+            long_enough = tau_prev is not None and run >= min_tau_multiple * tau_prev.max()
             n = min(CHECK if long_enough else CHUNK, max_steps - steps)
             sampler.run_mcmc(n)
             _signals.check()  # an interrupt Python dropped in a callback stops here
             steps += n
             bar.update(n)
-            tau = sampler.get_autocorr_time()
+            timed_out = max_seconds is not None and time.perf_counter() - t_loop >= max_seconds
+            if moves is None and steps <= ADAPT_UNTIL and steps < max_steps and not timed_out \
+                    and sampler.adapt(below=ADAPT_BELOW, wider=ADAPT_WIDER):
+                adapted, tau_prev = steps, None
+                continue
+            tau = sampler.get_autocorr_time(discard=adapted)
             # the bar's length: what the stopping rule needs at the current τ, not the cap
-            bar.total = int(min(max_steps, max(steps + CHECK, min_tau_multiple * tau.max())))
+            bar.total = int(min(max_steps, max(steps + CHECK,
+                                               adapted + min_tau_multiple * tau.max())))
             bar.set_postfix(tau_max=f"{tau.max():.0f}")
             if tau_prev is not None:
                 settled = bool(np.all(np.abs(tau - tau_prev) < TAU_RTOL * tau))
-                if settled and steps >= min_tau_multiple * tau.max() and _gates_met(
-                        sampler, math.ceil(2.0 * tau.max()), k):
+                if settled and steps - adapted >= min_tau_multiple * tau.max() and _gates_met(
+                        sampler, _burn_in(tau, steps, adapted), k):
                     converged = True
                     break
             tau_prev = tau
-            if max_seconds is not None and time.perf_counter() - t_loop >= max_seconds:
+            if timed_out:
                 out_of_time = True
                 break
 
     message = stop_message(steps, tau, names, min_tau_multiple=min_tau_multiple,
                            settled=settled, converged=converged, max_steps=max_steps,
-                           **({"elapsed": time.perf_counter() - t_loop,
+                           adapted=adapted, **({"elapsed": time.perf_counter() - t_loop,
                                "max_seconds": max_seconds} if out_of_time else {}))
-    burn = min(math.ceil(2.0 * tau.max()), steps // 2)
+    burn = _burn_in(tau, steps, adapted)
     chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)  # (walkers, draws, P)
     lp = np.swapaxes(sampler.get_log_prob(discard=burn), 0, 1)
     acc = np.asarray(sampler.acceptance_fraction, dtype=float)
     idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws, seed=seed)
     idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged),
-                                 ensembles=k)
+                                 ensembles=k, adapted=adapted)
     return Posterior(names, model.registry.to_values(chain), chain, lp, acc,
                      dict(zip(names, map(float, tau), strict=True)), steps, burn,
                      not converged, message, time.perf_counter() - t_start, idata,
