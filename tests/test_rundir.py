@@ -434,3 +434,20 @@ def test_a_run_record_gives_back_the_unknown_loads_and_their_parts(tmp_path):
         _with_nuisances(session, tmp_path, info)
     del info["load_kinds"]  # a run written before the kinds were recorded: both parts
     assert _with_nuisances(session, tmp_path, info).load_kind("step_6v") == "both"
+
+
+def test_a_run_record_gives_back_a_shared_dead_time(tmp_path):
+    from pmdc_bayes.inference.result import _with_nuisances
+    from pmdc_bayes.io.loader import load_session
+
+    session = load_session("bench")
+    assert session.shared_dead_time
+    info = {"nuisances": ["dead_time"], "dead_time": "per_trace"}
+    assert not _with_nuisances(session, tmp_path, info).shared_dead_time
+    info["dead_time"] = "shared"
+    assert _with_nuisances(session, tmp_path, info).shared_dead_time
+    del info["dead_time"]  # a run written before it was recorded: one per trace
+    assert not _with_nuisances(session, tmp_path, info).shared_dead_time
+    info["dead_time"] = "often"
+    with pytest.raises(UsageError, match="session.dead_time is 'often'"):
+        _with_nuisances(session, tmp_path, info)

@@ -67,7 +67,7 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
 
 
 # what the run's summary keeps of the session
-_RECORDED = {"nuisances", "loaded_traces", "load_kinds", "friction"}
+_RECORDED = {"nuisances", "loaded_traces", "load_kinds", "shared_dead_time", "friction"}
 
 
 def _same(a, b) -> bool:

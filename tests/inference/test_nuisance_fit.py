@@ -37,6 +37,22 @@ def test_a_fitted_dead_time_recovers_the_bench_delay_and_the_motor():
 
 
 @pytest.mark.slow
+def test_a_shared_dead_time_recovers_the_bench_delay_and_the_motor():
+    """The bench simulator's one driver delay, fitted as one dead time for both traces."""
+    session = dataclasses.replace(case_session("dead time"), nuisances=("dead_time",),
+                                  shared_dead_time=True)
+    cf = fit_seed(session)
+    model = build_model(session, cf)
+    assert [n for n in model.names if n.startswith("dead_time")] == ["dead_time"]
+    fit = fit_map(model)
+    assert assess(model, fit, cf).verdict == "adequate"
+    assert fit.values["dead_time"] == pytest.approx(CASES["dead time"][0]["dead_time"],
+                                                    rel=0.02)
+    for name in ("K", "J", "La"):
+        assert fit.values[name] == pytest.approx(MOTOR[name], rel=0.02)
+
+
+@pytest.mark.slow
 def test_a_fitted_voltage_drop_recovers_the_brush_drop():
     fit, a = _fit("brush drop", ("voltage_drop",))
     assert a.verdict == "adequate", a.headline()

@@ -281,3 +281,25 @@ def test_a_negative_b_from_equation_19_is_said_first_and_fails(session_dir):
     assert proc.returncode == 1 and proc.stdout.startswith("Closed-form identification")
     (line,) = proc.stderr.splitlines()
     assert "B = -0.000198" in line and "cannot be negative" in line
+
+
+def test_a_dead_time_may_be_shared_by_every_trace(session_dir):
+    from pmdc_bayes.inference.nuisances import nuisance_specs
+    from pmdc_bayes.io.loader import load_session
+
+    with (session_dir / TOML).open("a") as fh:
+        fh.write('\n[model]\ndead_time = "shared"\n')
+    session = load_session(session_dir)
+    assert session.shared_dead_time and session.nuisances == ("dead_time",)
+    assert [p.name for p in nuisance_specs(session)] == ["dead_time"]
+    for same, shared in (('"per_trace"', False), ("true", False)):
+        replace_once(session_dir / TOML, 'dead_time = "shared"', f"dead_time = {same}")
+        again = load_session(session_dir)
+        assert again.shared_dead_time is shared and again.nuisances == ("dead_time",)
+        assert [p.name for p in nuisance_specs(again)] == ["dead_time_step"]
+        replace_once(session_dir / TOML, f"dead_time = {same}", 'dead_time = "shared"')
+    replace_once(session_dir / TOML, 'dead_time = "shared"', 'dead_time = "sometimes"')
+    proc = _run(session_dir)
+    assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
+    assert ("model.dead_time: expected true, false, \"per_trace\" or \"shared\", got the "
+            "string 'sometimes'") in proc.stderr, proc.stderr

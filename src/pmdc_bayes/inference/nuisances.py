@@ -43,9 +43,10 @@ def _identifier(text: str) -> str:
     return "".join(c if c.isalnum() else "_" for c in text)
 
 
-def dead_time_name(trace_name: str) -> str:
-    """The parameter name of a trace's dead time."""
-    return f"dead_time_{_identifier(trace_name)}"
+def dead_time_name(trace_name: str, shared: bool = False) -> str:
+    """The parameter name of a trace's dead time: ``dead_time`` when the session's
+    traces share one (``session.shared_dead_time``)."""
+    return "dead_time" if shared else f"dead_time_{_identifier(trace_name)}"
 
 
 def load_names(trace_name: str) -> tuple[str, str]:
@@ -88,10 +89,11 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     * ``voltage_drop`` — ``Vdrop`` (V), a constant drop at the brushes and driver
       opposing the voltage; prior normal, centre 0, sd :data:`DROP_PRIOR` × the largest
       voltage; seeded at ``drop_seed``;
-    * ``dead_time`` — per trace ``dead_time_<trace>`` (s), the delay between the
-      logged command and the response; prior normal, centre 0, sd
-      :data:`DEAD_TIME_PRIOR` × the trace's length (a negative value is a response that
-      leads its logged command: a clock or trigger offset).
+    * ``dead_time`` — per trace ``dead_time_<trace>`` (s), or one ``dead_time`` for all
+      traces (``session.shared_dead_time``), the delay between the logged command and
+      the response; prior normal, centre 0, sd :data:`DEAD_TIME_PRIOR` × the trace's
+      length (a negative value is a response that leads its logged command: a clock or
+      trigger offset).
 
     * ``speed_lag``, ``current_lag`` — the time constant (s) of a first-order lag in
       the speed or current sensor (a tachometer, a filter); prior log-normal centred on
@@ -135,14 +137,23 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
                                          "nuisance"), centre,
                                    description=f"first-order lag of the {words}"))
     if "dead_time" in session.nuisances:
-        for tr in session.traces:
-            length = float(tr.time[-1] - tr.time[0])
-            specs.append(ParamSpec(dead_time_name(tr.name), "s", "trace",
-                                   Prior("normal", 0.0, DEAD_TIME_PRIOR * length, "nuisance"),
-                                   0.0, transform="identity",
-                                   description=f"dead time of trace {tr.name!r}",
-                                   trace=tr.name))
+        specs += _dead_time_specs(session)
     return specs + _load_specs(session, b_seed) + _calibration_specs(session)
+
+
+def _dead_time_specs(session: Session) -> list[ParamSpec]:
+    """A dead time per driven trace, or one shared by all (``session.shared_dead_time``),
+    its prior's sd :data:`DEAD_TIME_PRIOR` × the (shortest) trace's length."""
+    lengths = {tr.name: float(tr.time[-1] - tr.time[0]) for tr in session.traces}
+    if session.shared_dead_time and lengths:
+        return [ParamSpec("dead_time", "s", "driver",
+                          Prior("normal", 0.0, DEAD_TIME_PRIOR * min(lengths.values()),
+                                "nuisance"), 0.0, transform="identity",
+                          description="dead time of every trace (one driver and logger)")]
+    return [ParamSpec(dead_time_name(name), "s", "trace",
+                      Prior("normal", 0.0, DEAD_TIME_PRIOR * length, "nuisance"), 0.0,
+                      transform="identity", description=f"dead time of trace {name!r}",
+                      trace=name) for name, length in lengths.items()]
 
 
 def _largest_voltage(session: Session) -> float:
@@ -283,7 +294,9 @@ class RigEffects:
             exp = exp._replace(seg_va=motor.terminal_voltage(exp.seg_va, self.drop(theta)))
         if "dead_time" in self.session.nuisances:
             v = self.registry.values(theta)
-            delay = jnp.stack([v[dead_time_name(tr.name)] for tr in self.session.traces])
+            shared = self.session.shared_dead_time
+            delay = jnp.stack([v[dead_time_name(tr.name, shared)]
+                               for tr in self.session.traces])
             shifted = exp.tau - delay[exp.chunk_trace][:, None]
             exp = exp._replace(tau=jnp.maximum(shifted, 0.0), tau_pre=jnp.minimum(shifted, 0.0))
         loaded = self.session.unknown_load_traces()

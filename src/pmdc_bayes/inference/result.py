@@ -19,7 +19,7 @@ import numpy as np
 from .._errors import UsageError
 from .._x64 import x64
 from ..io.loader import load_session
-from ..io.session import LOAD_KINDS, NUISANCES, Session
+from ..io.session import DEAD_TIMES, LOAD_KINDS, NUISANCES, Session
 from ..paper.closed_form import ClosedForm
 from ..rundir import SESSION_COPY, changed_files
 from .fit import FitResult
@@ -205,9 +205,14 @@ def _with_nuisances(session, run_dir: Path, info: dict):
             raise UsageError(f"{run_dir / 'summary.json'}: session.load_kinds is {kinds!r}, "
                              "not a table of loaded traces to constant, viscous or both; "
                              "rerun 'pmdc-bayes fit'")
+        dead = info.get("dead_time", "per_trace")
+        if dead not in DEAD_TIMES:
+            raise UsageError(f"{run_dir / 'summary.json'}: session.dead_time is {dead!r}, "
+                             f"not one of {', '.join(DEAD_TIMES)}; rerun 'pmdc-bayes fit'")
         session = dataclasses.replace(session, nuisances=tuple(names),
                                       loaded_traces=tuple(loaded),
-                                      load_kinds=tuple(kinds.items()))
+                                      load_kinds=tuple(kinds.items()),
+                                      shared_dead_time=dead == "shared")
     return session
 
 

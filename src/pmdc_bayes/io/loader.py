@@ -153,6 +153,18 @@ def _limit_setting(mt) -> float | None:
     return float(value)
 
 
+def _shared_dead_time(mt) -> bool:
+    """``[model] dead_time``: true or ``"per_trace"`` (one per driven trace), ``"shared"``
+    (one for all of them: the same driver and logger), or false; whether it is shared."""
+    value = mt.data.get("dead_time", False)
+    if isinstance(value, bool) or value == "per_trace":
+        return False
+    if value != "shared":
+        mt.fail("dead_time", f"expected true, false, \"per_trace\" or \"shared\", got "
+                f"{_describe(value)}; write e.g. dead_time = \"shared\"")
+    return True
+
+
 def _loaded_traces(mt: _Table, traces) -> tuple[tuple[str, ...], tuple[tuple[str, str], ...]]:
     """``[model] unknown_load``: true (every driven trace), false, a list of names of
     driven traces, or a table of such names to the parts of the drag to fit
@@ -261,7 +273,7 @@ def load_session(path) -> Session:
                 cf.fail("K_decimals", f"expected a whole number >= 0, got {_describe(d)}; "
                         "write e.g. K_decimals = 3")
             options["K_decimals"] = d
-    nuisances, loaded, kinds, limit_setting = (), (), (), None
+    nuisances, loaded, kinds, limit_setting, shared = (), (), (), None, False
     mt = top.table("model", required=False)
     traces, coast_downs = read_traces(top, root)
     _unique(traces + coast_downs, "trace", toml)
@@ -269,9 +281,11 @@ def load_session(path) -> Session:
         mt.check_keys(NUISANCES)
         loaded, kinds = _loaded_traces(mt, traces)
         limit_setting = _limit_setting(mt)
+        shared = _shared_dead_time(mt)
         for key in NUISANCES:
             flag = mt.data.get(key, False)
-            if key not in ("unknown_load", "current_limit") and not isinstance(flag, bool):
+            if key not in ("unknown_load", "current_limit", "dead_time") \
+                    and not isinstance(flag, bool):
                 mt.fail(key, f"expected true or false, got {_describe(flag)}; write e.g. "
                         f"{key} = true")
         nuisances = tuple(k for k in NUISANCES if mt.data.get(k, False))
@@ -280,6 +294,7 @@ def load_session(path) -> Session:
         nuisances=nuisances,
         loaded_traces=loaded,
         load_kinds=kinds,
+        shared_dead_time=shared,
         current_limit_setting=limit_setting,
         bench={k: m for k, m in measured.items() if k not in ("Ra", "La")},
         root=root,

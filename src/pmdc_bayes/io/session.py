@@ -23,12 +23,14 @@ __all__ = [
     "Session",
     "FRICTION_MODELS",
     "LOAD_KINDS",
+    "DEAD_TIMES",
 ]
 
 FRICTION_MODELS = ("viscous", "coulomb")
 
 
 LOAD_KINDS = ("both", "constant", "viscous")  # an unknown drag's fitted parts, per trace
+DEAD_TIMES = ("per_trace", "shared")  # one dead time per driven trace, or one for all
 NUISANCES = ("dead_time", "voltage_drop", "speed_lag", "current_lag", "unknown_load",
              "speed_gain", "speed_offset", "current_gain", "current_offset",
              "source_resistance", "current_limit")
@@ -193,7 +195,8 @@ class Session:
     trace when it is empty (``load_kinds`` pairs a trace with ``"constant"`` or
     ``"viscous"`` when its drag has only that part; ``"both"`` otherwise), a driver's
     current limit ``"current_limit"``, centred on ``current_limit_setting`` (A) when the
-    user gave the driver's setting).
+    user gave the driver's setting); ``shared_dead_time``: one dead time for every
+    driven trace (one driver, one logger) instead of one per trace.
     ``bench`` holds the further bench measurements given (of ``"K"``, ``"J"``,
     ``"B"``), each a prior of the fit.  ``coast_downs`` are traces of kind
     ``"coast-down"``: the rotor running down with the armature open (speed only, no
@@ -218,6 +221,7 @@ class Session:
     loaded_traces: tuple[str, ...] = ()
     current_limit_setting: float | None = None
     load_kinds: tuple[tuple[str, str], ...] = ()
+    shared_dead_time: bool = False
 
     def __repr__(self) -> str:
         parts = [f"{self.name!r}", f"motor={self.motor!r}", f"friction={self.friction!r}",
