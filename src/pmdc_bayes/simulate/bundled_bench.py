@@ -43,7 +43,7 @@ def truth() -> dict:
     out = dict(MOTOR)
     out.update({"Vdrop": RIG["brush_drop"], "Imax": RIG["current_limit"],
                 f"drag_{BRAKED}": RIG["extra_load"][BRAKED][1]})
-    out.update({f"dead_time_{s.name}": RIG["dead_time"] for s in STEPS})
+    out["dead_time"] = RIG["dead_time"]  # one driver and logger: shared by every trace
     return out
 
 
@@ -79,8 +79,8 @@ def write_bench(root: Path) -> Path:
                     'columns = { time = "time_s", position = "counts" }\n'
                     f'units = {{ position = "counts" }}\ncounts_per_rev = {COUNTS_PER_REV}\n'
                     f'voltage = [[0.0, 0.0], [{_num(spec.t_step)}, {_num(spec.voltage)}]]\n')
-    toml.append(f'[model]\ndead_time = true\nvoltage_drop = true\ncurrent_limit = true\n'
-                f'unknown_load = ["{BRAKED}"]\n')
+    toml.append(f'[model]\ndead_time = "shared"\nvoltage_drop = true\ncurrent_limit = true\n'
+                f'unknown_load = {{ {BRAKED} = "viscous" }}\n')
     (root / "session.toml").write_text("\n".join(toml))
     (root / "truth.json").write_text(json.dumps(truth(), indent=2) + "\n")
     return root
