@@ -51,6 +51,8 @@ def test_the_diagnosis_tells_dead_time_from_a_sensor_lag():
     dead, lag = _verdict(case_session("dead time")), _verdict(case_session("sensor lag"))
     assert not _says(dead, "lag in the speed sensor")
     assert not _says(lag, "dead time")
+    assert _says(dead, 'dead_time = true under [model] in session.toml ("shared" when one '
+                 "driver and logger serve every trace)")
 
 
 @pytest.mark.slow

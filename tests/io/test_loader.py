@@ -142,6 +142,11 @@ def test_truth_json(session_dir):
     truth = {"Ra": 2.0, "La": 1.5e-3, "K": 0.05, "B": 1e-5, "J": 1e-4, "Tc": 2e-3}
     (session_dir / "truth.json").write_text(json.dumps(dict(truth, note="ignored")))
     assert load_session(session_dir).truth == truth
+    # a rig's true values are kept when they are numbers
+    rig = {"Vdrop": 0.8, "dead_time": 2e-3}
+    (session_dir / "truth.json").write_text(json.dumps(dict(truth, **rig, flag=True,
+                                                            huge=1e301)))
+    assert load_session(session_dir).truth == dict(truth, **rig)
 
 
 def test_session_error_attributes(tmp_path):

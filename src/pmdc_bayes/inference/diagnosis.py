@@ -81,7 +81,8 @@ def _start_rules(model, tr, pred, t_step):
             out.append(f"{tr.name}: the current and speed start about {1e3 * late:.2g} ms "
                        "later than the model allows: add a dead time between the command "
                        "and the motion (driver, PWM start, logging trigger): --add dead-time, "
-                       "or dead_time = true under [model] in session.toml")
+                       "or dead_time = true under [model] in session.toml (\"shared\" when "
+                       "one driver and logger serve every trace)")
         elif tr.current is not None:
             out.append(f"{tr.name}: the speed starts about {1e3 * late:.2g} ms later than "
                        "the model allows while the current starts on time: a lag in the "

@@ -212,6 +212,10 @@ def _truth(path: Path) -> dict | None:
                 raise SessionError(path, f"{key} is {str(v)[:20]!r}, not a finite number; "
                                    "write the SI value", where=key)
             truth[key] = float(v)
+    for key, v in data.items():  # the rig's truths (Vdrop, dead_time, ...): numbers only
+        if key not in truth and isinstance(v, int | float) and not isinstance(v, bool) \
+                and abs(v) < 1e300:
+            truth[key] = float(v)
     return truth
 
 
