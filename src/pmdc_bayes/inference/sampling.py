@@ -61,7 +61,9 @@ class Posterior:
     log_prob : ``(chains, draws)`` log-posterior of each draw.
     acceptance : per-walker acceptance fraction over the whole run.
     tau : integrated autocorrelation time per parameter (steps), at the end.
-    n_steps, burn_in : steps run and steps discarded (``ceil(2·max τ)``).
+    n_steps, burn_in : steps run and steps discarded: those before the independence
+        proposals' last refit (``idata.posterior.attrs['adapted']``, 0 without one) and
+        ``ceil(2·max τ)`` after it.
     capped : the run hit ``max_steps`` before the stopping rule; ``message`` says why.
     wall_time : seconds spent sampling (including the log-likelihood for ``idata``).
     idata : the ArviZ record (see :func:`to_inference_data`).
@@ -178,13 +180,16 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     seed : seeds the initial walkers and emcee's generator; same seed, same draws.
     n_walkers : default ``max(32, 4·ndim)``, rounded up to even.
     max_steps : step cap; a capped run says so in ``capped`` and ``message``.
-    min_tau_multiple : stop once the chain is this many τ_max long, every τ changed
+    min_tau_multiple : stop once the chain (after the proposals' last refit, see
+        :mod:`.moves`) is this many τ_max long, every τ changed
         by less than 5 % since the previous check (τ is estimated every 200 steps, every
         100 once the chain is long enough), and the draws after burn-in already pass
         the gates (R-hat ≤ 1.01, bulk and tail ESS ≥ 400).
     progress : a tqdm bar (on stderr, or a notebook's widget); default in a terminal or
         a Jupyter kernel.
-    moves : emcee moves; default :func:`default_moves` (differential evolution).
+    moves : emcee moves; default :func:`default_moves` (Laplace independence proposals,
+        refitted on each ensemble's own chain during the first 800 steps where they do
+        not describe it, and differential evolution); moves given here are not refitted.
     ll_draws : at most this many draws carry the pointwise log-likelihood in ``idata``
         (evenly thinned along each chain).
     max_seconds : a limit on the sampling's wall time (checked between chunks of
