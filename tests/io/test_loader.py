@@ -188,8 +188,12 @@ def test_model_table_declares_the_nuisances_to_fit(session_dir):
     text = toml.read_text(encoding="utf-8")
     toml.write_text(text + "\n[model]\nvoltage_drop = true\ndead_time = true\n", encoding="utf-8")
     assert load_session(session_dir).nuisances == ("dead_time", "voltage_drop")
+    toml.write_text(text + "\n[model]\nvoltage_drop = 1\n", encoding="utf-8")
+    with pytest.raises(SessionError, match=r"model\.voltage_drop: expected true or false"):
+        load_session(session_dir)
     toml.write_text(text + "\n[model]\ndead_time = 1\n", encoding="utf-8")
-    with pytest.raises(SessionError, match=r"model\.dead_time: expected true or false"):
+    with pytest.raises(SessionError, match=r"model\.dead_time: expected true, false, "
+                       r"\"per_trace\" or \"shared\", got"):
         load_session(session_dir)
     toml.write_text(text + "\n[model]\nbrush_drop = true\n", encoding="utf-8")
     with pytest.raises(SessionError, match="unknown key 'brush_drop'"):
