@@ -52,3 +52,48 @@ def test_the_gates_fail_a_parameter_the_ensembles_disagree_on():
     ok, failures = gates({"K": row, "J": row}, posterior=post)
     assert not ok and failures == ["J: R-hat 1.040 > 1.01 across the independent ensembles "
                                    "(they disagree)"]
+
+
+def _pair(log_prob, seed=3):
+    rng = np.random.default_rng(seed)
+    p0 = rng.standard_normal((16, 2))
+    moves = lambda j: [(emcee.moves.DEMove(), 1.0)]  # noqa: E731
+    return Ensembles(2, 16, 2, log_prob, p0, _gauss(p0), moves=moves, seed=seed)
+
+
+def test_ensembles_stepped_in_threads_give_the_draws_each_gives_alone():
+    """The ensembles run in threads of their own: each one's chain is what it gives when
+    stepped alone, one after the other, chunk after chunk."""
+    together, alone = _pair(_gauss), _pair(_gauss)
+    for n in (30, 50):
+        together.run_mcmc(n)
+        alone.states = [s.run_mcmc(st, n, progress=False)
+                        for s, st in zip(alone.samplers, alone.states, strict=True)]
+    assert together.get_chain().shape == (80, 16, 2)
+    assert np.array_equal(together.get_chain(), alone.get_chain())
+    assert np.array_equal(together.get_log_prob(), alone.get_log_prob())
+
+
+def test_an_error_in_either_ensemble_is_raised_and_stops_the_other():
+    import threading
+
+    import pytest
+
+    def failing_in(main: bool):
+        calls = []
+
+        def log_prob(x):
+            if (threading.current_thread() is threading.main_thread()) == main:
+                calls.append(1)
+                if len(calls) > 20:
+                    raise ArithmeticError("solve failed")
+            return _gauss(x)
+
+        return log_prob
+
+    for main in (True, False):
+        e = _pair(failing_in(main))
+        with pytest.raises(ArithmeticError, match="solve failed"):
+            e.run_mcmc(100_000)
+        # the other ensemble stopped within steps of the failure, not at 100,000 steps
+        assert max(s.iteration for s in e.samplers) < 1_000

@@ -12,6 +12,9 @@ ensembles is what the gates then ask for, besides the walkers' own R-hat and ESS
 
 from __future__ import annotations
 
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
 import emcee
 import numpy as np
 
@@ -44,8 +47,34 @@ class Ensembles:
                                            log_prob=lp0[j * m:(j + 1) * m]))
 
     def run_mcmc(self, n: int) -> None:
-        self.states = [s.run_mcmc(st, n, progress=False)
-                       for s, st in zip(self.samplers, self.states, strict=True)]
+        """``n`` steps of every ensemble, the ensembles in threads of their own (each
+        waits mostly on the compiled log-posterior, which runs outside Python's lock, so
+        on several cores they run side by side; each has its own generator, so the
+        draws do not depend on how the threads interleave)."""
+        if self.k == 1:
+            self.states = [self.samplers[0].run_mcmc(self.states[0], n, progress=False)]
+            return
+        stop = threading.Event()
+
+        def run(j):  # an error in one ensemble stops the others within a step
+            state = self.states[j]
+            try:
+                for state in self.samplers[j].sample(self.states[j], iterations=n):
+                    if stop.is_set():
+                        break
+            except BaseException:
+                stop.set()
+                raise
+            return state
+
+        with ThreadPoolExecutor(self.k - 1) as pool:
+            try:
+                others = [pool.submit(run, j) for j in range(1, self.k)]
+                states = [run(0)] + [f.result() for f in others]
+            except BaseException:  # an interrupt while waiting stops them too
+                stop.set()
+                raise
+        self.states = states
 
     def adapt(self, **criteria) -> bool:
         """Refit each ensemble's adaptable moves (those with ``refit(samples)`` and
