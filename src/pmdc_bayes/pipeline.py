@@ -245,7 +245,8 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> Path:
         result.summary["session"]["files"] = copy_session(result.session_full, tmp)
         (tmp / "summary.json").write_text(dumps(result.summary))
         if result.idata is not None:
-            result.idata.to_netcdf(tmp / "posterior.nc")
+            # uncompressed: 0.4 s instead of 2.4 s for a demo-sized run, 30 % larger
+            result.idata.to_netcdf(tmp / "posterior.nc", compress=False)
         report_stage(result, out, tmp)
 
     write_atomically(Path(out), fill, force=force)
