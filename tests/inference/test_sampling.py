@@ -138,6 +138,32 @@ def test_impossible_parameters_have_minus_inf_log_posterior(tiny):
     np.testing.assert_array_equal(_LogProb(broken, 8)(far[:2]), [-np.inf, -np.inf])
 
 
+def test_the_log_posterior_runs_in_64_bits_in_every_sampler_thread():
+    """The ensembles step in threads, and JAX's 64-bit mode is a thread's own setting:
+    the walkers reach the log-posterior in float64 whichever thread asks (the caller's
+    global setting left off)."""
+    import threading
+
+    import jax.numpy as jnp
+
+    seen = []
+
+    def record(thetas):
+        seen.append(thetas.dtype)
+        return jnp.sum(thetas, axis=1)
+
+    walkers = np.array([[1.0 + 1e-12, 2.0], [3.0, 4.0]])
+    jax.config.update("jax_enable_x64", False)  # as a caller may have it
+    try:
+        worker = threading.Thread(target=lambda: seen.append(_LogProb(record, 2)(walkers)))
+        worker.start()
+        worker.join()
+        assert not jax.config.jax_enable_x64
+    finally:
+        jax.config.update("jax_enable_x64", True)
+    assert seen[0] == jnp.float64 and seen[1][0] == 3.0 + 1e-12
+
+
 # Gates
 
 

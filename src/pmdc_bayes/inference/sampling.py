@@ -107,6 +107,7 @@ class _LogProb:
     def __init__(self, fn, batch: int):
         self.fn, self.batch = fn, batch
 
+    @x64  # in every thread: JAX's 64-bit mode is a thread's own setting
     def __call__(self, thetas) -> np.ndarray:
         thetas = np.asarray(thetas, dtype=float)
         n = thetas.shape[0]
