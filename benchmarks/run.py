@@ -513,7 +513,7 @@ def _section(m: dict, r: dict, quick: bool) -> str:
                  f"{_fmt_rate(rate / us['rate'][n])}× |")
     L.append("")
     # end to end
-    L += ["### End to end: `pmdc-bayes fit` on sessions of three shapes", "",
+    L += ["### End to end: `pmdc-bayes fit` on sessions of several shapes", "",
           "Wall time of the whole command (subprocess: interpreter start, imports, fit, "
           "posterior, writing), with `PMDC_BAYES_CACHE` set to a fresh directory (cold: "
           "everything compiles) and then to the same directory again (warm: compiled "
