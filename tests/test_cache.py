@@ -92,6 +92,19 @@ def test_a_stored_program_is_traced_once_and_then_dispatched_compiled(disk_cache
     assert len(traced) == 3
 
 
+def test_a_program_compiled_for_the_first_time_is_announced_once(disk_cache):
+    lines = []
+    with cache.announcing(lines.append):
+        for _ in range(3):
+            _cubes()(jnp.arange(3.0))
+        cache._IN_MEMORY.clear()
+        _cubes()(jnp.arange(3.0))  # a later run: from disk, nothing compiles anew
+        _cubes()(jnp.arange(5.0))  # another shape
+    _cubes()(jnp.arange(7.0))  # outside the block: silent
+    assert lines == ["compiling the test cubes program (first use of this session shape; "
+                     "kept in the cache)"] * 2
+
+
 def test_an_unwritable_cache_still_computes(disk_cache, monkeypatch):
     from pathlib import Path
 
@@ -142,3 +155,16 @@ def test_the_bound_comes_from_the_environment(monkeypatch):
     assert cachedir.max_bytes() == int(1.5 * 2**20)
     monkeypatch.setenv("PMDC_BAYES_CACHE_MAX_MB", "lots")
     assert cachedir.max_bytes() == 2000 * 2**20
+
+
+def test_fit_says_when_it_compiles_for_a_new_session_shape(disk_cache, tmp_path, capsys):
+    """``fit --verbose`` names each program it compiles on a fresh cache, and none on a
+    second run of the same session shape."""
+    cli.main(["fit", "paper", "--no-mcmc", "--out", str(tmp_path / "a"), "-v"])
+    first = capsys.readouterr().err
+    assert "compiling the MAP's (Gauss–Newton) program (first use of this session shape" \
+        in first
+    cache._IN_MEMORY.clear()  # a new process: programs come from the disk cache
+    cli.main(["fit", "paper", "--no-mcmc", "--out", str(tmp_path / "b"), "-v"])
+    second = capsys.readouterr().err
+    assert "MAP fit of" in second and "compiling the" not in second

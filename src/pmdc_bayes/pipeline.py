@@ -17,6 +17,7 @@ import numpy as np
 from ._errors import UsageError
 from ._x64 import x64
 from .inference.adequacy import assess
+from .inference.cache import announcing
 from .inference.fit import fit_map
 from .inference.identifiability import identifiability
 from .inference.objective import build_model
@@ -108,8 +109,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     t0 = time.perf_counter()
     coulomb = None if friction is None else friction == "coulomb"
     model = build_model(session, cf, coulomb=coulomb)
-    say(f"MAP fit of {len(model.names)} parameters (a session shape not seen before "
-        "compiles first)")
+    say(f"MAP fit of {len(model.names)} parameters")
     fit = fit_map(model, seed=seed)
     ident = identifiability(model, fit)
     wall["map"] = time.perf_counter() - t0
@@ -223,10 +223,11 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
                                            nuisances=tuple(selection["nuisances"]),
                                            loaded_traces=tuple(selection["loaded_traces"]),
                                            load_kinds=())
-    result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
-                         holdout=holdout, compare_friction=compare_friction, progress=progress,
-                         allow_inadequate=allow_inadequate, say=say,
-                         max_sampling_seconds=max_sampling_seconds)
+    with announcing(say):
+        result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
+                             holdout=holdout, compare_friction=compare_friction,
+                             progress=progress, allow_inadequate=allow_inadequate, say=say,
+                             max_sampling_seconds=max_sampling_seconds)
     if selection is not None:
         result.summary["model_selection"] = selection
     if pi is not None:

@@ -22,15 +22,20 @@ from jax import export
 
 from ..physics.solution import Experiment
 
-__all__ = ["enable", "compiled", "cache_dir"]
+__all__ = ["enable", "compiled", "cache_dir", "announcing"]
 
 _IN_MEMORY: dict = {}
-_STATE = {"dir": None}
+_STATE = {"dir": None, "announce": None}
 _LAPACK = ("lapack_dormqr_ffi", "lapack_dgeqrf_ffi", "lapack_dorgqr_ffi", "lapack_dtrsm_ffi",
            "lapack_dpotrf_ffi", "lapack_dgesdd_ffi", "lapack_dsyevd_ffi", "lapack_dgetrf_ffi")
 export.register_namedtuple_serialization(Experiment, serialized_name="pmdc_bayes.Experiment")
 
 
+_WORDS = {"gauss-newton": "MAP's (Gauss–Newton)", "predict": "prediction",
+          "predict-coulomb=False": "viscous model's prediction",
+          "predict-coulomb=True": "Coulomb model's prediction",
+          "log_posterior_batch": "sampler's log-posterior",
+          "pointwise-residuals": "pointwise log-likelihood"}  # names in the progress lines
 _TRACED_PACKAGES = ("physics", "inference")
 _TRACED_LIBRARIES = ("jax", "jaxlib", "optimistix", "equinox", "lineax", "diffrax")
 
@@ -66,6 +71,17 @@ def enable(path: str | Path) -> None:
 
 def cache_dir() -> Path | None:
     return _STATE["dir"]
+
+
+@contextlib.contextmanager
+def announcing(say):
+    """While the block runs, ``say(line)`` as a program not in the disk cache starts
+    compiling (the first use of a session shape), so that a long pause is explained."""
+    previous, _STATE["announce"] = _STATE["announce"], say
+    try:
+        yield
+    finally:
+        _STATE["announce"] = previous
 
 
 class _Exported:
@@ -104,6 +120,11 @@ class _Exported:
             except Exception:  # a damaged entry: rebuild it
                 exp = None
         if exp is None:
+            if _STATE["announce"] is not None:
+                name = self.stem.name.rsplit("-", 1)[0]
+                what = _WORDS.get(name, name.replace("_", " ").replace("-", " "))
+                _STATE["announce"](f"compiling the {what} program (first use of this "
+                                   "session shape; kept in the cache)")
             checks = [export.DisabledSafetyCheck.custom_call(n) for n in _LAPACK]
             exp = export.export(self.jitted, disabled_checks=checks)(*args)
             tmp = file.with_suffix(f".{os.getpid()}.tmp")
