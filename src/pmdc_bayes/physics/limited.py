@@ -16,8 +16,8 @@ segment the motor is therefore in one of three regimes, each solved in closed fo
 The segment is split into at most :data:`PHASES` phases at the located times where the
 regime changes: breakaway and clamping of a stuck rotor, in closed form; the stop or
 clamping of a moving one, bracketed on a geometric grid (the first crossing, not just
-any) and bisected, then Newton steps that carry the time's dependence on the
-parameters; a clamped phase's exit or stop, in closed form.  A change beyond the
+any) and located by Newton steps kept inside the bracket (bisection where a step would
+leave it), then Newton steps that carry the time's dependence on the parameters; a clamped phase's exit or stop, in closed form.  A change beyond the
 last phase is not followed.
 """
 
@@ -39,7 +39,7 @@ STUCK, MOVING, CLAMPED = 0, 1, 2
 PHASES = 6  # regimes followed per constant segment (e.g. stuck, moving, clamped, moving)
 _GRID = 48  # geometric grid that brackets a moving phase's first event
 _GRID_SPAN = 1e-9  # its first point, as a share of the remaining segment
-_BISECT = 44
+_ROOT_STEPS = 12  # safeguarded Newton steps that locate it in its bracket
 _TOL = 1e-12  # relative margin that keeps a phase from re-entering the one it left
 
 
@@ -163,7 +163,8 @@ def _after_clamped(p, va, tl, tc, limit, ph, coulomb):
 
 def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast):
     """Duration of a moving phase and the phase after it (stopped or clamped): the first
-    grid point past an event brackets it, bisection narrows it, Newton refines it."""
+    grid point past an event brackets it, safeguarded Newton steps locate it, and two
+    more Newton steps carry its dependence on the parameters."""
     frac = jnp.logspace(jnp.log10(_GRID_SPAN), 0.0, _GRID)
     grid = rem * frac
     pc = jax.lax.stop_gradient((p, ph))
@@ -181,15 +182,27 @@ def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast):
     hi = jnp.where(any_hit, grid[first], rem)
     lo = jnp.where(first > 0, grid[jnp.maximum(first - 1, 0)], 0.0)
 
-    def bisect(_, lohi):
-        lo, hi = lohi
-        mid = 0.5 * (lo + hi)
-        h = events(pc, mid)  # (event, at which midpoint)
-        now = jnp.stack([h[0, 0], h[1, 1]])
-        return jnp.where(now, lo, mid), jnp.where(now, mid, hi)
+    def excess(q, tau):
+        """Each event's margin past its threshold (> 0: happened) at its own time in
+        ``tau`` (2,), and its rate of change."""
+        pq, phq = q
+        ia, w = _moving(pq, va, tl, tc, phq, tau, fast)
+        di, dw = motor.derivatives(pq.Ra, pq.La, pq.K, pq.B, pq.J, ia, w, va=va, tl=tl,
+                                   tc=phq.d * tc)
+        h = jnp.stack([-phq.d * w[0] - _TOL * (jnp.abs(phq.w) + 1e-300),
+                       jnp.abs(ia[1]) - limit * (1.0 + _TOL)])
+        return h, jnp.stack([-phq.d * dw[0], _sign(ia[1]) * di[1]])
 
-    lo, hi = jax.lax.fori_loop(0, _BISECT, bisect, (lo, hi))
-    t_root = jax.lax.stop_gradient(jnp.where(any_hit, hi, 0.0))
+    def safeguarded_newton(_, c):  # a Newton step inside the bracket, else bisection
+        lo, hi, t = c
+        h, dh = excess(pc, t)
+        lo, hi = jnp.where(h > 0, lo, t), jnp.where(h > 0, t, hi)
+        newton = t - h / jnp.where(dh == 0, 1.0, dh)
+        inside = (dh != 0) & (newton > lo) & (newton < hi)
+        return lo, hi, jnp.where(inside, newton, 0.5 * (lo + hi))
+
+    _, _, t = jax.lax.fori_loop(0, _ROOT_STEPS, safeguarded_newton, (lo, hi, 0.5 * (lo + hi)))
+    t_root = jax.lax.stop_gradient(jnp.where(any_hit, t, 0.0))
     t_stop, t_clamp = t_root[0], t_root[1]
     s = _sign(_moving(pc[0], va, tl, tc, pc[1], t_clamp, fast)[0])
     for _ in range(2):
