@@ -91,9 +91,10 @@ class Ensembles:
                     changed = bool(move.refit(recent)) or changed
         return changed
 
-    def get_chain(self, discard: int = 0) -> np.ndarray:
-        """``(steps, walkers, P)``, every ensemble's walkers."""
-        return np.concatenate([s.get_chain(discard=discard) for s in self.samplers], axis=1)
+    def get_chain(self, discard: int = 0, thin: int = 1) -> np.ndarray:
+        """``(steps, walkers, P)``, every ensemble's walkers (every ``thin``-th step)."""
+        return np.concatenate([s.get_chain(discard=discard, thin=thin) for s in self.samplers],
+                              axis=1)
 
     def get_log_prob(self, discard: int = 0) -> np.ndarray:
         return np.concatenate([s.get_log_prob(discard=discard) for s in self.samplers], axis=1)

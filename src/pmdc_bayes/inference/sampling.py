@@ -43,7 +43,8 @@ __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "g
            "LaplaceIndependenceMove"]
 
 CHUNK = 200  # steps between autocorrelation checks while the chain is too short to stop
-CHECK = 100  # steps between checks once it is long enough
+CHECK = 100  # least steps between checks once it is long enough
+THINNED_NEAR = 1.3  # a thinned gate check this close to the gates is redone unthinned
 ADAPT_UNTIL = 4 * CHUNK  # the independence proposals may be refitted up to here ...
 ADAPT_BELOW = 0.3  # ... while fewer than this share of their proposals are accepted,
 ADAPT_WIDER = 1.5  # or the chain spreads more than this times their sd in some direction
@@ -150,20 +151,47 @@ def _burn_in(tau, steps: int, adapted: int) -> int:
     return adapted + min(math.ceil(2.0 * float(np.max(tau))), (steps - adapted) // 2)
 
 
-def _gates_met(sampler, burn: int, k: int = 1, *, r_hat_max: float = R_HAT_MAX,
-               ess_min: float = ESS_MIN) -> bool:
-    """Whether the chain so far (after ``burn``) already passes the convergence gates,
-    so that stopping now will not fail them: over the walkers as chains, and across the
-    ``k`` independent ensembles."""
-    chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
+def _gate_shortfall(sampler, burn: int, k: int = 1, *, thin: int = 1, values=None,
+                    r_hat_max: float = R_HAT_MAX, ess_min: float = ESS_MIN) -> float:
+    """How many times longer the chain after ``burn`` must grow for the convergence gates
+    to pass (≤ 1: they pass now), from its every ``thin``-th step: over the walkers as
+    chains, and across the ``k`` independent ensembles.  ``values`` maps θ to the
+    quantities the gates are judged on (the SI values of the summary: R-hat's folded
+    part is not invariant under the log transform).
+
+    An ESS grows in proportion to the chain's length; so does ``m/(R̂² − 1)``, the
+    effective sample size that an R-hat over ``m`` chains reflects (Vats & Knudson 2021),
+    which is how a short R-hat is turned into a length.  A thinned check is cheaper and
+    noisier: the sampler uses it to schedule, and decides on the whole chain.
+    """
+    chain = np.swapaxes(sampler.get_chain(discard=burn, thin=thin), 0, 1)
+    if values is not None:
+        chain = values(chain)
     data = {f"p{i}": chain[..., i] for i in range(chain.shape[-1])}
-    r_hat = az.rhat(data)
-    ess = az.ess(data, method="bulk")
-    ess_tail = az.ess(data, method="tail")
-    between = r_hat_between(chain, k, list(data)) or {}
-    return all(float(r_hat[v]) <= r_hat_max and float(ess[v]) >= ess_min
-               and float(ess_tail[v]) >= ess_min and between.get(v, 1.0) <= r_hat_max
-               for v in data)
+    rhat = az.rhat(data)
+    r_hat = [float(rhat[v]) for v in data]
+    r_hat += list((r_hat_between(chain, k, list(data)) or {}).values())
+    ess = []
+    for method in ("bulk", "tail"):
+        e = az.ess(data, method=method)
+        ess += [float(e[v]) for v in data]
+    short = [ess_min / max(e, 1e-12) for e in ess]
+    short += [(r * r - 1.0) / (r_hat_max**2 - 1.0) if np.isfinite(r) else np.inf for r in r_hat]
+    return float(max(short))
+
+
+def _gates_met(sampler, burn: int, k: int = 1, **limits) -> bool:
+    """Whether the chain so far (after ``burn``) already passes the convergence gates,
+    so that stopping now will not fail them."""
+    return _gate_shortfall(sampler, burn, k, **limits) <= 1.0
+
+
+def _next_gate_check(steps: int, burn: int, shortfall: float) -> int:
+    """The step at which a failed gate check is worth repeating: nine tenths of the way to
+    the length it predicts, at least :data:`CHECK` steps or a twentieth of the steps run so
+    far, and at most a quarter of them, away."""
+    wait = 0.9 * (shortfall - 1.0) * (steps - burn) if np.isfinite(shortfall) else np.inf
+    return steps + int(np.clip(wait, max(CHECK, steps // 20), max(CHECK, steps // 4)))
 
 
 @x64
@@ -183,9 +211,11 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     max_steps : step cap; a capped run says so in ``capped`` and ``message``.
     min_tau_multiple : stop once the chain (after the proposals' last refit, see
         :mod:`.moves`) is this many τ_max long, every τ changed
-        by less than 5 % since the previous check (τ is estimated every 200 steps, every
-        100 once the chain is long enough), and the draws after burn-in already pass
-        the gates (R-hat ≤ 1.01, bulk and tail ESS ≥ 400).
+        by less than 5 % since the previous check (τ is estimated every 200 steps; once
+        the chain is long enough, every 100 steps or 5 % of its length, whichever is
+        more), and the draws after burn-in already pass the gates (R-hat ≤ 1.01, bulk
+        and tail ESS ≥ 400; while they are far from it, on a thinned chain, and again
+        only after the steps that their shortfall predicts).
     progress : a tqdm bar (on stderr, or a notebook's widget); default in a terminal or
         a Jupyter kernel.
     moves : emcee moves; default :func:`default_moves` (Laplace independence proposals,
@@ -220,36 +250,51 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                         moves=lambda j: default_moves(fit) if moves is None else moves)
 
     names = tuple(model.names)
-    tau_prev, converged, settled, steps = None, False, None, 0
+    tau_prev, converged, settled, steps, gate_at = None, False, None, 0, 0
+    check_at = CHUNK  # the step of the next estimate of τ (and perhaps of the gates)
     adapted = 0  # the step of the proposals' last refit: the chain before it is burn-in
     bar = tqdm(total=max_steps, disable=not progress, file=sys.stderr, unit="step")
     t_loop, out_of_time = time.perf_counter(), False
     with bar:
         while steps < max_steps:
-            run = steps - adapted
-            long_enough = tau_prev is not None and run >= min_tau_multiple * tau_prev.max()
-            n = min(CHECK if long_enough else CHUNK, max_steps - steps)
+            n = min(CHUNK, max_steps - steps, max(1, check_at - steps))
             sampler.run_mcmc(n)
             _signals.check()  # an interrupt Python dropped in a callback stops here
             steps += n
             bar.update(n)
             timed_out = max_seconds is not None and time.perf_counter() - t_loop >= max_seconds
+            if steps < check_at and steps < max_steps and not timed_out:
+                continue
             if moves is None and steps <= ADAPT_UNTIL and steps < max_steps and not timed_out \
                     and sampler.adapt(below=ADAPT_BELOW, wider=ADAPT_WIDER):
-                adapted, tau_prev = steps, None
+                adapted, tau_prev, check_at = steps, None, steps + CHUNK
                 continue
             tau = sampler.get_autocorr_time(discard=adapted)
-            # the bar's length: what the stopping rule needs at the current τ, not the cap
-            bar.total = int(min(max_steps, max(steps + CHECK,
-                                               adapted + min_tau_multiple * tau.max())))
-            bar.set_postfix(tau_max=f"{tau.max():.0f}")
+            run = steps - adapted
+            long_enough = run >= min_tau_multiple * tau.max()
+            # τ's estimate costs more as the chain grows: a long chain is checked every 5 %
+            check_at = steps + (max(CHECK, run // 20) if long_enough else CHUNK)
             if tau_prev is not None:
                 settled = bool(np.all(np.abs(tau - tau_prev) < TAU_RTOL * tau))
-                if settled and steps - adapted >= min_tau_multiple * tau.max() and _gates_met(
-                        sampler, _burn_in(tau, steps, adapted), k):
-                    converged = True
-                    break
+                if settled and long_enough and steps >= gate_at:
+                    # first on every (τ_min/4)-th step: the gates' cost grows with the chain
+                    burn = _burn_in(tau, steps, adapted)
+                    thin = max(1, int(tau.min() / 4))
+                    si = model.registry.to_values
+                    short = _gate_shortfall(sampler, burn, k, thin=thin, values=si)
+                    if thin > 1 and short <= THINNED_NEAR:  # near: the exact check decides
+                        short = _gate_shortfall(sampler, burn, k, values=si)
+                    if short <= 1.0:
+                        converged = True
+                        break
+                    gate_at = _next_gate_check(steps, burn, max(short, 1.0 + 1e-3))
+                    check_at = max(check_at, gate_at)
             tau_prev = tau
+            # the bar's length: what the stopping rule needs at the current τ (and what the
+            # gates' last check predicted), not the cap
+            bar.total = int(min(max_steps, max(steps + CHECK, gate_at,
+                                               adapted + min_tau_multiple * tau.max())))
+            bar.set_postfix(tau_max=f"{tau.max():.0f}")
             if timed_out:
                 out_of_time = True
                 break
@@ -265,7 +310,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws, seed=seed)
     idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged),
                                  ensembles=k, adapted=adapted)
-    return Posterior(names, model.registry.to_values(chain), chain, lp, acc,
+    si = model.registry.to_values(chain)
+    return Posterior(names, si, chain, lp, acc,
                      dict(zip(names, map(float, tau), strict=True)), steps, burn,
                      not converged, message, time.perf_counter() - t_start, idata,
-                     r_hat_between(chain, k, names))
+                     r_hat_between(si, k, names))
