@@ -17,8 +17,9 @@ The segment is split into at most :data:`PHASES` phases at the located times whe
 regime changes: breakaway and clamping of a stuck rotor, in closed form; the stop or
 clamping of a moving one, bracketed on a geometric grid (the first crossing, not just
 any) and located by Newton steps kept inside the bracket (bisection where a step would
-leave it), then Newton steps that carry the time's dependence on the parameters; a clamped phase's exit or stop, in closed form.  A change beyond the
-last phase is not followed.
+leave it), then Newton steps that carry the time's dependence on the parameters; a
+clamped phase's exit or stop, in closed form.  A change beyond the last phase is not
+followed.
 """
 
 from __future__ import annotations

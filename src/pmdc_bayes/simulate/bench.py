@@ -34,7 +34,7 @@ from scipy.integrate import solve_ivp
 from ..io.session import Measurement, Schedule, Session, SteadyTable, Trace
 from ._encoder import EDGE_FINE, encoder_trace_parts
 
-__all__ = ["BenchMotor", "StepSpec", "bench_session", "steady_point"]
+__all__ = ["BenchMotor", "StepSpec", "bench_session", "steady_point", "integrate"]
 
 _RTOL = 1e-8
 _LOOP = 1e-3  # time constant of the driver's current loop, in units of La/Ra
@@ -177,11 +177,11 @@ def steady_point(motor: BenchMotor, voltage: float, load: float = 0.0,
     return w, ia
 
 
-def _rhs(m: BenchMotor, spec: StepSpec, va: float, w_eps: float, i_eps: float):
-    """Right-hand side for state ``(ia, ω, ω_sensor, θ_sensor, ia_sensor)`` at constant
-    ``va``."""
-    tc_extra, b_extra = m.extra_load.get(spec.name, (0.0, 0.0))
-    tc, b, tl = m.Tc + tc_extra, m.B + b_extra, spec.load
+def _rhs(m: BenchMotor, name: str, va: float, tl: float, w_eps: float, i_eps: float):
+    """Right-hand side for state ``(ia, ω, ω_sensor, θ_sensor, ia_sensor)`` of trace
+    ``name`` at constant ``va`` and load ``tl``."""
+    tc_extra, b_extra = m.extra_load.get(name, (0.0, 0.0))
+    tc, b = m.Tc + tc_extra, m.B + b_extra
     lim, gain = m.current_limit, m.Ra / (m.La * _LOOP)  # near the limit, dia/dt = gain·Δi
     lag, i_lag = m.sensor_lag, m.current_lag
 
@@ -203,27 +203,38 @@ def _rhs(m: BenchMotor, spec: StepSpec, va: float, w_eps: float, i_eps: float):
     return f
 
 
-def _integrate(m: BenchMotor, spec: StepSpec, t: np.ndarray, w_eps: float, i_eps: float):
-    """States ``(ia, ω, ω_sensor, θ_sensor, ia_sensor)`` at the samples ``t`` (5 × n).
+def integrate(m: BenchMotor, name: str, t: np.ndarray, segments, x0, w_eps: float,
+              i_eps: float, max_step: float) -> np.ndarray:
+    """States ``(ia, ω, ω_sensor, θ_sensor, ia_sensor)`` at the increasing times ``t``
+    (5 × n) of trace ``name``, from ``x0`` at ``segments[0]``'s start.
 
-    Integrated from rest in two pieces, before and after the voltage reaches the motor
-    (``t_step + dead_time``), so the solver never steps across the discontinuity.
+    ``segments`` are ``(start, end, va, tl)`` with constant inputs, end to end; each is
+    integrated on its own, so the solver never steps across a discontinuity.
     """
-    t_on, t_end = spec.t_step + m.dead_time, float(t[-1])
-    atol = 1e-6 * np.array([i_eps, w_eps, w_eps, w_eps * spec.dt, i_eps])
-    x0, out = np.zeros(5), np.zeros((5, t.size))
-    for lo, hi, va in ((0.0, min(t_on, t_end), 0.0), (t_on, t_end, float(spec.voltage))):
+    atol = 1e-6 * np.array([i_eps, w_eps, w_eps, w_eps * max_step, i_eps])
+    x0, out = np.asarray(x0, dtype=float), np.zeros((5, t.size))
+    out[:, t <= segments[0][0]] = x0[:, None]
+    for lo, hi, va, tl in segments:
         if hi <= lo:
             continue
         sel = (t > lo) & (t <= hi)
         t_eval = np.append(t[sel], hi) if not sel.any() or t[sel][-1] < hi else t[sel]
-        sol = solve_ivp(_rhs(m, spec, va, w_eps, i_eps), (lo, hi), x0, method="LSODA",
-                        t_eval=t_eval, rtol=_RTOL, atol=atol, max_step=spec.dt)
+        sol = solve_ivp(_rhs(m, name, float(va), float(tl), w_eps, i_eps), (lo, hi), x0,
+                        method="LSODA", t_eval=t_eval, rtol=_RTOL, atol=atol,
+                        max_step=max_step)
         if not sol.success:
-            raise RuntimeError(f"trace {spec.name!r}: integration failed: {sol.message}")
+            raise RuntimeError(f"trace {name!r}: integration failed: {sol.message}")
         out[:, sel] = sol.y[:, :int(sel.sum())]
         x0 = sol.y[:, -1]
     return out
+
+
+def _integrate(m: BenchMotor, spec: StepSpec, t: np.ndarray, w_eps: float, i_eps: float):
+    """A step trace's states at ``t``: at rest until the voltage reaches the motor
+    (``t_step + dead_time``), then at the step's voltage."""
+    t_on, t_end = spec.t_step + m.dead_time, float(t[-1])
+    segments = ((0.0, min(t_on, t_end), 0.0, spec.load), (t_on, t_end, spec.voltage, spec.load))
+    return integrate(m, spec.name, t, segments, np.zeros(5), w_eps, i_eps, spec.dt)
 
 
 def _trace(m: BenchMotor, spec: StepSpec, rng: np.random.Generator, w_eps: float,

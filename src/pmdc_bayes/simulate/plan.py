@@ -22,6 +22,7 @@ from ..io._text import read_text
 from ..io._toml import REQUIRED, Table
 from ..io.session import FRICTION_MODELS
 from ..io.units import unit_factor
+from .rig import RigSpec, check_encoder, check_rig
 
 __all__ = ["Plan", "BenchSpec", "PointSpec", "TableSpec", "TraceSpec", "load_plan",
            "check_plan"]
@@ -84,6 +85,7 @@ class TraceSpec:
     current_noise: float
     current_quantum: float
     delay: float
+    encoder: tuple[int, str] | None = None  # (counts per revolution, output), with a [rig]
 
     @property
     def time(self) -> np.ndarray:
@@ -104,6 +106,7 @@ class Plan:
     operating_points: tuple[PointSpec, ...]
     steady_tables: tuple[TableSpec, ...]
     traces: tuple[TraceSpec, ...]
+    rig: RigSpec | None = None  # the rig's non-idealities (:mod:`.rig`); None: ideal
 
 
 def load_plan(path) -> dict:
@@ -150,7 +153,7 @@ def _schedule(t: Table, key: str, required: bool):
 def _trace(t: Table) -> TraceSpec:
     t.check_keys(("name", "kind", "duration", "rate", "voltage", "load_torque", "initial",
             "speed_unit", "record_current", "speed_noise", "speed_quantum", "current_noise",
-            "current_quantum", "delay"))
+            "current_quantum", "delay", "encoder"))
     initial = t.value("initial", default="rest")
     if isinstance(initial, dict):
         sub = Table(t.file, initial, t.path("initial"))
@@ -175,7 +178,11 @@ def _trace(t: Table) -> TraceSpec:
         **{k: t.number(k, default=0.0, low=0.0) for k in ("speed_noise", "speed_quantum",
                                                   "current_noise", "current_quantum",
                                                   "delay")},
+        encoder=check_encoder(t),
     )
+    if spec.encoder is not None and spec.encoder[1] == "edges" and spec.initial != "rest":
+        t.fail("encoder", 'an "edges" encoder trace starts at rest; set initial = "rest" or '
+               'output = "position"')
     if spec.delay >= spec.duration:
         t.fail("delay", f"delay {spec.delay} s is not shorter than the trace "
                f"({spec.duration} s); give the sensor delay in seconds")
@@ -196,7 +203,8 @@ def check_plan(data: dict, source=None) -> Plan:
     """
     source = None if source is None else Path(source)
     top = Table(source, data, "")
-    top.check_keys(("seed", "motor", "truth", "bench", "operating_point", "steady_table", "trace"))
+    top.check_keys(("seed", "motor", "truth", "bench", "operating_point", "steady_table", "trace",
+                    "rig"))
     seed = top.value("seed", default=None)
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
         top.fail("seed", f"expected a whole number >= 0, got {seed!r}; write e.g. seed = 1")
@@ -252,5 +260,11 @@ def check_plan(data: dict, source=None) -> Plan:
         if names.count(name) > 1:
             top.fail("name", f"the name {name!r} is used twice; give every operating point, "
                      "steady table and trace its own name")
+    rt = top.table("rig", required=False)
+    rig = None if rt is None else check_rig(rt, {s.name for s in traces})
+    for tr in traces:
+        if tr.encoder is not None and rig is None:
+            top.fail("trace", f"trace {tr.name!r} has an encoder, which the rig simulator "
+                     "draws: add a [rig] table (it may be empty)")
     return Plan(source, seed, motor.string("name"), friction, truth, tuple(bench),
-                tuple(points), tuple(tables), traces)
+                tuple(points), tuple(tables), traces, rig)

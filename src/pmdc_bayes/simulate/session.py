@@ -30,6 +30,7 @@ from ..physics import motor
 from ..physics.solution import Params, make_experiment, simulate
 from ._write import HEADER, check_out, write_session_files
 from .plan import Plan, TraceSpec, check_plan, load_plan
+from .rig import rig_steady, rig_trace, rig_truth
 
 __all__ = ["simulate_session", "load_plan", "render_session", "true_steady", "true_trace",
            "sample_trace"]
@@ -88,19 +89,38 @@ def _quantise(x: np.ndarray, q: float) -> np.ndarray:
     return x if q == 0 else np.round(x / q) * q
 
 
-def sample_trace(truth: dict, spec: TraceSpec, seed: int) -> dict[str, np.ndarray]:
-    """Sensor readings of a trace, SI: ``time``, ``speed`` and (if recorded) ``current``.
+def sample_trace(truth: dict, spec: TraceSpec, seed: int, rig=None) -> dict[str, np.ndarray]:
+    """Sensor readings of a trace, SI: ``time``, ``speed`` and (if recorded) ``current``;
+    on a ``rig`` (:class:`~.rig.RigSpec`) its readings there, with ``position`` for an
+    encoder trace.
 
-    Each channel is the true signal plus Gaussian noise, then rounded to its quantum.
+    Each analogue channel is the true signal plus Gaussian noise, then rounded to its
+    quantum; an encoder's counts are exact.
     """
-    t, ia, w = true_trace(truth, spec)
+    if rig is None:
+        t, ia, w = true_trace(truth, spec)
+        true = {"time": t, "speed": w, "current": ia}
+    else:
+        true = rig_trace(truth, rig, spec)
+    t = true["time"]
     speed_rng, current_rng = _stream(seed, "trace", spec.name, 2)
-    out = {"time": t, "speed": _quantise(
-        w + spec.speed_noise * speed_rng.standard_normal(t.size), spec.speed_quantum)}
-    if spec.record_current:
-        out["current"] = _quantise(
-            ia + spec.current_noise * current_rng.standard_normal(t.size), spec.current_quantum)
+    out = {"time": t}
+    if spec.encoder is not None:
+        out.update({k: true[k] for k in ("speed", "position") if true.get(k) is not None})
+    else:
+        out["speed"] = _quantise(true["speed"] + spec.speed_noise
+                                 * speed_rng.standard_normal(t.size), spec.speed_quantum)
+    if spec.record_current and true["current"] is not None:
+        out["current"] = _quantise(true["current"] + spec.current_noise
+                                   * current_rng.standard_normal(t.size), spec.current_quantum)
     return out
+
+
+def _steady(plan: Plan, va, tl):
+    """True steady ``(ia, ω)``: the ideal motor's, or on the plan's rig."""
+    if plan.rig is None:
+        return true_steady(plan.truth, va, tl)
+    return rig_steady(plan.truth, plan.rig, va, tl)
 
 
 def _f(x) -> str:
@@ -145,8 +165,8 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
                 f"unit = {_s(b.unit)}", f"sd = {_f(b.sd)}",
                 'source = "simulated: true value + N(0, sd)"']
     for op in plan.operating_points:
-        ia, w = (float(v) for v in true_steady(truth, op.duty * op.supply_voltage,
-                                                 op.load_torque))
+        ia, w = (float(np.squeeze(v)) for v in _steady(plan, op.duty * op.supply_voltage,
+                                                        op.load_torque))
         if w <= 0:
             raise SessionError(plan.source, "the motor does not turn at this point; raise "
                                "the voltage or lower the load",
@@ -162,7 +182,7 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
     for tab in plan.steady_tables:
         va = np.asarray(tab.voltages)
         tl = np.asarray(tab.load_torques) if tab.load_torques else np.zeros_like(va)
-        ia, w = true_steady(truth, va, tl)
+        ia, w = _steady(plan, va, tl)
         rng_w, rng_i = _stream(seed, "steady_table", tab.name, 2)
         cols = {"Va": va, "w": w + tab.speed_sd * rng_w.standard_normal(va.size)}
         roles = {"voltage": '"Va"', "speed": '"w"'}
@@ -178,13 +198,12 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
                 f"file = {_s(tab.name + '.csv')}", f"columns = {_inline(roles)}",
                 f"units = {_inline(units)}"]
     for tr in plan.traces:
-        data = sample_trace(truth, tr, seed)
-        cols = {"t": data["time"], "speed": from_si(data["speed"], "speed", tr.speed_unit)}
-        roles = {"time": '"t"', "speed": '"speed"'}
-        if "current" in data:
-            cols["ia"], roles["current"] = data["current"], '"ia"'
+        data = sample_trace(truth, tr, seed, plan.rig)
+        cols, roles, extra = _trace_columns(tr, data)
         units = {"time": '"s"', "speed": _s(tr.speed_unit), "current": '"A"',
                  "voltage": '"V"', "load_torque": '"N*m"'}
+        if "position" in data:
+            units["position"] = '"counts"'
         files[f"{tr.name}.csv"] = _csv(cols)
         out += ["", f"# {tr.rate:g} Hz for {tr.duration:g} s ({tr.time.size} samples); "
                 f"speed noise sd {tr.speed_noise:g} rad/s, quantum {tr.speed_quantum:g} rad/s; "
@@ -192,7 +211,7 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
                 f"sensor delay {tr.delay:g} s.",
                 "[[trace]]", f"name = {_s(tr.name)}", f"kind = {_s(tr.kind)}",
                 f"file = {_s(tr.name + '.csv')}", f"columns = {_inline(roles)}",
-                f"units = {_inline(units)}", f"voltage = {_pairs(tr.voltage)}"]
+                f"units = {_inline(units)}", *extra, f"voltage = {_pairs(tr.voltage)}"]
         if tr.load_torque is not None:
             out.append(f"load_torque = {_pairs(tr.load_torque)}")
         if isinstance(tr.initial, str):
@@ -200,10 +219,34 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
         else:
             ia0, w0 = tr.initial[0], from_si(tr.initial[1], "speed", tr.speed_unit)
             out.append(f"initial = {{ current = {_f(ia0)}, speed = {_f(w0)} }}")
+    if plan.rig is not None:
+        out[1] = "# SIMULATED data on a rig (see [rig] of the plan); the true values of the " \
+            "motor and the rig are in truth.json."
+        truth = {**truth, **rig_truth(plan.rig, [tr.name for tr in plan.traces])}
     files["session.toml"] = "\n".join(out) + "\n"
     files["truth.json"] = json.dumps({k: float(v) for k, v in truth.items()}, indent=2,
                                      sort_keys=True) + "\n"
     return files
+
+
+def _trace_columns(tr: TraceSpec, data: dict) -> tuple[dict, dict, list[str]]:
+    """A trace's CSV columns, their roles and the lines an encoder adds to its table."""
+    cols, roles, extra = {"t": data["time"]}, {"time": '"t"'}, []
+    if "position" in data:
+        counts = data["position"] * tr.encoder[0] / (2.0 * np.pi)
+        if tr.encoder[1] == "edges":  # one row per edge: its time alone
+            cols = {"t": data["time"][1:]}
+        else:
+            cols["counts"], roles["position"] = np.rint(counts), '"counts"'
+        extra.append(f"counts_per_rev = {tr.encoder[0]}")
+        if tr.encoder[1] == "edges":
+            extra.append("edges = true")
+    else:
+        cols["speed"] = from_si(data["speed"], "speed", tr.speed_unit)
+        roles["speed"] = '"speed"'
+    if "current" in data:
+        cols["ia"], roles["current"] = data["current"], '"ia"'
+    return cols, roles, extra
 
 
 @x64

@@ -1,0 +1,191 @@
+"""A plan's rig: the non-idealities of a real bench that ``[rig]`` asks for, simulated on
+the plan's traces and steady readings by the independent bench simulator
+(:mod:`.bench`, LSODA), not by the package's own model.
+
+``[rig]`` (all optional, SI)::
+
+    [rig]
+    dead_time = 0.002          # s between the commanded voltage and the motor (every trace)
+    voltage_drop = 0.8         # V at brushes and driver, opposing the current
+    source_resistance = 0.3    # ohm between the logged (supply) voltage and the terminals
+    current_limit = 2.0        # A: the driver holds |ia| at it
+    speed_lag = 0.005          # s: a first-order lag of the speed sensor (a tachometer)
+    current_lag = 0.0          # s: the same of the current sensor
+    speed_gain = 1.0           # the speed sensor's calibration (1: exact)
+    unknown_load = { step_9v = { viscous = 1e-4, constant = 0.0 } }  # drag nobody declared
+
+and per trace ``encoder = { counts_per_rev = 400, output = "position" }`` (``"position"``:
+the counts at the samples; ``"edges"``: one row per edge, its time to 1 µs; ``"speed"``:
+the counts differenced over each sample interval).  The session written declares only
+what a user would know (the commanded voltage, the declared load); ``truth.json`` holds
+the rig's true values under the names the fit reports (``Vdrop``, ``Imax``,
+``dead_time`` and ``dead_time_<trace>``, ``Rs``, ``speed_lag``, ``current_lag``,
+``speed_gain``, ``drag_<trace>``, ``load_<trace>``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..inference.nuisances import dead_time_name, load_names
+from ..io._toml import Table
+from ._encoder import EDGE_FINE, ENCODER_OUTPUTS, encoder_trace_parts
+from .bench import BenchMotor, integrate, steady_point
+
+__all__ = ["RigSpec", "check_rig", "check_encoder", "rig_truth", "rig_steady", "rig_trace"]
+
+_KEYS = ("dead_time", "voltage_drop", "source_resistance", "current_limit", "speed_lag",
+         "current_lag", "speed_gain", "unknown_load")
+
+
+@dataclass(frozen=True)
+class RigSpec:
+    """The rig's non-idealities (SI); ``unknown_load`` holds ``(trace, constant N·m,
+    viscous N·m·s/rad)``."""
+
+    dead_time: float = 0.0
+    voltage_drop: float = 0.0
+    source_resistance: float = 0.0
+    current_limit: float | None = None
+    speed_lag: float = 0.0
+    current_lag: float = 0.0
+    speed_gain: float = 1.0
+    unknown_load: tuple[tuple[str, float, float], ...] = ()
+
+
+def check_rig(t: Table, trace_names) -> RigSpec:
+    """``[rig]`` of a plan, checked (one line naming the key and the fix on a problem)."""
+    t.check_keys(_KEYS)
+    loads = []
+    lt = t.table("unknown_load", required=False)
+    if lt is not None:
+        for name in lt.data:
+            if name not in trace_names:
+                lt.fail(name, f"names no trace of the plan; use one of {sorted(trace_names)}")
+            part = lt.table(name)
+            part.check_keys(("constant", "viscous"))
+            loads.append((name, part.number("constant", default=0.0, low=0.0),
+                          part.number("viscous", default=0.0, low=0.0)))
+    limit = t.value("current_limit", default=None)
+    return RigSpec(dead_time=t.number("dead_time", default=0.0, low=0.0),
+                   voltage_drop=t.number("voltage_drop", default=0.0, low=0.0),
+                   source_resistance=t.number("source_resistance", default=0.0, low=0.0),
+                   current_limit=None if limit is None else t.number("current_limit",
+                                                                     positive=True),
+                   speed_lag=t.number("speed_lag", default=0.0, low=0.0),
+                   current_lag=t.number("current_lag", default=0.0, low=0.0),
+                   speed_gain=t.number("speed_gain", default=1.0, positive=True),
+                   unknown_load=tuple(loads))
+
+
+def check_encoder(t: Table) -> tuple[int, str] | None:
+    """A trace's ``encoder = { counts_per_rev, output }``, or None."""
+    et = t.table("encoder", required=False)
+    if et is None:
+        return None
+    et.check_keys(("counts_per_rev", "output"))
+    counts = et.value("counts_per_rev", what="whole number of counts per revolution")
+    if isinstance(counts, bool) or not isinstance(counts, int) or counts < 1:
+        et.fail("counts_per_rev", f"expected a whole number >= 1, got {counts!r}")
+    return counts, et.string("output", default="position", choices=ENCODER_OUTPUTS)
+
+
+def _motor(truth: dict, rig: RigSpec, encoder=None) -> BenchMotor:
+    """The bench simulator's motor; an encoder counts the rotor's own angle (no
+    tachometer lag)."""
+    return BenchMotor(**{k: truth[k] for k in ("Ra", "La", "K", "B", "J", "Tc")},
+                      dead_time=rig.dead_time,
+                      sensor_lag=rig.speed_lag if encoder is None else 0.0,
+                      current_lag=rig.current_lag, brush_drop=rig.voltage_drop,
+                      source_resistance=rig.source_resistance,
+                      current_limit=rig.current_limit, speed_gain=rig.speed_gain,
+                      encoder_counts_per_rev=None if encoder is None else encoder[0],
+                      encoder_output="speed" if encoder is None else encoder[1],
+                      extra_load={n: (c, v) for n, c, v in rig.unknown_load},
+                      speed_noise=0.0, current_noise=0.0)
+
+
+def rig_truth(rig: RigSpec, trace_names) -> dict[str, float]:
+    """The rig's true values under the names the fit reports."""
+    out = {"Vdrop": rig.voltage_drop, "Rs": rig.source_resistance,
+           "speed_lag": rig.speed_lag, "current_lag": rig.current_lag,
+           "speed_gain": rig.speed_gain, "dead_time": rig.dead_time}
+    if rig.current_limit is not None:
+        out["Imax"] = rig.current_limit
+    for name in trace_names:
+        out[dead_time_name(name)] = rig.dead_time
+    for name, constant, viscous in rig.unknown_load:
+        load, drag = load_names(name)
+        out[load], out[drag] = constant, viscous
+    return out
+
+
+def rig_steady(truth: dict, rig: RigSpec, va, tl) -> tuple[np.ndarray, np.ndarray]:
+    """True steady ``(ia, ω)`` at voltages ``va`` and loads ``tl`` on the rig (its drop,
+    source resistance and current limit; the speed as its sensor reads it)."""
+    m = _motor(truth, rig)
+    w, ia = np.array([steady_point(m, float(v), float(x))
+                      for v, x in zip(np.atleast_1d(va), np.atleast_1d(tl), strict=True)]).T
+    return ia, rig.speed_gain * w
+
+
+def _held(pairs, at: float) -> float:
+    """The value of a schedule ``((time, value), ...)`` at ``at`` (its first before it)."""
+    value = pairs[0][1]
+    for time, v in pairs:
+        if time <= at:
+            value = v
+    return float(value)
+
+
+def _segments(spec, dead_time: float, end: float):
+    """``(start, end, va, tl)`` pieces of constant input as the motor sees them."""
+    volts = tuple((time + dead_time, v) for time, v in spec.voltage)
+    loads = spec.load_torque or ((0.0, 0.0),)
+    cuts = sorted({0.0, end} | {x for x, _ in volts + loads if 0.0 < x < end})
+    return [(a, b, _held(volts, a), _held(loads, a))
+            for a, b in zip(cuts, cuts[1:], strict=False)]
+
+
+def rig_trace(truth: dict, rig: RigSpec, spec) -> dict[str, np.ndarray]:
+    """Noise-free readings of a plan trace ``spec`` on the rig, SI: ``time``, ``speed``
+    and ``current`` (the sensors', with their lags, gain and the plan's sensor delay:
+    a sample at ``t`` reads the state at ``max(t − delay, 0)``); with an encoder,
+    ``position`` (counted angle, NaN where unread) and ``speed`` from it."""
+    m = _motor(truth, rig, spec.encoder)
+    t = spec.time
+    end = float(t[-1])
+    segs = _segments(spec, rig.dead_time, end)
+    v_ref = max(max(abs(v) for _, v in spec.voltage), 1e-9)
+    w_eps = 1e-3 * m.K * v_ref / (m.Ra * m.B + m.K**2)
+    i_eps = 1e-4 * v_ref / m.Ra
+    if spec.initial == "rest":
+        x0 = np.zeros(5)
+    else:
+        if spec.initial == "steady":
+            w, ia = steady_point(m, segs[0][2], segs[0][3], m.extra_load.get(spec.name,
+                                                                               (0.0, 0.0)))
+        else:
+            ia, w = spec.initial
+        x0 = np.array([ia, w, w, 0.0, ia])
+    dt = end / max(t.size - 1, 1)
+    shifted = np.maximum(t - spec.delay, 0.0)
+    ia, _, ws, th, ias = integrate(m, spec.name, shifted, segs, x0, w_eps, i_eps, dt)
+    out = {"time": t, "speed": m.speed_gain * ws, "current": ias}
+    if spec.encoder is not None:
+        q = 2.0 * np.pi / spec.encoder[0]
+        fine = None
+        if spec.encoder[1] == "edges":
+            t_fine = np.linspace(0.0, end, (t.size - 1) * EDGE_FINE + 1)
+            fine = (t_fine, integrate(m, spec.name, t_fine, segs, x0, w_eps, i_eps, dt)[3])
+        if spec.encoder[1] == "speed":
+            counts = np.floor(th / q + 1e-9)
+            out["speed"] = np.concatenate([[0.0], np.diff(counts)]) * (q * spec.rate)
+        else:
+            parts = encoder_trace_parts(spec.encoder[1], t, th, q, fine)
+            out.update(time=parts["time"], position=parts["position"], speed=None)
+            if spec.encoder[1] == "edges":
+                out["current"] = None
+    return out
