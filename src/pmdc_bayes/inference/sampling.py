@@ -210,8 +210,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     n_walkers : default ``max(32, 4·ndim)``, rounded up to even.
     max_steps : step cap; a capped run says so in ``capped`` and ``message``.
     min_tau_multiple : stop once the chain (after the proposals' last refit, see
-        :mod:`.moves`) is this many τ_max long, every τ changed
-        by less than 5 % since the previous check (τ is estimated every 200 steps; once
+        :mod:`.moves`) is this many τ_max long, every τ changed by less than 5 % since
+        the previous check or the chain twice that long (τ is estimated every 200 steps; once
         the chain is long enough, every 100 steps or 5 % of its length, whichever is
         more), and the draws after burn-in already pass the gates (R-hat ≤ 1.01, bulk
         and tail ESS ≥ 400; while they are far from it, on a thinned chain, and again
@@ -275,7 +275,10 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
             # τ's estimate costs more as the chain grows: a long chain is checked every 5 %
             check_at = steps + (max(CHECK, run // 20) if long_enough else CHUNK)
             if tau_prev is not None:
-                settled = bool(np.all(np.abs(tau - tau_prev) < TAU_RTOL * tau))
+                # τ has settled, or the chain is so long (twice the multiple) that an
+                # estimate off by the noise of a short τ cannot make it too short
+                settled = bool(np.all(np.abs(tau - tau_prev) < TAU_RTOL * tau)) \
+                    or run >= 2 * min_tau_multiple * tau.max()
                 if settled and long_enough and steps >= gate_at:
                     # first on every (τ_min/4)-th step: the gates' cost grows with the chain
                     burn = _burn_in(tau, steps, adapted)

@@ -25,7 +25,8 @@ def stop_message(steps: int, tau, names, *, min_tau_multiple: float, settled: bo
     tau : integrated autocorrelation time of each parameter (steps), at the last check.
     names : the parameters' names, in the order of ``tau``.
     min_tau_multiple : the chain length, in τ_max, the stopping rule asks for.
-    settled : every τ changed by less than :data:`TAU_RTOL` since the check before;
+    settled : every τ changed by less than :data:`TAU_RTOL` since the check before (or
+        the chain is twice ``min_tau_multiple`` τ_max long);
         None when τ was estimated only once.
     converged : the stopping rule was met.
     max_steps : the step cap that stopped the run (when no time limit did).
