@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io._position import speed_estimate
 from ..physics import motor
 from .adequacy import BENCH_FAIL_Z, BENCH_WARN_Z, PEAK_RATIO, RISE_RATIO, Finding, _g
 from .levels import unloaded_levels
@@ -86,6 +87,19 @@ def rise_time(t, y, t_step, level: float = 0.632) -> float | None:
     return float(t[after[0]] - t_step) if after.size else None
 
 
+def _as_logged(trace, w):
+    """The model's speed ``w`` at the trace's samples as the trace's speed was obtained:
+    as it is where a speed was logged; from the angle it turns, by the same estimate
+    as the data's, where the speed was estimated from a counted angle (whose window
+    slows the rise the data show)."""
+    if trace.speed_logged or trace.position is None:
+        return w
+    t = np.asarray(trace.time, dtype=float)
+    w = np.asarray(w, dtype=float)
+    angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
+    return speed_estimate(t, np.where(np.isfinite(trace.position), angle, np.nan))
+
+
 def plausibility_checks(model, fit, preds) -> tuple[dict, list]:
     """Derived quantities against the session's own measurements."""
     session = model.session
@@ -107,7 +121,8 @@ def plausibility_checks(model, fit, preds) -> tuple[dict, list]:
     rises = {}
     for tr, (ia, w) in zip(session.traces, preds, strict=True):
         t_step = step_time(tr)
-        obs, mod = rise_time(tr.time, tr.speed, t_step), rise_time(tr.time, w, t_step)
+        obs, mod = rise_time(tr.time, tr.speed, t_step), rise_time(tr.time, _as_logged(tr, w),
+                                                                    t_step)
         if obs is not None and mod is not None and obs > 0 and mod > 0:
             ratio = mod / obs
             rises[tr.name] = {"observed": obs, "model": mod, "ratio": ratio}

@@ -61,7 +61,9 @@ def angle_si(t: Table, raw: np.ndarray, unit: str) -> tuple[np.ndarray, float]:
 def edge_angles(t: Table, path: Path, n: int, direction: np.ndarray | None) -> tuple:
     """The angle at each edge (rad) and the angle of one count: one count per row,
     forward unless the ``direction`` column says backward (1 forward; 0 or −1
-    backward)."""
+    backward).  An edge is the boundary between two counts that the rotor crosses: a
+    forward edge into count k lies at k counts, a backward edge into count k at k + 1
+    (the boundary it left by), so a rotor that turns back re-crosses the same angles."""
     q = counts_step(t, "an encoder-edge trace (edges = true)")
     if direction is None:
         steps = np.ones(n)
@@ -72,7 +74,7 @@ def edge_angles(t: Table, path: Path, n: int, direction: np.ndarray | None) -> t
                                "not 1 (forward), 0 or -1 (backward); write the decoder's "
                                "direction bit")
         steps = np.where(direction > 0, 1.0, -1.0)
-    return q * np.cumsum(steps), q
+    return q * (np.cumsum(steps) + (steps < 0)), q
 
 
 def edges_flag(t: Table) -> bool:
