@@ -4,7 +4,15 @@ model did not simulate: ``simulate/bench.py``)."""
 
 import pytest
 
-from pmdc_bayes.selection import CANDIDATES, _choose, compare_nuisances, format_selection
+from pmdc_bayes.io.bundled import bundled_session_dir
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.selection import (
+    CANDIDATES,
+    _choose,
+    applicable,
+    compare_nuisances,
+    format_selection,
+)
 from pmdc_bayes.simulate.cases import case_session
 
 
@@ -68,3 +76,13 @@ def test_compare_recommends_what_the_bench_has(case, expected):
         return
     larger = "speed lag + voltage drop" if case == "sensor lag" else "dead time + voltage drop"
     assert by[larger]["verdict"] == "adequate"
+
+
+def test_candidates_with_nothing_to_act_on_are_left_out():
+    """data/bench logs encoder counts and no current on its traces: no speed-lag
+    candidate (a counted angle has no sensor lag); every other candidate stays."""
+    bench = load_session(bundled_session_dir("bench"))
+    names = [name for name, _ in applicable(bench)]
+    assert names == [name for name, n in CANDIDATES if "speed_lag" not in n]
+    speed = case_session("dead time")  # logged speeds and currents: all of them
+    assert [name for name, _ in applicable(speed)] == [name for name, _ in CANDIDATES]

@@ -55,6 +55,10 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
         wanted = set(session.nuisances) | set(names)
         session = dataclasses.replace(
             session, nuisances=tuple(n for n in NUISANCES if n in wanted))
+        inert = session.inert_nuisance(names)
+        if inert is not None:
+            raise UsageError(f"add: {inert[0]!r}: {inert[1]}: there is nothing for it to "
+                             "fit; leave it out")
     if friction not in (None, "viscous", "coulomb"):
         raise UsageError(f"friction: {friction!r} is not 'viscous' or 'coulomb'")
     result = fit_session(session, mcmc=mcmc, friction=friction, seed=seed,

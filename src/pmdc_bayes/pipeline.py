@@ -181,6 +181,14 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
 
 
 @x64
+def _refuse_inert(session: Session, added) -> None:
+    """A non-ideality asked for with nothing in the session to act on is bad input."""
+    inert = session.inert_nuisance(added)
+    if inert is not None:
+        raise UsageError(f"--add {inert[0].replace('_', '-')}: {inert[1]} in session "
+                         f"{session.name!r}: there is nothing for it to fit; leave it out")
+
+
 def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             mcmc: bool = True, friction: str | None = None, seed: int = 0,
             holdout=(), compare_friction: bool = False,
@@ -207,6 +215,7 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
         wanted = set(session_full.nuisances) | set(add)
         session_full = dataclasses.replace(
             session_full, nuisances=tuple(n for n in NUISANCES if n in wanted))
+        _refuse_inert(session_full, add)
     name = session_full.name
     out = Path(out) if out is not None else default_out_dir(name)
     check_replaceable(out, force)

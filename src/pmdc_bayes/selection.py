@@ -30,7 +30,7 @@ from .inference.sampling import sample_posterior
 from .inference.seed import fit_seed
 from .io.session import Session
 
-__all__ = ["CANDIDATES", "LOO_MARGIN", "compare_nuisances", "format_selection"]
+__all__ = ["CANDIDATES", "LOO_MARGIN", "applicable", "compare_nuisances", "format_selection"]
 
 CANDIDATES = (
     ("ideal", ()),
@@ -46,6 +46,12 @@ LOO_MARGIN = 4.0  # elpd units a larger candidate must gain to be preferred
 
 
 @x64
+def applicable(session, candidates=CANDIDATES) -> list:
+    """The candidates whose every non-ideality has something in ``session`` to act on (no
+    speed lag without a logged speed: :meth:`~pmdc_bayes.io.session.Session.inert_nuisance`)."""
+    return [c for c in candidates if session.inert_nuisance(c[1]) is None]
+
+
 def compare_nuisances(session: Session, *, friction: str | None = None, seed: int = 0,
                       mcmc: bool = True, progress=None, candidates=CANDIDATES,
                       max_seconds: float | None = None) -> dict:
@@ -56,7 +62,7 @@ def compare_nuisances(session: Session, *, friction: str | None = None, seed: in
     coulomb = None if friction is None else friction == "coulomb"
     rows, idata = [], {}
     loaded = _suspect_traces(session)
-    for name, nuisances in candidates:
+    for name, nuisances in applicable(session, candidates):
         s = dataclasses.replace(session, nuisances=nuisances,
                                 loaded_traces=loaded if "unknown_load" in nuisances else (),
                                 load_kinds=())

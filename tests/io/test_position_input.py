@@ -137,3 +137,36 @@ def test_a_direction_column_without_edges_is_refused(tmp_path):
         load_session(_write(tmp_path / "s", 'name = "p"\nkind = "step"\nfile = "t.csv"\n'
                             'columns = { time = "t", speed = "w", direction = "d" }\n'
                             'voltage = [[0.0, 6.0]]\n', csv))
+
+
+@pytest.mark.parametrize(("key", "words"), [
+    ("speed_lag", "no driven trace logs a speed"), ("speed_gain", "counted angle"),
+    ("speed_offset", "no driven trace logs a speed"),
+    ("current_lag", "no driven trace logs a current"),
+    ("current_offset", "no driven trace logs a current")])
+def test_a_sensor_nuisance_with_no_such_sensor_is_refused(tmp_path, key, words):
+    """An encoder trace's angle is counted, not read through a speed sensor: a speed lag,
+    gain or offset (or a current sensor's, with no current) would fit a parameter the
+    likelihood never sees."""
+    times = [3000 + 400 * k for k in range(20)]
+    csv = "us\n" + "".join(f"{t}\n" for t in times)
+    root = _write(tmp_path / "s", _edges_toml(), csv, extra=f"[model]\n{key} = true\n")
+    with pytest.raises(SessionError) as info:
+        load_session(root)
+    text = str(info.value)
+    assert f"model.{key}" in text and words in text and "remove it" in text
+    assert "\n" not in text
+
+
+def test_add_of_a_sensor_nuisance_with_no_such_sensor_is_bad_input(tmp_path):
+    import subprocess
+    import sys
+
+    times = [3000 + 400 * k for k in range(20)]
+    root = _write(tmp_path / "s", _edges_toml(), "us\n" + "".join(f"{t}\n" for t in times))
+    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(root), "--no-mcmc",
+                           "--add", "speed-lag", "--out", str(tmp_path / "run")],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2, proc.stderr
+    assert "--add speed-lag: no driven trace logs a speed" in proc.stderr
+    assert proc.stderr.count("\n") == 1 and not (tmp_path / "run").exists()

@@ -293,7 +293,7 @@ def load_session(path) -> Session:
                 mt.fail(key, f"expected true or false, got {_describe(flag)}; write e.g. "
                         f"{key} = true")
         nuisances = tuple(k for k in NUISANCES if mt.data.get(k, False))
-    return Session(
+    session = Session(
         name=root.name,
         nuisances=nuisances,
         loaded_traces=loaded,
@@ -317,3 +317,7 @@ def load_session(path) -> Session:
         closed_form_options=options,
         truth=_truth(root / "truth.json"),
     )
+    inert = session.inert_nuisance()
+    if inert is not None:
+        mt.fail(inert[0], f"{inert[1]}: there is nothing for it to fit; remove it")
+    return session
