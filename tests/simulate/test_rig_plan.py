@@ -192,3 +192,56 @@ def test_through_the_cli_the_ideal_motor_is_rejected_and_the_rig_recovered(tmp_p
     for name in ("Ra", "K", "B", "J", "Tc", "Vdrop", "Imax", "dead_time", "drag_step_9v"):
         p = summary["parameters"][name]
         assert abs(p["map"] - truth[name]) <= 3 * p["map_sd"], (name, p, truth[name])
+
+
+def _rig_plan(rig: str, model: str, traces: str, bench_la: bool = True) -> tuple[str, str]:
+    la = '[bench.La]\nsd = 0.1\nunit = "mH"\n' if bench_la else ""
+    head = PLAN_TOML[:PLAN_TOML.index("[rig]")].replace("[bench.Ra]", la + "[bench.Ra]")
+    steady = PLAN_TOML[PLAN_TOML.index("[[steady_table]]"):PLAN_TOML.index("[[trace]]")]
+    return head + rig + steady + traces, model
+
+
+ANALOGUE = "".join(f"""[[trace]]
+name = "step_{v:g}v"
+kind = "step"
+duration = 0.15
+rate = 2000.0
+voltage = [[0.0, 0.0], [0.01, {v}]]
+speed_noise = 0.5
+current_noise = 0.005
+""" for v in (12.0, 6.0))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("rig", "model", "names"), [
+    ('[rig]\nspeed_offset = 3.0\ncurrent_gain = 1.06\ncurrent_offset = 0.02\n',
+     "[model]\nspeed_offset = true\ncurrent_gain = true\ncurrent_offset = true\n",
+     ("speed_offset", "current_gain", "current_offset")),
+    ('[rig]\ncurrent_limit = 1.5\nunknown_load = { step_6v = { constant = 0.004 } }\n',
+     '[model]\ncurrent_limit = 1.5\nunknown_load = { step_6v = "constant" }\n',
+     ("Imax", "load_step_6v")),
+])
+def test_sensor_calibrations_a_set_limit_and_a_constant_brake_are_recovered(
+        tmp_path, rig, model, names):
+    """Through the CLI: the ideal motor rejected, the declared model adequate, and each
+    rig parameter and the motor's within 3 sd of the truth (a current gain is told from
+    Ra only with a bench La as well as a bench Ra)."""
+    plan_text, model_text = _rig_plan(rig, model, ANALOGUE)
+    plan = tmp_path / "plan.toml"
+    plan.write_text(plan_text)
+    assert _cli("simulate", plan, "--out", tmp_path / "s").returncode == 0
+    ideal = _cli("fit", tmp_path / "s", "--no-mcmc", "--out", tmp_path / "ideal")
+    assert ideal.returncode == 3, ideal.stdout + ideal.stderr
+    declared = tmp_path / "declared"
+    declared.mkdir()
+    for f in (tmp_path / "s").iterdir():
+        (declared / f.name).write_bytes(f.read_bytes())
+    (declared / "session.toml").write_text((declared / "session.toml").read_text() + "\n"
+                                           + model_text)
+    proc = _cli("fit", declared, "--no-mcmc", "--out", tmp_path / "fit")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    summary = json.loads((tmp_path / "fit" / "summary.json").read_text())
+    truth = json.loads((declared / "truth.json").read_text())
+    for name in ("Ra", "K", "B", "J", *names):
+        p = summary["parameters"][name]
+        assert abs(p["map"] - truth[name]) <= 3 * p["map_sd"], (name, p, truth[name])

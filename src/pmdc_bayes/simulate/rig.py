@@ -11,7 +11,10 @@ the plan's traces and steady readings by the independent bench simulator
     current_limit = 2.0        # A: the driver holds |ia| at it
     speed_lag = 0.005          # s: a first-order lag of the speed sensor (a tachometer)
     current_lag = 0.0          # s: the same of the current sensor
-    speed_gain = 1.0           # the speed sensor's calibration (1: exact)
+    speed_gain = 1.0           # the traces' speed sensor reads gain × speed + offset
+    speed_offset = 0.0         # rad/s
+    current_gain = 1.0         # the traces' current sensor, likewise
+    current_offset = 0.0       # A
     unknown_load = { step_9v = { viscous = 1e-4, constant = 0.0 } }  # drag nobody declared
 
 and per trace ``encoder = { counts_per_rev = 400, output = "position" }`` (``"position"``:
@@ -20,7 +23,9 @@ the counts differenced over each sample interval).  The session written declares
 what a user would know (the commanded voltage, the declared load); ``truth.json`` holds
 the rig's true values under the names the fit reports (``Vdrop``, ``Imax``,
 ``dead_time`` and ``dead_time_<trace>``, ``Rs``, ``speed_lag``, ``current_lag``,
-``speed_gain``, ``drag_<trace>``, ``load_<trace>``).
+``speed_gain``, ``speed_offset``, ``current_gain``, ``current_offset``, ``drag_<trace>``,
+``load_<trace>``).  The gains and offsets are the traces' sensors'; the steady readings
+are taken by other instruments, without them.
 """
 
 from __future__ import annotations
@@ -37,7 +42,8 @@ from .bench import BenchMotor, integrate, steady_point
 __all__ = ["RigSpec", "check_rig", "check_encoder", "rig_truth", "rig_steady", "rig_trace"]
 
 _KEYS = ("dead_time", "voltage_drop", "source_resistance", "current_limit", "speed_lag",
-         "current_lag", "speed_gain", "unknown_load")
+         "current_lag", "speed_gain", "speed_offset", "current_gain", "current_offset",
+         "unknown_load")
 
 
 @dataclass(frozen=True)
@@ -52,6 +58,9 @@ class RigSpec:
     speed_lag: float = 0.0
     current_lag: float = 0.0
     speed_gain: float = 1.0
+    speed_offset: float = 0.0
+    current_gain: float = 1.0
+    current_offset: float = 0.0
     unknown_load: tuple[tuple[str, float, float], ...] = ()
 
 
@@ -77,6 +86,9 @@ def check_rig(t: Table, trace_names) -> RigSpec:
                    speed_lag=t.number("speed_lag", default=0.0, low=0.0),
                    current_lag=t.number("current_lag", default=0.0, low=0.0),
                    speed_gain=t.number("speed_gain", default=1.0, positive=True),
+                   speed_offset=t.number("speed_offset", default=0.0),
+                   current_gain=t.number("current_gain", default=1.0, positive=True),
+                   current_offset=t.number("current_offset", default=0.0),
                    unknown_load=tuple(loads))
 
 
@@ -100,7 +112,7 @@ def _motor(truth: dict, rig: RigSpec, encoder=None) -> BenchMotor:
                       sensor_lag=rig.speed_lag if encoder is None else 0.0,
                       current_lag=rig.current_lag, brush_drop=rig.voltage_drop,
                       source_resistance=rig.source_resistance,
-                      current_limit=rig.current_limit, speed_gain=rig.speed_gain,
+                      current_limit=rig.current_limit,
                       encoder_counts_per_rev=None if encoder is None else encoder[0],
                       encoder_output="speed" if encoder is None else encoder[1],
                       extra_load={n: (c, v) for n, c, v in rig.unknown_load},
@@ -111,7 +123,9 @@ def rig_truth(rig: RigSpec, trace_names) -> dict[str, float]:
     """The rig's true values under the names the fit reports."""
     out = {"Vdrop": rig.voltage_drop, "Rs": rig.source_resistance,
            "speed_lag": rig.speed_lag, "current_lag": rig.current_lag,
-           "speed_gain": rig.speed_gain, "dead_time": rig.dead_time}
+           "speed_gain": rig.speed_gain, "speed_offset": rig.speed_offset,
+           "current_gain": rig.current_gain, "current_offset": rig.current_offset,
+           "dead_time": rig.dead_time}
     if rig.current_limit is not None:
         out["Imax"] = rig.current_limit
     for name in trace_names:
@@ -124,11 +138,12 @@ def rig_truth(rig: RigSpec, trace_names) -> dict[str, float]:
 
 def rig_steady(truth: dict, rig: RigSpec, va, tl) -> tuple[np.ndarray, np.ndarray]:
     """True steady ``(ia, ω)`` at voltages ``va`` and loads ``tl`` on the rig (its drop,
-    source resistance and current limit; the speed as its sensor reads it)."""
+    source resistance and current limit; read by other instruments than the traces'
+    sensors, so without their gains and offsets)."""
     m = _motor(truth, rig)
     w, ia = np.array([steady_point(m, float(v), float(x))
                       for v, x in zip(np.atleast_1d(va), np.atleast_1d(tl), strict=True)]).T
-    return ia, rig.speed_gain * w
+    return ia, w
 
 
 def _held(pairs, at: float) -> float:
@@ -151,7 +166,7 @@ def _segments(spec, dead_time: float, end: float):
 
 def rig_trace(truth: dict, rig: RigSpec, spec) -> dict[str, np.ndarray]:
     """Noise-free readings of a plan trace ``spec`` on the rig, SI: ``time``, ``speed``
-    and ``current`` (the sensors', with their lags, gain and the plan's sensor delay:
+    and ``current`` (the sensors', with their lags, gains, offsets and the plan's delay:
     a sample at ``t`` reads the state at ``max(t − delay, 0)``); with an encoder,
     ``position`` (counted angle, NaN where unread) and ``speed`` from it."""
     m = _motor(truth, rig, spec.encoder)
@@ -173,7 +188,8 @@ def rig_trace(truth: dict, rig: RigSpec, spec) -> dict[str, np.ndarray]:
     dt = end / max(t.size - 1, 1)
     shifted = np.maximum(t - spec.delay, 0.0)
     ia, _, ws, th, ias = integrate(m, spec.name, shifted, segs, x0, w_eps, i_eps, dt)
-    out = {"time": t, "speed": m.speed_gain * ws, "current": ias}
+    out = {"time": t, "speed": rig.speed_gain * ws + rig.speed_offset,
+           "current": rig.current_gain * ias + rig.current_offset}
     if spec.encoder is not None:
         q = 2.0 * np.pi / spec.encoder[0]
         fine = None
