@@ -25,14 +25,57 @@ def fit_seed(session) -> ClosedForm:
         return seed_from_data(session, exc.message)
 
 
-def _largest_step(session):
+def _largest_change(session):
+    """``(trace, t0, t1)``: the driven trace with the largest voltage change (of any
+    kind of trace), or, with no voltage change, the largest load change, and the span
+    from that change to the next change of either input (the response to read)."""
     best, size = None, 0.0
-    for tr in session.traces:
-        v = tr.voltage.values
-        jump = float(np.max(np.abs(np.diff(v)))) if v.size > 1 else abs(float(v[0]))
-        if tr.kind == "step" and jump > size:
-            best, size = tr, jump
-    return best
+    for schedule in ("voltage", "load_torque"):
+        for tr in session.traces:
+            sched = getattr(tr, schedule)
+            values, times = sched.values, sched.times
+            if schedule == "voltage" and tr.initial == "rest":  # from rest: a change at 0 V
+                values, times = np.concatenate([[0.0], values]), np.concatenate([[-np.inf],
+                                                                                 times])
+            if values.size < 2:
+                continue
+            jumps = np.abs(np.diff(values))
+            k = int(np.argmax(jumps))
+            if jumps[k] > size:
+                t0 = max(float(times[k + 1]), float(tr.time[0]))
+                later = [float(x) for x in (*tr.voltage.times, *tr.load_torque.times)
+                         if x > t0]
+                best, size = (tr, t0, min(later, default=np.inf)), float(jumps[k])
+        if best is not None:
+            return best
+    return None
+
+
+def _time_constant(session, toml) -> tuple[float, str]:
+    """τ and where it was read: a step reading; the largest input change of a driven
+    trace (63.2 % of its response); or a coast-down's 63.2 % decay time."""
+    if session.step_readings:
+        return session.step_readings[0].tau, f"step reading {session.step_readings[0].name!r}"
+    change = _largest_change(session)
+    if change is not None:
+        tr, t0, t1 = change
+        keep = tr.time < t1
+        try:
+            tau = read_time_constant(tr.time[keep], tr.speed[keep], t_step=t0).tau
+        except ValueError as exc:
+            raise SessionError(tr.file, f"cannot read a time constant from trace "
+                               f"{tr.name!r}: {exc}; log the response until the speed "
+                               "settles") from None
+        return tau, f"63.2 % point of trace {tr.name!r} after its change at {t0:g} s"
+    for cd in session.coast_downs:
+        try:
+            return (read_time_constant(cd.time, cd.speed).tau,
+                    f"63.2 % decay of coast-down {cd.name!r} (J/B, the viscous part)")
+        except ValueError:
+            continue
+    raise SessionError(toml, "no response to read a time constant from: add a [[trace]] "
+                       "whose voltage or load changes, a coast-down, or a [[step_reading]]",
+                       where="trace")
 
 
 def seed_from_data(session, reason: str = "") -> ClosedForm:
@@ -44,8 +87,9 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
     and (19); without, K = 1/(G·(1 + f)) and B = f·K²/Ra with f =
     :data:`FRICTION_SHARE` (speed alone cannot split the damping between friction and
     back-emf; the fit's priors are wide and the identifiability section says what the
-    data decide).  τ is the 63.2 % time of the largest step (or a step reading), and J
-    follows from (9).
+    data decide).  τ is a step reading's, or the 63.2 % time of the response to the
+    largest voltage (else load) change of any driven trace, and J follows from (9);
+    with neither, J = B·τ from a coast-down's decay.
     """
     toml = session.root / "session.toml"
     Ra, La = session.Ra.value, session.La.value
@@ -70,24 +114,13 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
         used["K"] = (f"steady gain {G:.4g} rad/s/V of the unloaded levels, viscous friction "
                      f"assumed {100 * FRICTION_SHARE:.0f} % of the damping (no current)")
         used["B"] = "the same assumption"
-    if session.step_readings:
-        tau = session.step_readings[0].tau
-        used["tau"] = f"step reading {session.step_readings[0].name!r}"
+    tau, used["tau"] = _time_constant(session, toml)
+    if used["tau"].startswith("63.2 % decay"):  # a run-down: J/B, the circuit open
+        J = B * tau
+        used["J"] = "B × the coast-down's time constant"
     else:
-        tr = _largest_step(session)
-        if tr is None:
-            raise SessionError(toml, "no step to read a time constant from: add a [[trace]] "
-                               "with kind = \"step\" or a [[step_reading]]", where="trace")
-        try:
-            tau = read_time_constant(tr.time, tr.speed,
-                                     t_step=float(tr.voltage.times[-1])).tau
-        except ValueError as exc:
-            raise SessionError(tr.file, f"cannot read a time constant from trace "
-                               f"{tr.name!r}: {exc}; log the step until the speed "
-                               "settles") from None
-        used["tau"] = f"63.2 % point of trace {tr.name!r}"
-    J = j_from_tau(tau, Ra, B, K)
-    used["J"] = "equation (9) from tau"
+        J = j_from_tau(tau, Ra, B, K)
+        used["J"] = "equation (9) from tau"
     return ClosedForm(Ra, La, K, B, J, tau, gain(Ra, K, B), used, applicable=False,
                       reason=reason)
 

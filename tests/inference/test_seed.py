@@ -1,0 +1,64 @@
+"""Where a fit starts when the paper's method cannot run: the time constant is read from
+whatever response the session has (a load change, a voltage reversal, a coast-down),
+over the span up to the next change, and J follows from it."""
+
+import pytest
+
+from pmdc_bayes._errors import SessionError
+from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.simulate.session import simulate_session
+
+TRUTH = {"Ra": 2.0, "La": 2e-3, "K": 0.05, "B": 2e-5, "J": 2e-5, "Tc": 0.0}
+STEADY = {"name": "steady", "voltages": [4.0, 8.0, 12.0], "speed_sd": 0.1,
+          "current_sd": 0.0005}
+
+
+def _session(tmp_path, traces, steady=True):
+    plan = {"seed": 2, "motor": {"name": "seed motor", "friction": "viscous"}, "truth": TRUTH,
+            "bench": {"Ra": {"sd": 0.05, "unit": "ohm"}},
+            "steady_table": [STEADY] if steady else [], "trace": traces}
+    return load_session(simulate_session(plan, tmp_path / "s"))
+
+
+def _trace(name, **kw):
+    return {"name": name, "duration": 0.3, "rate": 2000.0, "speed_noise": 0.05,
+            "current_noise": 0.0, "record_current": False, **kw}
+
+
+def test_a_load_change_alone_seeds_the_time_constant(tmp_path):
+    """Running at 12 V, then a brake: the speed falls with the mechanical time constant."""
+    s = _session(tmp_path, [_trace("brake", kind="load_change", initial="steady",
+                                   voltage=[[0.0, 12.0]],
+                                   load_torque=[[0.0, 0.0], [0.05, 0.004]])])
+    cf = fit_seed(s)
+    assert not cf.applicable
+    assert "'brake' after its change at 0.05 s" in cf.used["tau"]
+    tau_m = TRUTH["J"] * TRUTH["Ra"] / (TRUTH["Ra"] * TRUTH["B"] + TRUTH["K"] ** 2)
+    assert cf.tau == pytest.approx(tau_m, rel=0.1)
+    assert cf.J == pytest.approx(TRUTH["J"], rel=0.15)
+
+
+def test_the_largest_change_is_read_up_to_the_next_one(tmp_path):
+    """+12 V from rest, then -12 V: the reversal (24 V) is the largest change; its
+    response is read before anything else changes, whatever the trace's kind."""
+    s = _session(tmp_path, [_trace("rev", kind="free-form", initial="rest",
+                                   voltage=[[0.0, 0.0], [0.01, 12.0], [0.12, -12.0],
+                                            [0.24, 0.0]])])
+    cf = fit_seed(s)
+    assert "'rev' after its change at 0.12 s" in cf.used["tau"]
+    assert cf.J == pytest.approx(TRUTH["J"], rel=0.15)
+
+
+def test_a_session_with_no_response_names_what_to_add(tmp_path):
+    s = _session(tmp_path, [_trace("flat", kind="free-form", initial="steady",
+                                   voltage=[[0.0, 12.0]])])
+    with pytest.raises(SessionError, match="voltage or load changes, a coast-down"):
+        fit_seed(s)
+
+
+def test_stuck_at_no_steady_level_is_still_refused(tmp_path):
+    s = _session(tmp_path, [_trace("flat", kind="free-form", initial="rest",
+                                   voltage=[[0.0, 0.0]])], steady=False)
+    with pytest.raises(SessionError, match="no steady speed"):
+        fit_seed(s)
