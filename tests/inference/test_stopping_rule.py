@@ -10,7 +10,7 @@ import pytest
 
 from pmdc_bayes.inference.diagnostics import az, gates
 from pmdc_bayes.inference.ensembles import r_hat_between
-from pmdc_bayes.inference.sampling import CHECK, _gate_shortfall, _next_gate_check
+from pmdc_bayes.inference.stopping import CHECK, gate_shortfall, next_gate_check
 
 
 def _ar1(rng, walkers, steps, dims, rho, *, offset=0.0):
@@ -48,7 +48,7 @@ def test_the_gate_check_agrees_with_the_summarys_gates(rho):
     fails them."""
     rng = np.random.default_rng(int(rho * 1000))
     chain = _ar1(rng, 24, 900, 3, rho)
-    short = _gate_shortfall(_sampler(chain), 0, 2, values=np.exp)
+    short = gate_shortfall(_sampler(chain), 0, 2, values=np.exp)
     assert (short <= 1.0) == _summary_gates(chain, 2, np.exp)
 
 
@@ -56,11 +56,11 @@ def test_a_shortfall_predicts_the_length_that_passes():
     """A chain ``s`` times too short passes once about ``s`` times longer."""
     rng = np.random.default_rng(5)
     chain = _ar1(rng, 20, 20_000, 2, 0.99)
-    short = _gate_shortfall(_sampler(chain[:800]), 0, 2)
+    short = gate_shortfall(_sampler(chain[:800]), 0, 2)
     assert 1.5 < short < 50
     grown = int(800 * short * 1.5)
-    assert _gate_shortfall(_sampler(chain[:grown]), 0, 2) <= 1.0
-    assert _gate_shortfall(_sampler(chain[:int(800 * short / 3)]), 0, 2) > 1.0
+    assert gate_shortfall(_sampler(chain[:grown]), 0, 2) <= 1.0
+    assert gate_shortfall(_sampler(chain[:int(800 * short / 3)]), 0, 2) > 1.0
 
 
 def test_ensembles_that_disagree_are_a_shortfall_however_long():
@@ -68,12 +68,12 @@ def test_ensembles_that_disagree_are_a_shortfall_however_long():
     for steps in (1000, 8000):
         chain = np.concatenate([_ar1(rng, 10, steps, 2, 0.3),
                                 _ar1(rng, 10, steps, 2, 0.3, offset=0.5)], axis=1)
-        assert _gate_shortfall(_sampler(chain), 0, 2) > 1.5
+        assert gate_shortfall(_sampler(chain), 0, 2) > 1.5
 
 
 def test_the_next_check_is_nine_tenths_of_the_way_within_bounds():
-    assert _next_gate_check(8000, 1000, 1.2) == 8000 + int(0.9 * (1.2 - 1.0) * 7000)
-    assert _next_gate_check(4000, 1000, 1.001) == 4000 + 4000 // 20  # at least 5 %
-    assert _next_gate_check(1000, 0, 1.001) == 1000 + CHECK
-    assert _next_gate_check(4000, 1000, 30.0) == 4000 + 4000 // 4  # at most a quarter
-    assert _next_gate_check(4000, 1000, np.inf) == 4000 + 4000 // 4
+    assert next_gate_check(8000, 1000, 1.2) == 8000 + int(0.9 * (1.2 - 1.0) * 7000)
+    assert next_gate_check(4000, 1000, 1.001) == 4000 + 4000 // 20  # at least 5 %
+    assert next_gate_check(1000, 0, 1.001) == 1000 + CHECK
+    assert next_gate_check(4000, 1000, 30.0) == 4000 + 4000 // 4  # at most a quarter
+    assert next_gate_check(4000, 1000, np.inf) == 4000 + 4000 // 4

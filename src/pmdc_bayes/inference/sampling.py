@@ -24,8 +24,6 @@ from tqdm.auto import tqdm
 from .. import _signals
 from .._x64 import x64
 from .diagnostics import (
-    ESS_MIN,
-    R_HAT_MAX,
     az,
     compare_laplace,
     format_loo,
@@ -36,14 +34,13 @@ from .diagnostics import (
 from .ensembles import ENSEMBLES, Ensembles, r_hat_between
 from .idata import LL_DRAWS, to_inference_data
 from .moves import LaplaceIndependenceMove, default_moves
-from .stopping import TAU_RTOL, stop_message
+from .stopping import CHECK, TAU_RTOL, gate_shortfall, next_gate_check, stop_message
 
 __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
            "compare_laplace", "loo_compare", "format_loo", "default_moves",
            "LaplaceIndependenceMove"]
 
 CHUNK = 200  # steps between autocorrelation checks while the chain is too short to stop
-CHECK = 100  # least steps between checks once it is long enough
 THINNED_NEAR = 1.3  # a thinned gate check this close to the gates is redone unthinned
 ADAPT_UNTIL = 4 * CHUNK  # the independence proposals may be refitted up to here ...
 ADAPT_BELOW = 0.3  # ... while fewer than this share of their proposals are accepted,
@@ -151,49 +148,6 @@ def _burn_in(tau, steps: int, adapted: int) -> int:
     return adapted + min(math.ceil(2.0 * float(np.max(tau))), (steps - adapted) // 2)
 
 
-def _gate_shortfall(sampler, burn: int, k: int = 1, *, thin: int = 1, values=None,
-                    r_hat_max: float = R_HAT_MAX, ess_min: float = ESS_MIN) -> float:
-    """How many times longer the chain after ``burn`` must grow for the convergence gates
-    to pass (≤ 1: they pass now), from its every ``thin``-th step: over the walkers as
-    chains, and across the ``k`` independent ensembles.  ``values`` maps θ to the
-    quantities the gates are judged on (the SI values of the summary: R-hat's folded
-    part is not invariant under the log transform).
-
-    An ESS grows in proportion to the chain's length; so does ``m/(R̂² − 1)``, the
-    effective sample size that an R-hat over ``m`` chains reflects (Vats & Knudson 2021),
-    which is how a short R-hat is turned into a length.  A thinned check is cheaper and
-    noisier: the sampler uses it to schedule, and decides on the whole chain.
-    """
-    chain = np.swapaxes(sampler.get_chain(discard=burn, thin=thin), 0, 1)
-    if values is not None:
-        chain = values(chain)
-    data = {f"p{i}": chain[..., i] for i in range(chain.shape[-1])}
-    rhat = az.rhat(data)
-    r_hat = [float(rhat[v]) for v in data]
-    r_hat += list((r_hat_between(chain, k, list(data)) or {}).values())
-    ess = []
-    for method in ("bulk", "tail"):
-        e = az.ess(data, method=method)
-        ess += [float(e[v]) for v in data]
-    short = [ess_min / max(e, 1e-12) for e in ess]
-    short += [(r * r - 1.0) / (r_hat_max**2 - 1.0) if np.isfinite(r) else np.inf for r in r_hat]
-    return float(max(short))
-
-
-def _gates_met(sampler, burn: int, k: int = 1, **limits) -> bool:
-    """Whether the chain so far (after ``burn``) already passes the convergence gates,
-    so that stopping now will not fail them."""
-    return _gate_shortfall(sampler, burn, k, **limits) <= 1.0
-
-
-def _next_gate_check(steps: int, burn: int, shortfall: float) -> int:
-    """The step at which a failed gate check is worth repeating: nine tenths of the way to
-    the length it predicts, at least :data:`CHECK` steps or a twentieth of the steps run so
-    far, and at most a quarter of them, away."""
-    wait = 0.9 * (shortfall - 1.0) * (steps - burn) if np.isfinite(shortfall) else np.inf
-    return steps + int(np.clip(wait, max(CHECK, steps // 20), max(CHECK, steps // 4)))
-
-
 @x64
 def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                      max_steps: int = 20_000, min_tau_multiple: float = 50,
@@ -284,13 +238,13 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                     burn = _burn_in(tau, steps, adapted)
                     thin = max(1, int(tau.min() / 4))
                     si = model.registry.to_values
-                    short = _gate_shortfall(sampler, burn, k, thin=thin, values=si)
+                    short = gate_shortfall(sampler, burn, k, thin=thin, values=si)
                     if thin > 1 and short <= THINNED_NEAR:  # near: the exact check decides
-                        short = _gate_shortfall(sampler, burn, k, values=si)
+                        short = gate_shortfall(sampler, burn, k, values=si)
                     if short <= 1.0:
                         converged = True
                         break
-                    gate_at = _next_gate_check(steps, burn, max(short, 1.0 + 1e-3))
+                    gate_at = next_gate_check(steps, burn, max(short, 1.0 + 1e-3))
                     check_at = max(check_at, gate_at)
             tau_prev = tau
             # the bar's length: what the stopping rule needs at the current τ (and what the

@@ -1,16 +1,56 @@
-"""Why the posterior sampler stopped, in words, from the stopping rule's state at its
-last check: the chain's length in autocorrelation times, whether τ has settled, and
-whether the draws pass the convergence gates."""
+"""The posterior sampler's stopping rule: how far the draws are from the convergence
+gates and when to look again, and why the sampler stopped, in words, from the rule's
+state at its last check (the chain's length in autocorrelation times, whether τ has
+settled, whether the draws pass the gates)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .diagnostics import ESS_MIN, R_HAT_MAX
+from .diagnostics import ESS_MIN, R_HAT_MAX, az
+from .ensembles import r_hat_between
 
-__all__ = ["TAU_RTOL", "stop_message"]
+__all__ = ["TAU_RTOL", "CHECK", "gate_shortfall", "next_gate_check", "stop_message"]
 
 TAU_RTOL = 0.05  # relative change of τ between checks that counts as settled
+CHECK = 100  # least steps between checks once the chain is long enough
+
+
+def gate_shortfall(sampler, burn: int, k: int = 1, *, thin: int = 1, values=None,
+                    r_hat_max: float = R_HAT_MAX, ess_min: float = ESS_MIN) -> float:
+    """How many times longer the chain after ``burn`` must grow for the convergence gates
+    to pass (≤ 1: they pass now), from its every ``thin``-th step: over the walkers as
+    chains, and across the ``k`` independent ensembles.  ``values`` maps θ to the
+    quantities the gates are judged on (the SI values of the summary: R-hat's folded
+    part is not invariant under the log transform).
+
+    An ESS grows in proportion to the chain's length; so does ``m/(R̂² − 1)``, the
+    effective sample size that an R-hat over ``m`` chains reflects (Vats & Knudson 2021),
+    which is how a short R-hat is turned into a length.  A thinned check is cheaper and
+    noisier: the sampler uses it to schedule, and decides on the whole chain.
+    """
+    chain = np.swapaxes(sampler.get_chain(discard=burn, thin=thin), 0, 1)
+    if values is not None:
+        chain = values(chain)
+    data = {f"p{i}": chain[..., i] for i in range(chain.shape[-1])}
+    rhat = az.rhat(data)
+    r_hat = [float(rhat[v]) for v in data]
+    r_hat += list((r_hat_between(chain, k, list(data)) or {}).values())
+    ess = []
+    for method in ("bulk", "tail"):
+        e = az.ess(data, method=method)
+        ess += [float(e[v]) for v in data]
+    short = [ess_min / max(e, 1e-12) for e in ess]
+    short += [(r * r - 1.0) / (r_hat_max**2 - 1.0) if np.isfinite(r) else np.inf for r in r_hat]
+    return float(max(short))
+
+
+def next_gate_check(steps: int, burn: int, shortfall: float) -> int:
+    """The step at which a failed gate check is worth repeating: nine tenths of the way to
+    the length it predicts, at least :data:`CHECK` steps or a twentieth of the steps run so
+    far, and at most a quarter of them, away."""
+    wait = 0.9 * (shortfall - 1.0) * (steps - burn) if np.isfinite(shortfall) else np.inf
+    return steps + int(np.clip(wait, max(CHECK, steps // 20), max(CHECK, steps // 4)))
 
 
 def stop_message(steps: int, tau, names, *, min_tau_multiple: float, settled: bool | None,
