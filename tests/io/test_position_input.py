@@ -140,8 +140,8 @@ def test_a_direction_column_without_edges_is_refused(tmp_path):
 
 
 @pytest.mark.parametrize(("key", "words"), [
-    ("speed_lag", "no driven trace logs a speed"), ("speed_gain", "counted angle"),
-    ("speed_offset", "no driven trace logs a speed"),
+    ("speed_lag", "no trace logs a speed"), ("speed_gain", "counted angle"),
+    ("speed_offset", "no trace logs a speed"),
     ("current_lag", "no driven trace logs a current"),
     ("current_offset", "no driven trace logs a current")])
 def test_a_sensor_nuisance_with_no_such_sensor_is_refused(tmp_path, key, words):
@@ -168,5 +168,5 @@ def test_add_of_a_sensor_nuisance_with_no_such_sensor_is_bad_input(tmp_path):
                            "--add", "speed-lag", "--out", str(tmp_path / "run")],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 2, proc.stderr
-    assert "--add speed-lag: no driven trace logs a speed" in proc.stderr
+    assert "--add speed-lag: no trace logs a speed" in proc.stderr
     assert proc.stderr.count("\n") == 1 and not (tmp_path / "run").exists()

@@ -1,24 +1,21 @@
 """The rig's non-idealities and coast-downs as fitted parameters: their registry
-entries, and their use in the prediction.
+entries.
 
 ``nuisance_specs`` lists what ``[model]`` (``session.nuisances``) asks for;
-``coast_down_specs`` the initial speed of each coast-down; :class:`RigEffects` (mixed
-into :class:`~.objective.SessionModel`) applies them: the experiment as the motor sees
-it (:meth:`RigEffects.inputs`) and what the sensors read (:meth:`RigEffects.sensed`).
+``coast_down_specs`` the initial speed of each coast-down, ``position_specs`` the
+angle each position trace starts at.  :class:`~.effects.RigEffects` applies them in
+the prediction.
 """
 
 from __future__ import annotations
 
-import jax.numpy as jnp
 import numpy as np
 
 from ..io.session import Session
-from ..physics import motor
-from ..physics.sensor import first_order_lag
 from .noise import noise_scale
 from .params import ParamSpec, Prior
 
-__all__ = ["RigEffects", "nuisance_specs", "coast_down_specs", "dead_time_name",
+__all__ = ["nuisance_specs", "coast_down_specs", "dead_time_name",
            "initial_speed_name", "load_names", "position_specs", "position_offset_name",
            "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES", "LAG_PRIOR_FACTOR",
            "NO_LIMIT"]
@@ -128,7 +125,8 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
                                Prior("normal", 0.0, SOURCE_PRIOR * session.Ra.value,
                                      "nuisance"), 0.0, transform="identity",
                                description="resistance of the supply, leads and driver"))
-    dts = [float(np.median(np.diff(tr.time))) for tr in session.traces]
+    dts = [float(np.median(np.diff(tr.time))) for tr in session.traces
+           + session.coast_downs]
     for key, words in (("speed_lag", "speed sensor"), ("current_lag", "current sensor")):
         if key in session.nuisances and dts:
             centre = LAG_PRIOR_SAMPLES * min(dts)
@@ -194,6 +192,8 @@ def _calibration_specs(session: Session) -> list[ParamSpec]:
         logged = [np.abs(y) for tr in session.traces
                   if (y := (tr.speed if tr.speed_logged else None) if channel == "speed"
                       else tr.current) is not None]
+        if channel == "speed":  # the coast-downs' speeds, read by the same sensor
+            logged += [np.abs(tr.speed) for tr in session.coast_downs]
         if not logged:
             continue
         unit = "rad/s" if channel == "speed" else "A"
@@ -259,71 +259,3 @@ def position_specs(session: Session) -> list[ParamSpec]:
                                description=f"angle read at the start of trace {tr.name!r}",
                                trace=tr.name))
     return specs
-
-
-class RigEffects:
-    """The rig's non-idealities in the prediction, for a model with ``registry`` and
-    ``session``."""
-
-    def circuit(self, theta):
-        """The motor's parameters as the logged voltage drives them: Ra plus the fitted
-        source resistance ``Rs`` when the model has one."""
-        p = self.params(theta)
-        if "Rs" in self.registry:
-            p = p._replace(Ra=p.Ra + self.registry.values(theta)["Rs"])
-        return p
-
-    def limit(self, theta):
-        """The fitted current limit at θ (A); :data:`NO_LIMIT` when the model has none
-        but needs the regime-switching solution (``reverses``), else None."""
-        if "Imax" in self.registry:
-            return self.registry.values(theta)["Imax"]
-        return NO_LIMIT if self.reverses else None
-
-    def drop(self, theta):
-        """The fitted voltage drop at θ (V), 0 when the model has none."""
-        return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else 0.0
-
-    def inputs(self, theta, exp):
-        """The experiment as the motor sees it at θ: voltages less the fitted drop, and
-        each trace's samples taken its fitted dead time earlier (before the response
-        starts, the state at the segment's start: exact when the preceding segment is at
-        rest or steady), and each trace's fitted unknown drag per segment, added to its
-        known one (set in the experiment)."""
-        if "Vdrop" in self.registry:
-            exp = exp._replace(seg_va=motor.terminal_voltage(exp.seg_va, self.drop(theta)))
-        if "dead_time" in self.session.nuisances:
-            v = self.registry.values(theta)
-            shared = self.session.shared_dead_time
-            delay = jnp.stack([v[dead_time_name(tr.name, shared)]
-                               for tr in self.session.traces])
-            shifted = exp.tau - delay[exp.chunk_trace][:, None]
-            exp = exp._replace(tau=jnp.maximum(shifted, 0.0), tau_pre=jnp.minimum(shifted, 0.0))
-        loaded = self.session.unknown_load_traces()
-        if loaded:
-            v, zero = self.registry.values(theta), jnp.zeros(())
-            parts = [[v[n] if tr.name in loaded and n in v else zero
-                      for n in load_names(tr.name)] for tr in self.session.traces]
-            tc, b = (jnp.stack([jnp.asarray(q[k]) for q in parts]) for k in (0, 1))
-            known = exp.seg_b is not None
-            exp = exp._replace(seg_b=b[exp.seg_trace] + (exp.seg_b if known else 0.0),
-                               seg_tc=tc[exp.seg_trace] + (exp.seg_tc if known else 0.0))
-        return exp
-
-    def sensed(self, theta, ia, w, d):
-        """What the sensors read of the padded ``(ia, ω)`` of the traces (``d`` the trace
-        block's data): each declared first-order sensor lag, then each declared gain
-        and offset, applied."""
-        v = self.registry.values(theta)
-        exp = d["exp"]
-        out = []
-        for x, name in ((ia, "current"), (w, "speed")):
-            if f"{name}_lag" in self.registry:
-                x = exp.pad(first_order_lag(exp.unpad(x), d["t"], d["start"],
-                                            v[f"{name}_lag"]))
-            if f"{name}_gain" in self.registry:
-                x = v[f"{name}_gain"] * x
-            if f"{name}_offset" in self.registry:
-                x = x + v[f"{name}_offset"]
-            out.append(x)
-        return tuple(out)

@@ -27,8 +27,9 @@ from ..physics.experiment import steady_points
 from ..physics.solution import Params, experiment_from_traces, real_modes
 from . import cache as _cache
 from .channels import SteadyBlock, blocks_for, entry_weights
+from .effects import RigEffects
 from .noise import Channel, noise_scale
-from .nuisances import RigEffects, coast_down_specs, nuisance_specs, position_specs
+from .nuisances import coast_down_specs, nuisance_specs, position_specs
 from .params import PRIOR_FACTOR, Registry, motor_registry
 from .predictions import Predictions
 from .seed import drop_seed, motor_seed

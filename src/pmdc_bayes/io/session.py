@@ -289,13 +289,15 @@ class Session:
         """The first of ``names`` (default: the session's nuisances) with nothing in the
         session to act on, and why: a speed sensor's lag, gain or offset without a
         logged speed (an angle an encoder counts is not read through them), a current
-        sensor's without a logged current, a dead time without a driven trace."""
-        speed = any(tr.speed is not None and tr.speed_logged for tr in self.traces)
+        sensor's without a logged current, a dead time without a driven trace.  A
+        coast-down's speed is read by the speed sensor too."""
+        speed = (any(tr.speed is not None and tr.speed_logged for tr in self.traces)
+                 or bool(self.coast_downs))
         current = any(tr.current is not None for tr in self.traces)
         for name in self.nuisances if names is None else names:
             if name.startswith("speed_") and not speed:
-                return name, ("no driven trace logs a speed (a position or encoder trace is "
-                              "a counted angle, which a speed sensor's lag, gain or offset "
+                return name, ("no trace logs a speed (a position or encoder trace is a "
+                              "counted angle, which a speed sensor's lag, gain or offset "
                               "does not touch)")
             if name.startswith("current_") and name != "current_limit" and not current:
                 return name, "no driven trace logs a current"

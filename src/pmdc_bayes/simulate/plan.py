@@ -28,7 +28,8 @@ __all__ = ["Plan", "BenchSpec", "PointSpec", "TableSpec", "TraceSpec", "load_pla
            "check_plan"]
 
 TRUTH_KEYS = ("Ra", "La", "K", "B", "J", "Tc")
-TRACE_KINDS = ("step", "load_change", "free-form")
+TRACE_KINDS = ("step", "load_change", "free-form", "coast-down")
+COAST_DOWN = "coast-down"
 MAX_SAMPLES = 1_000_000
 _BENCH = {"Ra": "resistance", "La": "inductance"}
 _SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
@@ -86,6 +87,7 @@ class TraceSpec:
     current_quantum: float
     delay: float
     encoder: tuple[int, str] | None = None  # (counts per revolution, output), with a [rig]
+    drag: tuple[float, float] = (0.0, 0.0)  # known (constant N·m, viscous N·m·s/rad) load
 
     @property
     def time(self) -> np.ndarray:
@@ -150,10 +152,63 @@ def _schedule(t: Table, key: str, required: bool):
     return pairs
 
 
+def _drag(t: Table) -> tuple[float, float]:
+    """A driven trace's known load ``drag = { constant = N·m, viscous = N·m·s/rad }``."""
+    sub = t.table("drag", required=False)
+    if sub is None:
+        return 0.0, 0.0
+    sub.check_keys(("constant", "viscous"))
+    return sub.number("constant", default=0.0, low=0.0), sub.number("viscous", default=0.0,
+                                                                      low=0.0)
+
+
+def _coast_down(t: Table) -> TraceSpec:
+    """A coast-down: the armature open from the first sample, the rotor running down
+    from ``initial = { speed = rad/s }``; a speed channel only."""
+    t.check_keys(("name", "kind", "duration", "rate", "initial", "speed_unit", "speed_noise",
+                  "speed_quantum", "delay"))
+    initial = t.value("initial", what="{ speed = rad/s }")
+    if not isinstance(initial, dict):
+        t.fail("initial", "a coast-down starts from its speed when the armature opens; write "
+               "initial = { speed = 200.0 } (rad/s)")
+    sub = Table(t.file, initial, t.path("initial"))
+    sub.check_keys(("speed",))
+    w0 = sub.number("speed")
+    speed_unit = t.string("speed_unit", default="rad/s")
+    try:
+        unit_factor("speed", speed_unit)
+    except ValueError as exc:
+        t.fail("speed_unit", str(exc))
+    return TraceSpec(name=t.string("name"), kind=COAST_DOWN,
+                     duration=t.number("duration", positive=True),
+                     rate=t.number("rate", positive=True), voltage=((0.0, 0.0),),
+                     load_torque=None, initial=(0.0, w0), speed_unit=speed_unit,
+                     record_current=False,
+                     speed_noise=t.number("speed_noise", default=0.0, low=0.0),
+                     speed_quantum=t.number("speed_quantum", default=0.0, low=0.0),
+                     current_noise=0.0, current_quantum=0.0,
+                     delay=t.number("delay", default=0.0, low=0.0))
+
+
 def _trace(t: Table) -> TraceSpec:
+    spec = _coast_down(t) if t.string("kind", choices=TRACE_KINDS) == COAST_DOWN else None
+    if spec is None:
+        spec = _driven(t)
+    if spec.delay >= spec.duration:
+        t.fail("delay", f"delay {spec.delay} s is not shorter than the trace "
+               f"({spec.duration} s); give the sensor delay in seconds")
+    n = spec.time.size
+    if not 3 <= n <= MAX_SAMPLES:
+        t.fail("duration", f"duration x rate gives {n} samples; choose them so a trace has "
+               f"3 to {MAX_SAMPLES} samples")
+    return spec
+
+
+def _driven(t: Table) -> TraceSpec:
+    """A trace driven by a voltage schedule (any kind but a coast-down)."""
     t.check_keys(("name", "kind", "duration", "rate", "voltage", "load_torque", "initial",
             "speed_unit", "record_current", "speed_noise", "speed_quantum", "current_noise",
-            "current_quantum", "delay", "encoder"))
+            "current_quantum", "delay", "encoder", "drag"))
     initial = t.value("initial", default="rest")
     if isinstance(initial, dict):
         sub = Table(t.file, initial, t.path("initial"))
@@ -178,18 +233,11 @@ def _trace(t: Table) -> TraceSpec:
         **{k: t.number(k, default=0.0, low=0.0) for k in ("speed_noise", "speed_quantum",
                                                   "current_noise", "current_quantum",
                                                   "delay")},
-        encoder=check_encoder(t),
+        encoder=check_encoder(t), drag=_drag(t),
     )
     if spec.encoder is not None and spec.encoder[1] == "edges" and spec.initial != "rest":
         t.fail("encoder", 'an "edges" encoder trace starts at rest; set initial = "rest" or '
                'output = "position"')
-    if spec.delay >= spec.duration:
-        t.fail("delay", f"delay {spec.delay} s is not shorter than the trace "
-               f"({spec.duration} s); give the sensor delay in seconds")
-    n = spec.time.size
-    if not 3 <= n <= MAX_SAMPLES:
-        t.fail("duration", f"duration x rate gives {n} samples; choose them so a trace has "
-               f"3 to {MAX_SAMPLES} samples")
     return spec
 
 

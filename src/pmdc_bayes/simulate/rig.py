@@ -30,7 +30,7 @@ are taken by other instruments, without them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -170,6 +170,10 @@ def rig_trace(truth: dict, rig: RigSpec, spec) -> dict[str, np.ndarray]:
     a sample at ``t`` reads the state at ``max(t − delay, 0)``); with an encoder,
     ``position`` (counted angle, NaN where unread) and ``speed`` from it."""
     m = _motor(truth, rig, spec.encoder)
+    if spec.drag != (0.0, 0.0):  # the trace's known load, on top of any unknown one
+        c, v = m.extra_load.get(spec.name, (0.0, 0.0))
+        m = replace(m, extra_load={**m.extra_load,
+                                   spec.name: (c + spec.drag[0], v + spec.drag[1])})
     t = spec.time
     end = float(t[-1])
     segs = _segments(spec, rig.dead_time, end)

@@ -21,15 +21,18 @@ import zlib
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from .._errors import SessionError
 from .._x64 import x64
+from ..inference.nuisances import initial_speed_name
 from ..io.units import from_si, to_si
 from ..physics import motor
 from ..physics.solution import Params, make_experiment, simulate
 from ._write import HEADER, check_out, write_session_files
-from .plan import Plan, TraceSpec, check_plan, load_plan
+from .coast import ideal_coast_down, rig_coast_down
+from .plan import COAST_DOWN, Plan, TraceSpec, check_plan, load_plan
 from .rig import rig_steady, rig_trace, rig_truth
 
 __all__ = ["simulate_session", "load_plan", "render_session", "true_steady", "true_trace",
@@ -80,7 +83,10 @@ def true_trace(truth: dict, spec: TraceSpec):
     va_t, va_v = zip(*spec.voltage, strict=True)
     tl_t, tl_v = zip(*(spec.load_torque or ((0.0, 0.0),)), strict=True)
     exp = make_experiment(shifted, va_t, va_v, tl_t, tl_v, initial=spec.initial)
-    ia, w = _simulate(_params(truth), exp, coulomb=truth["Tc"] > 0)
+    if spec.drag != (0.0, 0.0):  # the trace's known load, on every segment
+        exp = exp._replace(seg_tc=jnp.full_like(exp.seg_va, spec.drag[0]),
+                           seg_b=jnp.full_like(exp.seg_va, spec.drag[1]))
+    ia, w = _simulate(_params(truth), exp, coulomb=truth["Tc"] > 0 or spec.drag[0] > 0)
     return t, np.asarray(ia)[index], np.asarray(w)[index]
 
 
@@ -97,7 +103,10 @@ def sample_trace(truth: dict, spec: TraceSpec, seed: int, rig=None) -> dict[str,
     Each analogue channel is the true signal plus Gaussian noise, then rounded to its
     quantum; an encoder's counts are exact.
     """
-    if rig is None:
+    if spec.kind == COAST_DOWN:
+        true = (ideal_coast_down(truth, spec) if rig is None
+                else rig_coast_down(truth, rig, spec))
+    elif rig is None:
         t, ia, w = true_trace(truth, spec)
         true = {"time": t, "speed": w, "current": ia}
     else:
@@ -204,14 +213,23 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
                  "voltage": '"V"', "load_torque": '"N*m"'}
         if "position" in data:
             units["position"] = '"counts"'
+        currents = (f"current noise sd {tr.current_noise:g} A, quantum "
+                    f"{tr.current_quantum:g} A")
+        if tr.kind == COAST_DOWN:
+            units = {k: units[k] for k in ("time", "speed")}
+            currents = f"the armature opened at {_f(tr.initial[1])} rad/s"
         files[f"{tr.name}.csv"] = _csv(cols)
         out += ["", f"# {tr.rate:g} Hz for {tr.duration:g} s ({tr.time.size} samples); "
                 f"speed noise sd {tr.speed_noise:g} rad/s, quantum {tr.speed_quantum:g} rad/s; "
-                f"current noise sd {tr.current_noise:g} A, quantum {tr.current_quantum:g} A; "
-                f"sensor delay {tr.delay:g} s.",
+                f"{currents}; sensor delay {tr.delay:g} s.",
                 "[[trace]]", f"name = {_s(tr.name)}", f"kind = {_s(tr.kind)}",
                 f"file = {_s(tr.name + '.csv')}", f"columns = {_inline(roles)}",
-                f"units = {_inline(units)}", *extra, f"voltage = {_pairs(tr.voltage)}"]
+                f"units = {_inline(units)}", *extra]
+        if tr.kind == COAST_DOWN:  # its table says no more: the armature is open
+            continue
+        out.append(f"voltage = {_pairs(tr.voltage)}")
+        if tr.drag != (0.0, 0.0):
+            out.append(f"drag = {{ constant = {_f(tr.drag[0])}, viscous = {_f(tr.drag[1])} }}")
         if tr.load_torque is not None:
             out.append(f"load_torque = {_pairs(tr.load_torque)}")
         if isinstance(tr.initial, str):
@@ -222,7 +240,10 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
     if plan.rig is not None:
         out[1] = "# SIMULATED data on a rig (see [rig] of the plan); the true values of the " \
             "motor and the rig are in truth.json."
-        truth = {**truth, **rig_truth(plan.rig, [tr.name for tr in plan.traces])}
+        truth = {**truth, **rig_truth(plan.rig, [tr.name for tr in plan.traces
+                                                 if tr.kind != COAST_DOWN])}
+    truth = {**truth, **{initial_speed_name(tr.name): tr.initial[1] for tr in plan.traces
+                         if tr.kind == COAST_DOWN}}
     files["session.toml"] = "\n".join(out) + "\n"
     files["truth.json"] = json.dumps({k: float(v) for k, v in truth.items()}, indent=2,
                                      sort_keys=True) + "\n"

@@ -1,0 +1,87 @@
+"""The rig's non-idealities in the prediction: the experiment as the motor sees it
+(:meth:`RigEffects.inputs`: the voltage drop, dead times, unknown drags), the circuit
+the logged voltage drives (:meth:`RigEffects.circuit`), the driver's limit, and what the
+sensors read (:meth:`RigEffects.read_by`: lags, gains, offsets)."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from ..physics import motor
+from ..physics.sensor import first_order_lag
+from .nuisances import NO_LIMIT, dead_time_name, load_names
+
+__all__ = ["RigEffects"]
+
+
+class RigEffects:
+    """The rig's non-idealities in the prediction, for a model with ``registry`` and
+    ``session``."""
+
+    def circuit(self, theta):
+        """The motor's parameters as the logged voltage drives them: Ra plus the fitted
+        source resistance ``Rs`` when the model has one."""
+        p = self.params(theta)
+        if "Rs" in self.registry:
+            p = p._replace(Ra=p.Ra + self.registry.values(theta)["Rs"])
+        return p
+
+    def limit(self, theta):
+        """The fitted current limit at θ (A); :data:`NO_LIMIT` when the model has none
+        but needs the regime-switching solution (``reverses``), else None."""
+        if "Imax" in self.registry:
+            return self.registry.values(theta)["Imax"]
+        return NO_LIMIT if self.reverses else None
+
+    def drop(self, theta):
+        """The fitted voltage drop at θ (V), 0 when the model has none."""
+        return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else 0.0
+
+    def inputs(self, theta, exp):
+        """The experiment as the motor sees it at θ: voltages less the fitted drop, and
+        each trace's samples taken its fitted dead time earlier (before the response
+        starts, the state at the segment's start: exact when the preceding segment is at
+        rest or steady), and each trace's fitted unknown drag per segment, added to its
+        known one (set in the experiment)."""
+        if "Vdrop" in self.registry:
+            exp = exp._replace(seg_va=motor.terminal_voltage(exp.seg_va, self.drop(theta)))
+        if "dead_time" in self.session.nuisances:
+            v = self.registry.values(theta)
+            shared = self.session.shared_dead_time
+            delay = jnp.stack([v[dead_time_name(tr.name, shared)]
+                               for tr in self.session.traces])
+            shifted = exp.tau - delay[exp.chunk_trace][:, None]
+            exp = exp._replace(tau=jnp.maximum(shifted, 0.0), tau_pre=jnp.minimum(shifted, 0.0))
+        loaded = self.session.unknown_load_traces()
+        if loaded:
+            v, zero = self.registry.values(theta), jnp.zeros(())
+            parts = [[v[n] if tr.name in loaded and n in v else zero
+                      for n in load_names(tr.name)] for tr in self.session.traces]
+            tc, b = (jnp.stack([jnp.asarray(q[k]) for q in parts]) for k in (0, 1))
+            known = exp.seg_b is not None
+            exp = exp._replace(seg_b=b[exp.seg_trace] + (exp.seg_b if known else 0.0),
+                               seg_tc=tc[exp.seg_trace] + (exp.seg_tc if known else 0.0))
+        return exp
+
+    def read_by(self, theta, sensor: str, x, lag):
+        """``x`` as the ``sensor`` (``"speed"`` or ``"current"``) reads it at θ: its
+        declared first-order lag (``lag(x, τs)`` applies one in ``x``'s layout), then
+        its declared gain and offset."""
+        v = self.registry.values(theta)
+        if f"{sensor}_lag" in self.registry:
+            x = lag(x, v[f"{sensor}_lag"])
+        if f"{sensor}_gain" in self.registry:
+            x = v[f"{sensor}_gain"] * x
+        if f"{sensor}_offset" in self.registry:
+            x = x + v[f"{sensor}_offset"]
+        return x
+
+    def sensed(self, theta, ia, w, d):
+        """What the sensors read of the padded ``(ia, ω)`` of the driven traces (``d``
+        the trace block's data)."""
+        exp = d["exp"]
+
+        def lag(x, tau):
+            return exp.pad(first_order_lag(exp.unpad(x), d["t"], d["start"], tau))
+
+        return self.read_by(theta, "current", ia, lag), self.read_by(theta, "speed", w, lag)
