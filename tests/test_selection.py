@@ -2,12 +2,14 @@
 and the simplest one the data do not reject recommended (benches the package's own
 model did not simulate: ``simulate/bench.py``)."""
 
+import numpy as np
 import pytest
 
 from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.selection import (
     CANDIDATES,
+    LOO_MARGIN,
     _choose,
     applicable,
     compare_nuisances,
@@ -86,3 +88,24 @@ def test_candidates_with_nothing_to_act_on_are_left_out():
     assert names == [name for name, n in CANDIDATES if "speed_lag" not in n]
     speed = case_session("dead time")  # logged speeds and currents: all of them
     assert [name for name, _ in applicable(speed)] == [name for name, _ in CANDIDATES]
+
+
+@pytest.mark.slow
+def test_with_mcmc_the_adequate_candidates_are_compared_by_loo():
+    """On an ideal bench the ideal motor and the one with dead times are both adequate:
+    each is sampled, each gets its PSIS-LOO on the same observations, and the dead times
+    buy no clear gain, so the simplest stays recommended, for that reason."""
+    chosen = tuple(c for c in CANDIDATES if c[0] in ("ideal", "dead time"))
+    sel = compare_nuisances(case_session(None, seed=2), mcmc=True, candidates=chosen,
+                            max_seconds=120)
+    by = {r["name"]: r for r in sel["candidates"]}
+    assert all(r["verdict"] == "adequate" for r in by.values()), format_selection(sel)
+    for r in by.values():
+        loo = r["loo"]
+        assert loo is not None and np.isfinite(loo["elpd_loo"]) and loo["se"] > 0
+    # the same observations: the elpd values are comparable and close
+    gap = by["dead time"]["loo"]["elpd_loo"] - by["ideal"]["loo"]["elpd_loo"]
+    assert abs(gap) < max(LOO_MARGIN, 2 * by["ideal"]["loo"]["se"]), gap
+    assert sel["recommended"] == "ideal"
+    assert "no larger candidate predicts clearly better (LOO)" in sel["reason"]
+    assert any("elpd" in line for line in format_selection(sel))
