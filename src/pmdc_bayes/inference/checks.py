@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io._position import speed_estimate
+from ..io._position import speed_estimate, speed_window
 from ..physics import motor
 from .adequacy import BENCH_FAIL_Z, BENCH_WARN_Z, PEAK_RATIO, RISE_RATIO, Finding, _g
 from .levels import unloaded_levels
@@ -90,14 +90,17 @@ def rise_time(t, y, t_step, level: float = 0.632) -> float | None:
 def _as_logged(trace, w):
     """The model's speed ``w`` at the trace's samples as the trace's speed was obtained:
     as it is where a speed was logged; from the angle it turns, by the same estimate
-    as the data's, where the speed was estimated from a counted angle (whose window
-    slows the rise the data show)."""
+    as the data's (over the same window, which the counted angle's quantum sets),
+    where the speed was estimated from a counted angle (whose window slows the rise the
+    data show)."""
     if trace.speed_logged or trace.position is None:
         return w
     t = np.asarray(trace.time, dtype=float)
     w = np.asarray(w, dtype=float)
     angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
-    return speed_estimate(t, np.where(np.isfinite(trace.position), angle, np.nan))
+    read = np.isfinite(trace.position)
+    return speed_estimate(t, np.where(read, angle, np.nan),
+                          speed_window(t, trace.position))
 
 
 def plausibility_checks(model, fit, preds) -> tuple[dict, list]:

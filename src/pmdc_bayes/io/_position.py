@@ -20,7 +20,8 @@ from ._toml import Table
 from ._toml import describe as _describe
 from .units import to_si
 
-__all__ = ["unwrap_time", "angle_si", "edge_angles", "speed_estimate", "counts_step",
+__all__ = ["unwrap_time", "angle_si", "edge_angles", "speed_estimate", "speed_window",
+           "counts_step",
            "SPEED_WINDOW", "edges_flag"]
 
 SPEED_WINDOW = 0.005  # half-width of the speed estimate's difference, as a share of the samples
@@ -84,21 +85,31 @@ def edges_flag(t: Table) -> bool:
     return value
 
 
-def speed_estimate(time: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """The speed (rad/s) from an angle by centred differences over
-    :data:`SPEED_WINDOW` of the samples each side (at least one, and enough that one
-    count of a counted angle is at most 1 % of the typical speed, up to a twentieth of
-    the trace); 0 where the angle was not read (an encoder trace's start at rest)."""
+def speed_window(time: np.ndarray, angle: np.ndarray) -> int:
+    """The half-width (in samples read) of :func:`speed_estimate`'s difference for this
+    angle: :data:`SPEED_WINDOW` of the samples (at least one), widened until one count
+    of a counted angle is at most 1 % of the typical speed (the distance turned, back
+    and forth, over the time), up to a twentieth of the samples."""
     ok = np.isfinite(angle)
     tt, aa = time[ok], angle[ok]
     m = max(1, int(round(SPEED_WINDOW * tt.size)))
     steps = np.abs(np.diff(aa))
     steps = steps[steps > 0]
     if steps.size and tt.size > 20:
-        # wide enough that one count is at most 1 % of the typical speed
-        typical = np.ptp(aa) / np.ptp(tt)
+        typical = float(np.sum(steps)) / np.ptp(tt)
         dt = float(np.median(np.diff(tt)))
         m = max(m, min(int(np.ceil(steps.min() / (0.02 * typical * dt))), tt.size // 20))
+    return m
+
+
+def speed_estimate(time: np.ndarray, angle: np.ndarray, window: int | None = None) -> np.ndarray:
+    """The speed (rad/s) from an angle by centred differences over ``window`` samples
+    each side (default :func:`speed_window` of this angle; pass the data's to estimate a
+    model's angle the same way); 0 where the angle was not read (an encoder trace's
+    start at rest)."""
+    ok = np.isfinite(angle)
+    tt, aa = time[ok], angle[ok]
+    m = speed_window(time, angle) if window is None else window
     i = np.arange(tt.size)
     lo, hi = np.maximum(i - m, 0), np.minimum(i + m, tt.size - 1)
     out = np.zeros(time.size)

@@ -73,7 +73,8 @@ class BenchMotor:
         What the encoder trace logs (:data:`~._encoder.ENCODER_OUTPUTS`): ``"speed"``
         (the differenced counts above), ``"position"`` (the counted angle at each
         sample, no speed), ``"edges"`` (one sample per edge at its time, to 1 µs,
-        after an unread first sample at rest; forward motion only).
+        after an unread first sample at rest; both ways, each edge on the count
+        boundary crossed).
     extra_load : dict
         Trace name -> ``(constant N·m, viscous N·m·s/rad)``: load the session does not
         declare.  The constant part is a drag opposing the motion (it acts like extra

@@ -18,8 +18,9 @@ the plan's traces and steady readings by the independent bench simulator
     unknown_load = { step_9v = { viscous = 1e-4, constant = 0.0 } }  # drag nobody declared
 
 and per trace ``encoder = { counts_per_rev = 400, output = "position" }`` (``"position"``:
-the counts at the samples; ``"edges"``: one row per edge, its time to 1 µs; ``"speed"``:
-the counts differenced over each sample interval).  The session written declares only
+the counts at the samples; ``"edges"``: one row per edge, its time to 1 µs, and its
+direction when the rotor turns back; ``"speed"``: the counts differenced over each
+sample interval).  The session written declares only
 what a user would know (the commanded voltage, the declared load); ``truth.json`` holds
 the rig's true values under the names the fit reports (``Vdrop``, ``Imax``,
 ``dead_time`` and ``dead_time_<trace>``, ``Rs``, ``speed_lag``, ``current_lag``,
@@ -168,7 +169,8 @@ def rig_trace(truth: dict, rig: RigSpec, spec) -> dict[str, np.ndarray]:
     """Noise-free readings of a plan trace ``spec`` on the rig, SI: ``time``, ``speed``
     and ``current`` (the sensors', with their lags, gains, offsets and the plan's delay:
     a sample at ``t`` reads the state at ``max(t − delay, 0)``); with an encoder,
-    ``position`` (counted angle, NaN where unread) and ``speed`` from it."""
+    ``position`` (counted angle, NaN where unread) and ``speed`` from it; edges of a
+    rotor that turns back carry their ``direction`` (1 forward, 0 backward)."""
     m = _motor(truth, rig, spec.encoder)
     if spec.drag != (0.0, 0.0):  # the trace's known load, on top of any unknown one
         c, v = m.extra_load.get(spec.name, (0.0, 0.0))
@@ -205,7 +207,8 @@ def rig_trace(truth: dict, rig: RigSpec, spec) -> dict[str, np.ndarray]:
             out["speed"] = np.concatenate([[0.0], np.diff(counts)]) * (q * spec.rate)
         else:
             parts = encoder_trace_parts(spec.encoder[1], t, th, q, fine)
-            out.update(time=parts["time"], position=parts["position"], speed=None)
+            out.update(time=parts["time"], position=parts["position"], speed=None,
+                       direction=parts.get("direction"))
             if spec.encoder[1] == "edges":
                 out["current"] = None
     return out

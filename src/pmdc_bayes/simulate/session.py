@@ -115,7 +115,8 @@ def sample_trace(truth: dict, spec: TraceSpec, seed: int, rig=None) -> dict[str,
     speed_rng, current_rng = _stream(seed, "trace", spec.name, 2)
     out = {"time": t}
     if spec.encoder is not None:
-        out.update({k: true[k] for k in ("speed", "position") if true.get(k) is not None})
+        out.update({k: true[k] for k in ("speed", "position", "direction")
+                    if true.get(k) is not None})
     else:
         out["speed"] = _quantise(true["speed"] + spec.speed_noise
                                  * speed_rng.standard_normal(t.size), spec.speed_quantum)
@@ -255,8 +256,10 @@ def _trace_columns(tr: TraceSpec, data: dict) -> tuple[dict, dict, list[str]]:
     cols, roles, extra = {"t": data["time"]}, {"time": '"t"'}, []
     if "position" in data:
         counts = data["position"] * tr.encoder[0] / (2.0 * np.pi)
-        if tr.encoder[1] == "edges":  # one row per edge: its time alone
+        if tr.encoder[1] == "edges":  # one row per edge: its time (and direction)
             cols = {"t": data["time"][1:]}
+            if "direction" in data:
+                cols["dir"], roles["direction"] = data["direction"][1:], '"dir"'
         else:
             cols["counts"], roles["position"] = np.rint(counts), '"counts"'
         extra.append(f"counts_per_rev = {tr.encoder[0]}")
