@@ -67,7 +67,7 @@ class _Trace:
         starts = np.unique(np.concatenate([[t[0]], inner[(inner > t[0]) & (inner < t[-1])]]))
         ends = np.append(starts[1:], t[-1])
         self.segments = []  # (t_start, t_end, Va, TL, sample indices in [t_start, t_end))
-        for k, (a, b) in enumerate(zip(starts, ends)):
+        for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
             last = k == len(starts) - 1
             sel = np.flatnonzero((t >= a) & ((t <= b) if last else (t < b)))
             self.segments.append((a, b, float(held(vt, vv, a)), float(held(lt, lv, a)), sel))

@@ -38,17 +38,15 @@ from pathlib import Path  # noqa: E402
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-
-from pmdc_bayes.io.bundled import bundled_session_dir  # noqa: E402
-from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
-from pmdc_bayes.io.loader import load_session  # noqa: E402
-from pmdc_bayes.physics.ode import simulate_scan  # noqa: E402
-from pmdc_bayes.physics.solution import experiment_from_trace, real_modes  # noqa: E402
-from pmdc_bayes.inference.objective import NU0, build_model  # noqa: E402
-from pmdc_bayes.physics.ode import simulate_ode  # noqa: E402
-from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
-
 from _common import replace_section  # noqa: E402  (benchmarks/ is on sys.path)
+
+from pmdc_bayes.inference.objective import NU0, build_model  # noqa: E402
+from pmdc_bayes.io.bundled import bundled_session_dir  # noqa: E402
+from pmdc_bayes.io.loader import load_session  # noqa: E402
+from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
+from pmdc_bayes.physics.ode import simulate_ode, simulate_scan  # noqa: E402
+from pmdc_bayes.physics.solution import experiment_from_trace, real_modes  # noqa: E402
+from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
 
 SECTION = "Model evaluation speed"
 REPORT = Path(__file__).resolve().parents[1] / "reports" / "benchmarks.md"
@@ -304,7 +302,8 @@ def main(argv=None) -> int:
         print(f"\n{label}: {len(model.names)} parameters, "
               f"{int(sum(c.n for c in model.channels))} observations")
         paths, big = _paths(model, BATCHES)
-        fast = bool(jnp.all(jax.vmap(lambda t: real_modes(model.params(t)))(jnp.asarray(big))))
+        fast = bool(jnp.all(jax.vmap(lambda t, m=model: real_modes(m.params(t)))(
+            jnp.asarray(big))))
         rows, ref = [], None
         for name, fn, arg, batch in paths:
             try:

@@ -13,12 +13,11 @@ import argparse
 import dataclasses
 import sys
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-
 from _common import REPORT, replace_section
 
 from pmdc_bayes._x64 import x64
@@ -72,7 +71,7 @@ def main(argv=None) -> int:
             rows.append((label, which, n, comp, per, per / base))
             print(f"{label:34s} {which:38s} P={n:2d} compile {comp:5.2f} s  "
                   f"{1e3 * per:7.3f} ms/eval  x{per / base:.2f}", flush=True)
-    when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     lines = ["## Cost of the rig nuisances", "",
              f"Measured {when} by `python benchmarks/nuisance_cost.py`: one jit-compiled "
              "log-posterior evaluation (one parameter vector, the exact solution), median "

@@ -42,19 +42,18 @@ from types import SimpleNamespace  # noqa: E402
 import emcee  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-from _common import (REPORT, ROOT, cli_command, load_baseline, replace_section,  # noqa: E402
-                     run_measured)
+from _common import REPORT, ROOT, cli_command, load_baseline, replace_section, run_measured  # noqa: E402
 from model_speed import _fmt_rate, _load, _machine, _measure, _per_trace_log_posterior  # noqa: E402
 
 from pmdc_bayes.inference.diagnostics import az  # noqa: E402
 from pmdc_bayes.inference.ensembles import ENSEMBLES  # noqa: E402
-from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.inference.fit import fit_map  # noqa: E402
-from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.inference.objective import build_model  # noqa: E402
-from pmdc_bayes.physics.ode import simulate_ode  # noqa: E402
 from pmdc_bayes.inference.sampling import default_moves, sample_posterior, to_inference_data  # noqa: E402
+from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.io.session import Measurement, Schedule, Session, Trace  # noqa: E402
+from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
+from pmdc_bayes.physics.ode import simulate_ode  # noqa: E402
 
 SECTION = "Benchmark against the baseline"
 TRUTH = {"Ra": 8.5, "La": 5.6e-3, "K": 0.062, "B": 4.5e-5, "J": 5.9e-4}
@@ -444,7 +443,8 @@ def _section(m: dict, r: dict, quick: bool) -> str:
         c = "—" if row["compile_s"] is None else f"{row['compile_s']:.2f}"
         L.append(f"| {row['path']} | {row['batch']} | {c} | {1e3 * row['call_s']:.3g} | "
                  f"{_fmt_rate(row['rate'])} | {_fmt_rate(row['rate'] / base_rate)} |")
-    L += ["", f"MAP fit (`fit_map`, 8 starts, Levenberg–Marquardt around the compiled Gauss–Newton kernel): "
+    L += ["", "MAP fit (`fit_map`, 8 starts, Levenberg–Marquardt around the compiled "
+          f"Gauss–Newton kernel): "
           f"{fitr['warm']:.2f} s after compilation, {fitr['cold']:.2f} s on the first call "
           f"({fitr['message']}).", ""]
     # compile
@@ -590,7 +590,7 @@ def _scaling_notes(rows) -> list[str]:
         if len(group) < 2:
             continue
         steps = [f"{b['total'] / a['total']:g}× samples → {b['call_s'] / a['call_s']:.3g}× "
-                 "time" for a, b in zip(group, group[1:])]
+                 "time" for a, b in zip(group, group[1:], strict=False)]
         ns = [s["ns"] for s in group]
         out.append(f"- Over {label}: " + "; ".join(steps) + f".  Cost per sample and θ "
                    f"{min(ns):.3g} to {max(ns):.3g} ns.")

@@ -14,9 +14,9 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
-from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.inference.objective import build_model  # noqa: E402
+from pmdc_bayes.io.loader import load_session  # noqa: E402
+from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -70,7 +70,7 @@ def setup(tmp_path_factory, baseline):
     lp = jax.jit(model.log_posterior)  # one compilation; log-likelihood = posterior − prior
     exact = {"lp": [float(lp(th)) for th in thetas],
              "prior": [float(model.log_prior(th)) for th in thetas]}
-    exact["ll"] = [p - q for p, q in zip(exact["lp"], exact["prior"])]
+    exact["ll"] = [p - q for p, q in zip(exact["lp"], exact["prior"], strict=True)]
     return session, cf, model, thetas, exact
 
 
@@ -85,14 +85,14 @@ def test_same_channels_and_noise_scales(setup, baseline):
 def test_same_log_prior(setup, baseline):
     session, cf, _, thetas, exact = setup
     base = baseline.BaselinePosterior(session, cf)
-    for th, ref in zip(thetas, exact["prior"]):
+    for th, ref in zip(thetas, exact["prior"], strict=True):
         np.testing.assert_allclose(base.log_prior(th), ref, rtol=1e-12, atol=1e-10)
 
 
 def test_same_log_likelihood_when_integrated_tightly(setup, baseline):
     session, cf, _, thetas, exact = setup
     base = baseline.BaselinePosterior(session, cf, **TIGHT)
-    for th, ll, lp in zip(thetas, exact["ll"], exact["lp"]):
+    for th, ll, lp in zip(thetas, exact["ll"], exact["lp"], strict=True):
         np.testing.assert_allclose(base.log_likelihood(th), ll, rtol=0, atol=AGREEMENT)
         np.testing.assert_allclose(base.log_posterior(th), lp, rtol=0, atol=AGREEMENT)
 
@@ -103,8 +103,9 @@ def test_issue_tolerances_differ_only_by_integration_error(setup, baseline):
     session, cf, _, thetas, exact = setup
     loose = baseline.BaselinePosterior(session, cf)
     tight = baseline.BaselinePosterior(session, cf, **TIGHT)
-    d_loose = max(abs(loose.log_likelihood(th) - ll) for th, ll in zip(thetas, exact["ll"]))
-    d_tight = max(abs(tight.log_likelihood(th) - ll) for th, ll in zip(thetas, exact["ll"]))
+    pairs = list(zip(thetas, exact["ll"], strict=True))
+    d_loose = max(abs(loose.log_likelihood(th) - ll) for th, ll in pairs)
+    d_tight = max(abs(tight.log_likelihood(th) - ll) for th, ll in pairs)
     assert d_loose < 0.2
     assert d_tight < d_loose
 

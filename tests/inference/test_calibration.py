@@ -22,11 +22,11 @@ import pytest  # noqa: E402
 from recovery_cases import Motor, plan_for  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.inference.fit import fit_map  # noqa: E402
-from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.inference.objective import build_model  # noqa: E402
 from pmdc_bayes.inference.sampling import sample_posterior  # noqa: E402
+from pmdc_bayes.io.loader import load_session  # noqa: E402
+from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
 
 PAPER = {"Ra": 8.5, "La": 5.6e-3, "K": 0.062, "B": 4.5e-5, "J": 5.9e-4, "Tc": 2.5e-3}

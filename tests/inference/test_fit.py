@@ -8,13 +8,13 @@ import jax
 import numpy as np
 import pytest
 
-from pmdc_bayes.io.bundled import bundled_session_dir
-from pmdc_bayes.paper.closed_form import closed_form
-from pmdc_bayes.paper.consistency import consistency_checks
 from pmdc_bayes.inference.fit import fit_map
 from pmdc_bayes.inference.identifiability import identifiability
-from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.io.bundled import bundled_session_dir
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.paper.closed_form import closed_form
+from pmdc_bayes.paper.consistency import consistency_checks
 
 
 @pytest.fixture(scope="module")

@@ -29,10 +29,10 @@ from recovery_cases import (  # noqa: E402
     plan_for,
 )
 
-from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.inference.fit import fit_map  # noqa: E402
-from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.inference.objective import build_model  # noqa: E402
+from pmdc_bayes.io.loader import load_session  # noqa: E402
+from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.pipeline import trace_rms  # noqa: E402
 from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
 
@@ -149,7 +149,7 @@ def test_laplace_sd_with_a_small_steady_table(tmp_path):
         session, _, model, fit = _fit(motor, tmp_path / str(seed), seed=seed, n_steady=4)
         assert fit.ok, fit.message
         z.append([v for v in _z_scores(session, model, fit).values()])
-    rms = dict(zip(model.names, np.sqrt(np.mean(np.square(z), axis=0))))
+    rms = dict(zip(model.names, np.sqrt(np.mean(np.square(z), axis=0)), strict=True))
     print("RMS z with a 4-row steady table:", rms)
     # RMS of 12 N(0, 1) z-scores: chi(12)/sqrt(12), above 1.5 with probability ~3e-4.
     assert max(rms.values()) <= 1.5, rms

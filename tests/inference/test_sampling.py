@@ -13,10 +13,8 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from pmdc_bayes.inference import objective  # noqa: E402
-from pmdc_bayes.paper.closed_form import ClosedForm, closed_form  # noqa: E402
 from pmdc_bayes.inference.derived import derived_quantities  # noqa: E402
 from pmdc_bayes.inference.fit import fit_map  # noqa: E402
-from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.inference.idata import _padded_pointwise, lumped  # noqa: E402
 from pmdc_bayes.inference.sampling import (  # noqa: E402
     _log_posterior_batch,
@@ -28,6 +26,8 @@ from pmdc_bayes.inference.sampling import (  # noqa: E402
     summarize,
 )
 from pmdc_bayes.inference.stopping import stop_message  # noqa: E402
+from pmdc_bayes.io.loader import load_session  # noqa: E402
+from pmdc_bayes.paper.closed_form import ClosedForm, closed_form  # noqa: E402
 from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
 
 TRUTH = {"Ra": 8.5, "La": 5.6e-3, "K": 0.062, "B": 4.5e-5, "J": 5.9e-4}
@@ -238,7 +238,7 @@ def test_inference_data_groups_and_loo(tiny):
     # The padded, compiled pointwise log-likelihood equals the model's own method.
     theta = np.asarray(fit.theta)
     dens, masks = _padded_pointwise(model, theta)
-    ours = np.concatenate([np.asarray(d)[np.asarray(m)] for d, m in zip(dens, masks)])
+    ours = np.concatenate([np.asarray(d)[np.asarray(m)] for d, m in zip(dens, masks, strict=True)])
     ref = np.concatenate([np.asarray(x) for x in model.pointwise_log_likelihood(theta)])
     np.testing.assert_allclose(ours, ref, rtol=1e-12, atol=1e-12)
     # The stored log-likelihood of a kept draw is the model's, channel by channel.

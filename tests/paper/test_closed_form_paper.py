@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from pmdc_bayes.io.bundled import bundled_session_dir
+from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.paper.closed_form import (
     closed_form,
     gain,
@@ -21,7 +22,6 @@ from pmdc_bayes.paper.closed_form import (
     time_constant,
 )
 from pmdc_bayes.physics.motor import steady_state
-from pmdc_bayes.io.loader import load_session
 
 
 def _cli(*args):

@@ -15,6 +15,7 @@ from scipy.integrate import solve_ivp
 
 from pmdc_bayes.physics.motor import gain, state_space, tf_full, time_constant
 from pmdc_bayes.physics.motor import steady_state as steady_state_18
+from pmdc_bayes.physics.ode import simulate_ode, simulate_scan
 from pmdc_bayes.physics.solution import (
     Params,
     make_experiment,
@@ -23,7 +24,6 @@ from pmdc_bayes.physics.solution import (
     simulate_padded,
     steady_state,
 )
-from pmdc_bayes.physics.ode import simulate_ode, simulate_scan
 
 P = Params(8.5, 5.621e-3, 0.062, 5.663e-5, 5.902e-4, 0.0)
 PC = P._replace(Tc=2.5e-3)
@@ -56,7 +56,7 @@ def _radau(p, exp, coulomb=False, y0=(0.0, 0.0)):
     bounds = list(np.asarray(exp.seg_t0)) + [t[-1]]
     ys, y = [], np.array(y0, dtype=float)
     f = _rhs(p, exp, coulomb)
-    for a, b in zip(bounds[:-1], bounds[1:]):
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         sel = (t >= a) & ((t < b) | (b == t[-1]))
         sol = solve_ivp(f, (a, b), y, method="Radau", rtol=1e-11, atol=1e-13,
                         t_eval=t[sel], dense_output=True)
@@ -130,7 +130,7 @@ def _radau_with_stop(p, exp):
     bounds = list(np.asarray(exp.seg_t0)) + [t[-1]]
     out = np.zeros((2, t.size))
     y = np.zeros(2)
-    for k, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+    for k, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
         tl = float(exp.seg_tl[k])
         phases = []
         start = a
@@ -149,7 +149,7 @@ def _radau_with_stop(p, exp):
                     dw_viscous = dw + (p.Tc * np.sign(yy[1]) if yy[1] != 0.0 else 0.0) / p.J
                     return [dia, dw_viscous - d * p.Tc / p.J]
             else:
-                def ev(_, yy):
+                def ev(_, yy, tl=tl):
                     return abs(p.K * yy[0] - tl) - p.Tc
 
                 def rhs(tt, yy):
@@ -220,7 +220,7 @@ def test_fast_real_path_equals_general_path():
     assert bool(real_modes(P))
     a = simulate_padded(P, exp)
     b = simulate_padded(P, exp, fast=True)
-    for x, y in zip(a, b):
+    for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x, y)
 
 
@@ -243,7 +243,7 @@ def test_gradients_match_finite_differences(coulomb):
     log0 = jnp.log(jnp.array([getattr(p0, n) for n in names]))
 
     def loss(logp):
-        vals = dict(zip(names, jnp.exp(logp)))
+        vals = dict(zip(names, jnp.exp(logp), strict=True))
         q = p0._replace(**vals)
         ia, w = simulate(q, exp, coulomb=coulomb)
         return jnp.sum((w - 1.01 * ref_w) ** 2) + 1e4 * jnp.sum((ia - 0.99 * ref_i) ** 2)

@@ -10,11 +10,11 @@ import re
 import numpy as np
 import pytest
 
-from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.cli import main
+from pmdc_bayes.io.bundled import bundled_session_dir
+from pmdc_bayes.pipeline import run_fit
 from pmdc_bayes.report import to_control, write_report
 from pmdc_bayes.report.tables import TABLE_TITLES
-from pmdc_bayes.pipeline import run_fit
 
 pytestmark = pytest.mark.slow
 

@@ -16,9 +16,9 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from pmdc_bayes._errors import SessionError, UsageError  # noqa: E402
-from pmdc_bayes.simulate.plan import check_plan  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.physics.solution import Params, experiment_from_trace, simulate  # noqa: E402
+from pmdc_bayes.simulate.plan import check_plan  # noqa: E402
 from pmdc_bayes.simulate.session import (  # noqa: E402
     load_plan,
     simulate_session,

@@ -59,7 +59,7 @@ class Ensembles:
         def run(j):  # an error in one ensemble stops the others within a step
             state = self.states[j]
             try:
-                for state in self.samplers[j].sample(self.states[j], iterations=n):
+                for state in self.samplers[j].sample(self.states[j], iterations=n):  # noqa: B007 (the last is returned)
                     if stop.is_set():
                         break
             except BaseException:

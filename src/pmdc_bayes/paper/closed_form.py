@@ -4,8 +4,8 @@ Pure functions, one per equation of the method, with the paper's equation
 numbers; then :func:`closed_form`, which picks the inputs it needs from a session
 and says which it used.  The motor's own equations (steady state, τ, G, transfer
 functions, state space) live in :mod:`pmdc_bayes.physics.motor` and are re-exported
-here because the method is stated in their terms.  Everything is SI: Ra (Ω), La (H), K = Kt = Kb (V·s/rad = N·m/A),
-B (N·m·s/rad), J (kg·m²), τ (s), G (rad/s per V).
+here because the method is stated in their terms.  Everything is SI: Ra (Ω), La (H),
+K = Kt = Kb (V·s/rad = N·m/A), B (N·m·s/rad), J (kg·m²), τ (s), G (rad/s per V).
 """
 
 from __future__ import annotations

@@ -150,7 +150,7 @@ def stack_experiments(specs) -> Experiment:
     chunk_seg, chunk_trace, taus, masks, index = [], [], [], [], []
     seg_offset = 0
     for k, ((seg_t0, seg_len, seg_va, seg_tl, sample_seg), (t, initial)) in enumerate(
-            zip(segs, per_trace)):
+            zip(segs, per_trace, strict=True)):
         if isinstance(initial, str):
             mode, x0 = INITIAL_MODES[initial], (0.0, 0.0)
         else:

@@ -15,15 +15,15 @@ import tempfile
 import time
 from pathlib import Path
 
-from ._context import context_from_result, load_context
+from .._errors import UsageError
+from .._x64 import x64
 from ..io._jsonio import dumps
+from ..rundir import default_mode
+from ._context import context_from_result, load_context
 from .build import CONTROLLER_FILE, build_sections
 from .export import controller_model, to_control
 from .html import render_html
 from .markdown import render_markdown
-from .._errors import UsageError
-from .._x64 import x64
-from ..rundir import default_mode
 
 __all__ = ["write_report", "report_stage", "controller_model", "to_control"]
 

@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .._x64 import x64
 from ..inference.objective import SessionModel, build_model
 from ..inference.result import RunResult, read_run
 from ..io.session import Session
 from ..paper.closed_form import ClosedForm
 from .predictive import TracePrediction, predict_traces
-from .._x64 import x64
 
 __all__ = ["ReportContext", "load_context", "context_from_result", "N_PREDICTIVE_DRAWS"]
 

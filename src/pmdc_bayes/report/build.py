@@ -16,8 +16,15 @@ from .fig_steady import steady_figure
 from .fig_traces import trace_figure
 from .predictive import METHODS
 from .published import published_findings
-from .tables import (comparison_table, derived_table, diagnostics_table, holdout_table,
-                     parameter_table, rms_table, transfer_table)
+from .tables import (
+    comparison_table,
+    derived_table,
+    diagnostics_table,
+    holdout_table,
+    parameter_table,
+    rms_table,
+    transfer_table,
+)
 
 __all__ = ["build_sections", "CONTROLLER_FILE"]
 

@@ -73,7 +73,7 @@ def corner_figure(ctx) -> bytes:
     if ctx.truth:
         pts["truth"] = ctx.truth
     pts = {k: np.array([(v.get(n) if v.get(n) is not None else np.nan) * s
-                        for n, (s, _) in zip(names, scales)]) for k, v in pts.items()}
+                        for n, (s, _) in zip(names, scales, strict=True)]) for k, v in pts.items()}
     styles = {"closed_form": {"marker": "s", "color": COLORS["closed_form"]},
               "map": {"marker": "P", "color": COLORS["map"]},
               "truth": {"marker": "*", "color": COLORS["truth"]}}
@@ -242,7 +242,7 @@ def chains_figure(ctx) -> bytes:
     arviz_plot(az.plot_trace, az.from_dict(posterior=scaled), var_names=list(ctx.names),
                combined=True, compact=True, axes=axes,
                trace_kwargs={"alpha": 0.25, "linewidth": 0.4})
-    for row, name in zip(axes, ctx.names):
+    for row, name in zip(axes, ctx.names, strict=True):
         row[0].set_title(f"{labels[name]}: marginal, all walkers", fontsize=9)
         row[1].set_title(f"{labels[name]} against step (thinned), one line per walker",
                          fontsize=9)
@@ -270,7 +270,7 @@ def ranks_figure(ctx, groups: int = 4) -> bytes:
     arviz_plot(az.plot_rank, _grouped(ctx, groups), var_names=list(ctx.names), kind="bars",
                  ax=axes.ravel()[:n])
     walkers = ctx.idata.posterior.sizes["chain"]
-    for ax, name in zip(axes.ravel(), ctx.names):
+    for ax, name in zip(axes.ravel(), ctx.names, strict=False):
         ax.set_title(f"{name}", fontsize=9)
         ax.set_xlabel("rank of the draw (all draws)", fontsize=8)
         ax.set_ylabel(f"walker set ({walkers // groups} walkers each)", fontsize=8)

@@ -22,7 +22,7 @@ def _settled_segments(session, tau: float):
         edges = np.unique(np.concatenate([tr.voltage.times, tr.load_torque.times,
                                           [tr.time[0]], [tr.time[-1]]]))
         edges = edges[(edges >= tr.time[0]) & (edges <= tr.time[-1])]
-        for a, b in zip(edges[:-1], edges[1:]):
+        for a, b in zip(edges[:-1], edges[1:], strict=True):
             if b - a < 5 * tau:
                 continue
             sel = (tr.time >= b - 0.1 * (b - a)) & (tr.time < b)
@@ -38,7 +38,7 @@ def steady_points(ctx) -> dict:
     s = ctx.session
     pts = {}
     rows = [(v, tl, w) for tab in s.steady_tables
-            for v, tl, w in zip(tab.voltage, tab.load_torque, tab.speed)]
+            for v, tl, w in zip(tab.voltage, tab.load_torque, tab.speed, strict=True)]
     rows += [(op.voltage, op.load_torque, op.speed) for op in s.operating_points]
     if rows:
         pts["steady tables and operating points"] = np.array(rows, dtype=float)
