@@ -94,9 +94,12 @@ def test_speed_alone_determines_the_gain_and_time_constant_not_the_split(run):
     assert any("K and B" in f for f in ident["findings"])
     k = summary["parameters"]["K"]
     assert k["map_sd"] / k["map"] > 0.1  # no false precision on K
-    # La was not measured; the onset of fast-sampled steps still determines it
+    # La was not measured; the onset of fast-sampled steps still determines it, and the
+    # run says that a dead time or a speed-sensor lag would look the same
     assert ident["posterior_to_prior_width"]["La"] < 0.2
     assert summary["parameters"]["La"]["map"] == pytest.approx(LA, rel=0.2)
+    la = [f for f in ident["findings"] if f.startswith("La = ")]
+    assert len(la) == 1 and "upper bound" in la[0] and "dead time" in la[0]
 
 
 def _with_bench(run, tmp_path, **bench):

@@ -124,7 +124,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
         params[name] = {"unit": model.registry[name].unit,
                         "description": model.registry[name].description,
                         "block": model.registry[name].block,
-                        "closed_form": cf.params().get(name) if cf.applicable else None,
+                        "closed_form": cf.known().get(name) if cf.applicable else None,
                         "map": fit.values[name], "map_sd": fit.sd[name]}
         if not adequacy.ok:
             params[name]["note"] = "conditional on a model the data reject"

@@ -193,3 +193,22 @@ def test_a_trace_of_a_motor_that_never_moved_is_not_the_steady_point():
     cf = closed_form(session)
     assert "'step'" in cf.used["K"]
     assert cf.K == pytest.approx(MOTOR["K"], rel=0.05)
+
+
+def test_an_assumed_la_is_not_offered_as_a_closed_form_value():
+    """Without a bench La the method runs on an assumed one (La/Ra = 1 ms); that value
+    is no estimate, so it is left out of what is compared with a fit."""
+    import dataclasses
+
+    from pmdc_bayes.io.bundled import bundled_session_dir
+    from pmdc_bayes.io.loader import load_session
+    from pmdc_bayes.io.session import LA_ASSUMED, Measurement
+    from pmdc_bayes.paper.closed_form import closed_form
+
+    demo = load_session(bundled_session_dir("demo"))
+    assert "La" in closed_form(demo).known()
+    unmeasured = dataclasses.replace(
+        demo, La=Measurement(demo.Ra.value * 1e-3, 1.15, "H", LA_ASSUMED))
+    cf = closed_form(unmeasured)
+    assert cf.used["La"].startswith("assumed")
+    assert set(cf.known()) == {"Ra", "K", "B", "J"} and cf.params()["La"] > 0

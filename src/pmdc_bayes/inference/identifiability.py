@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io.session import LA_ASSUMED
 from .fit import FitResult
 from .objective import SessionModel
 
@@ -80,13 +81,33 @@ def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: f
                 f"La is informed by the traces (posterior width {100 * ratio:.0f} % of the "
                 f"bench prior) although the fastest current sampling ({dt * 1e3:.3g} ms) is "
                 f"slower than τe = {tau_e * 1e3:.3g} ms.")
-        return None
+        if model.session.La.source != LA_ASSUMED or not model.session.traces:
+            return None
+        fitted = [words for key, words in (("dead_time", "the fitted dead time"),
+                                           ("speed_lag", "the fitted speed-sensor lag"))
+                  if key in model.session.nuisances]
+        against = (f"; here it trades against {' and '.join(fitted)}" if fitted else
+                   ", and this model fits neither")
+        return (f"La = {_eng(fit.values['La'])}H is read from the shape of the speed's rise "
+                f"alone (no trace logs the current and La was not measured): a dead time or "
+                f"a lag of the speed sensor of about τe = La/Ra = {tau_e * 1e3:.2g} ms shapes "
+                f"the rise the same way{against}. Unless the rig has neither, La is an upper "
+                f"bound on the armature inductance; a logged current or a measured La "
+                f"separates them.")
     if not with_current:
         return (f"La is determined by the bench prior alone: no trace logs the current "
                 f"(τe = {tau_e * 1e3:.2g} ms).")
     dt = min(tr.dt for tr in with_current)
     return (f"La is determined by the bench prior alone: no trace samples the current fast "
             f"enough (τe = {tau_e * 1e3:.2g} ms, sampling {dt * 1e3:.3g} ms).")
+
+
+def _eng(value: float) -> str:
+    """``value`` with an SI prefix (m, µ, n) and three significant figures."""
+    for factor, prefix in ((1.0, ""), (1e-3, "m"), (1e-6, "µ"), (1e-9, "n")):
+        if abs(value) >= factor:
+            return f"{value / factor:.3g} {prefix}"
+    return f"{value:.3g} "
 
 
 def _separate_hint(model: SessionModel, a: str, b: str) -> str:

@@ -154,6 +154,12 @@ class ClosedForm:
     def params(self) -> dict:
         return {"Ra": self.Ra, "La": self.La, "K": self.K, "B": self.B, "J": self.J}
 
+    def known(self) -> dict:
+        """:meth:`params` without what the method only assumed (an unmeasured La): the
+        values worth comparing with a fit."""
+        return {k: v for k, v in self.params().items()
+                if not self.used.get(k, "").startswith("assumed")}
+
     def tf22(self):
         return tf_normalised(self.Ra, self.La, self.K, self.B, self.J)
 

@@ -187,7 +187,9 @@ def compare_closed_form(ctx) -> list[dict]:
     """
     ref, label = ctx.best, ctx.best_label
     rows = []
-    for name in [n for n in ctx.names if n in ctx.values["closed_form"]]:
+    used = ctx.summary.get("closed_form", {}).get("used", {})
+    for name in [n for n in ctx.names if n in ctx.values["closed_form"]
+                 and not str(used.get(n, "")).startswith("assumed")]:  # an unmeasured La
         cf = ctx.values["closed_form"][name]
         sd = ctx.sd(name)
         z = (cf - ref[name]) / sd if sd > 0 else float("nan")
