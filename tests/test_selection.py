@@ -9,6 +9,7 @@ from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.selection import (
     CANDIDATES,
+    EVIDENCE_MARGIN,
     LOO_MARGIN,
     _choose,
     applicable,
@@ -40,6 +41,22 @@ def test_a_clear_loo_gain_takes_the_larger_candidate():
     assert _choose(rows)[0]["name"] == "ideal"
 
 
+def test_without_loo_a_clearly_more_probable_larger_candidate_is_taken():
+    rows = [_row("ideal", 5, "adequate"), _row("a", 6, "adequate"), _row("b", 7, "adequate")]
+    for r, z in zip(rows, (100.0, 103.0, 112.0), strict=True):
+        r["log_evidence"] = z
+    chosen, reason = _choose(rows)
+    assert chosen["name"] == "b" and "Laplace evidence" in reason and "12.0" in reason
+    rows[2]["log_evidence"] = 104.0  # within the margin: the simplest stays
+    chosen, reason = _choose(rows)
+    assert chosen["name"] == "ideal" and "no larger candidate is clearly more probable" in reason
+    rows[1]["verdict"] = "inadequate"  # an inadequate one is never taken, however probable
+    rows[1]["log_evidence"] = 200.0
+    assert _choose(rows)[0]["name"] == "ideal"
+    lines = format_selection({"candidates": rows, "recommended": "ideal", "reason": reason})
+    assert "log Z" in lines[0] and any("elpd_loo needs posteriors" in x for x in lines)
+
+
 def test_when_every_candidate_is_rejected_the_largest_is_fitted_and_said_so():
     rows = [_row("ideal", 5, "inadequate"), _row("a", 6, "inadequate"),
             _row("b", 8, "inadequate")]
@@ -66,8 +83,14 @@ def test_compare_recommends_what_the_bench_has(case, expected):
     assert [r["name"] for r in sel["candidates"]] == [c[0] for c in chosen]
     assert sel["recommended"] == expected, format_selection(sel)
     by = {r["name"]: r for r in sel["candidates"]}
+    assert all(np.isfinite(r["log_evidence"]) for r in by.values())
     if case is not None:
         assert by["ideal"]["verdict"] == "inadequate" and by["ideal"]["failures"]
+        # the candidate with the bench's term is far more probable than the ideal motor
+        assert by[expected]["log_evidence"] > by["ideal"]["log_evidence"] + EVIDENCE_MARGIN
+    else:  # on an ideal bench no rig term buys its prior's width back
+        assert all(r["log_evidence"] < by["ideal"]["log_evidence"] + EVIDENCE_MARGIN
+                   for r in by.values())
     # the candidate that holds the missing term and one more is adequate too
     if case == "unknown load":  # the model-free levels point at the braked trace alone
         assert by["unknown load"]["loaded_traces"] == ["step_6v"]

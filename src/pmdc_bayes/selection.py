@@ -2,8 +2,8 @@
 
 ``pmdc-bayes fit --compare`` fits every candidate of :data:`CANDIDATES` (the ideal
 motor; + dead time; + a speed-sensor lag; + voltage drop; + voltage drop with either
-of the first two; + an unknown load on the traces whose levels stand out; + a driver's
-current limit) to the same
+of the first two; + a speed sensor's lag and offset, as a tachometer has; + an unknown
+load on the traces whose levels stand out; + a driver's current limit) to the same
 session and checks each for
 adequacy at its MAP.  With MCMC, every candidate the data do not reject is sampled
 and the candidates are compared by PSIS-LOO (they share every observation: the
@@ -12,8 +12,12 @@ nuisances change the prediction, not the data).
 The recommendation is the simplest candidate the data do not reject (fewest
 parameters).  When LOO prefers a larger adequate candidate by more than
 :data:`LOO_MARGIN` and twice the difference's standard error, that one is taken and
-the reason says so.  When the data reject every candidate, the largest is taken: its
-verdict and diagnosis then say what is still missing.
+the reason says so.  Without posteriors (``--no-mcmc``) the Laplace approximation of
+each candidate's marginal likelihood (:func:`laplace_log_evidence`) stands in for LOO:
+a larger adequate candidate more probable than the simplest by more than
+:data:`EVIDENCE_MARGIN` (a Bayes factor of e⁵ ≈ 150) is taken.  When the data reject
+every candidate, the largest is taken: its verdict and diagnosis then say what is
+still missing.
 """
 
 from __future__ import annotations
@@ -30,7 +34,8 @@ from .inference.sampling import sample_posterior
 from .inference.seed import fit_seed
 from .io.session import Session
 
-__all__ = ["CANDIDATES", "LOO_MARGIN", "applicable", "compare_nuisances", "format_selection"]
+__all__ = ["CANDIDATES", "LOO_MARGIN", "EVIDENCE_MARGIN", "applicable", "compare_nuisances",
+           "format_selection", "laplace_log_evidence"]
 
 CANDIDATES = (
     ("ideal", ()),
@@ -39,10 +44,28 @@ CANDIDATES = (
     ("voltage drop", ("voltage_drop",)),
     ("dead time + voltage drop", ("dead_time", "voltage_drop")),
     ("speed lag + voltage drop", ("voltage_drop", "speed_lag")),
+    ("speed lag + offset", ("speed_lag", "speed_offset")),
     ("unknown load", ("unknown_load",)),
     ("current limit", ("current_limit",)),
 )
 LOO_MARGIN = 4.0  # elpd units a larger candidate must gain to be preferred
+EVIDENCE_MARGIN = 5.0  # log marginal likelihood a larger candidate must gain, without LOO
+
+
+def laplace_log_evidence(model, fit) -> float:
+    """The Laplace approximation of ``log p(data | candidate)``: the log-posterior at the
+    MAP with every prior normalised, plus ``½·log det(2π·Σ)`` of the Laplace covariance
+    in the fit's coordinates.  The constants the log-posterior leaves out are the
+    channels' (the same data for every candidate) and the priors' (added here), so the
+    values of candidates of one session compare: their difference is a log Bayes
+    factor.  Only as good as the Laplace approximation (one mode, not at a bound)."""
+    import numpy as np
+
+    scale = np.asarray(model.data["prior_scale"], dtype=float)
+    sign, logdet = np.linalg.slogdet(np.asarray(fit.cov_log, dtype=float))
+    if sign <= 0:
+        return float("nan")
+    return float(fit.log_posterior - np.sum(np.log(scale)) + 0.5 * logdet)
 
 
 @x64
@@ -74,6 +97,7 @@ def compare_nuisances(session: Session, *, friction: str | None = None, seed: in
                      "loaded_traces": list(s.unknown_load_traces()),
                      "verdict": adequacy.verdict, "converged": fit.status == "converged",
                      "log_posterior": float(fit.log_posterior),
+                     "log_evidence": laplace_log_evidence(model, fit),
                      "failures": [f"{f.where}: {f.check}" for f in adequacy.findings
                                   if f.severity == "fail"],
                      "loo": None})
@@ -107,7 +131,7 @@ def _choose(rows: list[dict]) -> tuple[dict, str]:
     reason = f"the simplest candidate the data do not reject ({simplest['n_params']} parameters)"
     base = simplest["loo"]
     if base is None:
-        return simplest, reason
+        return _by_evidence(ok, simplest, reason)
     # ArviZ states each difference's se against the best-ranked candidate: the larger of
     # the two stands in for the se of their difference.
     better = [r for r in ok if r["loo"] is not None and r["n_params"] > simplest["n_params"]
@@ -121,17 +145,42 @@ def _choose(rows: list[dict]) -> tuple[dict, str]:
     return simplest, reason + "; no larger candidate predicts clearly better (LOO)"
 
 
+def _by_evidence(ok: list[dict], simplest: dict, reason: str) -> tuple[dict, str]:
+    """Without LOO: a larger adequate candidate whose Laplace evidence beats the
+    simplest's by more than :data:`EVIDENCE_MARGIN`, else the simplest."""
+    import math
+
+    base = simplest.get("log_evidence")
+    if base is None or not math.isfinite(base):
+        return simplest, reason
+    better = [r for r in ok if r["n_params"] > simplest["n_params"]
+              and math.isfinite(r.get("log_evidence", math.nan))
+              and r["log_evidence"] - base > EVIDENCE_MARGIN]
+    if not better:
+        return simplest, reason + "; no larger candidate is clearly more probable (Laplace " \
+            "evidence; LOO needs the posterior)"
+    best = max(better, key=lambda r: r["log_evidence"])
+    return best, (f"its Laplace evidence beats the simplest adequate candidate's "
+                  f"({simplest['name']!r}) by {best['log_evidence'] - base:.1f} (a log Bayes "
+                  f"factor; LOO needs the posterior)")
+
+
 def format_selection(sel: dict) -> list[str]:
     """The comparison as lines of text for the terminal."""
     width = max(len(r["name"]) for r in sel["candidates"]) + 2
     lines = [f"{'candidate':<{width}}{'params':>7}  {'verdict':<11}{'log post':>12}"
-             f"{'elpd_loo':>12}{'± se':>8}  fails"]
+             f"{'log Z':>10}{'elpd_loo':>12}{'± se':>8}  fails"]
     for r in sel["candidates"]:
         loo = r["loo"]
         elpd = "—" if loo is None else f"{loo['elpd_loo']:.1f}"
         se = "" if loo is None else f"{loo['se']:.1f}"
+        z = r.get("log_evidence")
+        z = "—" if z is None or z != z else f"{z:.1f}"
         fails = ", ".join(r["failures"][:3]) + (" ..." if len(r["failures"]) > 3 else "")
         lines.append(f"{r['name']:<{width}}{r['n_params']:>7}  {r['verdict']:<11}"
-                     f"{r['log_posterior']:>12.1f}{elpd:>12}{se:>8}  {fails or '—'}")
+                     f"{r['log_posterior']:>12.1f}{z:>10}{elpd:>12}{se:>8}  {fails or '—'}")
+    if all(r["loo"] is None for r in sel["candidates"]):
+        lines.append("log Z: the Laplace approximation of each candidate's log marginal "
+                     "likelihood; elpd_loo needs posteriors (run without --no-mcmc).")
     lines.append(f"Recommended: {sel['recommended']} — {sel['reason']}.")
     return lines
