@@ -113,6 +113,11 @@ def test_a_wrapping_microsecond_counter_is_unwrapped(tmp_path):
      "us\n3000\n3400\n3800\n",
      "one row per encoder edge"),
     (lambda t: t.replace("edges = true", "edges = 1"), "us\n3000\n3400\n3800\n", "true or false"),
+    # a wrapping microsecond timer logged without time_wrap: the fix names it
+    (lambda t: t, "us\n4294966000\n4294966900\n300\n1200\n",
+     "add time_wrap = 4294967296"),
+    # a schedule written from 0 while the edges carry the counter's clock
+    (lambda t: t, "us\n4294000000\n4294000400\n4294000800\n", "not on the time column's clock"),
 ])
 def test_bad_encoder_input_is_one_line_naming_the_fix(tmp_path, toml_edit, csv_text, words):
     extra = ', direction = "dir"' if "dir" in csv_text else ""

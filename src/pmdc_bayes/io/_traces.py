@@ -96,10 +96,14 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
     bad = np.nonzero(np.diff(t_raw) <= 0)[0]
     if bad.size:
         k = int(bad[0]) + 1
+        fix = "sort the rows by time and remove duplicate samples"
+        wrap = _counter_wrap(t_raw[k - 1], t_raw[k])
+        if wrap is not None and "time_wrap" not in t.data:
+            fix = (f"the time jumps back near 2^{wrap.bit_length() - 1}: a timer that wraps; "
+                   f"add time_wrap = {wrap} to the trace (in its time unit)")
         raise SessionError(path, f"time column {cols['time']!r} is not strictly increasing: "
-                           f"{t_raw[k]:g} follows {t_raw[k - 1]:g} (line {lines[k - 1]}); sort "
-                           "the rows by time and remove duplicate samples",
-                           where=f"line {lines[k]}")
+                           f"{t_raw[k]:.12g} follows {t_raw[k - 1]:.12g} (line "
+                           f"{lines[k - 1]}); {fix}", where=f"line {lines[k]}")
     for role in ("speed", "position"):
         y = raw.get(role)
         if y is not None and np.all(y == y[0]):
@@ -108,6 +112,17 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
                                "remove the trace or log one in which the motor turns")
     time = to_si(t_raw, "time", u["time"])
     return path, raw, t_raw, time
+
+
+def _counter_wrap(before: float, after: float) -> int | None:
+    """The modulus ``2^k`` (k = 8 ... 64) of a timer that wrapped between two readings,
+    when ``before`` lies in the top tenth of that range and ``after`` in the bottom
+    tenth, else None."""
+    for bits in (8, 10, 12, 16, 24, 31, 32, 48, 63, 64):
+        wrap = 2**bits
+        if 0.9 * wrap <= before < wrap and 0 <= after < 0.1 * wrap:
+            return wrap
+    return None
 
 
 def _motion_columns(t: _Table, cols: dict, edges: bool) -> None:
@@ -148,6 +163,13 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
             t.fail("voltage", "an encoder-edge trace starting at rest starts at its voltage "
                    "schedule's first time, which must come before the first edge; begin the "
                    "schedule at the time the motor was still at rest")
+        moves = voltage.times[1:][np.diff(voltage.values) != 0]
+        span = float(time[-1] - time[0])
+        if moves.size and float(time[0] - moves[0]) > 10.0 * max(span, 1e-12):
+            t.fail("voltage", f"the voltage first changes {float(time[0] - moves[0]):.6g} s "
+                   f"before the first edge, yet the edges span only {span:.3g} s: the "
+                   "schedule is not on the time column's clock; give its times in the same "
+                   "unit and from the same origin as the edges (a wrapping timer's too)")
         time = np.concatenate([voltage.times[:1], time])
         angle = np.concatenate([[np.nan], angle])
     return {"time": time, "position": angle, "encoder_step": q,
