@@ -88,3 +88,38 @@ def test_only_optima_close_to_the_map_raise_a_search_warning():
     assert search_checks(SimpleNamespace(mode_gaps=(40.0, 900.0))) == []
     (w,) = search_checks(SimpleNamespace(mode_gaps=(2.5, 40.0)))
     assert w.severity == "warn" and w.check == "global search" and "2.5" in w.message
+
+
+def _step_trace(n=400, h=1e-3, t_step=0.1):
+    from pathlib import Path
+
+    from pmdc_bayes.io.session import Schedule, Trace
+
+    t = np.arange(n) * h
+    return Trace("s", "step", Path("s.csv"), t, np.zeros(n), None,
+                 Schedule(np.array([0.0, t_step]), np.array([0.0, 12.0])),
+                 Schedule(np.array([0.0]), np.array([0.0])))
+
+
+def test_a_misfit_at_the_steps_start_fails_and_noise_or_a_slow_misfit_does_not():
+    from pmdc_bayes.inference.checks import step_start_check
+
+    tr = _step_trace()
+    rng = np.random.default_rng(0)
+    t = tr.time
+    exact = np.where(t >= 0.1, 1.0 - np.exp(-(t - 0.1) / 2e-3), 0.0)
+    late = np.where(t >= 0.1 + 1e-3, 1.0 - np.exp(-(t - 0.1 - 1e-3) / 2e-3), 0.0)
+    y = exact + 0.002 * rng.standard_normal(t.size)
+    (found,) = step_start_check(tr, "current", y, late, 0.002)  # one sample late
+    assert found.severity == "fail" and found.where == "s: current"
+    assert "--add dead-time" in found.message
+    assert step_start_check(tr, "current", y, exact, 0.002) == []  # noise only
+    # colored noise (a slow wave) as large: spread over the trace, not at the step
+    wave = y + 0.02 * np.sin(2 * np.pi * t / 0.05)
+    assert step_start_check(tr, "current", wave, exact, 0.002) == []
+    # a logged voltage toggling every few samples: no step to single out
+    toggling = type(tr.voltage)(t[::2], np.where(np.arange(t[::2].size) % 2, 12.0, 0.0))
+    import dataclasses
+
+    assert step_start_check(dataclasses.replace(tr, voltage=toggling), "current", y, late,
+                            0.002) == []

@@ -124,8 +124,14 @@ def test_a_speed_sensor_calibration_error_is_honest_then_recovered_with_a_bench_
     assert _within(fit, "speed_offset", offset, 3.0) and fit.sd["speed_offset"] < 0.1
     for name in ("K", "J", "B"):
         assert _within(fit, name, MOTOR[name], 3.0), (name, fit.values[name], fit.sd[name])
-    with_k = dataclasses.replace(calibrated, bench={
-        "K": Measurement(MOTOR["K"] * 1.004, 0.01 * MOTOR["K"], "V*s/rad", "bench")})
+    bench_k = {"K": Measurement(MOTOR["K"] * 1.004, 0.01 * MOTOR["K"], "V*s/rad", "bench")}
+    # the ideal model against a bench K: rejected, and the diagnosis names the gain
+    ideal_k = dataclasses.replace(session, bench=bench_k)
+    model = build_model(ideal_k, cf)
+    verdict = assess(model, fit_map(model), cf)
+    assert verdict.verdict == "inadequate"
+    assert any("--add speed-gain" in line for line in verdict.diagnosis), verdict.diagnosis
+    with_k = dataclasses.replace(calibrated, bench=bench_k)
     model = build_model(with_k, cf)
     fit = fit_map(model)
     assert _within(fit, "speed_gain", gain, 3.0) and fit.sd["speed_gain"] < 0.02

@@ -201,7 +201,7 @@ def _g(x: float) -> str:
 @x64
 def assess(model, fit, closed_form=None) -> Adequacy:
     """Every adequacy check of ``fit`` (a :class:`~.fit.FitResult` of ``model``)."""
-    from .checks import bench_checks, plausibility_checks, search_checks
+    from .checks import bench_checks, plausibility_checks, search_checks, step_start_check
     from .diagnosis import diagnose
 
     session = model.session
@@ -230,6 +230,8 @@ def assess(model, fit, closed_form=None) -> Adequacy:
                                         ch.s0, float(fit.noise_sd.get(name, ch.s0)))
             channels[name] = row
             findings += found
+            if "dead_time" not in session.nuisances:
+                findings += step_start_check(tr, what, np.asarray(y), np.asarray(yhat), ch.s0)
     for name, y, yhat in _coast_down_pairs(model, fit) + _position_pairs(model, fit):
         ch = by_name[name]
         row, found = _trace_channel(name, ch.unit, y, yhat, None, None, ch.s0,

@@ -1,5 +1,6 @@
-"""Adequacy checks that look at parameters rather than residuals: bench conflict,
-physical plausibility against what the session measured, and the global search."""
+"""Adequacy checks that look at parameters rather than residuals (bench conflict,
+physical plausibility against what the session measured, the global search), and one
+that looks at where in a trace the residuals lie (the start of each step)."""
 
 from __future__ import annotations
 
@@ -10,12 +11,49 @@ from ..physics import motor
 from .adequacy import BENCH_FAIL_Z, BENCH_WARN_Z, PEAK_RATIO, RISE_RATIO, Finding, _g
 from .levels import unloaded_levels
 
-__all__ = ["bench_checks", "plausibility_checks", "search_checks", "rise_time", "step_time"]
+__all__ = ["bench_checks", "plausibility_checks", "search_checks", "rise_time", "step_time",
+           "step_start_check"]
 
 COLLAPSE = 0.1  # a bench quantity fitted below this fraction of its bench value
 PRIOR_PULL = 3.0  # a seeded parameter this many prior widths (log) from its seed
 NO_LOAD_RATIO = 1.2  # model's steady speed against the logged one, either way
 COMPETING = 5.0  # another optimum within this many log-posterior units of the MAP
+START_SAMPLES = (2, 10)  # the window around a voltage step: samples before, after
+START_ENERGY = 30.0  # its sum of squared residuals against the noise's expectation
+START_SHARE = 0.5  # and at least this share of the channel's misfit beyond its noise
+START_COVER = 0.25  # the windows may cover at most this share of the samples
+
+
+def step_start_check(tr, what: str, y, yhat, s0: float) -> list:
+    """A fail when the residuals of a channel concentrate at the starts of its voltage
+    steps: within a few samples of each change of more than a fifth of the voltage's
+    range the squared residuals sum to :data:`START_ENERGY` × what the channel's
+    noise gives, and that is most of the channel's misfit.  A step placed late or early
+    (a logged voltage column knows a change only to a sample interval; a dead time; a
+    driver's delay) does this, which a fit can otherwise hide in a wrong La."""
+    t, r = np.asarray(tr.time, float), np.asarray(y, float) - np.asarray(yhat, float)
+    v = tr.voltage
+    if v.values.size < 2 or not s0 > 0 or r.size < 20:
+        return []
+    big = np.abs(np.diff(v.values)) > 0.2 * np.ptp(v.values)
+    window = np.zeros(r.size, bool)
+    for tc in v.times[1:][big]:
+        k = int(np.searchsorted(t, tc))
+        window[max(k - START_SAMPLES[0], 0):k + START_SAMPLES[1]] = True
+    n = int(window.sum())
+    if n == 0 or n > START_COVER * r.size:
+        return []
+    energy = float(np.sum(r[window] ** 2))
+    excess, total = energy - n * s0**2, float(np.sum(r**2)) - r.size * s0**2
+    ratio = energy / (n * s0**2)
+    if ratio < START_ENERGY or total <= 0 or excess < START_SHARE * total:
+        return []
+    return [Finding("step start", f"{tr.name}: {what}", "fail", f"x{ratio:.3g} the noise",
+                    f"the model misses the start of the voltage steps ({100 * excess / total:.0f}"
+                    f" % of the misfit in {n} samples around them; x{ratio:.3g} the noise "
+                    "there): the step is earlier or later than the model takes it; a logged "
+                    "voltage column knows a change only to a sample interval; fit a dead time "
+                    "per trace (--add dead-time, which may come out negative)")]
 
 
 def bench_checks(model, fit) -> tuple[dict, list]:

@@ -200,6 +200,11 @@ def _finding_rules(model, fit, findings, already=()):
     for f in findings:
         if f.severity != "fail":
             continue
+        if f.check == "step start":
+            out.append(f"{f.where.split(':')[0]}: the model misses the start of the voltage "
+                       "steps: the steps are earlier or later than the session says (a "
+                       "logged voltage column, a trigger offset, a dead time): --add "
+                       "dead-time, or dead_time = true under [model]")
         if f.check == "residual whiteness" and f.where.endswith("speed"):
             out.append(f"{f.where}: {f.message}: a speed differenced from encoder counts or a "
                        "quantised position; log the encoder's count as the position "
@@ -215,6 +220,14 @@ def _finding_rules(model, fit, findings, already=()):
                 out.append("the fitted resistance is far below the bench Ra: the ideal motor "
                            "is absorbing something it lacks (a current limit, a voltage "
                            "drop, a lag); see the trace findings")
+        if (f.where in ("K", "J", "B") and f.check == "bench conflict"
+                and "speed_gain" not in model.session.nuisances
+                and any(tr.speed_logged for tr in model.session.traces)):
+            out.append(f"the fit puts {f.where} off its bench value: a speed sensor whose "
+                       "calibration is off (a tachometer constant, a scale) scales K, J and B "
+                       "together, which a bench value then contradicts; fit the sensor's "
+                       "gain: --add speed-gain, or speed_gain = true under [model] (or check "
+                       "the bench value)")
     return out
 
 
