@@ -1,0 +1,70 @@
+"""A trace that brakes a turning rotor at 0 V on a rig with a brush drop: the model takes
+no drop at 0 V (where the real drop opposes the braking current, which stops below the
+drop's back-emf), so the fit misses the braking; the diagnosis says why and what to do,
+drawn by the independent rig simulator."""
+
+import dataclasses
+import tomllib
+
+import pytest
+
+from pmdc_bayes.inference.adequacy import assess
+from pmdc_bayes.inference.fit import fit_map
+from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.simulate.session import simulate_session
+
+PLAN = """\
+seed = 5
+[motor]
+name = "braked at 0 V"
+friction = "coulomb"
+[truth]
+Ra = 2.0
+La = 2e-3
+K = 0.05
+B = 2e-5
+J = 2e-5
+Tc = 1e-3
+[bench.Ra]
+sd = 0.05
+unit = "ohm"
+[bench.La]
+sd = 0.1
+unit = "mH"
+[rig]
+voltage_drop = 1.5
+[[steady_table]]
+name = "steady"
+voltages = [4.0, 8.0, 12.0]
+speed_sd = 0.3
+current_sd = 0.0003
+[[trace]]
+name = "{name}"
+kind = "step"
+duration = {duration}
+rate = 2000.0
+voltage = [[0.0, 0.0], [0.01, 12.0], [0.15, 0.0]]
+speed_noise = 0.3
+current_noise = 0.005
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("duration", "brakes"), [(0.4, True), (0.14, False)])
+def test_braking_at_zero_volts_with_a_drop_is_named(tmp_path, duration, brakes):
+    name = "brake" if brakes else "no_brake"
+    plan = tomllib.loads(PLAN.format(name=name, duration=duration))
+    session = load_session(simulate_session(plan, tmp_path / "s"))
+    session = dataclasses.replace(session, nuisances=("voltage_drop",))
+    cf = fit_seed(session)
+    model = build_model(session, cf)
+    verdict = assess(model, fit_map(model), cf)
+    named = [line for line in verdict.diagnosis if "0 V" in line and "coast-down" in line]
+    if brakes:  # the braking segment is missed, and the diagnosis says why
+        assert verdict.verdict == "inadequate"
+        assert named and named[0].startswith("brake:"), verdict.diagnosis
+    else:  # cut before the braking, the same rig fits
+        assert verdict.verdict == "adequate", verdict.findings
+        assert not named
