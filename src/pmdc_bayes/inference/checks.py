@@ -51,9 +51,10 @@ def step_start_check(tr, what: str, y, yhat, s0: float) -> list:
     return [Finding("step start", f"{tr.name}: {what}", "fail", f"x{ratio:.3g} the noise",
                     f"the model misses the start of the voltage steps ({100 * excess / total:.0f}"
                     f" % of the misfit in {n} samples around them; x{ratio:.3g} the noise "
-                    "there): the step is earlier or later than the model takes it; a logged "
-                    "voltage column knows a change only to a sample interval; fit a dead time "
-                    "per trace (--add dead-time, which may come out negative)")]
+                    "there): the step is earlier or later than the model takes it (a logged "
+                    "voltage column knows a change only to a sample interval: --add "
+                    f"dead-time, which may come out negative), or the {what} sensor lags "
+                    f"(--add {what}-lag)")]
 
 
 def bench_checks(model, fit) -> tuple[dict, list]:

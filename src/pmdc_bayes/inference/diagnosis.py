@@ -201,10 +201,11 @@ def _finding_rules(model, fit, findings, already=()):
         if f.severity != "fail":
             continue
         if f.check == "step start":
+            sensor = f.where.rsplit(": ", 1)[-1]
             out.append(f"{f.where.split(':')[0]}: the model misses the start of the voltage "
                        "steps: the steps are earlier or later than the session says (a "
                        "logged voltage column, a trigger offset, a dead time): --add "
-                       "dead-time, or dead_time = true under [model]")
+                       f"dead-time; or the {sensor} sensor lags: --add {sensor}-lag")
         if f.check == "residual whiteness" and f.where.endswith("speed"):
             out.append(f"{f.where}: {f.message}: a speed differenced from encoder counts or a "
                        "quantised position; log the encoder's count as the position "

@@ -1,0 +1,75 @@
+"""The step-start check on rigs drawn by the independent simulator: a step the session
+places half a sample early (a dead time) fails it and a fitted dead time passes; a
+current sensor's lag declared in the model is not taken for one (the lag's filter errs
+at a step's jump on its own)."""
+
+import dataclasses
+import tomllib
+
+import pytest
+
+from pmdc_bayes.inference.adequacy import assess
+from pmdc_bayes.inference.fit import fit_map
+from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.simulate.session import simulate_session
+
+PLAN = """\
+seed = 9
+[motor]
+name = "fast electrical time constant"
+friction = "coulomb"
+[truth]
+Ra = 4.7
+La = 1.2e-3
+K = 0.032
+B = 6e-6
+J = 8e-6
+Tc = 1.5e-3
+[bench.Ra]
+sd = 0.05
+unit = "ohm"
+[bench.La]
+sd = 0.05
+unit = "mH"
+[rig]
+{rig}
+[[steady_table]]
+name = "steady"
+voltages = [3.0, 6.0, 9.0, 12.0]
+speed_sd = 0.3
+current_sd = 0.0003
+[[trace]]
+name = "step_12v"
+kind = "step"
+duration = 0.3
+rate = 1000.0
+voltage = [[0.0, 0.0], [0.0204, 12.0]]
+speed_noise = 0.3
+current_noise = 0.003
+"""
+
+
+def _verdict(tmp_path, rig, nuisances):
+    session = load_session(simulate_session(tomllib.loads(PLAN.format(rig=rig)), tmp_path))
+    session = dataclasses.replace(session, nuisances=nuisances)
+    cf = fit_seed(session)
+    model = build_model(session, cf)
+    return assess(model, fit_map(model), cf)
+
+
+@pytest.mark.slow
+def test_a_step_half_a_sample_off_fails_the_check_and_a_dead_time_mends_it(tmp_path):
+    ideal = _verdict(tmp_path / "a", "dead_time = 0.0005", ())
+    starts = [f for f in ideal.findings if f.check == "step start"]
+    assert "step_12v: current" in {f.where for f in starts}, ideal.findings
+    assert any("--add dead-time" in line for line in ideal.diagnosis)
+    fitted = _verdict(tmp_path / "b", "dead_time = 0.0005", ("dead_time",))
+    assert fitted.verdict == "adequate", fitted.findings
+
+
+@pytest.mark.slow
+def test_a_declared_current_lag_is_not_taken_for_a_step_off_time(tmp_path):
+    verdict = _verdict(tmp_path, "current_lag = 0.0005", ("current_lag",))
+    assert not [f for f in verdict.findings if f.check == "step start"], verdict.findings
