@@ -73,3 +73,10 @@ def test_a_step_half_a_sample_off_fails_the_check_and_a_dead_time_mends_it(tmp_p
 def test_a_declared_current_lag_is_not_taken_for_a_step_off_time(tmp_path):
     verdict = _verdict(tmp_path, "current_lag = 0.0005", ("current_lag",))
     assert not [f for f in verdict.findings if f.check == "step start"], verdict.findings
+
+
+@pytest.mark.slow
+def test_an_undeclared_current_lag_is_named_in_the_diagnosis(tmp_path):
+    verdict = _verdict(tmp_path, "current_lag = 0.0002", ())
+    assert verdict.verdict == "inadequate"
+    assert any("--add current-lag" in line for line in verdict.diagnosis), verdict.diagnosis

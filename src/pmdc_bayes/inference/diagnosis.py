@@ -191,12 +191,14 @@ def _finding_rules(model, fit, findings, already=()):
                                      for f in findings)):
         fitted = fit.values["La"] / fit.values["Ra"]
         bench = la.centre / ra.centre
-        if fitted > SLOW_START * bench:
+        current = any(tr.current is not None for tr in model.session.traces)
+        if fitted > SLOW_START * bench or (current and fitted > bench):
             out.append(f"the fit stretches the electrical time constant La/Ra to "
                        f"{1e3 * fitted:.2g} ms against {1e3 * bench:.2g} ms on the bench: the "
                        "response starts more slowly than the motor's inductance explains: a "
                        "dead time (--add dead-time) or a speed-sensor/filter lag "
-                       "(--add speed-lag)")
+                       "(--add speed-lag)" + (", or a current-sensor/filter lag "
+                                              "(--add current-lag)" if current else ""))
     for f in findings:
         if f.severity != "fail":
             continue
