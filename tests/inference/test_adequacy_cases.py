@@ -117,3 +117,19 @@ def test_a_unit_slip_or_reversed_sign_on_one_trace_is_named(factor, words):
     assert a.verdict == "inadequate"
     assert _says(a, "step_6v", *words), a.diagnosis
     assert not _says(a, "unmeasured load"), a.diagnosis
+
+
+@pytest.mark.slow
+def test_a_ripple_aliased_near_half_the_sampling_rate_is_named():
+    """A PWM ripple sampled out of step with it: the current's residuals alternate from
+    sample to sample; the likelihood's white noise is wrong, and the diagnosis says so
+    and what to do."""
+    import dataclasses
+
+    s = case_session()
+    rippled = tuple(dataclasses.replace(
+        tr, current=tr.current + 0.05 * np.cos(np.pi * np.arange(tr.n) + 0.3))
+        for tr in s.traces)
+    a = _verdict(dataclasses.replace(s, traces=rippled))
+    assert a.verdict == "inadequate"
+    assert _says(a, "pwm ripple", "filter the current"), a.diagnosis

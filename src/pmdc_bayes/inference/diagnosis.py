@@ -208,6 +208,11 @@ def _finding_rules(model, fit, findings, already=()):
                        "steps: the steps are earlier or later than the session says (a "
                        "logged voltage column, a trigger offset, a dead time): --add "
                        f"dead-time; or the {sensor} sensor lags: --add {sensor}-lag")
+        if f.check == "residual whiteness" and f.where.endswith("current"):
+            out.append(f"{f.where}: {f.message}: a ripple near half the sampling rate (a "
+                       "PWM ripple aliased by the sampling) rather than white noise; filter "
+                       "the current before sampling it, or average each sample over whole "
+                       "PWM periods")
         if f.check == "residual whiteness" and f.where.endswith("speed"):
             out.append(f"{f.where}: {f.message}: a speed differenced from encoder counts or a "
                        "quantised position; log the encoder's count as the position "
