@@ -26,7 +26,7 @@ def test_a_weak_direction_names_a_dead_time_without_a_log():
         prior_sd=np.ones(6),
         registry={n: _spec("identity" if n == "dead_time_step" else "log") for n in NAMES},
         session=SimpleNamespace(traces=[SimpleNamespace(current=np.zeros(3), dt=1e-4)],
-                                coast_downs=()))
+                                coast_downs=(), nuisances=()))
     (finding,) = [f for f in identifiability(model, fit)["findings"] if "barely" in f]
     assert "·log J" in finding and "·dead_time_step" in finding
     assert "log dead_time_step" not in finding
