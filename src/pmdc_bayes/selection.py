@@ -23,6 +23,9 @@ still missing.
 from __future__ import annotations
 
 import dataclasses
+import math
+
+import numpy as np
 
 from ._x64 import x64
 from .inference.adequacy import assess
@@ -59,8 +62,6 @@ def laplace_log_evidence(model, fit) -> float:
     channels' (the same data for every candidate) and the priors' (added here), so the
     values of candidates of one session compare: their difference is a log Bayes
     factor.  Only as good as the Laplace approximation (one mode, not at a bound)."""
-    import numpy as np
-
     scale = np.asarray(model.data["prior_scale"], dtype=float)
     sign, logdet = np.linalg.slogdet(np.asarray(fit.cov_log, dtype=float))
     if sign <= 0:
@@ -148,8 +149,6 @@ def _choose(rows: list[dict]) -> tuple[dict, str]:
 def _by_evidence(ok: list[dict], simplest: dict, reason: str) -> tuple[dict, str]:
     """Without LOO: a larger adequate candidate whose Laplace evidence beats the
     simplest's by more than :data:`EVIDENCE_MARGIN`, else the simplest."""
-    import math
-
     base = simplest.get("log_evidence")
     if base is None or not math.isfinite(base):
         return simplest, reason

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._format import row_format
 from ..io.session import LA_ASSUMED
 from .fit import FitResult
 from .objective import SessionModel
@@ -89,7 +90,9 @@ def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: f
                   if key in model.session.nuisances]
         against = (f"; here it trades against {' and '.join(fitted)}" if fitted else
                    ", and this model fits neither")
-        return (f"La = {_eng(fit.values['La'])}H is read from the shape of the speed's rise "
+        la = row_format(fit.values["La"], fit.sd["La"])
+        return (f"La = {la.value(fit.values['La'])} {la.suffix}H is read from the shape of "
+                f"the speed's rise "
                 f"alone (no trace logs the current and La was not measured): a dead time or "
                 f"a lag of the speed sensor of about τe = La/Ra = {tau_e * 1e3:.2g} ms shapes "
                 f"the rise the same way{against}. Unless the rig has neither, La is an upper "
@@ -116,14 +119,6 @@ def _current_lag_finding(model: SessionModel, fit: FitResult) -> list[str]:
             f"samples ({min(dts) * 1e3:.3g} ms apart): the current lag's filter, second order "
             "between samples, cannot follow that jump at a step, so the current lag and La "
             "come out biased; sample the current faster, or give La from the bench."]
-
-
-def _eng(value: float) -> str:
-    """``value`` with an SI prefix (m, µ, n) and three significant figures."""
-    for factor, prefix in ((1.0, ""), (1e-3, "m"), (1e-6, "µ"), (1e-9, "n")):
-        if abs(value) >= factor:
-            return f"{value / factor:.3g} {prefix}"
-    return f"{value:.3g} "
 
 
 def _separate_hint(model: SessionModel, a: str, b: str) -> str:
