@@ -230,9 +230,8 @@ def assess(model, fit, closed_form=None) -> Adequacy:
                                         ch.s0, float(fit.noise_sd.get(name, ch.s0)))
             channels[name] = row
             findings += found
-            # a fitted dead time takes up a step's timing; a declared sensor lag is
-            # filtered to second order, whose error at a step's jump is its own
-            if not {"dead_time", f"{what}_lag"} & set(session.nuisances):
+            # a fitted dead time takes up a step's timing
+            if "dead_time" not in session.nuisances:
                 findings += step_start_check(tr, what, np.asarray(y), np.asarray(yhat), ch.s0)
     for name, y, yhat in _coast_down_pairs(model, fit) + _position_pairs(model, fit):
         ch = by_name[name]

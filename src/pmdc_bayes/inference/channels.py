@@ -28,7 +28,7 @@ from ..io.session import Session
 from ..physics import motor
 from ..physics.angle import since_first_sample
 from ..physics.experiment import Experiment, steady_points
-from ..physics.sensor import first_order_lag
+from ..physics.sensor import coast_down_reading, pole
 from ..physics.solution import simulate_padded
 from .noise import noise_scale, typical_level
 from .nuisances import initial_speed_name, position_offset_name
@@ -141,8 +141,9 @@ class TraceBlock(Block):
         exp = model.inputs(theta, d["exp"])
         p = model.circuit(theta)
         sim = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast,
-                              limit=model.limit(theta), with_angle=bool(self.offsets))
-        ia, w = model.sensed(theta, sim[0], sim[1], d)
+                              limit=model.limit(theta), with_angle=bool(self.offsets),
+                              lags=model.lags(theta))
+        ia, w = model.sensed(theta, sim[0], sim[1])
         out = [d["speed"] - w, d["current"] - ia]
         if not self.offsets:
             return out + [jnp.zeros_like(w)]
@@ -210,8 +211,9 @@ class CoastDownBlock(Block):
     """The coast-downs' speeds (the armature open), padded to one length; predicted by
     :func:`~pmdc_bayes.physics.motor.coast_down` from B, J, Tc and each trace's fitted
     initial speed (``initial_speed_<trace>``), read through the speed sensor's declared
-    lag (settled at the first sample: the rotor ran steadily before), gain and offset,
-    as the driven traces' speeds are."""
+    lag (:func:`~pmdc_bayes.physics.sensor.coast_down_reading`, settled at the first
+    sample: the rotor ran steadily before), gain and offset, as the driven traces'
+    speeds are."""
 
     key = "coast_down"
 
@@ -224,14 +226,9 @@ class CoastDownBlock(Block):
         ch = []
         for k, tr in enumerate(traces):
             t[k, :tr.n], y[k, :tr.n], mask[k, :tr.n] = tr.time - tr.time[0], tr.speed, True
-            # the padding continues the last interval (a sensor lag needs increasing times)
-            step = t[k, tr.n - 1] - t[k, tr.n - 2]
-            t[k, tr.n:] = t[k, tr.n - 1] + step * np.arange(1, length - tr.n + 1)
+            t[k, tr.n:] = t[k, tr.n - 1]
             ch.append(add(f"{tr.name}: speed", "rad/s", tr.n, noise_scale(tr.speed)))
-        start = np.zeros((len(traces), length), bool)
-        start[:, 0] = True
-        self._data = {"t": t, "speed": y, "mask": mask, "ch": np.asarray(ch),
-                      "start": start}
+        self._data = {"t": t, "speed": y, "mask": mask, "ch": np.asarray(ch)}
 
     @staticmethod
     def observed(d) -> list:
@@ -241,14 +238,13 @@ class CoastDownBlock(Block):
         p = model.params(theta)
         v = model.registry.values(theta)
         w0 = jnp.stack([v[n] for n in self.names])[:, None]
-        w = motor.coast_down(p.B, p.J, w0, d["t"], p.Tc if model.coulomb else 0.0)
-
-        def lag(x, tau):
-            flat = first_order_lag(x.reshape(-1), d["t"].reshape(-1),
-                                   d["start"].reshape(-1), tau)
-            return flat.reshape(x.shape)
-
-        return [d["speed"] - model.read_by(theta, "speed", w, lag)]
+        tc = p.Tc if model.coulomb else 0.0
+        lag = model.lags(theta)[1]
+        if lag is None:
+            w = motor.coast_down(p.B, p.J, w0, d["t"], tc)
+        else:
+            w = coast_down_reading(p.B, p.J, w0, d["t"], tc, pole(lag))
+        return [d["speed"] - model.read_by(theta, "speed", w)]
 
 
 def blocks_for(session: Session, exp: Experiment | None, add: AddChannel) -> list:

@@ -1,14 +1,14 @@
 """The rig's non-idealities in the prediction: the experiment as the motor sees it
 (:meth:`RigEffects.inputs`: the voltage drop, dead times, unknown drags), the circuit
-the logged voltage drives (:meth:`RigEffects.circuit`), the driver's limit, and what the
-sensors read (:meth:`RigEffects.read_by`: lags, gains, offsets)."""
+the logged voltage drives (:meth:`RigEffects.circuit`), the driver's limit, the sensors'
+lags (:meth:`RigEffects.lags`, states of the exact solution) and their gains and offsets
+(:meth:`RigEffects.read_by`)."""
 
 from __future__ import annotations
 
 import jax.numpy as jnp
 
 from ..physics import motor
-from ..physics.sensor import first_order_lag
 from .nuisances import NO_LIMIT, dead_time_name, load_names
 
 __all__ = ["RigEffects"]
@@ -63,25 +63,22 @@ class RigEffects:
                                seg_tc=tc[exp.seg_trace] + (exp.seg_tc if known else 0.0))
         return exp
 
-    def read_by(self, theta, sensor: str, x, lag):
-        """``x`` as the ``sensor`` (``"speed"`` or ``"current"``) reads it at θ: its
-        declared first-order lag (``lag(x, τs)`` applies one in ``x``'s layout), then
-        its declared gain and offset."""
+    def lags(self, theta):
+        """The fitted time constants (s) of the current and speed sensors' lags at θ,
+        None for a sensor the model reads without one (``simulate_padded(lags=)``)."""
         v = self.registry.values(theta)
-        if f"{sensor}_lag" in self.registry:
-            x = lag(x, v[f"{sensor}_lag"])
+        return tuple(v.get(f"{sensor}_lag") for sensor in ("current", "speed"))
+
+    def read_by(self, theta, sensor: str, x):
+        """``x``, the ``sensor``'s (``"speed"`` or ``"current"``) lagged reading, as the
+        sensor reports it at θ: times its declared gain, plus its declared offset."""
+        v = self.registry.values(theta)
         if f"{sensor}_gain" in self.registry:
             x = v[f"{sensor}_gain"] * x
         if f"{sensor}_offset" in self.registry:
             x = x + v[f"{sensor}_offset"]
         return x
 
-    def sensed(self, theta, ia, w, d):
-        """What the sensors read of the padded ``(ia, ω)`` of the driven traces (``d``
-        the trace block's data)."""
-        exp = d["exp"]
-
-        def lag(x, tau):
-            return exp.pad(first_order_lag(exp.unpad(x), d["t"], d["start"], tau))
-
-        return self.read_by(theta, "current", ia, lag), self.read_by(theta, "speed", w, lag)
+    def sensed(self, theta, ia, w):
+        """What the sensors report of their lagged readings ``(ia, ω)``."""
+        return self.read_by(theta, "current", ia), self.read_by(theta, "speed", w)

@@ -52,7 +52,6 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
     la_finding = _la_finding(model, fit, "La" in prior_bound, ratio[names.index("La")])
     if la_finding:
         findings.append(la_finding)
-    findings += _current_lag_finding(model, fit)
     mech = [n for n in ("K", "B", "J", "Tc") if n in names]
     for a in range(len(mech)):
         for b in range(a + 1, len(mech)):
@@ -104,21 +103,6 @@ def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: f
     dt = min(tr.dt for tr in with_current)
     return (f"La is determined by the bench prior alone: no trace samples the current fast "
             f"enough (τe = {tau_e * 1e3:.2g} ms, sampling {dt * 1e3:.3g} ms).")
-
-
-def _current_lag_finding(model: SessionModel, fit: FitResult) -> list[str]:
-    """A declared current-sensor lag on a current that jumps within a sample interval:
-    the lag's filter (second order between samples) cannot follow the jump at a step."""
-    if "current_lag" not in model.session.nuisances:
-        return []
-    dts = [tr.dt for tr in model.session.traces if tr.current is not None]
-    tau_e = fit.values["La"] / fit.values["Ra"]
-    if not dts or tau_e >= 2 * min(dts):
-        return []
-    return [f"The current rises with τe = La/Ra = {tau_e * 1e3:.2g} ms, within two of its "
-            f"samples ({min(dts) * 1e3:.3g} ms apart): the current lag's filter, second order "
-            "between samples, cannot follow that jump at a step, so the current lag and La "
-            "come out biased; sample the current faster, or give La from the bench."]
 
 
 def _separate_hint(model: SessionModel, a: str, b: str) -> str:

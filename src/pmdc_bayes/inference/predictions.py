@@ -31,8 +31,8 @@ class Predictions:
         def run(t, d):
             d = d["traces"]
             ia, w = simulate_padded(self.circuit(t), self.inputs(t, d["exp"]), coulomb=c,
-                                    limit=self.limit(t))
-            ia, w = self.sensed(t, ia, w, d)
+                                    limit=self.limit(t), lags=self.lags(t))
+            ia, w = self.sensed(t, ia, w)
             return d["exp"].unpad(ia), d["exp"].unpad(w)
 
         fn = self.compiled(f"predict-coulomb={c}", lambda: jax.jit(run))
