@@ -18,8 +18,7 @@ def _angle(t, schedules, coulomb, tau_shift=0.0):
     specs = [(t, vt, vv, lt, lv, init) for vt, vv, lt, lv, init in schedules]
     exp = stack_experiments(specs)
     if tau_shift:
-        shifted = exp.tau - tau_shift
-        exp = exp._replace(tau=jnp.maximum(shifted, 0.0), tau_pre=jnp.minimum(shifted, 0.0))
+        exp = exp.delayed(jnp.full(len(schedules), tau_shift))
     ia, w, angle = simulate_padded(P, exp, coulomb=coulomb, with_angle=True)
     start = np.concatenate([np.arange(t.size) == 0] * len(schedules))
     theta = since_first_sample(exp, angle, jnp.asarray(start))

@@ -142,7 +142,7 @@ class TraceBlock(Block):
         p = model.circuit(theta)
         sim = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast,
                               limit=model.limit(theta), with_angle=bool(self.offsets),
-                              lags=model.lags(theta))
+                              lags=model.lags(theta), drop=model.armature_drop(theta))
         ia, w = model.sensed(theta, sim[0], sim[1])
         out = [d["speed"] - w, d["current"] - ia]
         if not self.offsets:

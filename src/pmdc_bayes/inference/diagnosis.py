@@ -239,29 +239,6 @@ def _finding_rules(model, fit, findings, already=()):
     return out
 
 
-def _braking_at_zero(model, preds) -> list[str]:
-    """With a voltage drop in the model: traces that brake a turning rotor at 0 V, where
-    the model has no drop but the brushes' drop still opposes the braking current."""
-    if "Vdrop" not in model.registry:
-        return []
-    out = []
-    for tr, (_, w) in zip(model.session.traces, preds, strict=True):
-        v = tr.voltage
-        w = np.asarray(w)
-        for k in range(1, v.values.size):
-            if v.values[k] != 0.0 or v.values[k - 1] == 0.0 or v.times[k] >= tr.time[-1]:
-                continue
-            i = min(int(np.searchsorted(tr.time, v.times[k])), w.size - 1)
-            if abs(w[i]) > 0.1 * np.max(np.abs(w)):
-                out.append(f"{tr.name}: the voltage drops to 0 V at {v.times[k]:.4g} s with "
-                           "the rotor turning: the model takes no drop at 0 V, where the "
-                           "brushes' drop still opposes the braking current (which stops "
-                           "below the drop's back-emf); end the trace before that segment, "
-                           "or log the run-down as a coast-down trace of its own")
-                break
-    return out
-
-
 def _noise(model, tr, what, y) -> float:
     """The channel's model-free noise level; for a speed estimated from an angle (no
     speed channel), that of the estimate."""
@@ -290,7 +267,6 @@ def diagnose(model, fit, preds, findings) -> list[str]:
         # fails on those parameters while its traces only warn
         out += _flat_top(tr, pred[0])
         out += _start_rules(model, tr, pred, step_time(tr))
-    out += _braking_at_zero(model, preds)
     out += _level_rules(model, fit, preds, findings)
     out += _finding_rules(model, fit, findings, out)
     if not out:

@@ -1,6 +1,7 @@
 """The rig's non-idealities in the prediction: the experiment as the motor sees it
-(:meth:`RigEffects.inputs`: the voltage drop, dead times, unknown drags), the circuit
-the logged voltage drives (:meth:`RigEffects.circuit`), the driver's limit, the sensors'
+(:meth:`RigEffects.inputs`: dead times, unknown drags), the circuit the logged voltage
+drives (:meth:`RigEffects.circuit`: a source resistance; :meth:`RigEffects.armature_drop`:
+the voltage drop, which opposes the current), the driver's limit, the sensors'
 lags (:meth:`RigEffects.lags`, states of the exact solution) and their gains and offsets
 (:meth:`RigEffects.read_by`)."""
 
@@ -8,7 +9,6 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from ..physics import motor
 from .nuisances import NO_LIMIT, dead_time_name, load_names
 
 __all__ = ["RigEffects"]
@@ -28,30 +28,32 @@ class RigEffects:
 
     def limit(self, theta):
         """The fitted current limit at θ (A); :data:`NO_LIMIT` when the model has none
-        but needs the regime-switching solution (``reverses``), else None."""
+        but needs the regime-switching solution (Coulomb friction through a voltage
+        reversal, a voltage drop), else None."""
         if "Imax" in self.registry:
             return self.registry.values(theta)["Imax"]
-        return NO_LIMIT if self.reverses else None
+        return NO_LIMIT if self.reverses or "Vdrop" in self.registry else None
 
     def drop(self, theta):
         """The fitted voltage drop at θ (V), 0 when the model has none."""
         return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else 0.0
 
+    def armature_drop(self, theta):
+        """The fitted voltage drop at θ (V) for the exact solution, which opposes it to
+        the current; None when the model has none."""
+        return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else None
+
     def inputs(self, theta, exp):
-        """The experiment as the motor sees it at θ: voltages less the fitted drop, and
-        each trace's samples taken its fitted dead time earlier (before the response
-        starts, the state at the segment's start: exact when the preceding segment is at
-        rest or steady), and each trace's fitted unknown drag per segment, added to its
-        known one (set in the experiment)."""
-        if "Vdrop" in self.registry:
-            exp = exp._replace(seg_va=motor.terminal_voltage(exp.seg_va, self.drop(theta)))
+        """The experiment as the motor sees it at θ: each
+        trace's response its fitted dead time later than its inputs (each sample
+        evaluated in the segment its time less the dead time lies in: exact;
+        before the trace's first segment, its starting state), and each trace's fitted
+        unknown drag per segment, added to its known one (set in the experiment)."""
         if "dead_time" in self.session.nuisances:
             v = self.registry.values(theta)
             shared = self.session.shared_dead_time
-            delay = jnp.stack([v[dead_time_name(tr.name, shared)]
-                               for tr in self.session.traces])
-            shifted = exp.tau - delay[exp.chunk_trace][:, None]
-            exp = exp._replace(tau=jnp.maximum(shifted, 0.0), tau_pre=jnp.minimum(shifted, 0.0))
+            exp = exp.delayed(jnp.stack([v[dead_time_name(tr.name, shared)]
+                                         for tr in self.session.traces]))
         loaded = self.session.unknown_load_traces()
         if loaded:
             v, zero = self.registry.values(theta), jnp.zeros(())

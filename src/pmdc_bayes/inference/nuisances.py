@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.session import Session
+from ..physics.limited import NO_LIMIT
 from .noise import noise_scale
 from .params import ParamSpec, Prior
 
@@ -31,7 +32,6 @@ SOURCE_PRIOR = 0.5  # sd of a source resistance, as a share of the bench Ra
 OFFSET_PRIOR = 0.05  # sd of a sensor offset, as a share of the channel's largest reading
 LIMIT_PRIOR_FACTOR = 3.0  # one-sd width (a factor) of an unknown current limit's prior
 LIMIT_SETTING_SD = 0.05  # sd of the limit's logarithm around a driver setting the user gave
-NO_LIMIT = 1e200  # A: a limit never reached (finite, so that no tangent meets infinity)
 CALIBRATION = {"speed_gain": ("speed", "gain"), "speed_offset": ("speed", "offset"),
                "current_gain": ("current", "gain"), "current_offset": ("current", "offset")}
 
@@ -84,8 +84,9 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     """The rig's non-idealities the session asks to fit (``session.nuisances``):
 
     * ``voltage_drop`` — ``Vdrop`` (V), a constant drop at the brushes and driver
-      opposing the voltage; prior normal, centre 0, sd :data:`DROP_PRIOR` × the largest
-      voltage; seeded at ``drop_seed``;
+      opposing the current (no current while the back-emf is within it); prior
+      normal, centre 0, sd :data:`DROP_PRIOR` × the largest voltage; seeded at
+      ``drop_seed``;
     * ``dead_time`` — per trace ``dead_time_<trace>`` (s), or one ``dead_time`` for all
       traces (``session.shared_dead_time``), the delay between the logged command and
       the response; prior normal, centre 0, sd :data:`DEAD_TIME_PRIOR` × the trace's

@@ -31,7 +31,8 @@ class Predictions:
         def run(t, d):
             d = d["traces"]
             ia, w = simulate_padded(self.circuit(t), self.inputs(t, d["exp"]), coulomb=c,
-                                    limit=self.limit(t), lags=self.lags(t))
+                                    limit=self.limit(t), lags=self.lags(t),
+                                    drop=self.armature_drop(t))
             ia, w = self.sensed(t, ia, w)
             return d["exp"].unpad(ia), d["exp"].unpad(w)
 

@@ -18,16 +18,29 @@ from ..physics.motor import gain
 __all__ = ["GAIN_MISMATCH", "SETTLED", "step_of", "turns", "check_trace", "check_physical"]
 
 
+STEP_OVER_JITTER = 10.0  # a logged voltage's step stands this far above its jitter
+
+
 def step_of(trace: Trace) -> tuple[float, float, float]:
     """(time of the largest voltage change, voltage before, voltage after); a constant
-    voltage is a step from rest at the first sample."""
+    voltage is a step from rest at the first sample.
+
+    A voltage logged at every sample jitters: its largest change is a step only when it
+    stands :data:`STEP_OVER_JITTER` times above the jitter (a robust scale of the
+    sample-to-sample changes), and the levels either side are medians of ten samples.
+    """
     v = trace.voltage.values
     times = trace.voltage.times
     if v.size < 2:
         return float(trace.time[0]), 0.0, float(v[0])
     jumps = np.abs(np.diff(v))
     k = int(np.argmax(jumps))
-    return float(max(times[k + 1], trace.time[0])), float(v[k]), float(v[k + 1])
+    if v.size < max(8, trace.n // 2):  # a schedule: every change is a step
+        return float(max(times[k + 1], trace.time[0])), float(v[k]), float(v[k + 1])
+    if jumps[k] <= STEP_OVER_JITTER * 1.4826 * float(np.median(jumps)):
+        return float(trace.time[0]), 0.0, float(np.median(v))
+    return (float(max(times[k + 1], trace.time[0])), float(np.median(v[max(0, k - 9):k + 1])),
+            float(np.median(v[k + 1:k + 11])))
 
 
 def turns(trace: Trace) -> bool:

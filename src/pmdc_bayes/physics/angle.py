@@ -32,15 +32,16 @@ def assemble_angle(exp: Experiment, totals, within, w_start):
     exp : the experiment as the motor sees it.
     totals : the angle each segment turns over its whole length, ``(segments,)``.
     within : each sample's angle since its segment's start, padded ``(C, L)``.
-    w_start : each chunk's segment's starting speed, ``(C, 1)``.  A sample before its
-        segment's delayed start (``exp.tau_pre < 0``, a dead time) holds the state of
-        the segment's start, so the rotor turns at that speed until then.
+    w_start : the starting speed of each sample's segment
+        (:attr:`~.experiment.Experiment.sample_segments`).  A sample before its trace's
+        delayed start (``exp.tau_pre < 0``, a dead time) holds the trace's starting
+        state, so the rotor turns at that speed until then.
     """
     idx = jnp.arange(totals.shape[0])
     before = jnp.cumsum(totals) - totals
     first = jax.lax.cummax(jnp.where(exp.seg_first, idx, 0))
     start = before - before[first]
-    angle = start[exp.chunk_seg][:, None] + within
+    angle = start[exp.sample_segments] + within
     if exp.tau_pre is not None:
         angle = angle + w_start * exp.tau_pre
     return angle

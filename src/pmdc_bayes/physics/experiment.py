@@ -44,8 +44,12 @@ class Experiment(NamedTuple):
     every sample of every trace be evaluated at once, without gathers.  ``seg_b`` and
     ``seg_tc``, when set, add a viscous (N·m·s/rad) and a friction-like constant
     (N·m) drag per segment to the motor's own (an unknown load on a trace).
-    ``tau_pre``, when set (a dead time), is how long before its segment's delayed start
-    each sample lies (≤ 0; ``tau`` is then 0 there).
+    ``seg_clock`` is each segment's start on one clock that runs through the traces in
+    order (each trace's times moved past the previous trace's end), so that a time
+    finds its segment by one search.  A dead time (:meth:`delayed`) sets
+    ``sample_seg``, the segment each sample is evaluated in (``tau`` then counts from
+    that segment's start), and ``tau_pre``, how long before its trace's first segment
+    a sample lies (≤ 0; ``tau`` is then 0 there).
     """
 
     seg_t0: jax.Array
@@ -64,11 +68,38 @@ class Experiment(NamedTuple):
     seg_b: jax.Array | None = None
     seg_tc: jax.Array | None = None
     tau_pre: jax.Array | None = None
+    seg_clock: jax.Array | None = None
+    sample_seg: jax.Array | None = None
 
     @property
     def seg_trace(self) -> jax.Array:
         """The trace of each segment."""
         return jnp.cumsum(self.seg_first.astype(jnp.int32)) - 1
+
+    @property
+    def sample_segments(self) -> jax.Array:
+        """The segment each sample is evaluated in: ``(C, 1)`` (a chunk's own), or
+        ``(C, L)`` under a dead time."""
+        return self.chunk_seg[:, None] if self.sample_seg is None else self.sample_seg
+
+    def delayed(self, delay) -> Experiment:
+        """The experiment with each trace's response ``delay[trace]`` (s) later than its
+        inputs: each sample evaluated at its time less its trace's delay, in the segment
+        that time lies in (exact: the inputs' breakpoints move), held at the trace's
+        starting state before its first segment."""
+        n = self.seg_clock.shape[0]
+        idx = jnp.arange(n)
+        # each segment's trace's first and last segment
+        first = jax.lax.cummax(jnp.where(self.seg_first, idx, 0))
+        ends = jnp.concatenate([self.seg_first[1:], jnp.ones(1, bool)])
+        last = jax.lax.cummin(jnp.where(ends, idx, n), reverse=True)
+        c = self.chunk_seg
+        t = self.seg_clock[c][:, None] + self.tau - delay[self.chunk_trace][:, None]
+        seg = jnp.searchsorted(self.seg_clock, t, side="right") - 1
+        seg = jnp.clip(seg, first[c][:, None], last[c][:, None])
+        shifted = t - self.seg_clock[seg]
+        return self._replace(tau=jnp.maximum(shifted, 0.0), tau_pre=jnp.minimum(shifted, 0.0),
+                             sample_seg=seg)
 
     @property
     def voltage_reverses(self) -> bool:
@@ -176,6 +207,12 @@ def stack_experiments(specs) -> Experiment:
             start += n
         seg_offset += n_seg
     cat = {k: np.concatenate(v) for k, v in cols.items()}
+    # one clock through the traces: each trace starts a second after the previous ends
+    clock, shift = [], 0.0
+    for seg_t0, (t, _) in zip(cols["t0"], per_trace, strict=True):
+        shift -= float(t[0])
+        clock.append(seg_t0 + shift)
+        shift += float(t[-1]) + 1.0
     return Experiment(
         jnp.asarray(cat["t0"]), jnp.asarray(cat["len"]), jnp.asarray(cat["va"]),
         jnp.asarray(cat["tl"]), jnp.asarray(cat["first"]),
@@ -185,6 +222,7 @@ def stack_experiments(specs) -> Experiment:
         jnp.asarray(np.concatenate(taus)), jnp.asarray(np.concatenate(masks)),
         jnp.asarray(np.concatenate(index)),
         jnp.asarray(np.array([p[0].size for p in per_trace], dtype=np.int64)),
+        seg_clock=jnp.asarray(np.concatenate(clock)),
     )
 
 

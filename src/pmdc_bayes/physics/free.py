@@ -152,12 +152,13 @@ def phases(seg: Segment, coulomb: bool) -> Phase:
     rest until the breakaway, moving, then held again after a stop (a phase that never
     starts has an infinite ``t0``)."""
     zero = jnp.zeros_like(seg.ia0)
+    one = zero + 1.0  # the current's sign matters only to a voltage drop (not here)
     if not coulomb:
-        return jax.tree_util.tree_map(lambda a: a[None],
-                                      Phase(zero, zero + MOVING, seg.d, zero, seg.xm_i, seg.xm_w))
+        return jax.tree_util.tree_map(
+            lambda a: a[None], Phase(zero, zero + MOVING, seg.d, zero, seg.xm_i, seg.xm_w, one))
     stops = jnp.isfinite(seg.t_move) & jnp.isfinite(seg.t_stop)
     t_stop = jnp.where(stops, jnp.where(stops, seg.t_move, 0.0) + seg.t_stop, jnp.inf)
-    held = Phase(zero, zero + STUCK, zero, zero, seg.ia0, zero)
-    move = Phase(seg.t_move, zero + MOVING, seg.d, zero, seg.xm_i, seg.xm_w)
-    after = Phase(t_stop, zero + STUCK, zero, zero, seg.i_stop, zero)
+    held = Phase(zero, zero + STUCK, zero, zero, seg.ia0, zero, one)
+    move = Phase(seg.t_move, zero + MOVING, seg.d, zero, seg.xm_i, seg.xm_w, one)
+    after = Phase(t_stop, zero + STUCK, zero, zero, seg.i_stop, zero, one)
     return jax.tree_util.tree_map(lambda *a: jnp.stack(a), held, move, after)

@@ -13,6 +13,13 @@ segment the motor is therefore in one of three regimes, each solved in closed fo
 * ``CLAMPED`` — the current at ``±I``, the speed first order in J/B (or held at rest
   when the clamped torque cannot overcome the friction).
 
+A voltage drop at the brushes and driver opposes the current: ``Va − Vdrop·sign(ia)``
+drives a conducting armature, and while ``|Va − K·ω| ≤ Vdrop`` no current flows at all.
+Each phase carries the sign ``c`` of its current, so that the three regimes above take
+``Va − c·Vdrop`` as their voltage; the current's zero crossing is one more located
+event, after which the current flows the other way or stops (an open phase: ``CLAMPED``
+at zero current, ``s = 0``), until the back-emf lets it flow again.
+
 The segment is split into at most :data:`PHASES` phases at the located times where the
 regime changes: breakaway and clamping of a stuck rotor, in closed form; the stop or
 clamping of a moving one, bracketed on a geometric grid (the first crossing, not just
@@ -32,9 +39,9 @@ import jax.numpy as jnp
 from . import motor
 from .propagator import apply_alpha_beta, coefficients, coefficients_real
 
-__all__ = ["PHASES", "STUCK", "MOVING", "CLAMPED", "Phase", "segment_phases",
+__all__ = ["PHASES", "STUCK", "MOVING", "CLAMPED", "NO_LIMIT", "Phase", "segment_phases",
            "state_at", "state_in_segment", "phase_angle", "angle_in_segment",
-           "clamped_steady"]
+           "clamped_steady", "phase_voltage"]
 
 STUCK, MOVING, CLAMPED = 0, 1, 2
 PHASES = 6  # regimes followed per constant segment (e.g. stuck, moving, clamped, moving)
@@ -42,12 +49,15 @@ _GRID = 48  # geometric grid that brackets a moving phase's first event
 _GRID_SPAN = 1e-9  # its first point, as a share of the remaining segment
 _ROOT_STEPS = 12  # safeguarded Newton steps that locate it in its bracket
 _TOL = 1e-12  # relative margin that keeps a phase from re-entering the one it left
+NO_LIMIT = 1e200  # A: a limit never reached (finite, so that no tangent meets infinity)
 
 
 class Phase(NamedTuple):
     """One regime of a segment: its start ``t0`` after the segment's start (``inf``
     when unused), ``mode``, the direction ``d`` of motion (±1, 0 held at rest), the
-    clamp's sign ``s`` and the state ``(ia, w)`` at its start."""
+    clamp's sign ``s`` (0 with ``mode`` CLAMPED: no current flows), the state
+    ``(ia, w)`` at its start and the sign ``c`` of its current, which a voltage drop
+    opposes (0 when none flows)."""
 
     t0: jax.Array
     mode: jax.Array
@@ -55,6 +65,12 @@ class Phase(NamedTuple):
     s: jax.Array
     ia: jax.Array
     w: jax.Array
+    c: jax.Array
+
+
+def phase_voltage(va, drop, ph: Phase):
+    """The voltage that drives the armature in phase ``ph``: ``va − c·drop``."""
+    return va if drop is None else va - ph.c * drop
 
 
 def _sign(x):
@@ -80,10 +96,11 @@ def _clamped_rate(p, tl, tc, limit, ph):
     return jnp.where(ph.d == 0, 0.0, a)
 
 
-def state_at(p, va, tl, tc, limit, ph: Phase, tau, fast=False):
+def state_at(p, va, tl, tc, limit, ph: Phase, tau, fast=False, drop=None):
     """``(ia, ω)`` at ``tau`` after the phase's start, in its regime (broadcasts)."""
-    i_s = motor.stuck_current(p.Ra, p.La, ph.ia, va, tau)
-    i_m, w_m = _moving(p, va, tl, tc, ph, tau, fast)
+    v = phase_voltage(va, drop, ph)
+    i_s = motor.stuck_current(p.Ra, p.La, ph.ia, v, tau)
+    i_m, w_m = _moving(p, v, tl, tc, ph, tau, fast)
     a = _clamped_rate(p, tl, tc, limit, ph)
     w_c = ph.w + a * -jnp.expm1(-p.B * tau / p.J) / p.B
     ia = jnp.where(ph.mode == STUCK, i_s, jnp.where(ph.mode == MOVING, i_m, ph.s * limit))
@@ -97,23 +114,48 @@ def _held_direction(p, tl, tc, s, limit):
     return jnp.where(jnp.abs(net) > tc, _sign(net), 0.0)
 
 
-def _classify(p, va, tl, tc, limit, ia, w, coulomb):
+def _conducting(p, va, w, drop):
+    """The sign of the current that starts to flow from zero at speed ``w``: that of
+    ``va − K·w`` where it exceeds the drop, else 0 (none flows)."""
+    drive = va - p.K * w
+    return jnp.where(jnp.abs(drive) > drop, _sign(drive), 0.0)
+
+
+def _classify(p, va, tl, tc, limit, ia, w, coulomb, drop):
     """The regime of state ``(ia, w)`` at a segment's start under the segment's inputs."""
     s = _sign(ia)
-    pushes = s * (va - p.Ra * ia - p.K * w) > 0
+    c = s if drop is None else jnp.where(ia != 0, s, _conducting(p, va, w, drop))
+    v = va if drop is None else va - c * drop
+    pushes = s * (v - p.Ra * ia - p.K * w) > 0
     clamped = (jnp.abs(ia) >= limit * (1.0 - _TOL)) & pushes
+    held = clamped | (c == 0)  # at the limit, or no current
+    s_held = jnp.where(clamped, s, 0.0)
     d_move = jnp.where(w == 0, _sign(p.K * ia - tl), _sign(w))
-    d_clamp = jnp.where(w == 0, _held_direction(p, tl, tc, s, limit), _sign(w))
+    d_clamp = jnp.where(w == 0, _held_direction(p, tl, tc, s_held, limit), _sign(w))
     stuck = coulomb & (w == 0)
-    mode = jnp.where(clamped, CLAMPED, jnp.where(stuck, STUCK, MOVING))
-    d = jnp.where(clamped, d_clamp, d_move)
-    return Phase(jnp.zeros_like(ia), mode, d, jnp.where(clamped, s, 0.0),
-                 jnp.where(clamped, s * limit, ia), w)
+    mode = jnp.where(held, CLAMPED, jnp.where(stuck, STUCK, MOVING))
+    d = jnp.where(held, d_clamp, d_move)
+    return Phase(jnp.zeros_like(ia), mode, d, s_held, jnp.where(held, s_held * limit, ia), w,
+                 jnp.where(clamped, s, c))
 
 
-def _after_stuck(p, va, tl, tc, limit, ph):
-    """Duration of a stuck phase and the phase after it (breakaway or clamp at rest)."""
-    i_inf = va / p.Ra
+def _after_zero(p, va, tl, tc, limit, ph, w, drop):
+    """The phase after the current of ``ph`` falls to zero at speed ``w``: it flows the
+    other way where the back-emf lets it (MOVING, or STUCK at rest with friction), else
+    none flows (CLAMPED at zero current)."""
+    c = jnp.where(-ph.c * (va - p.K * w) > drop, -ph.c, 0.0)
+    rest = w == 0
+    d_open = jnp.where(rest, _held_direction(p, tl, tc, 0.0, limit), _sign(w))
+    mode = jnp.where(c == 0, CLAMPED, jnp.where(rest & (ph.mode == STUCK), STUCK, MOVING))
+    d = jnp.where(c == 0, d_open, jnp.where(rest, 0.0, _sign(w)))
+    zero = jnp.zeros_like(ph.ia)
+    return Phase(zero, mode, d, zero, zero, w + zero, c)
+
+
+def _after_stuck(p, va, tl, tc, limit, ph, drop):
+    """Duration of a stuck phase and the phase after it (breakaway, clamp at rest, or
+    the current's zero crossing)."""
+    i_inf = phase_voltage(va, drop, ph) / p.Ra
     db = _sign(p.K * i_inf - tl)
     i_star = (tl + db * tc) / p.K
     already = db * (p.K * ph.ia - tl) > tc
@@ -132,17 +174,26 @@ def _after_stuck(p, va, tl, tc, limit, ph):
     nxt = Phase(jnp.zeros_like(ph.ia), jnp.where(breaks, MOVING, CLAMPED),
                 jnp.where(breaks, db, 0.0), jnp.where(breaks, 0.0, sc),
                 jnp.where(breaks, jnp.where(already, ph.ia, i_star), sc * limit),
-                jnp.zeros_like(ph.w))
-    return jnp.minimum(t_b, t_c), nxt
+                jnp.zeros_like(ph.w), jnp.where(breaks, ph.c, sc))
+    t_next = jnp.minimum(t_b, t_c)
+    if drop is None:
+        return t_next, nxt
+    t_z = time_to(0.0, (ph.c * i_inf < 0) & (ph.c * ph.ia > 0))
+    zero = t_z < t_next
+    after = _after_zero(p, va, tl, tc, limit, ph, jnp.zeros_like(ph.w), drop)
+    nxt = jax.tree_util.tree_map(lambda a, b: jnp.where(zero, a, b), after, nxt)
+    return jnp.minimum(t_z, t_next), nxt
 
 
-def _after_clamped(p, va, tl, tc, limit, ph, coulomb):
-    """Duration of a clamped phase and the phase after it (released or stopped)."""
+def _after_clamped(p, va, tl, tc, limit, ph, coulomb, drop):
+    """Duration of a clamped phase and the phase after it (released or stopped); with no
+    current (``s = 0``), released when the back-emf lets a current flow."""
     a = _clamped_rate(p, tl, tc, limit, ph)
     w_inf = ph.w + a / p.B
     span = w_inf - ph.w
-    w_exit = (va - ph.s * p.Ra * limit) / p.K
-    inside = ph.s * (va - ph.s * p.Ra * limit - p.K * ph.w) > 0
+    v = phase_voltage(va, drop, ph)
+    w_exit = (v - ph.s * p.Ra * limit) / p.K
+    inside = ph.s * (v - ph.s * p.Ra * limit - p.K * ph.w) > 0
 
     def time_to(target, ok):
         q = (target - ph.w) / jnp.where(span == 0, 1.0, span)
@@ -150,6 +201,14 @@ def _after_clamped(p, va, tl, tc, limit, ph, coulomb):
         return jnp.where(good, -p.J / p.B * _safe_log1p_neg(q, good), jnp.inf)
 
     t_exit = jnp.where(inside, time_to(w_exit, True), 0.0)
+    c_exit = ph.s
+    if drop is not None:  # no current: until |va − K·ω| reaches the drop, either way
+        t_up, t_down = time_to((va - drop) / p.K, True), time_to((va + drop) / p.K, True)
+        open_ = ph.s == 0
+        w_exit = jnp.where(open_, jnp.where(t_up <= t_down, va - drop, va + drop) / p.K, w_exit)
+        c_exit = jnp.where(open_, jnp.where(t_up <= t_down, 1.0, -1.0), ph.s)
+        inside = inside | open_
+        t_exit = jnp.where(open_, jnp.minimum(t_up, t_down), t_exit)
     t_stop = time_to(0.0, coulomb & (ph.d != 0) & (ph.w != 0)) if coulomb else jnp.inf
     exits = t_exit <= t_stop
     w_x = jnp.where(inside, w_exit, ph.w)
@@ -158,41 +217,50 @@ def _after_clamped(p, va, tl, tc, limit, ph, coulomb):
     mode = jnp.where(exits, jnp.where(at_rest & coulomb, STUCK, MOVING), CLAMPED)
     nxt = Phase(jnp.zeros_like(ph.ia), mode, jnp.where(exits, ph.d, d_rest),
                 jnp.where(exits, 0.0, ph.s), ph.s * limit,
-                jnp.where(exits, jnp.where(at_rest, 0.0, w_x), 0.0))
+                jnp.where(exits, jnp.where(at_rest, 0.0, w_x), 0.0),
+                jnp.where(exits, c_exit, ph.c))
     return jnp.minimum(t_exit, t_stop), nxt
 
 
-def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast):
-    """Duration of a moving phase and the phase after it (stopped or clamped): the first
-    grid point past an event brackets it, safeguarded Newton steps locate it, and two
-    more Newton steps carry its dependence on the parameters."""
+def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop):
+    """Duration of a moving phase and the phase after it (stopped, clamped, or the
+    current through zero): the first grid point past an event brackets it, safeguarded
+    Newton steps locate it, and two more Newton steps carry its dependence on the
+    parameters."""
+    v = phase_voltage(va, drop, ph)
     frac = jnp.logspace(jnp.log10(_GRID_SPAN), 0.0, _GRID)
     grid = rem * frac
     pc = jax.lax.stop_gradient((p, ph))
+    rectifies = drop is not None
+
+    def margins(q, ia, w):
+        """Each event's margin past its threshold (> 0: happened): stop, clamp, zero."""
+        _, phq = q
+        scale = _TOL * (jnp.abs(phq.w) + 1e-300)
+        return [-phq.d * w - scale if coulomb else -jnp.ones_like(w),
+                jnp.abs(ia) - limit * (1.0 + _TOL),
+                -phq.c * ia - _TOL * (jnp.abs(phq.ia) + 1e-300) if rectifies
+                else -jnp.ones_like(ia)]
 
     def events(q, tau):
-        pq, phq = q
-        ia, w = _moving(pq, va, tl, tc, phq, tau, fast)
-        stop = (phq.d * w < -_TOL * (jnp.abs(phq.w) + 1e-300)) if coulomb else tau < 0
-        clamp = jnp.abs(ia) > limit * (1.0 + _TOL)
-        return jnp.stack([stop, clamp])
+        ia, w = _moving(q[0], v, tl, tc, q[1], tau, fast)
+        return jnp.stack([m > 0 for m in margins(q, ia, w)])
 
-    hit = events(pc, grid)  # (2, G)
+    hit = events(pc, grid)  # (3, G)
     any_hit = hit.any(axis=1)
     first = jnp.argmax(hit, axis=1)
     hi = jnp.where(any_hit, grid[first], rem)
     lo = jnp.where(first > 0, grid[jnp.maximum(first - 1, 0)], 0.0)
 
     def excess(q, tau):
-        """Each event's margin past its threshold (> 0: happened) at its own time in
-        ``tau`` (2,), and its rate of change."""
+        """Each event's margin at its own time in ``tau`` (3,), and its rate of change."""
         pq, phq = q
-        ia, w = _moving(pq, va, tl, tc, phq, tau, fast)
-        di, dw = motor.derivatives(pq.Ra, pq.La, pq.K, pq.B, pq.J, ia, w, va=va, tl=tl,
+        ia, w = _moving(pq, v, tl, tc, phq, tau, fast)
+        di, dw = motor.derivatives(pq.Ra, pq.La, pq.K, pq.B, pq.J, ia, w, va=v, tl=tl,
                                    tc=phq.d * tc)
-        h = jnp.stack([-phq.d * w[0] - _TOL * (jnp.abs(phq.w) + 1e-300),
-                       jnp.abs(ia[1]) - limit * (1.0 + _TOL)])
-        return h, jnp.stack([-phq.d * dw[0], _sign(ia[1]) * di[1]])
+        m = margins(q, ia, w)
+        h = jnp.stack([m[0][0], m[1][1], m[2][2]])
+        return h, jnp.stack([-phq.d * dw[0], _sign(ia[1]) * di[1], -phq.c * di[2]])
 
     def safeguarded_newton(_, c):  # a Newton step inside the bracket, else bisection
         lo, hi, t = c
@@ -204,40 +272,49 @@ def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast):
 
     _, _, t = jax.lax.fori_loop(0, _ROOT_STEPS, safeguarded_newton, (lo, hi, 0.5 * (lo + hi)))
     t_root = jax.lax.stop_gradient(jnp.where(any_hit, t, 0.0))
-    t_stop, t_clamp = t_root[0], t_root[1]
-    s = _sign(_moving(pc[0], va, tl, tc, pc[1], t_clamp, fast)[0])
-    for _ in range(2):
-        i1, w1 = _moving(p, va, tl, tc, ph, t_stop, fast)
-        _, dw = motor.derivatives(p.Ra, p.La, p.K, p.B, p.J, i1, w1, va=va, tl=tl,
-                                  tc=ph.d * tc)
-        t_stop = jnp.where(any_hit[0], t_stop - w1 / jnp.where(dw == 0, 1.0, dw), 0.0)
-        i2, w2 = _moving(p, va, tl, tc, ph, t_clamp, fast)
-        di, _ = motor.derivatives(p.Ra, p.La, p.K, p.B, p.J, i2, w2, va=va, tl=tl,
-                                  tc=ph.d * tc)
-        t_clamp = jnp.where(any_hit[1], t_clamp - (i2 - s * limit) / jnp.where(di == 0, 1.0, di),
-                            0.0)
-    t_stop = jnp.where(any_hit[0], t_stop, jnp.inf)
-    t_clamp = jnp.where(any_hit[1], t_clamp, jnp.inf)
+    s = _sign(_moving(pc[0], v, tl, tc, pc[1], t_root[1], fast)[0])
+    # Newton steps from the located times carry their dependence on the parameters
+    # (value, rate) of each event's function: the speed, the current less the limit, the
+    # current
+    targets = (lambda i, w, di, dw: (w, dw), lambda i, w, di, dw: (i - s * limit, di),
+               lambda i, w, di, dw: (i, di))
+    times = []
+    for k, target in enumerate(targets):
+        t_k = t_root[k]
+        for _ in range(2):
+            i1, w1 = _moving(p, v, tl, tc, ph, t_k, fast)
+            di, dw = motor.derivatives(p.Ra, p.La, p.K, p.B, p.J, i1, w1, va=v, tl=tl,
+                                       tc=ph.d * tc)
+            f, rate = target(i1, w1, di, dw)
+            t_k = jnp.where(any_hit[k], t_k - f / jnp.where(rate == 0, 1.0, rate), 0.0)
+        times.append(jnp.where(any_hit[k], t_k, jnp.inf))
+    t_stop, t_clamp, t_zero = times
+    t_ev = jnp.minimum(jnp.minimum(t_stop, t_clamp), t_zero)
+    i_e, w_e = _moving(p, v, tl, tc, ph, jnp.where(jnp.isfinite(t_ev), t_ev, rem), fast)
     clamps = t_clamp < t_stop
-    t_ev = jnp.minimum(t_stop, t_clamp)
-    i_e, w_e = _moving(p, va, tl, tc, ph, jnp.where(jnp.isfinite(t_ev), t_ev, rem), fast)
     nxt = Phase(jnp.zeros_like(ph.ia), jnp.where(clamps, CLAMPED, STUCK),
                 jnp.where(clamps, ph.d, 0.0), jnp.where(clamps, s, 0.0),
-                jnp.where(clamps, s * limit, i_e), jnp.where(clamps, w_e, 0.0))
+                jnp.where(clamps, s * limit, i_e), jnp.where(clamps, w_e, 0.0),
+                jnp.where(clamps, s, ph.c))
+    if rectifies:
+        zero = t_zero < jnp.minimum(t_stop, t_clamp)
+        after = _after_zero(p, va, tl, tc, limit, ph, w_e, drop)
+        nxt = jax.tree_util.tree_map(lambda a, b: jnp.where(zero, a, b), after, nxt)
     return t_ev, nxt
 
 
-def segment_phases(p, x, va, tl, tc, limit, length, coulomb: bool, fast: bool) -> Phase:
+def segment_phases(p, x, va, tl, tc, limit, length, coulomb: bool, fast: bool,
+                   drop=None) -> Phase:
     """The phases of one segment from the state ``x = (ia, ω)`` at its start, stacked
-    (leading axis :data:`PHASES`)."""
-    first = _classify(p, va, tl, tc, limit, x[0], x[1], coulomb)
+    (leading axis :data:`PHASES`); ``drop`` (V), when given, opposes the current."""
+    first = _classify(p, va, tl, tc, limit, x[0], x[1], coulomb, drop)
 
     def next_phase(ph, _):
         rem = jnp.clip(length - ph.t0, 0.0, None)
         rem = jnp.where(jnp.isfinite(rem), rem, 0.0)
-        dur_s, nx_s = _after_stuck(p, va, tl, tc, limit, ph)
-        dur_c, nx_c = _after_clamped(p, va, tl, tc, limit, ph, coulomb)
-        dur_m, nx_m = _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast)
+        dur_s, nx_s = _after_stuck(p, va, tl, tc, limit, ph, drop)
+        dur_c, nx_c = _after_clamped(p, va, tl, tc, limit, ph, coulomb, drop)
+        dur_m, nx_m = _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop)
         pick = [ph.mode == STUCK, ph.mode == CLAMPED]
         dur = jnp.where(pick[0], dur_s, jnp.where(pick[1], dur_c, dur_m))
         nxt = jax.tree_util.tree_map(
@@ -253,31 +330,38 @@ def segment_phases(p, x, va, tl, tc, limit, length, coulomb: bool, fast: bool) -
     return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), first, rest)
 
 
-def state_in_segment(p, phases: Phase, va, tl, tc, limit, tau, fast=False):
-    """``(ia, ω)`` at ``tau`` after the segment's start (broadcasts over samples), from
-    the segment's phases (leading axis :data:`PHASES`, then the sample axes' shape)."""
+def _select(phases: Phase, tau) -> Phase:
+    """The phase each ``tau`` lies in."""
     ph = jax.tree_util.tree_map(lambda a: a[0], phases)
     for k in range(1, PHASES):
         q = jax.tree_util.tree_map(lambda a, k=k: a[k], phases)
         on = tau >= q.t0
         ph = jax.tree_util.tree_map(lambda a, b, on=on: jnp.where(on, b, a), ph, q)
-    return state_at(p, va, tl, tc, limit, ph, tau - ph.t0, fast)
+    return ph
 
 
-def phase_angle(p, va, tl, tc, limit, ph: Phase, tau, ia, w):
+def state_in_segment(p, phases: Phase, va, tl, tc, limit, tau, fast=False, drop=None):
+    """``(ia, ω)`` at ``tau`` after the segment's start (broadcasts over samples), from
+    the segment's phases (leading axis :data:`PHASES`, then the sample axes' shape)."""
+    ph = _select(phases, tau)
+    return state_at(p, va, tl, tc, limit, ph, tau - ph.t0, fast, drop)
+
+
+def phase_angle(p, va, tl, tc, limit, ph: Phase, tau, ia, w, drop=None):
     """Angle turned in phase ``ph`` from its start to ``tau`` after it, where the state
     is ``(ia, w)`` (broadcasts): none held at rest; a moving phase's from both
     equations (:func:`~.motor.angle_increment`); a clamped one's from the mechanical
     equation alone, ``B·∫ω = (±K·I − TL − d·Tc)·τ − J·Δω``."""
     load = (tl + ph.d * tc) * tau
-    moving = motor.angle_increment(p.Ra, p.La, p.K, p.B, p.J, va * tau, load, ia - ph.ia,
+    v = phase_voltage(va, drop, ph)
+    moving = motor.angle_increment(p.Ra, p.La, p.K, p.B, p.J, v * tau, load, ia - ph.ia,
                                    w - ph.w)
     clamped = (p.K * ph.s * limit * tau - load - p.J * (w - ph.w)) / p.B
     return jnp.where(ph.mode == MOVING, moving,
                      jnp.where((ph.mode == CLAMPED) & (ph.d != 0), clamped, 0.0))
 
 
-def angle_in_segment(p, phases: Phase, va, tl, tc, limit, tau, ia, w):
+def angle_in_segment(p, phases: Phase, va, tl, tc, limit, tau, ia, w, drop=None):
     """Angle turned from the segment's start to ``tau`` after it, where the state is
     ``(ia, w)``: the whole of each phase that ended before ``tau`` (from the next
     phase's starting state) and the part of the one ``tau`` lies in; exact, and
@@ -290,12 +374,12 @@ def angle_in_segment(p, phases: Phase, va, tl, tc, limit, tau, ia, w):
         prev = jax.tree_util.tree_map(lambda a, k=k: a[k - 1], phases)
         ended = jnp.isfinite(q.t0)
         dur = jnp.where(ended, q.t0 - prev.t0, 0.0)
-        done = done + jnp.where(ended, phase_angle(p, va, tl, tc, limit, prev, dur, q.ia, q.w),
-                                0.0)
+        done = done + jnp.where(
+            ended, phase_angle(p, va, tl, tc, limit, prev, dur, q.ia, q.w, drop), 0.0)
         on = tau >= q.t0
         ph = jax.tree_util.tree_map(lambda a, b, on=on: jnp.where(on, b, a), ph, q)
         before = jnp.where(on, done, before)
-    return before + phase_angle(p, va, tl, tc, limit, ph, tau - ph.t0, ia, w)
+    return before + phase_angle(p, va, tl, tc, limit, ph, tau - ph.t0, ia, w, drop)
 
 
 def clamped_steady(p, va, tl, tc, limit, ia, w):

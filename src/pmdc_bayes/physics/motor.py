@@ -66,9 +66,11 @@ def stuck_current(Ra, La, ia0, va, tau):
 
 
 def terminal_voltage(va, drop):
-    """The voltage across the armature when a constant ``drop`` (brushes, driver)
-    opposes the applied ``va``: ``va − drop·sign(va)`` (0 V stays 0 V)."""
-    return va - drop * _xp(va, drop).sign(va)
+    """The steady voltage across the armature when a constant ``drop`` (brushes, driver)
+    opposes the current that ``va`` drives: ``va − drop·sign(va)``, and none while
+    ``|va| ≤ drop`` (no current flows)."""
+    xp = _xp(va, drop)
+    return xp.sign(va) * xp.maximum(xp.abs(va) - drop, 0.0)
 
 
 def angle_increment(Ra, La, K, B, J, dv, dt_load, dia, dw):

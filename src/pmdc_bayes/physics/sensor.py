@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 
 from . import motor
-from .limited import MOVING, STUCK, Phase
+from .limited import MOVING, STUCK, Phase, phase_voltage
 from .propagator import apply_alpha_beta, coefficients, coefficients_real
 
 __all__ = ["MIN_LAG", "pole", "lagged_first_order", "reading_in_phase", "phase_starts",
@@ -81,9 +81,12 @@ def _lagged_moving(p, ss, d, y0, mu, tau, row, fast):
     return e * y0 - jnp.expm1(mu * tau) * ss[row] - mu / resolvent_det(mu) * f
 
 
-def reading_in_phase(p, va, tl, tc, limit, ph: Phase, y0, mu, tau, row: int, fast=False):
+def reading_in_phase(p, va, tl, tc, limit, ph: Phase, y0, mu, tau, row: int, fast=False,
+                     drop=None):
     """Reading of row ``row`` (0 the current, 1 the speed) ``tau`` after the start of
-    phase ``ph`` (:class:`~.limited.Phase`), where it was ``y0`` (broadcasts)."""
+    phase ``ph`` (:class:`~.limited.Phase`), where it was ``y0`` (broadcasts); ``drop``
+    (V), when given, opposes the current."""
+    va = phase_voltage(va, drop, ph)
     ss = motor.steady_state(p.Ra, p.K, p.B, va, tl + ph.d * tc)
     moving = _lagged_moving(p, ss, (ph.ia - ss[0], ph.w - ss[1]), y0, mu, tau, row, fast)
     if row == 0:
@@ -100,7 +103,8 @@ def _phase(phases: Phase, k):
     return jax.tree_util.tree_map(lambda a: a[k], phases)
 
 
-def phase_starts(p, va, tl, tc, limit, phases: Phase, y0, mu, row: int, fast=False):
+def phase_starts(p, va, tl, tc, limit, phases: Phase, y0, mu, row: int, fast=False,
+                 drop=None):
     """The reading at the start of each of a segment's phases (leading axis the phases),
     from ``y0`` at the segment's start; an unused phase (``t0`` infinite) repeats the
     last used one's."""
@@ -109,13 +113,13 @@ def phase_starts(p, va, tl, tc, limit, phases: Phase, y0, mu, row: int, fast=Fal
         prev, q = _phase(phases, k - 1), _phase(phases, k)
         ended = jnp.isfinite(q.t0)
         dur = jnp.where(ended, q.t0 - prev.t0, 0.0)
-        y = reading_in_phase(p, va, tl, tc, limit, prev, ys[-1], mu, dur, row, fast)
+        y = reading_in_phase(p, va, tl, tc, limit, prev, ys[-1], mu, dur, row, fast, drop)
         ys.append(jnp.where(ended, y, ys[-1]))
     return jnp.stack(ys)
 
 
 def reading_in_segment(p, va, tl, tc, limit, phases: Phase, starts, mu, tau, row: int,
-                       fast=False):
+                       fast=False, drop=None):
     """Reading ``tau`` after the segment's start (broadcasts over samples), from its
     phases and the readings at their starts (:func:`phase_starts`)."""
     ph, y = _phase(phases, 0), starts[0]
@@ -124,7 +128,7 @@ def reading_in_segment(p, va, tl, tc, limit, phases: Phase, starts, mu, tau, row
         on = tau >= q.t0
         ph = jax.tree_util.tree_map(lambda a, b, on=on: jnp.where(on, b, a), ph, q)
         y = jnp.where(on, starts[k], y)
-    return reading_in_phase(p, va, tl, tc, limit, ph, y, mu, tau - ph.t0, row, fast)
+    return reading_in_phase(p, va, tl, tc, limit, ph, y, mu, tau - ph.t0, row, fast, drop)
 
 
 def coast_down_reading(B, J, w0, t, tc, mu):

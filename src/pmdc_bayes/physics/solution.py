@@ -99,7 +99,8 @@ def initial_state(p: Params, exp: Experiment, coulomb: bool):
 
 
 def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
-                    fast: bool = False, limit=None, with_angle: bool = False, lags=None):
+                    fast: bool = False, limit=None, with_angle: bool = False, lags=None,
+                    drop=None):
     """Exact ``(ia, ω)`` in the experiment's padded ``(C, L)`` sample layout, and with
     ``with_angle`` the angle turned since each trace's start (rad), exact too
     (:mod:`.angle`).
@@ -110,11 +111,15 @@ def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
     ``lags``, when given, is a pair of time constants (s) of first-order sensors of the
     current and the speed, None for one read without a lag: that signal is then
     returned as its sensor reads it (:mod:`.sensor`), settled at each trace's start.
+    ``drop`` (V), when given, is a voltage drop at the brushes and driver, which opposes
+    the current (the regime-switching solution of :mod:`.limited`).
     """
     lags = (None, None) if lags is None else tuple(lags)
     mus = tuple(None if tau is None else sensor.pole(tau) for tau in lags)
+    if drop is not None and limit is None:
+        limit = limited.NO_LIMIT
     if limit is not None:
-        out = _simulate_limited(p, exp, coulomb, fast, limit, with_angle, mus)
+        out = _simulate_limited(p, exp, coulomb, fast, limit, with_angle, mus, drop)
     else:
         out = _simulate_free(p, exp, coulomb, fast, with_angle, mus)
     if not with_angle:
@@ -136,7 +141,7 @@ def _drags(p: Params, exp: Experiment, tc0):
     return b_x, tc_x, seen
 
 
-def _pass(start, advance, seen, limit, fast: bool, mus):
+def _pass(start, advance, seen, limit, fast: bool, mus, drop=None):
     """The step of the pass over the segments: ``start(ps, va, tl, mode, x0)`` the state
     a trace starts from; ``advance(ps, x, va, tl, length)`` a segment's per-sample
     record, its regimes (:class:`~.limited.Phase` records), its end state and its whole
@@ -157,10 +162,11 @@ def _pass(start, advance, seen, limit, fast: bool, mus):
                 starts.append(None), y_end.append(None)
                 continue
             y0 = jnp.where(first, x[row], y[row])
-            st = sensor.phase_starts(ps, va, tl, ps.Tc, limit, phases, y0, mu, row, fast)
+            st = sensor.phase_starts(ps, va, tl, ps.Tc, limit, phases, y0, mu, row, fast,
+                                     drop)
             starts.append(st)
             y_end.append(sensor.reading_in_segment(ps, va, tl, ps.Tc, limit, phases, st, mu,
-                                                   length, row, fast))
+                                                   length, row, fast, drop))
         return (x_end, tuple(y_end)), (record, total, tuple(starts))
 
     return step
@@ -174,16 +180,16 @@ def _scan(exp: Experiment, step, x0, mus, b_x, tc_x):
     return out
 
 
-def _readings(exp, p_chunk, va, tl, limit, phases, starts, mus, ia, w, fast):
+def _readings(exp, p_chunk, va, tl, limit, phases, starts, mus, ia, w, fast, drop=None):
     """``(ia, ω)`` at the samples, each through its sensor's lag where it has one."""
-    c = exp.chunk_seg
+    c = exp.sample_segments
     out = [ia, w]
     for row, mu in enumerate(mus):
         if mu is None:
             continue
-        st = starts[row][c].T[:, :, None]
+        st = jnp.moveaxis(starts[row][c], -1, 0)
         out[row] = sensor.reading_in_segment(p_chunk, va, tl, p_chunk.Tc, limit, phases, st,
-                                             mu, exp.tau, row, fast)
+                                             mu, exp.tau, row, fast, drop)
     return out
 
 
@@ -206,10 +212,10 @@ def _simulate_free(p: Params, exp: Experiment, coulomb: bool, fast: bool, angle:
                exp.seg_x0[0])
     segs, totals, starts = _scan(exp, _pass(start, advance, seen, 0.0, fast, mus), x0, mus,
                                  b_x, tc_x)
-    c = exp.chunk_seg
-    per_chunk = jax.tree_util.tree_map(lambda a: a[c][:, None], segs)
-    va, tl = exp.seg_va[c][:, None], exp.seg_tl[c][:, None]
-    pc = seen(b_x[c][:, None], tc_x[c][:, None])
+    c = exp.sample_segments
+    per_chunk = jax.tree_util.tree_map(lambda a: a[c], segs)
+    va, tl = exp.seg_va[c], exp.seg_tl[c]
+    pc = seen(b_x[c], tc_x[c])
     ia, w = free.state_in_segment(pc, per_chunk, va, exp.tau, coulomb, fast)
     ia_r, w_r = _readings(exp, pc, va, tl, 0.0, free.phases(per_chunk, coulomb), starts, mus,
                           ia, w, fast)
@@ -220,35 +226,39 @@ def _simulate_free(p: Params, exp: Experiment, coulomb: bool, fast: bool, angle:
 
 
 def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, limit,
-                      angle: bool, mus):
-    """:func:`_simulate_free` with a current-limited driver: each segment split into
-    its regimes by :func:`.limited.segment_phases`."""
+                      angle: bool, mus, drop):
+    """:func:`_simulate_free` with a current-limited driver or a voltage drop: each
+    segment split into its regimes by :func:`.limited.segment_phases`."""
     b_x, tc_x, seen = _drags(p, exp, p.Tc if coulomb else 0.0)
 
     def start(ps, va, tl, mode, xg):
-        ia, w = _initial_for(ps, va, tl, mode, xg, coulomb)
-        return limited.clamped_steady(ps, va, tl, ps.Tc, limit, ia, w)
+        v = va if drop is None else motor.terminal_voltage(va, drop)
+        ia, w = _initial_for(ps, v, tl, mode, xg, coulomb)
+        return limited.clamped_steady(ps, v, tl, ps.Tc, limit, ia, w)
 
     def advance(ps, x, va, tl, length):
-        phases = limited.segment_phases(ps, x, va, tl, ps.Tc, limit, length, coulomb, fast)
-        x_end = limited.state_in_segment(ps, phases, va, tl, ps.Tc, limit, length, fast)
-        total = limited.angle_in_segment(ps, phases, va, tl, ps.Tc, limit, length, *x_end)
+        phases = limited.segment_phases(ps, x, va, tl, ps.Tc, limit, length, coulomb, fast,
+                                        drop)
+        x_end = limited.state_in_segment(ps, phases, va, tl, ps.Tc, limit, length, fast, drop)
+        total = limited.angle_in_segment(ps, phases, va, tl, ps.Tc, limit, length, *x_end,
+                                         drop=drop)
         return phases, phases, x_end, total
 
     x0 = start(seen(b_x[0], tc_x[0]), exp.seg_va[0], exp.seg_tl[0], exp.seg_mode[0],
                exp.seg_x0[0])
-    phases, totals, starts = _scan(exp, _pass(start, advance, seen, limit, fast, mus), x0,
-                                   mus, b_x, tc_x)
-    # (segments, PHASES) → (PHASES, chunks, 1): each chunk's segment's phases.
-    c = exp.chunk_seg
-    per_chunk = jax.tree_util.tree_map(lambda a: a[c].T[:, :, None], phases)
-    pc = seen(b_x[c][:, None], tc_x[c][:, None])
-    va, tl = exp.seg_va[c][:, None], exp.seg_tl[c][:, None]
-    ia, w = limited.state_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, fast)
-    ia_r, w_r = _readings(exp, pc, va, tl, limit, per_chunk, starts, mus, ia, w, fast)
+    phases, totals, starts = _scan(exp, _pass(start, advance, seen, limit, fast, mus, drop),
+                                   x0, mus, b_x, tc_x)
+    # (segments, PHASES) → (PHASES, chunks, 1 or L): each sample's segment's phases.
+    c = exp.sample_segments
+    per_chunk = jax.tree_util.tree_map(lambda a: jnp.moveaxis(a[c], -1, 0), phases)
+    pc = seen(b_x[c], tc_x[c])
+    va, tl = exp.seg_va[c], exp.seg_tl[c]
+    ia, w = limited.state_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, fast, drop)
+    ia_r, w_r = _readings(exp, pc, va, tl, limit, per_chunk, starts, mus, ia, w, fast, drop)
     if not angle:
         return ia_r, w_r
-    within = limited.angle_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, ia, w)
+    within = limited.angle_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, ia, w,
+                                      drop)
     return ia_r, w_r, totals, within, per_chunk.w[0]
 
 

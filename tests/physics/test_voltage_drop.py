@@ -1,0 +1,69 @@
+"""A voltage drop that opposes the current (brushes, driver) in the exact solution,
+against the independent bench integrator (SciPy LSODA, the drop's sign smoothed over a
+band of 1e-7 A): braking at 0 V until the back-emf falls below the drop, then coasting
+with no current, a reversal, with and without Coulomb friction and a current limit;
+and the derivatives against finite differences."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from pmdc_bayes._x64 import x64
+from pmdc_bayes.physics.solution import Params, make_experiment, simulate_padded
+from pmdc_bayes.simulate.bench import BenchMotor, integrate
+
+MOTOR = dict(Ra=2.0, La=2e-3, K=0.05, B=2e-5, J=2e-5)
+T = np.arange(0.0, 0.6, 5e-4)
+# 12 V, braked at 0 V, 6 V, then reversed to −3 V
+VT, VV = np.array([0.0, 0.01, 0.15, 0.3, 0.45]), np.array([0.0, 12.0, 0.0, 6.0, -3.0])
+
+
+@x64
+def _exact(tc, limit, drop, lags=None):
+    exp = make_experiment(T, VT, VV)
+    ia, w = simulate_padded(Params(**MOTOR, Tc=tc), exp, coulomb=tc > 0, limit=limit,
+                            drop=drop, lags=lags)
+    return np.asarray(exp.unpad(ia)), np.asarray(exp.unpad(w))
+
+
+@pytest.mark.parametrize(("tc", "limit", "drop"),
+                         [(0.0, None, 1.5), (1e-3, None, 1.5), (1e-3, 2.0, 1.5), (0.0, 2.0, 0.8)])
+def test_the_drop_follows_the_current_through_braking_coasting_and_reversal(tc, limit, drop):
+    bench = BenchMotor(**MOTOR, Tc=tc, brush_drop=drop, current_limit=limit)
+    ends = np.append(VT[1:], T[-1])
+    segments = list(zip(VT, ends, VV, np.zeros(VT.size), strict=True))
+    ref = integrate(bench, "t", T, segments, np.zeros(5), w_eps=1e-4, i_eps=1e-7,
+                    max_step=5e-4)
+    ia, w = _exact(tc, limit, drop)
+    assert np.abs(ia - ref[0]).max() < 1e-5
+    assert np.abs(w - ref[1]).max() < 1e-6 * np.abs(ref[1]).max()
+    # braked at 0 V: the current flows, stops once K·ω falls below the drop, and stays
+    # at zero while the rotor coasts on
+    braking = (T > 0.15) & (T < 0.3)
+    assert ia[braking].min() < -1.0
+    coasting = braking & (MOTOR["K"] * np.abs(w) < drop - 0.05)
+    assert np.all(ia[coasting] == 0.0) and np.all(w[coasting] > 0.0)
+    if limit is None:  # unlimited, the braking ends within the segment
+        assert coasting.sum() > 20
+
+
+def test_the_derivatives_through_the_zero_crossings_match_finite_differences():
+    exp = make_experiment(T, VT, VV)
+
+    def loss(q):
+        ia, w = simulate_padded(Params(*q[:5], Tc=1e-3), exp, coulomb=True, limit=2.0,
+                                drop=q[5], lags=(1e-4, 2e-3))
+        return jnp.sum(ia**2) + 1e-4 * jnp.sum(w**2)
+
+    q = jnp.array([*MOTOR.values(), 1.5])
+    grad = np.asarray(x64(jax.grad(loss))(q))
+    eps = 1e-6
+    for k in range(q.size):
+        fd = (x64(loss)(q.at[k].multiply(1 + eps)) - x64(loss)(q.at[k].multiply(1 - eps)))
+        assert grad[k] == pytest.approx(float(fd) / (2 * eps * float(q[k])), rel=1e-5)
+
+
+def test_without_a_drop_the_solution_is_unchanged():
+    for tc, limit in ((0.0, None), (1e-3, 2.0)):
+        np.testing.assert_allclose(_exact(tc, limit, 0.0), _exact(tc, limit, None), atol=1e-9)
