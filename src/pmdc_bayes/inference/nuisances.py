@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.session import Session
-from ..physics.limited import NO_LIMIT
+from ..physics.regimes import NO_LIMIT
 from .noise import noise_scale
 from .params import ParamSpec, Prior
 

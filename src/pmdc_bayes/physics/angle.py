@@ -19,9 +19,11 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from . import motor
 from .experiment import Experiment
+from .regimes import CLAMPED, MOVING, Phase, phase_voltage
 
-__all__ = ["assemble_angle", "since_first_sample"]
+__all__ = ["assemble_angle", "since_first_sample", "phase_angle", "angle_in_segment"]
 
 
 def assemble_angle(exp: Experiment, totals, within, w_start):
@@ -53,3 +55,38 @@ def since_first_sample(exp: Experiment, angle, start):
     a = exp.unpad(angle)
     first = jax.lax.cummax(jnp.where(start, jnp.arange(a.shape[0]), 0))
     return a - a[first]
+
+
+def phase_angle(p, va, tl, tc, limit, ph: Phase, tau, ia, w, drop=None):
+    """Angle turned in phase ``ph`` from its start to ``tau`` after it, where the state
+    is ``(ia, w)`` (broadcasts): none held at rest; a moving phase's from both
+    equations (:func:`~.motor.angle_increment`); a clamped one's from the mechanical
+    equation alone, ``B·∫ω = (±K·I − TL − d·Tc)·τ − J·Δω``."""
+    load = (tl + ph.d * tc) * tau
+    v = phase_voltage(va, drop, ph)
+    moving = motor.angle_increment(p.Ra, p.La, p.K, p.B, p.J, v * tau, load, ia - ph.ia,
+                                   w - ph.w)
+    clamped = (p.K * ph.s * limit * tau - load - p.J * (w - ph.w)) / p.B
+    return jnp.where(ph.mode == MOVING, moving,
+                     jnp.where((ph.mode == CLAMPED) & (ph.d != 0), clamped, 0.0))
+
+
+def angle_in_segment(p, phases: Phase, va, tl, tc, limit, tau, ia, w, drop=None):
+    """Angle turned from the segment's start to ``tau`` after it, where the state is
+    ``(ia, w)``: the whole of each phase that ended before ``tau`` (from the next
+    phase's starting state) and the part of the one ``tau`` lies in; exact, and
+    continuous as the phases' times move with the parameters."""
+    ph = jax.tree_util.tree_map(lambda a: a[0], phases)
+    done = jnp.zeros_like(ph.t0)
+    before = done
+    for k in range(1, phases.t0.shape[0]):
+        q = jax.tree_util.tree_map(lambda a, k=k: a[k], phases)
+        prev = jax.tree_util.tree_map(lambda a, k=k: a[k - 1], phases)
+        ended = jnp.isfinite(q.t0)
+        dur = jnp.where(ended, q.t0 - prev.t0, 0.0)
+        done = done + jnp.where(
+            ended, phase_angle(p, va, tl, tc, limit, prev, dur, q.ia, q.w, drop), 0.0)
+        on = tau >= q.t0
+        ph = jax.tree_util.tree_map(lambda a, b, on=on: jnp.where(on, b, a), ph, q)
+        before = jnp.where(on, done, before)
+    return before + phase_angle(p, va, tl, tc, limit, ph, tau - ph.t0, ia, w, drop)

@@ -19,8 +19,8 @@ import jax
 import jax.numpy as jnp
 
 from . import motor
-from .limited import MOVING, STUCK, Phase
 from .propagator import apply_alpha_beta, coefficients, coefficients_real
+from .regimes import MOVING, STUCK, Phase
 
 __all__ = ["Segment", "moving", "segment_info", "state_in_segment", "angle_in_segment",
            "phases"]

@@ -5,13 +5,8 @@ commanded voltage would push ``|ia|`` past ``I``: the current is then held at ``
 (``dia/dt = 0``, the terminals at ``Ra·ia + K·ω``) and the speed follows the first-order
 ``J·dω/dt = ±K·I − TL − Tc·sign(ω) − B·ω`` until the back-emf has risen so far that the
 commanded voltage no longer drives the current past the limit.  Within a constant
-segment the motor is therefore in one of three regimes, each solved in closed form:
-
-* ``STUCK`` — at rest held by Coulomb friction, the current first order in La/Ra;
-* ``MOVING`` — the two-state linear model (:mod:`.propagator`), friction opposing
-  the motion;
-* ``CLAMPED`` — the current at ``±I``, the speed first order in J/B (or held at rest
-  when the clamped torque cannot overcome the friction).
+segment the motor is therefore in one of three regimes (held at rest, moving, clamped),
+each solved in closed form (:mod:`.regimes`).
 
 A voltage drop at the brushes and driver opposes the current: ``Va − Vdrop·sign(ia)``
 drives a conducting armature, and while ``|Va − K·ω| ≤ Vdrop`` no current flows at all.
@@ -31,50 +26,31 @@ followed.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import jax
 import jax.numpy as jnp
 
 from . import motor
-from .propagator import apply_alpha_beta, coefficients, coefficients_real
+from .regimes import (
+    CLAMPED,
+    MOVING,
+    STUCK,
+    Phase,
+    clamped_rate,
+    held_direction,
+    moving,
+    phase_voltage,
+    select,
+    sign,
+    state_at,
+)
 
-__all__ = ["PHASES", "STUCK", "MOVING", "CLAMPED", "NO_LIMIT", "Phase", "segment_phases",
-           "state_at", "state_in_segment", "phase_angle", "angle_in_segment",
-           "clamped_steady", "phase_voltage"]
+__all__ = ["PHASES", "segment_phases", "state_in_segment"]
 
-STUCK, MOVING, CLAMPED = 0, 1, 2
 PHASES = 6  # regimes followed per constant segment (e.g. stuck, moving, clamped, moving)
 _GRID = 48  # geometric grid that brackets a moving phase's first event
 _GRID_SPAN = 1e-9  # its first point, as a share of the remaining segment
 _ROOT_STEPS = 12  # safeguarded Newton steps that locate it in its bracket
 _TOL = 1e-12  # relative margin that keeps a phase from re-entering the one it left
-NO_LIMIT = 1e200  # A: a limit never reached (finite, so that no tangent meets infinity)
-
-
-class Phase(NamedTuple):
-    """One regime of a segment: its start ``t0`` after the segment's start (``inf``
-    when unused), ``mode``, the direction ``d`` of motion (±1, 0 held at rest), the
-    clamp's sign ``s`` (0 with ``mode`` CLAMPED: no current flows), the state
-    ``(ia, w)`` at its start and the sign ``c`` of its current, which a voltage drop
-    opposes (0 when none flows)."""
-
-    t0: jax.Array
-    mode: jax.Array
-    d: jax.Array
-    s: jax.Array
-    ia: jax.Array
-    w: jax.Array
-    c: jax.Array
-
-
-def phase_voltage(va, drop, ph: Phase):
-    """The voltage that drives the armature in phase ``ph``: ``va − c·drop``."""
-    return va if drop is None else va - ph.c * drop
-
-
-def _sign(x):
-    return jnp.where(x >= 0, 1.0, -1.0)
 
 
 def _safe_log1p_neg(q, ok):
@@ -82,56 +58,24 @@ def _safe_log1p_neg(q, ok):
     return jnp.where(ok, jnp.log1p(-jnp.where(ok, q, 0.0)), 0.0)
 
 
-def _moving(p, va, tl, tc, ph, tau, fast):
-    ss_i, ss_w = motor.steady_state(p.Ra, p.K, p.B, va, tl + ph.d * tc)
-    alpha, beta = (coefficients_real if fast else coefficients)(p, tau)
-    di, dw = apply_alpha_beta(p, alpha, beta, (ph.ia - ss_i, ph.w - ss_w))
-    return ss_i + di, ss_w + dw
-
-
-def _clamped_rate(p, tl, tc, limit, ph):
-    """The net torque ``a`` at the clamped phase's start (``J·dω/dt``), so that
-    ``ω(τ) = w + a·(1 − exp(−B·τ/J))/B``; 0 when held at rest."""
-    a = p.K * ph.s * limit - tl - ph.d * tc - p.B * ph.w
-    return jnp.where(ph.d == 0, 0.0, a)
-
-
-def state_at(p, va, tl, tc, limit, ph: Phase, tau, fast=False, drop=None):
-    """``(ia, ω)`` at ``tau`` after the phase's start, in its regime (broadcasts)."""
-    v = phase_voltage(va, drop, ph)
-    i_s = motor.stuck_current(p.Ra, p.La, ph.ia, v, tau)
-    i_m, w_m = _moving(p, v, tl, tc, ph, tau, fast)
-    a = _clamped_rate(p, tl, tc, limit, ph)
-    w_c = ph.w + a * -jnp.expm1(-p.B * tau / p.J) / p.B
-    ia = jnp.where(ph.mode == STUCK, i_s, jnp.where(ph.mode == MOVING, i_m, ph.s * limit))
-    w = jnp.where(ph.mode == STUCK, 0.0, jnp.where(ph.mode == MOVING, w_m, w_c))
-    return ia, w
-
-
-def _held_direction(p, tl, tc, s, limit):
-    """Direction a clamped rotor at rest takes: that of its torque, 0 if friction holds."""
-    net = p.K * s * limit - tl
-    return jnp.where(jnp.abs(net) > tc, _sign(net), 0.0)
-
-
 def _conducting(p, va, w, drop):
     """The sign of the current that starts to flow from zero at speed ``w``: that of
     ``va − K·w`` where it exceeds the drop, else 0 (none flows)."""
     drive = va - p.K * w
-    return jnp.where(jnp.abs(drive) > drop, _sign(drive), 0.0)
+    return jnp.where(jnp.abs(drive) > drop, sign(drive), 0.0)
 
 
 def _classify(p, va, tl, tc, limit, ia, w, coulomb, drop):
     """The regime of state ``(ia, w)`` at a segment's start under the segment's inputs."""
-    s = _sign(ia)
+    s = sign(ia)
     c = s if drop is None else jnp.where(ia != 0, s, _conducting(p, va, w, drop))
     v = va if drop is None else va - c * drop
     pushes = s * (v - p.Ra * ia - p.K * w) > 0
     clamped = (jnp.abs(ia) >= limit * (1.0 - _TOL)) & pushes
     held = clamped | (c == 0)  # at the limit, or no current
     s_held = jnp.where(clamped, s, 0.0)
-    d_move = jnp.where(w == 0, _sign(p.K * ia - tl), _sign(w))
-    d_clamp = jnp.where(w == 0, _held_direction(p, tl, tc, s_held, limit), _sign(w))
+    d_move = jnp.where(w == 0, sign(p.K * ia - tl), sign(w))
+    d_clamp = jnp.where(w == 0, held_direction(p, tl, tc, s_held, limit), sign(w))
     stuck = coulomb & (w == 0)
     mode = jnp.where(held, CLAMPED, jnp.where(stuck, STUCK, MOVING))
     d = jnp.where(held, d_clamp, d_move)
@@ -145,9 +89,9 @@ def _after_zero(p, va, tl, tc, limit, ph, w, drop):
     none flows (CLAMPED at zero current)."""
     c = jnp.where(-ph.c * (va - p.K * w) > drop, -ph.c, 0.0)
     rest = w == 0
-    d_open = jnp.where(rest, _held_direction(p, tl, tc, 0.0, limit), _sign(w))
+    d_open = jnp.where(rest, held_direction(p, tl, tc, 0.0, limit), sign(w))
     mode = jnp.where(c == 0, CLAMPED, jnp.where(rest & (ph.mode == STUCK), STUCK, MOVING))
-    d = jnp.where(c == 0, d_open, jnp.where(rest, 0.0, _sign(w)))
+    d = jnp.where(c == 0, d_open, jnp.where(rest, 0.0, sign(w)))
     zero = jnp.zeros_like(ph.ia)
     return Phase(zero, mode, d, zero, zero, w + zero, c)
 
@@ -156,7 +100,7 @@ def _after_stuck(p, va, tl, tc, limit, ph, drop):
     """Duration of a stuck phase and the phase after it (breakaway, clamp at rest, or
     the current's zero crossing)."""
     i_inf = phase_voltage(va, drop, ph) / p.Ra
-    db = _sign(p.K * i_inf - tl)
+    db = sign(p.K * i_inf - tl)
     i_star = (tl + db * tc) / p.K
     already = db * (p.K * ph.ia - tl) > tc
     possible = db * (p.K * i_inf - tl) > tc
@@ -168,7 +112,7 @@ def _after_stuck(p, va, tl, tc, limit, ph, drop):
         return jnp.where(good, -rate * _safe_log1p_neg(q, good), jnp.inf)
 
     t_b = jnp.where(already, 0.0, time_to(i_star, possible & ~already))
-    sc = _sign(i_inf)
+    sc = sign(i_inf)
     t_c = time_to(sc * limit, jnp.abs(i_inf) > limit)
     breaks = t_b <= t_c
     nxt = Phase(jnp.zeros_like(ph.ia), jnp.where(breaks, MOVING, CLAMPED),
@@ -188,7 +132,7 @@ def _after_stuck(p, va, tl, tc, limit, ph, drop):
 def _after_clamped(p, va, tl, tc, limit, ph, coulomb, drop):
     """Duration of a clamped phase and the phase after it (released or stopped); with no
     current (``s = 0``), released when the back-emf lets a current flow."""
-    a = _clamped_rate(p, tl, tc, limit, ph)
+    a = clamped_rate(p, tl, tc, limit, ph)
     w_inf = ph.w + a / p.B
     span = w_inf - ph.w
     v = phase_voltage(va, drop, ph)
@@ -213,7 +157,7 @@ def _after_clamped(p, va, tl, tc, limit, ph, coulomb, drop):
     exits = t_exit <= t_stop
     w_x = jnp.where(inside, w_exit, ph.w)
     at_rest = exits & (ph.d == 0)
-    d_rest = _held_direction(p, tl, tc, ph.s, limit)
+    d_rest = held_direction(p, tl, tc, ph.s, limit)
     mode = jnp.where(exits, jnp.where(at_rest & coulomb, STUCK, MOVING), CLAMPED)
     nxt = Phase(jnp.zeros_like(ph.ia), mode, jnp.where(exits, ph.d, d_rest),
                 jnp.where(exits, 0.0, ph.s), ph.s * limit,
@@ -222,7 +166,7 @@ def _after_clamped(p, va, tl, tc, limit, ph, coulomb, drop):
     return jnp.minimum(t_exit, t_stop), nxt
 
 
-def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop):
+def _aftermoving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop):
     """Duration of a moving phase and the phase after it (stopped, clamped, or the
     current through zero): the first grid point past an event brackets it, safeguarded
     Newton steps locate it, and two more Newton steps carry its dependence on the
@@ -243,7 +187,7 @@ def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop):
                 else -jnp.ones_like(ia)]
 
     def events(q, tau):
-        ia, w = _moving(q[0], v, tl, tc, q[1], tau, fast)
+        ia, w = moving(q[0], v, tl, tc, q[1], tau, fast)
         return jnp.stack([m > 0 for m in margins(q, ia, w)])
 
     hit = events(pc, grid)  # (3, G)
@@ -255,12 +199,12 @@ def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop):
     def excess(q, tau):
         """Each event's margin at its own time in ``tau`` (3,), and its rate of change."""
         pq, phq = q
-        ia, w = _moving(pq, v, tl, tc, phq, tau, fast)
+        ia, w = moving(pq, v, tl, tc, phq, tau, fast)
         di, dw = motor.derivatives(pq.Ra, pq.La, pq.K, pq.B, pq.J, ia, w, va=v, tl=tl,
                                    tc=phq.d * tc)
         m = margins(q, ia, w)
         h = jnp.stack([m[0][0], m[1][1], m[2][2]])
-        return h, jnp.stack([-phq.d * dw[0], _sign(ia[1]) * di[1], -phq.c * di[2]])
+        return h, jnp.stack([-phq.d * dw[0], sign(ia[1]) * di[1], -phq.c * di[2]])
 
     def safeguarded_newton(_, c):  # a Newton step inside the bracket, else bisection
         lo, hi, t = c
@@ -272,7 +216,7 @@ def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop):
 
     _, _, t = jax.lax.fori_loop(0, _ROOT_STEPS, safeguarded_newton, (lo, hi, 0.5 * (lo + hi)))
     t_root = jax.lax.stop_gradient(jnp.where(any_hit, t, 0.0))
-    s = _sign(_moving(pc[0], v, tl, tc, pc[1], t_root[1], fast)[0])
+    s = sign(moving(pc[0], v, tl, tc, pc[1], t_root[1], fast)[0])
     # Newton steps from the located times carry their dependence on the parameters
     # (value, rate) of each event's function: the speed, the current less the limit, the
     # current
@@ -282,7 +226,7 @@ def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop):
     for k, target in enumerate(targets):
         t_k = t_root[k]
         for _ in range(2):
-            i1, w1 = _moving(p, v, tl, tc, ph, t_k, fast)
+            i1, w1 = moving(p, v, tl, tc, ph, t_k, fast)
             di, dw = motor.derivatives(p.Ra, p.La, p.K, p.B, p.J, i1, w1, va=v, tl=tl,
                                        tc=ph.d * tc)
             f, rate = target(i1, w1, di, dw)
@@ -290,7 +234,7 @@ def _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop):
         times.append(jnp.where(any_hit[k], t_k, jnp.inf))
     t_stop, t_clamp, t_zero = times
     t_ev = jnp.minimum(jnp.minimum(t_stop, t_clamp), t_zero)
-    i_e, w_e = _moving(p, v, tl, tc, ph, jnp.where(jnp.isfinite(t_ev), t_ev, rem), fast)
+    i_e, w_e = moving(p, v, tl, tc, ph, jnp.where(jnp.isfinite(t_ev), t_ev, rem), fast)
     clamps = t_clamp < t_stop
     nxt = Phase(jnp.zeros_like(ph.ia), jnp.where(clamps, CLAMPED, STUCK),
                 jnp.where(clamps, ph.d, 0.0), jnp.where(clamps, s, 0.0),
@@ -314,7 +258,7 @@ def segment_phases(p, x, va, tl, tc, limit, length, coulomb: bool, fast: bool,
         rem = jnp.where(jnp.isfinite(rem), rem, 0.0)
         dur_s, nx_s = _after_stuck(p, va, tl, tc, limit, ph, drop)
         dur_c, nx_c = _after_clamped(p, va, tl, tc, limit, ph, coulomb, drop)
-        dur_m, nx_m = _after_moving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop)
+        dur_m, nx_m = _aftermoving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop)
         pick = [ph.mode == STUCK, ph.mode == CLAMPED]
         dur = jnp.where(pick[0], dur_s, jnp.where(pick[1], dur_c, dur_m))
         nxt = jax.tree_util.tree_map(
@@ -330,63 +274,10 @@ def segment_phases(p, x, va, tl, tc, limit, length, coulomb: bool, fast: bool,
     return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), first, rest)
 
 
-def _select(phases: Phase, tau) -> Phase:
-    """The phase each ``tau`` lies in."""
-    ph = jax.tree_util.tree_map(lambda a: a[0], phases)
-    for k in range(1, PHASES):
-        q = jax.tree_util.tree_map(lambda a, k=k: a[k], phases)
-        on = tau >= q.t0
-        ph = jax.tree_util.tree_map(lambda a, b, on=on: jnp.where(on, b, a), ph, q)
-    return ph
-
-
 def state_in_segment(p, phases: Phase, va, tl, tc, limit, tau, fast=False, drop=None):
     """``(ia, ω)`` at ``tau`` after the segment's start (broadcasts over samples), from
     the segment's phases (leading axis :data:`PHASES`, then the sample axes' shape)."""
-    ph = _select(phases, tau)
+    ph = select(phases, tau)
     return state_at(p, va, tl, tc, limit, ph, tau - ph.t0, fast, drop)
 
 
-def phase_angle(p, va, tl, tc, limit, ph: Phase, tau, ia, w, drop=None):
-    """Angle turned in phase ``ph`` from its start to ``tau`` after it, where the state
-    is ``(ia, w)`` (broadcasts): none held at rest; a moving phase's from both
-    equations (:func:`~.motor.angle_increment`); a clamped one's from the mechanical
-    equation alone, ``B·∫ω = (±K·I − TL − d·Tc)·τ − J·Δω``."""
-    load = (tl + ph.d * tc) * tau
-    v = phase_voltage(va, drop, ph)
-    moving = motor.angle_increment(p.Ra, p.La, p.K, p.B, p.J, v * tau, load, ia - ph.ia,
-                                   w - ph.w)
-    clamped = (p.K * ph.s * limit * tau - load - p.J * (w - ph.w)) / p.B
-    return jnp.where(ph.mode == MOVING, moving,
-                     jnp.where((ph.mode == CLAMPED) & (ph.d != 0), clamped, 0.0))
-
-
-def angle_in_segment(p, phases: Phase, va, tl, tc, limit, tau, ia, w, drop=None):
-    """Angle turned from the segment's start to ``tau`` after it, where the state is
-    ``(ia, w)``: the whole of each phase that ended before ``tau`` (from the next
-    phase's starting state) and the part of the one ``tau`` lies in; exact, and
-    continuous as the phases' times move with the parameters."""
-    ph = jax.tree_util.tree_map(lambda a: a[0], phases)
-    done = jnp.zeros_like(ph.t0)
-    before = done
-    for k in range(1, PHASES):
-        q = jax.tree_util.tree_map(lambda a, k=k: a[k], phases)
-        prev = jax.tree_util.tree_map(lambda a, k=k: a[k - 1], phases)
-        ended = jnp.isfinite(q.t0)
-        dur = jnp.where(ended, q.t0 - prev.t0, 0.0)
-        done = done + jnp.where(
-            ended, phase_angle(p, va, tl, tc, limit, prev, dur, q.ia, q.w, drop), 0.0)
-        on = tau >= q.t0
-        ph = jax.tree_util.tree_map(lambda a, b, on=on: jnp.where(on, b, a), ph, q)
-        before = jnp.where(on, done, before)
-    return before + phase_angle(p, va, tl, tc, limit, ph, tau - ph.t0, ia, w, drop)
-
-
-def clamped_steady(p, va, tl, tc, limit, ia, w):
-    """A steady state ``(ia, w)`` with the limit applied: a current beyond ``±limit`` is
-    held there, the speed from the torque balance (at rest if friction holds it)."""
-    s = _sign(ia)
-    over = jnp.abs(ia) > limit
-    net = p.K * s * limit - tl
-    w_c = jnp.where(jnp.abs(net) > tc, (net - _sign(net) * tc) / p.B, 0.0)
-    return jnp.where(over, s * limit, ia), jnp.where(over, w_c, w)

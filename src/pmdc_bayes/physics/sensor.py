@@ -25,8 +25,8 @@ import jax
 import jax.numpy as jnp
 
 from . import motor
-from .limited import MOVING, STUCK, Phase, phase_voltage
 from .propagator import apply_alpha_beta, coefficients, coefficients_real
+from .regimes import MOVING, STUCK, Phase, phase_voltage
 
 __all__ = ["MIN_LAG", "pole", "lagged_first_order", "reading_in_phase", "phase_starts",
            "reading_in_segment", "coast_down_reading"]

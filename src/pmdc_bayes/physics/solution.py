@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 
 from . import free, limited, motor, sensor
-from .angle import assemble_angle
+from .angle import angle_in_segment, assemble_angle
 from .experiment import (
     INITIAL_MODES,
     Experiment,
@@ -33,6 +33,7 @@ from .experiment import (
 )
 from .motor import state_space
 from .propagator import real_modes
+from .regimes import NO_LIMIT, clamped_steady
 
 __all__ = [
     "Params",
@@ -117,7 +118,7 @@ def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
     lags = (None, None) if lags is None else tuple(lags)
     mus = tuple(None if tau is None else sensor.pole(tau) for tau in lags)
     if drop is not None and limit is None:
-        limit = limited.NO_LIMIT
+        limit = NO_LIMIT
     if limit is not None:
         out = _simulate_limited(p, exp, coulomb, fast, limit, with_angle, mus, drop)
     else:
@@ -234,14 +235,13 @@ def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, lim
     def start(ps, va, tl, mode, xg):
         v = va if drop is None else motor.terminal_voltage(va, drop)
         ia, w = _initial_for(ps, v, tl, mode, xg, coulomb)
-        return limited.clamped_steady(ps, v, tl, ps.Tc, limit, ia, w)
+        return clamped_steady(ps, v, tl, ps.Tc, limit, ia, w)
 
     def advance(ps, x, va, tl, length):
         phases = limited.segment_phases(ps, x, va, tl, ps.Tc, limit, length, coulomb, fast,
                                         drop)
         x_end = limited.state_in_segment(ps, phases, va, tl, ps.Tc, limit, length, fast, drop)
-        total = limited.angle_in_segment(ps, phases, va, tl, ps.Tc, limit, length, *x_end,
-                                         drop=drop)
+        total = angle_in_segment(ps, phases, va, tl, ps.Tc, limit, length, *x_end, drop=drop)
         return phases, phases, x_end, total
 
     x0 = start(seen(b_x[0], tc_x[0]), exp.seg_va[0], exp.seg_tl[0], exp.seg_mode[0],
@@ -257,8 +257,7 @@ def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, lim
     ia_r, w_r = _readings(exp, pc, va, tl, limit, per_chunk, starts, mus, ia, w, fast, drop)
     if not angle:
         return ia_r, w_r
-    within = limited.angle_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, ia, w,
-                                      drop)
+    within = angle_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, ia, w, drop)
     return ia_r, w_r, totals, within, per_chunk.w[0]
 
 
