@@ -29,15 +29,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from ..io.session import Measurement, Schedule, Session, SteadyTable, Trace
 from ._encoder import EDGE_FINE, encoder_trace_parts
+from ._lsoda import integrate
 
 __all__ = ["BenchMotor", "StepSpec", "bench_session", "steady_point", "integrate"]
 
-_RTOL = 1e-8
-_LOOP = 1e-3  # time constant of the driver's current loop, in units of La/Ra
 
 
 @dataclass(frozen=True)
@@ -176,58 +174,6 @@ def steady_point(motor: BenchMotor, voltage: float, load: float = 0.0,
         net = m.K * ia - load
         w = 0.0 if abs(net) <= tc or b == 0 else (net - math.copysign(tc, net)) / b
     return w, ia
-
-
-def _rhs(m: BenchMotor, name: str, va: float, tl: float, w_eps: float, i_eps: float):
-    """Right-hand side for state ``(ia, ω, ω_sensor, θ_sensor, ia_sensor)`` of trace
-    ``name`` at constant ``va`` and load ``tl``."""
-    tc_extra, b_extra = m.extra_load.get(name, (0.0, 0.0))
-    tc, b = m.Tc + tc_extra, m.B + b_extra
-    lim, gain = m.current_limit, m.Ra / (m.La * _LOOP)  # near the limit, dia/dt = gain·Δi
-    lag, i_lag = m.sensor_lag, m.current_lag
-
-    def f(t, x):
-        ia, w, ws, _, ias = x
-        v = va - m.brush_drop * math.tanh(ia / i_eps) - m.source_resistance * ia
-        if lim is not None:  # the driver's current loop: it can only lower |voltage|
-            emf = m.Ra * ia + m.K * w
-            v = min(max(v, emf + m.La * gain * (-lim - ia)), emf + m.La * gain * (lim - ia))
-        dia = (v - m.Ra * ia - m.K * w) / m.La
-        drive = m.K * ia - tl
-        s = math.tanh(w / w_eps)
-        friction = tc * s + min(max(drive, -tc), tc) * (1.0 - s * s)  # slip, or stick
-        dw = (drive - b * w - friction) / m.J
-        dws = (w - ws) / lag if lag > 0 else dw
-        dias = (ia - ias) / i_lag if i_lag > 0 else dia
-        return [dia, dw, dws, ws, dias]
-
-    return f
-
-
-def integrate(m: BenchMotor, name: str, t: np.ndarray, segments, x0, w_eps: float,
-              i_eps: float, max_step: float) -> np.ndarray:
-    """States ``(ia, ω, ω_sensor, θ_sensor, ia_sensor)`` at the increasing times ``t``
-    (5 × n) of trace ``name``, from ``x0`` at ``segments[0]``'s start.
-
-    ``segments`` are ``(start, end, va, tl)`` with constant inputs, end to end; each is
-    integrated on its own, so the solver never steps across a discontinuity.
-    """
-    atol = 1e-6 * np.array([i_eps, w_eps, w_eps, w_eps * max_step, i_eps])
-    x0, out = np.asarray(x0, dtype=float), np.zeros((5, t.size))
-    out[:, t <= segments[0][0]] = x0[:, None]
-    for lo, hi, va, tl in segments:
-        if hi <= lo:
-            continue
-        sel = (t > lo) & (t <= hi)
-        t_eval = np.append(t[sel], hi) if not sel.any() or t[sel][-1] < hi else t[sel]
-        sol = solve_ivp(_rhs(m, name, float(va), float(tl), w_eps, i_eps), (lo, hi), x0,
-                        method="LSODA", t_eval=t_eval, rtol=_RTOL, atol=atol,
-                        max_step=max_step)
-        if not sol.success:
-            raise RuntimeError(f"trace {name!r}: integration failed: {sol.message}")
-        out[:, sel] = sol.y[:, :int(sel.sum())]
-        x0 = sol.y[:, -1]
-    return out
 
 
 def _integrate(m: BenchMotor, spec: StepSpec, t: np.ndarray, w_eps: float, i_eps: float):
