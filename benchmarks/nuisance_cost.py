@@ -81,9 +81,12 @@ def main(argv=None) -> int:
     for label, which, n, comp, per, rel in rows:
         lines.append(f"| {label} | {which} | {n} | {comp:.2f} | {1e3 * per:.3f} | "
                      f"{1 / per:,.0f} | x{rel:.2f} |")
-    lines += ["", "A dead time shifts each sample's time within its segment and a voltage drop "
-              "shifts the segment voltages: neither adds work per sample, so differences of a "
-              "few tens of per cent either way are timing noise on this shared machine.  A "
+    lines += ["", "A dead time moves each sample's time and finds the segment it lies in "
+              "(one search over the segments, then each sample evaluated from its own "
+              "segment's start rather than its chunk's): a gather per sample.  A voltage drop "
+              "opposes the current, so it takes the regime-switching solution below (the "
+              "current's zero crossing one more event).  Differences of a few tens of per cent "
+              "either way are timing noise on this shared machine.  A "
               "sensor lag is one more state of the exact solution: its reading is carried "
               "through each segment's regimes in the pass over the segments and evaluated in "
               "closed form at each sample (a 2×2 resolvent in a moving phase), real work per "

@@ -28,6 +28,7 @@ from ..physics.motor import (
 from .checks import check_physical, check_trace, step_of, turns
 
 __all__ = [
+    "only_assumed",
     "kb_from_chopper",
     "steady_rows_with_current",
     "b_from_steady",
@@ -131,6 +132,13 @@ def read_time_constant(t, y, *, t_step=None, tail_fraction=0.1) -> TimeConstantR
     return TimeConstantReading(t_cross - t_step, t_step, t_cross, initial, final, threshold, dt)
 
 
+def only_assumed(used: dict, name: str) -> bool:
+    """Whether the closed form's ``name`` was assumed rather than obtained (``used``:
+    how it got each value, as in :attr:`ClosedForm.used` and a summary's
+    ``closed_form.used``): an unmeasured La, not worth comparing with a fit."""
+    return str(used.get(name, "")).startswith("assumed")
+
+
 @dataclass(frozen=True)
 class ClosedForm:
     """The closed-form estimates (SI) and where each input came from.
@@ -157,8 +165,7 @@ class ClosedForm:
     def known(self) -> dict:
         """:meth:`params` without what the method only assumed (an unmeasured La): the
         values worth comparing with a fit."""
-        return {k: v for k, v in self.params().items()
-                if not self.used.get(k, "").startswith("assumed")}
+        return {k: v for k, v in self.params().items() if not only_assumed(self.used, k)}
 
     def tf22(self):
         return tf_normalised(self.Ra, self.La, self.K, self.B, self.J)

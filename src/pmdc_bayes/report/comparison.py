@@ -26,7 +26,7 @@ import numpy as np
 from .._format import off_by, row_format, value_sd
 from ..io.units import display_unit
 from ..paper.checks import turns
-from ..paper.closed_form import kb_from_chopper, steady_rows_with_current
+from ..paper.closed_form import kb_from_chopper, only_assumed, steady_rows_with_current
 from ..physics.motor import time_constant
 
 __all__ = ["compare_closed_form"]
@@ -189,7 +189,7 @@ def compare_closed_form(ctx) -> list[dict]:
     rows = []
     used = ctx.summary.get("closed_form", {}).get("used", {})
     for name in [n for n in ctx.names if n in ctx.values["closed_form"]
-                 and not str(used.get(n, "")).startswith("assumed")]:  # an unmeasured La
+                 and not only_assumed(used, n)]:
         cf = ctx.values["closed_form"][name]
         sd = ctx.sd(name)
         z = (cf - ref[name]) / sd if sd > 0 else float("nan")
