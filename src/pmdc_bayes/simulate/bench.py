@@ -18,7 +18,9 @@ the largest voltage of the session, blended with static friction so that a motor
 whose driving torque ``|K·ia − TL|`` is below the Coulomb torque stays exactly at rest;
 ``sign(ia)`` of the brush drop is ``tanh(ia/i_eps)`` with ``i_eps`` = 1e-4 × the stall
 current ``V/Ra`` (small against the no-load current, so the full drop acts in steady
-state).
+state; the step sessions here never brake a turning rotor at 0 V, where a current of
+about ``i_eps`` would flow below the drop's back-emf: a plan's ``[rig]``, which may,
+narrows the band to 1e-7 × the stall current).
 """
 
 from __future__ import annotations

@@ -181,7 +181,10 @@ def rig_trace(truth: dict, rig: RigSpec, spec) -> dict[str, np.ndarray]:
     segs = _segments(spec, rig.dead_time, end)
     v_ref = max(max(abs(v) for _, v in spec.voltage), 1e-9)
     w_eps = 1e-3 * m.K * v_ref / (m.Ra * m.B + m.K**2)
-    i_eps = 1e-4 * v_ref / m.Ra
+    # the drop's sign smoothed over a band far below any logged current: wider, the
+    # band lets a current flow where none can (a rotor braked at 0 V coasting below
+    # the drop's back-emf), whose torque would read as friction
+    i_eps = 1e-7 * v_ref / m.Ra
     if spec.initial == "rest":
         x0 = np.zeros(5)
     else:
