@@ -49,8 +49,15 @@ def test_a_delayed_experiment_reads_as_its_inputs_moved_later(kw):
     assert np.abs(delayed[1] - plain[1]).max() > 0.1 * np.abs(plain[1]).max()
 
 
-def test_a_negative_dead_time_leads_the_inputs():
-    delayed = _run([STEPS], np.array([-0.0042]))
-    moved = _run([(STEPS[0] - 0.0042, STEPS[1])], None)
+@pytest.mark.parametrize("kw", [dict(), dict(coulomb=True), dict(coulomb=True, drop=1.0)],
+                         ids=["viscous", "coulomb", "coulomb-drop"])
+def test_a_negative_dead_time_leads_the_inputs(kw):
+    """12 V, then 0 V from 0.15 s; the response leads by 50 ms, so the rotor's stop
+    (and, under a drop, the current's end) falls after the trace's last input, where it
+    is still located."""
+    lead = 0.05
+    schedule = (np.array([0.0, 0.06, 0.15]), np.array([0.0, 12.0, 0.0]))
+    delayed = _run([schedule], np.array([-lead]), **kw)
+    moved = _run([(schedule[0] - lead, schedule[1])], None, **kw)
     for got, want in zip(delayed, moved, strict=True):
         np.testing.assert_allclose(got, want, atol=1e-9 * np.abs(want).max())

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from pmdc_bayes._x64 import x64
 from pmdc_bayes.inference.nuisances import NO_LIMIT
 from pmdc_bayes.physics.angle import since_first_sample
 from pmdc_bayes.physics.solution import Params, make_experiment, simulate_padded
@@ -119,3 +120,22 @@ def test_the_angle_through_the_clamp_matches_a_fine_ode():
     travel = np.max(np.abs(ref))
     assert travel > 50.0
     assert np.max(np.abs(theta - ref)) < 1e-8 * travel
+
+
+@pytest.mark.parametrize("limit", [None, 1e200])
+def test_a_load_that_overcomes_the_friction_moves_a_rotor_at_rest_its_way(limit):
+    """At rest with no current, a load of −0.01 N·m (driving forward) beats Tc = 3 mN·m:
+    the rotor starts forward at once, although the voltage (−2 V) will pull it back;
+    against the same motion integrated by SciPy until it stops."""
+    ra, la, k, b, j, tc, tl, v = 2.0, 2e-3, 0.05, 2e-4, 2e-5, 3e-3, -0.01, -2.0
+    t = np.arange(0.0, 3.5e-4, 5e-5)
+    exp = make_experiment(t, [0.0], [v], [0.0], [tl])
+    _, w = x64(simulate_padded)(Params(ra, la, k, b, j, tc), exp, coulomb=True, limit=limit)
+    w = np.asarray(exp.unpad(w))
+
+    def forward(_, x):  # moving forward, friction −Tc
+        return [(v - ra * x[0] - k * x[1]) / la, (k * x[0] - b * x[1] - tl - tc) / j]
+
+    ref = solve_ivp(forward, (0.0, t[-1]), [0.0, 0.0], t_eval=t, rtol=1e-12, atol=1e-15).y[1]
+    assert np.all(ref[1:] > 0)  # (the reference still moves forward over these samples)
+    np.testing.assert_allclose(w, ref, atol=1e-6 * ref.max())

@@ -147,8 +147,8 @@ class SessionModel(RigEffects, Predictions):
     def steady_prediction(self, p: Params, v, tl, drop=0.0):
         """Steady ``(ω, ia)`` at voltages ``v`` and loads ``tl`` (equations (15)–(18)),
         with ``drop`` volts lost at the brushes and driver."""
-        i, w = motor.steady_state(p.Ra, p.K, p.B, motor.terminal_voltage(v, drop), tl,
-                                  p.Tc if self.coulomb else None)
+        i, w = motor.steady_with_drop(p.Ra, p.K, p.B, v, tl, p.Tc if self.coulomb else None,
+                                      drop)
         return w, i
 
     def tau_prediction(self, p: Params):

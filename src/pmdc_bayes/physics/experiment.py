@@ -86,7 +86,9 @@ class Experiment(NamedTuple):
         """The experiment with each trace's response ``delay[trace]`` (s) later than its
         inputs: each sample evaluated at its time less its trace's delay, in the segment
         that time lies in (exact: the inputs' breakpoints move), held at the trace's
-        starting state before its first segment."""
+        starting state before its first segment.  A response that leads (a negative
+        delay) runs past the trace's last input: its last segment is lengthened by as
+        much, so that events there (a stop, a zero crossing) are still located."""
         n = self.seg_clock.shape[0]
         idx = jnp.arange(n)
         # each segment's trace's first and last segment
@@ -98,8 +100,10 @@ class Experiment(NamedTuple):
         seg = jnp.searchsorted(self.seg_clock, t, side="right") - 1
         seg = jnp.clip(seg, first[c][:, None], last[c][:, None])
         shifted = t - self.seg_clock[seg]
+        lead = jnp.maximum(-delay, 0.0)[self.seg_trace]
         return self._replace(tau=jnp.maximum(shifted, 0.0), tau_pre=jnp.minimum(shifted, 0.0),
-                             sample_seg=seg)
+                             sample_seg=seg,
+                             seg_len=self.seg_len + jnp.where(ends, lead, 0.0))
 
     @property
     def voltage_reverses(self) -> bool:

@@ -67,12 +67,14 @@ def segment_info(p, x, va, tl, length, coulomb: bool, fast: bool) -> Segment:
         return Segment(ia0, zero, ia0, w0, ss_i, ss_w, zero + inf, zero, w0, zero)
     at_rest = w0 == 0.0
     drive = p.K * va / p.Ra - tl
-    direction = jnp.where(at_rest, jnp.where(drive >= 0, 1.0, -1.0),
+    now = p.K * ia0 - tl  # a torque past the friction already moves the rotor its way
+    already = jnp.abs(now) > p.Tc
+    toward = jnp.where(already, now, drive)
+    direction = jnp.where(at_rest, jnp.where(toward >= 0, 1.0, -1.0),
                           jnp.where(w0 >= 0, 1.0, -1.0))
     # Breakaway from rest: K·ia − TL reaches ±Tc while ia rises towards Va/Ra.
     i_star = (tl + direction * p.Tc) / p.K
     i_inf = va / p.Ra
-    already = direction * (p.K * ia0 - tl) > p.Tc
     possible = direction * drive > p.Tc
     breaks = possible & ~already
     ratio = jnp.where(breaks, (i_inf - i_star) / jnp.where(breaks, i_inf - ia0, 1.0), 1.0)

@@ -100,9 +100,10 @@ def _after_stuck(p, va, tl, tc, limit, ph, drop):
     """Duration of a stuck phase and the phase after it (breakaway, clamp at rest, or
     the current's zero crossing)."""
     i_inf = phase_voltage(va, drop, ph) / p.Ra
-    db = sign(p.K * i_inf - tl)
+    now = p.K * ph.ia - tl  # a torque past the friction already moves the rotor its way
+    already = jnp.abs(now) > tc
+    db = jnp.where(already, sign(now), sign(p.K * i_inf - tl))
     i_star = (tl + db * tc) / p.K
-    already = db * (p.K * ph.ia - tl) > tc
     possible = db * (p.K * i_inf - tl) > tc
     rate = p.La / p.Ra
 
@@ -147,9 +148,13 @@ def _after_clamped(p, va, tl, tc, limit, ph, coulomb, drop):
     t_exit = jnp.where(inside, time_to(w_exit, True), 0.0)
     c_exit = ph.s
     if drop is not None:  # no current: until |va − K·ω| reaches the drop, either way
-        t_up, t_down = time_to((va - drop) / p.K, True), time_to((va + drop) / p.K, True)
+        drive = va - p.K * ph.w  # (past the drop already: at once)
+        t_up = jnp.where(drive > drop, 0.0, time_to((va - drop) / p.K, True))
+        t_down = jnp.where(drive < -drop, 0.0, time_to((va + drop) / p.K, True))
         open_ = ph.s == 0
-        w_exit = jnp.where(open_, jnp.where(t_up <= t_down, va - drop, va + drop) / p.K, w_exit)
+        past = (drive > drop) | (drive < -drop)
+        w_open = jnp.where(past, ph.w, jnp.where(t_up <= t_down, va - drop, va + drop) / p.K)
+        w_exit = jnp.where(open_, w_open, w_exit)
         c_exit = jnp.where(open_, jnp.where(t_up <= t_down, 1.0, -1.0), ph.s)
         inside = inside | open_
         t_exit = jnp.where(open_, jnp.minimum(t_up, t_down), t_exit)
@@ -179,12 +184,13 @@ def _aftermoving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop):
 
     def margins(q, ia, w):
         """Each event's margin past its threshold (> 0: happened): stop, clamp, zero."""
-        _, phq = q
+        pq, phq = q
         scale = _TOL * (jnp.abs(phq.w) + 1e-300)
+        # a current that starts from zero (dia/dt = 0 there) must not cross it on rounding
+        current = _TOL * (jnp.abs(phq.ia) + jnp.abs(v) / pq.Ra + 1e-300)
         return [-phq.d * w - scale if coulomb else -jnp.ones_like(w),
                 jnp.abs(ia) - limit * (1.0 + _TOL),
-                -phq.c * ia - _TOL * (jnp.abs(phq.ia) + 1e-300) if rectifies
-                else -jnp.ones_like(ia)]
+                -phq.c * ia - current if rectifies else -jnp.ones_like(ia)]
 
     def events(q, tau):
         ia, w = moving(q[0], v, tl, tc, q[1], tau, fast)

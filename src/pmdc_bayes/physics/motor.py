@@ -28,6 +28,7 @@ __all__ = [
     "OUTPUT",
     "derivatives",
     "terminal_voltage",
+    "steady_with_drop",
     "angle_increment",
     "steady_state",
     "time_constant",
@@ -113,6 +114,23 @@ def steady_state(Ra, K, B, va, tl=0.0, tc=None):
     ia = xp.where(stuck, va / Ra, (B * va + K * t_eff) / den)
     w = xp.where(stuck, 0.0, (K * va - Ra * t_eff) / den)
     return ia, w
+
+
+def steady_with_drop(Ra, K, B, va, tl=0.0, tc=None, drop=0.0):
+    """Steady ``(ia, ω)`` when a constant ``drop`` (brushes, driver) opposes the current:
+    :func:`steady_state` at ``va − drop`` where its current is positive, at ``va + drop``
+    where negative; else no current flows and the rotor turns as its load and friction
+    leave it (``B·ω = −TL − Tc·sign(ω)``, at rest while ``|TL| ≤ Tc``)."""
+    xp = _xp(Ra, K, B, va, tl, drop)
+    i_pos, w_pos = steady_state(Ra, K, B, va - drop, tl, tc)
+    i_neg, w_neg = steady_state(Ra, K, B, va + drop, tl, tc)
+    if tc is None:
+        w_open = -tl / B
+    else:
+        w_open = xp.where(xp.abs(tl) > tc, (-tl + xp.sign(tl) * tc) / B, 0.0)
+    pos, neg = i_pos > 0, i_neg < 0
+    return (xp.where(pos, i_pos, xp.where(neg, i_neg, 0.0)),
+            xp.where(pos, w_pos, xp.where(neg, w_neg, w_open)))
 
 
 def coast_down(B, J, w0, t, tc=0.0):

@@ -11,9 +11,10 @@ form, and so has its reading from the reading ``y0`` at the regime's start:
   ``E = (e^(λτ) − e^(μτ))/(λ − μ)`` written without cancellation, λ = μ included;
 * the moving motor ``x(τ) = x_ss + expm(A·τ)·d`` reads ``e^(μτ)·y0 + x_ss·(1 − e^(μτ))
   − μ·(A − μI)⁻¹·(expm(A·τ) − e^(μτ)·I)·d``, with ``expm(A·τ) = α·I + β·A``
-  (:mod:`.propagator`).  Where μ is within a part in 10⁸ of one of A's real
-  eigenvalues, where that resolvent is singular, μ is moved by a part in 10⁶ (the
-  lag by as much), far below what any data resolve.
+  (:mod:`.propagator`).  Where μ is within a part in 10⁵ of one of A's real
+  eigenvalues, where that resolvent is singular (and, close to it, loses the digits
+  of its derivatives), μ is moved by six parts in 10⁵ (the lag by as much), far
+  below what any data resolve.
 
 A reading is carried through a segment's regimes (:func:`phase_starts`), from one
 segment to the next and from a trace's start, where the sensor is settled (``y = x``).
@@ -32,8 +33,8 @@ __all__ = ["MIN_LAG", "pole", "lagged_first_order", "reading_in_phase", "phase_s
            "reading_in_segment", "coast_down_reading"]
 
 MIN_LAG = 1e-12  # s: shorter than any logged interval, a lag taken as none at all
-_NEAR = 1e-8  # relative distance of μ to an eigenvalue at which the resolvent is singular
-_SHIFT = 1e-6  # relative shift of μ there
+_NEAR = 1e-5  # relative distance of μ to an eigenvalue within which the resolvent is moved
+_SHIFT = 6e-5  # relative shift of μ there (beyond the window, whichever side)
 
 
 def pole(tau):

@@ -84,8 +84,10 @@ def steady_state(p: Params, va, tl=0.0):
     return motor.steady_state(p.Ra, p.K, p.B, va, tl)
 
 
-def _initial_for(p: Params, va, tl, mode, x0, coulomb: bool):
-    ss_i, ss_w = motor.steady_state(p.Ra, p.K, p.B, va, tl, p.Tc if coulomb else None)
+def _initial_for(p: Params, va, tl, mode, x0, coulomb: bool, drop=None):
+    tc = p.Tc if coulomb else None
+    ss_i, ss_w = (motor.steady_state(p.Ra, p.K, p.B, va, tl, tc) if drop is None else
+                  motor.steady_with_drop(p.Ra, p.K, p.B, va, tl, tc, drop))
     given = mode == INITIAL_MODES["given"]
     steady = mode == INITIAL_MODES["steady"]
     ia = jnp.where(given, x0[0], jnp.where(steady, ss_i, 0.0))
@@ -233,9 +235,8 @@ def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, lim
     b_x, tc_x, seen = _drags(p, exp, p.Tc if coulomb else 0.0)
 
     def start(ps, va, tl, mode, xg):
-        v = va if drop is None else motor.terminal_voltage(va, drop)
-        ia, w = _initial_for(ps, v, tl, mode, xg, coulomb)
-        return clamped_steady(ps, v, tl, ps.Tc, limit, ia, w)
+        ia, w = _initial_for(ps, va, tl, mode, xg, coulomb, drop)
+        return clamped_steady(ps, va, tl, ps.Tc, limit, ia, w)
 
     def advance(ps, x, va, tl, length):
         phases = limited.segment_phases(ps, x, va, tl, ps.Tc, limit, length, coulomb, fast,
