@@ -27,7 +27,6 @@ __all__ = [
     "INPUT",
     "OUTPUT",
     "derivatives",
-    "terminal_voltage",
     "steady_with_drop",
     "angle_increment",
     "steady_state",
@@ -64,14 +63,6 @@ def stuck_current(Ra, La, ia0, va, tau):
     first order towards ``va/Ra`` with time constant La/Ra."""
     i_inf = va / Ra
     return i_inf + (ia0 - i_inf) * _xp(Ra, La, ia0, va, tau).exp(-Ra / La * tau)
-
-
-def terminal_voltage(va, drop):
-    """The steady voltage across the armature when a constant ``drop`` (brushes, driver)
-    opposes the current that ``va`` drives: ``va − drop·sign(va)``, and none while
-    ``|va| ≤ drop`` (no current flows)."""
-    xp = _xp(va, drop)
-    return xp.sign(va) * xp.maximum(xp.abs(va) - drop, 0.0)
 
 
 def angle_increment(Ra, La, K, B, J, dv, dt_load, dia, dw):

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..physics.motor import steady_state, terminal_voltage, time_constant
+from ..physics.motor import steady_with_drop, time_constant
 from ._plot import COLORS, png, styled, subplots
 from .predictive import BAND
 from .published import FIGURE6_SIMULATED, PAPER_SESSION, TABLE2_SIMULATED
@@ -58,7 +58,8 @@ def _predict(ctx, vals, v, tl, *, viscous=False):
 
     Notes
     -----
-    :func:`pmdc_bayes.physics.motor.steady_state` (equations (15)–(16) with a Coulomb
+    :func:`pmdc_bayes.physics.motor.steady_with_drop` (equations (15)–(16), the drop
+    opposing the current, with a Coulomb
     torque ``Tc·sign`` and the rotor stuck while ``|K·V/Ra − TL| ≤ Tc``) in NumPy,
     evaluated for many draws at once without JAX dispatch.
     """
@@ -67,8 +68,7 @@ def _predict(ctx, vals, v, tl, *, viscous=False):
     p = {n: np.asarray(vals.get(n, 0.0), dtype=float)[..., None]
          for n in ("Ra", "K", "B", "Tc", "Vdrop")}
     tc = None if viscous or not ctx.model.coulomb else p["Tc"]
-    va = terminal_voltage(v, p["Vdrop"])
-    _, w = steady_state(p["Ra"], p["K"], p["B"], va, tl, tc)
+    _, w = steady_with_drop(p["Ra"], p["K"], p["B"], v, tl, tc, p["Vdrop"])
     return np.atleast_2d(w)
 
 
