@@ -10,6 +10,7 @@ from pmdc_bayes.inference.adequacy import assess
 from pmdc_bayes.inference.fit import fit_map
 from pmdc_bayes.inference.objective import build_model
 from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.io.session import Drag
 from pmdc_bayes.simulate.cases import CASES, MOTOR, case_session
 
 
@@ -160,7 +161,7 @@ def test_a_declared_speed_dependent_load_is_fitted_around(case):
     drag = CASES[case][0]["extra_load"]["step_6v"]
     session = case_session(case)
     declared = dataclasses.replace(session, traces=tuple(
-        dataclasses.replace(tr, drag=drag) if tr.name == "step_6v" else tr
+        dataclasses.replace(tr, drag=Drag(*drag)) if tr.name == "step_6v" else tr
         for tr in session.traces))
     cf = fit_seed(declared)
     model = build_model(declared, cf)

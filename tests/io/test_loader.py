@@ -20,6 +20,7 @@ from conftest import (
 from pmdc_bayes import SessionError
 from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.io.session import Drag
 
 RPM = 2.0 * math.pi / 60.0
 TOML = "session.toml"
@@ -220,7 +221,7 @@ def test_a_known_speed_dependent_drag_is_read_in_si(session_dir):
     replace_once(session_dir / "session.toml", 'voltage = [[0.0, 0.0], [0.1, 6.0]]',
                  'voltage = [[0.0, 0.0], [0.1, 6.0]]\ndrag = { constant = 0.01, viscous = 2e-5 }')
     tr = load_session(session_dir).traces[0]
-    assert tr.drag == (0.01, 2e-5)
+    assert tr.drag == Drag(0.01, 2e-5) and not tr.drag.curved
 
 
 def test_a_negative_or_empty_drag_names_the_key(session_dir):

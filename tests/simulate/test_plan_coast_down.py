@@ -15,6 +15,7 @@ import pytest
 
 from pmdc_bayes._errors import SessionError
 from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.io.session import Drag
 from pmdc_bayes.physics import motor
 from pmdc_bayes.simulate.coast import ideal_coast_down, rig_coast_down
 from pmdc_bayes.simulate.plan import check_plan
@@ -114,7 +115,7 @@ def test_a_known_drag_is_felt_by_both_simulators_and_declared(tmp_path):
     rig = rig_trace(TRUTH, RigSpec(), spec)["speed"]
     np.testing.assert_allclose(rig, w_ideal, rtol=1e-3, atol=1e-3 * w_ideal.max())
     free = copy.deepcopy(spec.__dict__)
-    free["drag"] = (0.0, 0.0)
+    free["drag"] = Drag()
     _, _, w_free = true_trace(TRUTH, type(spec)(**free))
     # the steady speed with the load: (K·V − Ra·(Tc + c)) / (Ra·(B + b) + K²)
     loaded = (0.05 * 9.0 - 2.0 * (1e-3 + 2e-3)) / (2.0 * (2e-5 + 1e-5) + 0.05**2)
@@ -123,7 +124,7 @@ def test_a_known_drag_is_felt_by_both_simulators_and_declared(tmp_path):
     assert w_free[-1] == pytest.approx(free_speed, rel=2e-4)  # 1.7 % faster
     root = simulate_session(PLAN, tmp_path / "s")
     s = load_session(root)
-    assert s.trace("fan_9v").drag == (2e-3, 1e-5) and s.trace("step_12v").drag == (0.0, 0.0)
+    assert s.trace("fan_9v").drag == Drag(2e-3, 1e-5) and s.trace("step_12v").drag == Drag()
     (cd,) = s.coast_downs
     assert cd.name == "run_down" and cd.current is None
     truth = json.loads((root / "truth.json").read_text())

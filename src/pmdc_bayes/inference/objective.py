@@ -218,9 +218,16 @@ class SessionModel(RigEffects, Predictions):
         on 3 × 10,000 samples, 4 at a time gives ~6,000 vectors/s whatever the batch
         size, where vectorising all 64 at once gives under 1,000.
         """
-        ok = jnp.all(jax.vmap(lambda t: real_modes(self.circuit(t)))(thetas))
-        if self.session.unknown_load_traces():  # a trace's drag moves its modes
-            ok = jnp.asarray(False)
+        known = max([tr.drag.viscous for tr in self.session.traces] + [0.0])
+
+        def real(t):  # with the largest known viscous drag too: it moves the modes
+            p = self.circuit(t)
+            return real_modes(p._replace(B=p.B + known))
+
+        ok = jnp.all(jax.vmap(real)(thetas))
+        if self.session.unknown_load_traces() or any(tr.drag.curved
+                                                     for tr in self.session.traces):
+            ok = jnp.asarray(False)  # a fitted or curved drag moves them anywhere
 
         def over(fast):
             # Sub-batches of a few vectors keep each pass over the samples in cache; a

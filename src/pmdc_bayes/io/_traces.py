@@ -12,6 +12,7 @@ from ._csv import read_columns
 from ._position import angle_si, edge_angles, edges_flag, speed_estimate, unwrap_time
 from ._toml import Table as _Table
 from ._toml import describe as _describe
+from .drag import read_drag
 from .session import COAST_DOWN, Schedule, Trace
 from .units import to_si
 
@@ -56,19 +57,6 @@ def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray) -> Sch
                f"{t_raw[-1]:g} {tu}, and is constant over the samples; check the schedule's "
                "times (they are in the trace's time unit)")
     return Schedule(to_si(np.array(times), "time", tu), to_si(np.array(values), kind, u[key]))
-
-
-def _drag(t: _Table) -> tuple[float, float]:
-    """A known speed-dependent load ``drag = { constant = N·m, viscous = N·m·s/rad }``
-    (SI; either may be left out), each ≥ 0."""
-    if "drag" not in t.data:
-        return 0.0, 0.0
-    sub = t.table("drag")
-    sub.check_keys(("constant", "viscous"))
-    if not sub.data:
-        t.fail("drag", "give constant = <N·m> and/or viscous = <N·m·s/rad>")
-    return (sub.number("constant", "torque", default=0.0, low=0.0),
-            sub.number("viscous", "damping", default=0.0, low=0.0))
 
 
 def _initial(t: _Table, u: dict):
@@ -204,7 +192,7 @@ def _trace(t: _Table, root: Path) -> Trace:
         else:
             inputs[inp] = Schedule(time[:1].copy(), np.zeros(1))
     initial = _initial(t, u)
-    drag = _drag(t)
+    drag = read_drag(t, u)
     m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial)
     return Trace(name=name, kind=kind, file=path, time=m["time"], speed=m["speed"],
                  current=si.get("current"), voltage=inputs["voltage"],

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .drag import NO_DRAG, Drag
+
 __all__ = [
     "COAST_DOWN",
     "Measurement",
@@ -19,6 +21,8 @@ __all__ = [
     "SteadyTable",
     "StepReading",
     "Schedule",
+    "Drag",
+    "NO_DRAG",
     "Trace",
     "Session",
     "FRICTION_MODELS",
@@ -142,9 +146,9 @@ class Trace:
         then reads the position only).
     encoder_step : the angle of one encoder count (rad) when the position is counted,
         0 otherwise.
-    drag : a known load that depends on the speed, ``(constant N·m, viscous
-        N·m·s/rad)``: a torque ``constant·sign(ω) + viscous·ω`` opposing the motion
-        (a fan, a brake, a generator into a known resistor), on top of ``load_torque``.
+    drag : a known load that depends on the speed (:class:`Drag`): a torque
+        ``constant·sign(ω) + viscous·ω`` plus a curved part opposing the motion (a fan,
+        a brake, a generator into a known resistor), on top of ``load_torque``.
     """
 
     name: str
@@ -161,7 +165,7 @@ class Trace:
     position: np.ndarray | None = None
     speed_logged: bool = True
     encoder_step: float = 0.0
-    drag: tuple[float, float] = (0.0, 0.0)
+    drag: Drag = NO_DRAG
 
     def __repr__(self) -> str:
         logged = [c for c, y in (("speed", self.speed if self.speed_logged else None),

@@ -16,6 +16,7 @@ import numpy as np
 
 from .._errors import NotApplicable, SessionError
 from ..io.session import LA_ASSUMED, Session
+from ..physics.load import drag_torque
 from ..physics.motor import (
     gain,
     state_space,
@@ -230,7 +231,7 @@ def closed_form(session: Session) -> ClosedForm:
             Va = float(tr.voltage.at(tr.time[-n_tail:]).mean())
             Ia = float(tr.current[-n_tail:].mean())
             w = float(tr.speed[-n_tail:].mean())
-            TL = float(np.sign(w) * tr.drag[0] + tr.drag[1] * w)
+            TL = float(drag_torque(tr.drag, w))
             K = kb_from_chopper(Va, 1.0, Ia, w, Ra)
             used["K"] = f"equation (20) at the settled end of trace {tr.name!r}"
         elif rows is not None:

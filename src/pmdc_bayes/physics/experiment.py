@@ -15,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..io.session import Trace
+from .load import linearisation_cuts, with_drags
 
 __all__ = [
     "INITIAL_MODES",
@@ -23,6 +24,7 @@ __all__ = [
     "stack_experiments",
     "experiment_from_trace",
     "experiment_from_traces",
+    "with_drags",
     "steady_points",
 ]
 
@@ -44,6 +46,10 @@ class Experiment(NamedTuple):
     every sample of every trace be evaluated at once, without gathers.  ``seg_b`` and
     ``seg_tc``, when set, add a viscous (N·m·s/rad) and a friction-like constant
     (N·m) drag per segment to the motor's own (an unknown load on a trace).
+    ``seg_q``, ``seg_kw`` and ``seg_kt``, when set, are the curved part of each segment's
+    known drag (:mod:`.load`: its ``quadratic``, its curve's speeds and torques), which the
+    solution replaces by its tangent at the segment's starting speed; a trace with one is
+    cut into short segments (:func:`.load.linearisation_cuts`).
     ``seg_clock`` is each segment's start on one clock that runs through the traces in
     order (each trace's times moved past the previous trace's end), so that a time
     finds its segment by one search.  A dead time (:meth:`delayed`) sets
@@ -70,6 +76,14 @@ class Experiment(NamedTuple):
     tau_pre: jax.Array | None = None
     seg_clock: jax.Array | None = None
     sample_seg: jax.Array | None = None
+    seg_q: jax.Array | None = None
+    seg_kw: jax.Array | None = None
+    seg_kt: jax.Array | None = None
+
+    @property
+    def curve(self):
+        """Each segment's curved drag ``(q, speeds, torques)``, or None."""
+        return None if self.seg_q is None else (self.seg_q, self.seg_kw, self.seg_kt)
 
     @property
     def seg_trace(self) -> jax.Array:
@@ -146,8 +160,10 @@ def _chunk_length(counts: np.ndarray) -> int:
     return best
 
 
-def _segments(t, va_t, va_v, tl_t, tl_v):
-    inner = np.concatenate([va_t, tl_t])
+def _segments(t, va_t, va_v, tl_t, tl_v, cuts=None):
+    """A trace's constant segments: where its inputs change, and at ``cuts``."""
+    cuts = np.zeros(0) if cuts is None else np.asarray(cuts, dtype=np.float64)
+    inner = np.concatenate([va_t, tl_t, cuts])
     inner = inner[(inner > t[0]) & (inner < t[-1])]
     seg_t0 = np.unique(np.concatenate([[t[0]], inner]))
 
@@ -158,7 +174,7 @@ def _segments(t, va_t, va_v, tl_t, tl_v):
     seg_va = held(va_t, va_v, seg_t0)
     seg_tl = held(tl_t, tl_v, seg_t0)
     keep = np.ones(seg_t0.size, dtype=bool)
-    keep[1:] = (np.diff(seg_va) != 0) | (np.diff(seg_tl) != 0)
+    keep[1:] = (np.diff(seg_va) != 0) | (np.diff(seg_tl) != 0) | np.isin(seg_t0[1:], cuts)
     seg_t0, seg_va, seg_tl = seg_t0[keep], seg_va[keep], seg_tl[keep]
     seg_len = np.append(seg_t0[1:], t[-1]) - seg_t0
     sample_seg = np.searchsorted(seg_t0, t, side="right") - 1
@@ -169,14 +185,16 @@ def stack_experiments(specs) -> Experiment:
     """One :class:`Experiment` for several traces.
 
     ``specs`` is a sequence of ``(time, va_times, va_values, tl_times, tl_values,
-    initial)``; ``initial`` is ``"rest"``, ``"steady"`` or a pair ``(ia, ω)``.
+    initial)``, optionally followed by ``cuts``, times where a segment ends although the
+    inputs do not change; ``initial`` is ``"rest"``, ``"steady"`` or a pair ``(ia, ω)``.
     """
     segs, per_trace = [], []
-    for time, va_t, va_v, tl_t, tl_v, initial in specs:
+    for time, va_t, va_v, tl_t, tl_v, initial, *cuts in specs:
         t = np.asarray(time, dtype=np.float64)
         if tl_t is None:
             tl_t, tl_v = np.array([t[0]]), np.array([0.0])
-        parts = _segments(t, *(np.asarray(a, dtype=np.float64) for a in (va_t, va_v, tl_t, tl_v)))
+        parts = _segments(t, *(np.asarray(a, dtype=np.float64) for a in (va_t, va_v, tl_t, tl_v)),
+                          cuts[0] if cuts else None)
         segs.append(parts)
         per_trace.append((t, initial))
     all_counts = np.concatenate([np.bincount(p[4], minlength=p[0].size) for p in segs])
@@ -242,23 +260,25 @@ def make_experiment(time, va_times, va_values, tl_times=None, tl_values=None, *,
 
 def _trace_spec(trace: Trace, delay: float = 0.0):
     init = trace.initial if isinstance(trace.initial, str) else tuple(trace.initial)
+    cuts = None
+    if trace.drag.curved:
+        breaks = np.concatenate([trace.voltage.times, trace.load_torque.times])
+        cuts = linearisation_cuts(trace.time, breaks, trace.speed) - delay
     return (trace.time - delay, trace.voltage.times, trace.voltage.values,
-            trace.load_torque.times, trace.load_torque.values, init)
+            trace.load_torque.times, trace.load_torque.values, init, cuts)
 
 
 def experiment_from_trace(trace: Trace, *, delay: float = 0.0) -> Experiment:
-    """The :class:`Experiment` of a session trace (inputs, sample times, initial state)."""
-    return stack_experiments([_trace_spec(trace, delay)])
+    """The :class:`Experiment` of a session trace (inputs, sample times, initial state,
+    known drag)."""
+    return with_drags(stack_experiments([_trace_spec(trace, delay)]), [trace.drag])
 
 
 def experiment_from_traces(traces) -> Experiment:
     """One stacked :class:`Experiment` for all of a session's traces, with their known
     drags (``Trace.drag``) per segment when any trace has one."""
-    exp = stack_experiments([_trace_spec(tr) for tr in traces])
-    if all(tuple(tr.drag) == (0.0, 0.0) for tr in traces):
-        return exp
-    tc, b = (jnp.asarray([float(tr.drag[k]) for tr in traces]) for k in (0, 1))
-    return exp._replace(seg_b=b[exp.seg_trace], seg_tc=tc[exp.seg_trace])
+    return with_drags(stack_experiments([_trace_spec(tr) for tr in traces]),
+                      [tr.drag for tr in traces])
 
 
 def steady_points(session) -> dict:

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from . import free, limited, motor, sensor
+from . import free, limited, load, motor, sensor
 from .angle import angle_in_segment, assemble_angle
 from .experiment import (
     INITIAL_MODES,
@@ -134,9 +134,9 @@ def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
 def _drags(p: Params, exp: Experiment, tc0):
     """Each segment's added viscous and constant drag, and the parameters a segment
     with drag ``(b, tc)`` sees (``tc0`` the motor's own friction torque on this path)."""
-    drag = exp.seg_b is not None
-    b_x = exp.seg_b if drag else jnp.zeros_like(exp.seg_va)
-    tc_x = exp.seg_tc if drag else jnp.zeros_like(exp.seg_va)
+    drag = exp.seg_b is not None or exp.seg_q is not None
+    b_x = exp.seg_b if exp.seg_b is not None else jnp.zeros_like(exp.seg_va)
+    tc_x = exp.seg_tc if exp.seg_tc is not None else jnp.zeros_like(exp.seg_va)
 
     def seen(b, tc):
         return p._replace(B=p.B + b, Tc=tc0 + tc) if drag else p._replace(Tc=tc0)
@@ -150,14 +150,18 @@ def _pass(start, advance, seen, limit, fast: bool, mus, drop=None):
     record, its regimes (:class:`~.limited.Phase` records), its end state and its whole
     angle.  Each lagging sensor (pole in ``mus``) is settled at a trace's start and
     carried through every regime; the step also returns the readings at the starts of
-    each segment's regimes."""
+    each segment's regimes, and the viscous drag and load the segment saw (its own,
+    with a curved drag's tangent at its starting speed)."""
 
     def step(carry, seg_in):
         x, y = carry
-        va, tl, length, first, mode, xg, b, tc = seg_in
-        ps = seen(b, tc)
-        xi = start(ps, va, tl, mode, xg)
+        va, tl, length, first, mode, xg, b, tc, curve = seg_in
+        tangent, begin = load.curved_start(start, seen, curve)
+        xi = begin(b, tc, va, tl, mode, xg)
         x = (jnp.where(first, xi[0], x[0]), jnp.where(first, xi[1], x[1]))
+        db, dt = tangent(x)
+        b, tl = b + db, tl + dt
+        ps = seen(b, tc)
         record, phases, x_end, total = advance(ps, x, va, tl, length)
         starts, y_end = [], []
         for row, mu in enumerate(mus):
@@ -170,17 +174,19 @@ def _pass(start, advance, seen, limit, fast: bool, mus, drop=None):
             starts.append(st)
             y_end.append(sensor.reading_in_segment(ps, va, tl, ps.Tc, limit, phases, st, mu,
                                                    length, row, fast, drop))
-        return (x_end, tuple(y_end)), (record, total, tuple(starts))
+        return (x_end, tuple(y_end)), (record, total, tuple(starts), (b, tl))
 
     return step
 
 
 def _scan(exp: Experiment, step, x0, mus, b_x, tc_x):
-    """Run ``step`` (:func:`_pass`) over the segments from ``x0``, the sensors settled."""
+    """Run ``step`` (:func:`_pass`) over the segments from ``x0``, the sensors settled;
+    also each segment's extra viscous drag and load as the step saw them."""
     y0 = tuple(None if mu is None else x0[row] for row, mu in enumerate(mus))
-    _, out = jax.lax.scan(step, (x0, y0), (exp.seg_va, exp.seg_tl, exp.seg_len, exp.seg_first,
-                                           exp.seg_mode, exp.seg_x0, b_x, tc_x))
-    return out
+    _, (record, total, starts, (b_seen, tl_seen)) = jax.lax.scan(
+        step, (x0, y0), (exp.seg_va, exp.seg_tl, exp.seg_len, exp.seg_first, exp.seg_mode,
+                         exp.seg_x0, b_x, tc_x, exp.curve))
+    return record, total, starts, b_seen, tl_seen
 
 
 def _readings(exp, p_chunk, va, tl, limit, phases, starts, mus, ia, w, fast, drop=None):
@@ -213,12 +219,12 @@ def _simulate_free(p: Params, exp: Experiment, coulomb: bool, fast: bool, angle:
 
     x0 = start(seen(b_x[0], tc_x[0]), exp.seg_va[0], exp.seg_tl[0], exp.seg_mode[0],
                exp.seg_x0[0])
-    segs, totals, starts = _scan(exp, _pass(start, advance, seen, 0.0, fast, mus), x0, mus,
-                                 b_x, tc_x)
+    segs, totals, starts, b_seen, tl_seen = _scan(
+        exp, _pass(start, advance, seen, 0.0, fast, mus), x0, mus, b_x, tc_x)
     c = exp.sample_segments
     per_chunk = jax.tree_util.tree_map(lambda a: a[c], segs)
-    va, tl = exp.seg_va[c], exp.seg_tl[c]
-    pc = seen(b_x[c], tc_x[c])
+    va, tl = exp.seg_va[c], tl_seen[c]
+    pc = seen(b_seen[c], tc_x[c])
     ia, w = free.state_in_segment(pc, per_chunk, va, exp.tau, coulomb, fast)
     ia_r, w_r = _readings(exp, pc, va, tl, 0.0, free.phases(per_chunk, coulomb), starts, mus,
                           ia, w, fast)
@@ -247,13 +253,13 @@ def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, lim
 
     x0 = start(seen(b_x[0], tc_x[0]), exp.seg_va[0], exp.seg_tl[0], exp.seg_mode[0],
                exp.seg_x0[0])
-    phases, totals, starts = _scan(exp, _pass(start, advance, seen, limit, fast, mus, drop),
-                                   x0, mus, b_x, tc_x)
+    phases, totals, starts, b_seen, tl_seen = _scan(
+        exp, _pass(start, advance, seen, limit, fast, mus, drop), x0, mus, b_x, tc_x)
     # (segments, PHASES) → (PHASES, chunks, 1 or L): each sample's segment's phases.
     c = exp.sample_segments
     per_chunk = jax.tree_util.tree_map(lambda a: jnp.moveaxis(a[c], -1, 0), phases)
-    pc = seen(b_x[c], tc_x[c])
-    va, tl = exp.seg_va[c], exp.seg_tl[c]
+    pc = seen(b_seen[c], tc_x[c])
+    va, tl = exp.seg_va[c], tl_seen[c]
     ia, w = limited.state_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, fast, drop)
     ia_r, w_r = _readings(exp, pc, va, tl, limit, per_chunk, starts, mus, ia, w, fast, drop)
     if not angle:

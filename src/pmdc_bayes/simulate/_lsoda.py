@@ -2,7 +2,8 @@
 :func:`scipy.integrate.solve_ivp` (LSODA), independently of :mod:`pmdc_bayes.physics`:
 the state ``(ia, ω, ω_sensor, θ_sensor, ia_sensor)`` with the rig's non-idealities
 (brush drop, source resistance, a current-limited driver's current loop, Coulomb
-friction smoothed to a stick-slip blend, extra load, sensor lags)."""
+friction smoothed to a stick-slip blend, extra load (a curved one too: its torque at
+the speed, :mod:`pmdc_bayes.physics.load`), sensor lags)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,9 @@ import math
 
 import numpy as np
 from scipy.integrate import solve_ivp
+
+from ..io.session import Drag
+from ..physics.load import curve_arrays, curve_torque
 
 __all__ = ["integrate"]
 
@@ -20,8 +24,9 @@ _LOOP = 1e-3  # time constant of the driver's current loop, in units of La/Ra
 def _rhs(m, name: str, va: float, tl: float, w_eps: float, i_eps: float):
     """Right-hand side for state ``(ia, ω, ω_sensor, θ_sensor, ia_sensor)`` of trace
     ``name`` at constant ``va`` and load ``tl``."""
-    tc_extra, b_extra = m.extra_load.get(name, (0.0, 0.0))
-    tc, b = m.Tc + tc_extra, m.B + b_extra
+    extra = Drag(*m.extra_load.get(name, ()))
+    tc, b = m.Tc + extra.constant, m.B + extra.viscous
+    curve = curve_arrays([extra]) if extra.curved else None
     lim, gain = m.current_limit, m.Ra / (m.La * _LOOP)  # near the limit, dia/dt = gain·Δi
     lag, i_lag = m.sensor_lag, m.current_lag
 
@@ -35,7 +40,8 @@ def _rhs(m, name: str, va: float, tl: float, w_eps: float, i_eps: float):
         drive = m.K * ia - tl
         s = math.tanh(w / w_eps)
         friction = tc * s + min(max(drive, -tc), tc) * (1.0 - s * s)  # slip, or stick
-        dw = (drive - b * w - friction) / m.J
+        curved = 0.0 if curve is None else float(curve_torque(w, *(a[0] for a in curve)))
+        dw = (drive - b * w - curved - friction) / m.J
         dws = (w - ws) / lag if lag > 0 else dw
         dias = (ia - ias) / i_lag if i_lag > 0 else dia
         return [dia, dw, dws, ws, dias]

@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.session import Measurement, Schedule, Session, SteadyTable, Trace
+from ..io.session import Drag, Measurement, Schedule, Session, SteadyTable, Trace
+from ..physics.load import curve_arrays, curve_tangent
 from ._encoder import EDGE_FINE, encoder_trace_parts
 from ._lsoda import integrate
 
@@ -76,7 +77,8 @@ class BenchMotor:
         after an unread first sample at rest; both ways, each edge on the count
         boundary crossed).
     extra_load : dict
-        Trace name -> ``(constant N·m, viscous N·m·s/rad)``: load the session does not
+        Trace name -> ``(constant N·m, viscous N·m·s/rad)``, or a
+        :class:`~pmdc_bayes.io.session.Drag` with a curved part: load the session does not
         declare.  The constant part is a drag opposing the motion (it acts like extra
         Coulomb friction, so it cannot turn a motor at rest); the viscous part adds to B.
     speed_noise, current_noise : float
@@ -134,7 +136,7 @@ class StepSpec:
 
 
 def steady_point(motor: BenchMotor, voltage: float, load: float = 0.0,
-                 drag: tuple[float, float] = (0.0, 0.0)) -> tuple[float, float]:
+                 drag: tuple = (0.0, 0.0)) -> tuple[float, float]:
     """True steady ``(ω, ia)`` (rad/s, A) of the motor at a constant voltage.
 
     Parameters
@@ -144,8 +146,9 @@ def steady_point(motor: BenchMotor, voltage: float, load: float = 0.0,
         Commanded voltage (V).
     load : float
         Signed load torque (N·m).
-    drag : (float, float)
-        Extra ``(constant, viscous)`` drag, as in ``BenchMotor.extra_load``.
+    drag : (float, float) or Drag
+        Extra ``(constant, viscous)`` drag, as in ``BenchMotor.extra_load``; a curved part
+        is solved by Newton steps on its tangent.
 
     Returns
     -------
@@ -162,8 +165,23 @@ def steady_point(motor: BenchMotor, voltage: float, load: float = 0.0,
     ``|K·ia − TL| ≤ Tc``.
     A current above the limit is held at it, with ``ω`` from the torque balance.
     """
-    m = motor
-    tc, b, r = m.Tc + drag[0], m.B + drag[1], m.Ra + m.source_resistance
+    d = Drag(*drag)
+    if not d.curved:
+        return _steady_affine(motor, voltage, load, d.constant, d.viscous)
+    q, kw, kt = (a[0] for a in curve_arrays([d]))
+    w = 0.0
+    for _ in range(60):
+        slope, t0 = curve_tangent(w, q, kw, kt)
+        w_new, ia = _steady_affine(motor, voltage, load + t0, d.constant, d.viscous + slope)
+        if abs(w_new - w) <= 1e-13 * max(abs(w_new), 1.0):
+            break
+        w = w_new
+    return w_new, ia
+
+
+def _steady_affine(m: BenchMotor, voltage: float, load: float, tc_extra: float,
+                   b_extra: float) -> tuple[float, float]:
+    tc, b, r = m.Tc + tc_extra, m.B + b_extra, m.Ra + m.source_resistance
     den = r * b + m.K**2
     w, ia = 0.0, math.copysign(max(abs(voltage) - m.brush_drop, 0.0), voltage) / r
     if abs(m.K * ia - load) > tc:  # it turns: take the direction of the driving torque

@@ -20,6 +20,7 @@ import numpy as np
 from .._errors import SessionError
 from ..io._text import read_text
 from ..io._toml import REQUIRED, Table
+from ..io.drag import NO_DRAG, Drag, read_drag
 from ..io.session import FRICTION_MODELS
 from ..io.units import unit_factor
 from .rig import RigSpec, check_encoder, check_rig
@@ -32,6 +33,7 @@ TRACE_KINDS = ("step", "load_change", "free-form", "coast-down")
 COAST_DOWN = "coast-down"
 MAX_SAMPLES = 1_000_000
 _BENCH = {"Ra": "resistance", "La": "inductance"}
+_SI_DRAG = {"speed": "rad/s", "load_torque": "N*m"}  # a plan's known load is SI
 _SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 
 
@@ -87,7 +89,7 @@ class TraceSpec:
     current_quantum: float
     delay: float
     encoder: tuple[int, str] | None = None  # (counts per revolution, output), with a [rig]
-    drag: tuple[float, float] = (0.0, 0.0)  # known (constant N·m, viscous N·m·s/rad) load
+    drag: Drag = NO_DRAG  # a known load that depends on the speed (SI)
 
     @property
     def time(self) -> np.ndarray:
@@ -150,16 +152,6 @@ def _schedule(t: Table, key: str, required: bool):
     if times[0] > 0.0 or any(b <= a for a, b in zip(times, times[1:], strict=False)):
         t.fail(key, f"times must start at or before 0 and increase strictly; {example}")
     return pairs
-
-
-def _drag(t: Table) -> tuple[float, float]:
-    """A driven trace's known load ``drag = { constant = N·m, viscous = N·m·s/rad }``."""
-    sub = t.table("drag", required=False)
-    if sub is None:
-        return 0.0, 0.0
-    sub.check_keys(("constant", "viscous"))
-    return sub.number("constant", default=0.0, low=0.0), sub.number("viscous", default=0.0,
-                                                                      low=0.0)
 
 
 def _coast_down(t: Table) -> TraceSpec:
@@ -233,7 +225,7 @@ def _driven(t: Table) -> TraceSpec:
         **{k: t.number(k, default=0.0, low=0.0) for k in ("speed_noise", "speed_quantum",
                                                   "current_noise", "current_quantum",
                                                   "delay")},
-        encoder=check_encoder(t), drag=_drag(t),
+        encoder=check_encoder(t), drag=read_drag(t, _SI_DRAG),
     )
     if spec.encoder is not None and spec.encoder[1] == "edges" and spec.initial != "rest":
         t.fail("encoder", 'an "edges" encoder trace starts at rest; set initial = "rest" or '

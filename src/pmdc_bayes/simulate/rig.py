@@ -172,10 +172,11 @@ def rig_trace(truth: dict, rig: RigSpec, spec) -> dict[str, np.ndarray]:
     ``position`` (counted angle, NaN where unread) and ``speed`` from it; edges of a
     rotor that turns back carry their ``direction`` (1 forward, 0 backward)."""
     m = _motor(truth, rig, spec.encoder)
-    if spec.drag != (0.0, 0.0):  # the trace's known load, on top of any unknown one
-        c, v = m.extra_load.get(spec.name, (0.0, 0.0))
-        m = replace(m, extra_load={**m.extra_load,
-                                   spec.name: (c + spec.drag[0], v + spec.drag[1])})
+    if spec.drag.any:  # the trace's known load, on top of any unknown one
+        c, v = m.extra_load.get(spec.name, (0.0, 0.0))[:2]
+        d = spec.drag
+        m = replace(m, extra_load={**m.extra_load, spec.name: d._replace(
+            constant=c + d.constant, viscous=v + d.viscous)})
     t = spec.time
     end = float(t[-1])
     segs = _segments(spec, rig.dead_time, end)

@@ -21,7 +21,6 @@ import zlib
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from .._errors import SessionError
@@ -29,7 +28,9 @@ from .._x64 import x64
 from ..inference.nuisances import initial_speed_name
 from ..io.units import from_si, to_si
 from ..physics import motor
-from ..physics.solution import Params, make_experiment, simulate
+from ..physics.experiment import stack_experiments, with_drags
+from ..physics.load import linearisation_cuts
+from ..physics.solution import Params, simulate
 from ._write import HEADER, check_out, write_session_files
 from .coast import ideal_coast_down, rig_coast_down
 from .plan import COAST_DOWN, Plan, TraceSpec, check_plan, load_plan
@@ -82,12 +83,27 @@ def true_trace(truth: dict, spec: TraceSpec):
     shifted, index = np.unique(np.maximum(t - spec.delay, t[0]), return_inverse=True)
     va_t, va_v = zip(*spec.voltage, strict=True)
     tl_t, tl_v = zip(*(spec.load_torque or ((0.0, 0.0),)), strict=True)
-    exp = make_experiment(shifted, va_t, va_v, tl_t, tl_v, initial=spec.initial)
-    if spec.drag != (0.0, 0.0):  # the trace's known load, on every segment
-        exp = exp._replace(seg_tc=jnp.full_like(exp.seg_va, spec.drag[0]),
-                           seg_b=jnp.full_like(exp.seg_va, spec.drag[1]))
+    # a curved drag's tangent taken again on a finer grid than the fit's
+    cuts = (linearisation_cuts(shifted, np.concatenate([va_t, tl_t]), ratio=1.1,
+                               longest=(shifted[-1] - shifted[0]) / 400)
+            if spec.drag.curved else None)
+    exp = with_drags(stack_experiments([(shifted, va_t, va_v, tl_t, tl_v, spec.initial,
+                                         cuts)]), [spec.drag])
     ia, w = _simulate(_params(truth), exp, coulomb=truth["Tc"] > 0 or spec.drag[0] > 0)
     return t, np.asarray(ia)[index], np.asarray(w)[index]
+
+
+def _drag_entry(tr: TraceSpec) -> str:
+    """A trace's known load as ``session.toml`` declares it: the coefficients SI, the
+    curve's speeds in the trace's speed unit and its torques in N·m."""
+    d = tr.drag
+    parts = [f"{k} = {_f(v)}" for k, v in (("constant", d.constant), ("viscous", d.viscous),
+                                            ("quadratic", d.quadratic)) if v]
+    if d.curve:
+        points = ", ".join(f"[{_f(from_si(w, 'speed', tr.speed_unit))}, {_f(t)}]"
+                           for w, t in d.curve)
+        parts.append(f"curve = [{points}]")
+    return "{ " + ", ".join(parts) + " }"
 
 
 def _quantise(x: np.ndarray, q: float) -> np.ndarray:
@@ -229,8 +245,8 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
         if tr.kind == COAST_DOWN:  # its table says no more: the armature is open
             continue
         out.append(f"voltage = {_pairs(tr.voltage)}")
-        if tr.drag != (0.0, 0.0):
-            out.append(f"drag = {{ constant = {_f(tr.drag[0])}, viscous = {_f(tr.drag[1])} }}")
+        if tr.drag.any:
+            out.append(f"drag = {_drag_entry(tr)}")
         if tr.load_torque is not None:
             out.append(f"load_torque = {_pairs(tr.load_torque)}")
         if isinstance(tr.initial, str):

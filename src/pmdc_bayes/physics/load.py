@@ -1,0 +1,174 @@
+"""A trace's known load: a drag that depends on the speed, which need not be affine in it.
+
+A drag opposes the motion: ``constant·sign(ω) + viscous·ω`` (its affine part, solved
+exactly by the stick-slip solution) plus ``f(ω) = sign(ω)·g(|ω|)``, its curved part:
+``g(s) = quadratic·s² + curve(s)`` (a fan or a propeller, a measured brake curve), where
+``curve`` is piecewise linear through the user's points ``(speed, torque)`` (``g(0) = 0``)
+and extended beyond the last point along its last slope.
+
+The curved part has no closed-form solution, so the exact solution replaces it on
+each short segment by its tangent at the segment's starting speed ``ω0``: a load torque
+``f(ω0) − f′(ω0)·ω0`` and a viscous drag ``f′(ω0)`` (an exponential Rosenbrock step,
+second order in the segment's length); :func:`linearisation_cuts` gives the segments.
+The same formula serves NumPy (the simulators, the closed form) and JAX (the model).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..io.drag import Drag
+
+__all__ = ["drag_torque", "with_drags", "curved_start", "curve_torque", "curve_tangent",
+           "curve_arrays", "linearisation_cuts", "GROWTH", "ALONG_SPEED"]
+
+GROWTH = 1.25  # each linearisation segment after an input change this much longer
+ALONG_SPEED = 100  # a linearisation segment ends where the speed moved 1/100 of its range
+
+
+
+
+
+def drag_torque(drag: Drag, w):
+    """The whole drag ``drag`` at speed ``w`` (rad/s, NumPy), signed as a load torque."""
+    w = np.asarray(w, dtype=float)
+    q, kw, kt = curve_arrays([drag])
+    return (drag.constant * np.sign(w) + drag.viscous * w
+            + curve_torque(w, q[0], kw[0], kt[0], np))
+
+
+def curve_arrays(drags, knots: int | None = None):
+    """Per drag its ``quadratic`` and its curve's speeds and torques, padded to a common
+    number of points (``knots``, at least 2) along the last slope: ``(q (n,), speeds
+    (n, M), torques (n, M))``, NumPy."""
+    m = max([2] + [len(d.curve) for d in drags] + ([knots] if knots else []))
+    q = np.array([float(d.quadratic) for d in drags])
+    kw, kt = np.zeros((len(drags), m)), np.zeros((len(drags), m))
+    for k, d in enumerate(drags):
+        pts = np.asarray(d.curve, dtype=float).reshape(-1, 2) if d.curve else \
+            np.array([[0.0, 0.0], [1.0, 0.0]])
+        w, t = pts[:, 0], pts[:, 1]
+        slope = (t[-1] - t[-2]) / (w[-1] - w[-2])
+        extra = w[-1] + (1.0 + np.arange(m - w.size)) * max(w[-1], 1.0)
+        kw[k] = np.concatenate([w, extra])
+        kt[k] = np.concatenate([t, t[-1] + slope * (extra - w[-1])])
+    return q, kw, kt
+
+
+def _interval(s, kw, xp):
+    i = xp.searchsorted(kw, s, side="right") - 1
+    i = xp.clip(i, 0, kw.shape[-1] - 2)
+    return i
+
+
+def curve_torque(w, q, kw, kt, xp=np):
+    """The curved part of the drag at speed ``w``: ``sign(ω)·(q·ω² + curve(|ω|))``."""
+    s = xp.abs(w)
+    i = _interval(s, kw, xp)
+    slope = (kt[i + 1] - kt[i]) / (kw[i + 1] - kw[i])
+    return xp.sign(w) * (q * s * s + kt[i] + slope * (s - kw[i]))
+
+
+def curve_tangent(w0, q, kw, kt, xp=np):
+    """The tangent of the curved part at ``w0``: ``(b, t0)`` with ``f(ω) ≈ t0 + b·ω``
+    near ``w0`` (``b = f′(ω0)``, the right-hand slope at a point of the curve)."""
+    s = xp.abs(w0)
+    i = _interval(s, kw, xp)
+    slope = (kt[i + 1] - kt[i]) / (kw[i + 1] - kw[i])
+    b = 2.0 * q * s + slope
+    return b, curve_torque(w0, q, kw, kt, xp) - b * w0
+
+
+def linearisation_cuts(time, breaks, speed=None, *, first: float | None = None,
+                       ratio: float = GROWTH, longest: float | None = None,
+                       per_range: int = ALONG_SPEED) -> np.ndarray:
+    """The times inside a curved trace (samples ``time``) where its drag's tangent is
+    taken again.  After each of the input's breakpoints ``breaks`` (and the trace's
+    start), where the speed changes fastest, a geometric grid: its first step ``first``
+    (default: the trace's span / 4000), each step ``ratio`` times the last, none longer
+    than ``longest`` (default: the span / 40).  With the trace's observed ``speed``,
+    also a cut wherever the (smoothed) speed has moved by another ``1/per_range`` of its
+    range, so that a fast transient the inputs do not explain is cut finely too."""
+    t = np.asarray(time, dtype=float)
+    t0, t1 = float(t[0]), float(t[-1])
+    span = t1 - t0
+    if span <= 0:
+        return np.zeros(0)
+    first = span / 4000 if first is None else first
+    longest = span / 40 if longest is None else longest
+    starts = np.unique(np.concatenate([[t0], np.asarray(breaks, dtype=float)]))
+    starts = starts[(starts >= t0) & (starts < t1)]
+    ends = np.append(starts[1:], t1)
+    cuts = []
+    for a, b in zip(starts, ends, strict=True):
+        h, x = first, a
+        while True:
+            x += h
+            if x >= b - 0.25 * h:
+                break
+            cuts.append(x)
+            h = min(h * ratio, longest)
+    if speed is not None:
+        cuts.extend(_along(t, np.asarray(speed, dtype=float), per_range))
+    return np.unique(np.asarray(cuts))
+
+
+def _along(t, w, per_range: int) -> np.ndarray:
+    """The times where the trace's smoothed speed has moved by another ``1/per_range``
+    of its range (NaN readings skipped)."""
+    ok = np.isfinite(w)
+    t, w = t[ok], w[ok]
+    if t.size < 3:
+        return np.zeros(0)
+    k = max(1, t.size // 200)
+    smooth = np.convolve(w, np.ones(k) / k, mode="same") if k > 1 else w
+    spread = float(np.ptp(smooth))
+    if not spread > 0:
+        return np.zeros(0)
+    moved = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(smooth)))]) / spread
+    marks = np.arange(1, int(moved[-1] * per_range)) / per_range
+    return t[np.searchsorted(moved, marks)]
+
+
+def with_drags(exp, drags):
+    """The :class:`~.experiment.Experiment` ``exp`` with each trace's known drag
+    (:class:`~pmdc_bayes.io.drag.Drag`, one per trace in order) on its segments: the
+    affine part as ``seg_tc`` and ``seg_b``, a curved part as ``seg_q``, ``seg_kw``,
+    ``seg_kt`` (each only when some trace has it).  A curved trace must have been cut
+    (:func:`linearisation_cuts`)."""
+    trace = np.asarray(exp.seg_trace)
+    if any(d.constant or d.viscous for d in drags):
+        tc, b = (np.array([float(d[k]) for d in drags]) for k in (0, 1))
+        exp = exp._replace(seg_b=jnp.asarray(b[trace]), seg_tc=jnp.asarray(tc[trace]))
+    if any(d.curved for d in drags):
+        q, kw, kt = curve_arrays(drags)
+        exp = exp._replace(seg_q=jnp.asarray(q[trace]), seg_kw=jnp.asarray(kw[trace]),
+                           seg_kt=jnp.asarray(kt[trace]))
+    return exp
+
+
+_STEADY_ITERATIONS = 8  # Newton steps of a steady start under a curved drag
+
+
+def curved_start(start, seen, curve):
+    """For a segment with a curved drag ``curve`` (its ``(q, speeds, torques)``, or
+    None): ``tangent(x)``, the viscous drag and load that replace it near the state
+    ``x`` (its tangent at ``x``'s speed; zeros without one), and ``begin(b, tc, va, tl,
+    mode, x0)``, ``start`` (of :func:`~.solution._pass`) under the segment's drag
+    ``(b, tc)`` and the curve, a steady state solved by Newton steps on the tangent."""
+    if curve is None:
+        return (lambda x: (0.0, 0.0),
+                lambda b, tc, va, tl, mode, xg: start(seen(b, tc), va, tl, mode, xg))
+
+    def tangent(x):
+        return curve_tangent(x[1], *curve, jnp)
+
+    def begin(b, tc, va, tl, mode, xg):
+        x = start(seen(b, tc), va, tl, mode, xg)
+        for _ in range(_STEADY_ITERATIONS):
+            db, dt = tangent(x)
+            x = start(seen(b + db, tc), va, tl + dt, mode, xg)
+        return x
+
+    return tangent, begin
