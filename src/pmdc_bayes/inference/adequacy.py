@@ -201,7 +201,13 @@ def _g(x: float) -> str:
 @x64
 def assess(model, fit, closed_form=None) -> Adequacy:
     """Every adequacy check of ``fit`` (a :class:`~.fit.FitResult` of ``model``)."""
-    from .checks import bench_checks, plausibility_checks, search_checks, step_start_check
+    from .checks import (
+        bench_checks,
+        plausibility_checks,
+        search_checks,
+        solver_checks,
+        step_start_check,
+    )
     from .diagnosis import diagnose
 
     session = model.session
@@ -248,6 +254,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     plaus, found = plausibility_checks(model, fit, preds)
     findings += found
     findings += search_checks(fit)
+    findings += solver_checks(model, fit)
     findings.sort(key=lambda f: f.severity != "fail")
     verdict = "inadequate" if any(f.severity == "fail" for f in findings) else "adequate"
     diagnosis = diagnose(model, fit, preds, findings) if verdict == "inadequate" else ()

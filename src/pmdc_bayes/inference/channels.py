@@ -137,20 +137,25 @@ class TraceBlock(Block):
     def observed(d) -> list:
         return [d["speed"], d["current"], d["position"]]
 
-    def residuals(self, model, theta, d, fast: bool = False) -> list:
+    def residuals(self, model, theta, d, fast: bool = False, overflow: bool = False) -> list:
+        """The residuals of speed, current and angle; with ``overflow``, also per segment
+        whether it changes regime more often than the exact solution follows."""
         exp = model.inputs(theta, d["exp"])
         p = model.circuit(theta)
         sim = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast,
                               limit=model.limit(theta), with_angle=bool(self.offsets),
-                              lags=model.lags(theta), drop=model.armature_drop(theta))
+                              lags=model.lags(theta), drop=model.armature_drop(theta),
+                              overflow=overflow)
         ia, w = model.sensed(theta, sim[0], sim[1])
         out = [d["speed"] - w, d["current"] - ia]
         if not self.offsets:
-            return out + [jnp.zeros_like(w)]
-        v = model.registry.values(theta)
-        offset = jnp.stack([v[n] for n in self.offsets])[d["sample_slot"]]
-        angle = since_first_sample(exp, sim[2], d["start"])
-        return out + [d["position"] - exp.pad(offset + angle)]
+            out.append(jnp.zeros_like(w))
+        else:
+            v = model.registry.values(theta)
+            offset = jnp.stack([v[n] for n in self.offsets])[d["sample_slot"]]
+            angle = since_first_sample(exp, sim[2], d["start"])
+            out.append(d["position"] - exp.pad(offset + angle))
+        return (out, sim[-1]) if overflow else out
 
 
 class SteadyBlock(Block):

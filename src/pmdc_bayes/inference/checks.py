@@ -8,6 +8,7 @@ import numpy as np
 
 from ..io._position import speed_estimate, speed_window
 from ..physics import motor
+from ..physics.limited import PHASES
 from .adequacy import BENCH_FAIL_Z, BENCH_WARN_Z, PEAK_RATIO, RISE_RATIO, Finding, _g
 from .levels import unloaded_levels
 
@@ -221,3 +222,24 @@ def search_checks(fit) -> list:
                     f"the starts reached {len(close)} other optimum/optima within "
                     f"{min(close):.2g} log-posterior units of the MAP: the posterior may "
                     "have more than one mode")]
+
+
+def solver_checks(model, fit) -> list:
+    """Input segments whose regime (stuck, moving, clamped; the current's sign under a
+    voltage drop) changes at the MAP more often than the regime-switching solution
+    follows: after the last change it follows its prediction is not exact, so the fit
+    cannot be trusted there."""
+    out = []
+    for tr, starts in zip(model.session.traces, model.beyond_phases(fit.theta), strict=True):
+        if not starts.size:
+            continue
+        out.append(Finding(
+            "solver", tr.name, "fail", f"{starts.size} segment(s)",
+            f"{tr.name}: between input changes the motor changes regime more than "
+            f"{PHASES} times (first in the segment from t = {starts[0]:.6g} s: the current "
+            "ringing through zero under a voltage drop, or a rotor sticking and slipping "
+            "again and again); the exact solution follows the first "
+            f"{PHASES}, so the model's prediction after them is not exact",
+            "log the voltage as a column (each sample starts a segment of its own) or "
+            "shorten the trace's constant stretches"))
+    return out

@@ -202,6 +202,9 @@ def _finding_rules(model, fit, findings, already=()):
     for f in findings:
         if f.severity != "fail":
             continue
+        if f.check == "solver":
+            out.append(f"{f.where}: the solution's limit, not necessarily the model's: "
+                       f"{f.suggestion}")
         if f.check == "step start":
             sensor = f.where.rsplit(": ", 1)[-1]
             out.append(f"{f.where.split(':')[0]}: the model misses the start of the voltage "

@@ -25,7 +25,7 @@ class Predictions:
             return []
         c = self.coulomb_path if coulomb is None else coulomb
         if c == self.coulomb_path:
-            ia, w, _ = self._predicted(theta)
+            ia, w = self._predicted(theta)[:2]
             return list(zip(self.exp.split(ia), self.exp.split(w), strict=True))
 
         def run(t, d):
@@ -51,18 +51,30 @@ class Predictions:
         return [a if tr.position is not None else None
                 for tr, a in zip(self.session.traces, self.exp.split(angle), strict=True)]
 
+    @x64
+    def beyond_phases(self, theta) -> list:
+        """Per trace, the start times (s) of its input segments whose regime changes
+        more often at θ than the regime-switching solution follows (its prediction there
+        is not exact after the last change it follows)."""
+        if self.exp is None:
+            return []
+        flags = self._predicted(theta)[3]
+        seg_trace, t0 = np.asarray(self.exp.seg_trace), np.asarray(self.exp.seg_t0)
+        return [t0[(seg_trace == k) & flags] for k in range(len(self.session.traces))]
+
     def _predicted(self, theta):
         """``(ia, ω, angle)`` of every trace in time order, from the trace block's own
-        residuals (observation − residual; a channel not logged is 0 there): one
-        compiled program serves both :meth:`predict` and :meth:`predict_angles`."""
+        residuals (observation − residual; a channel not logged is 0 there), and per
+        segment whether it outran the solution's phases: one compiled program serves
+        :meth:`predict`, :meth:`predict_angles` and :meth:`beyond_phases`."""
         block = self.blocks[0]
 
         def run(t, d):
             d = d["traces"]
-            r = block.residuals(self, t, d)
+            r, flags = block.residuals(self, t, d, overflow=True)
             return tuple(d["exp"].unpad(d[k] - x)
                          for k, x in zip(("current", "speed", "position"), (r[1], r[0], r[2]),
-                                         strict=True))
+                                         strict=True)) + (flags,)
 
         out = self.compiled("predict", lambda: jax.jit(run))(jnp.asarray(theta), self.data)
         return tuple(np.asarray(x) for x in out)

@@ -21,7 +21,8 @@ clamping of a moving one, bracketed on a geometric grid (the first crossing, not
 any) and located by Newton steps kept inside the bracket (bisection where a step would
 leave it), then Newton steps that carry the time's dependence on the parameters; a
 clamped phase's exit or stop, in closed form.  A change beyond the last phase is not
-followed.
+followed; ``segment_phases(overflow=True)`` says where that happens, and the adequacy
+checks fail such a segment.
 """
 
 from __future__ import annotations
@@ -254,9 +255,11 @@ def _aftermoving(p, va, tl, tc, limit, ph, rem, coulomb, fast, drop):
 
 
 def segment_phases(p, x, va, tl, tc, limit, length, coulomb: bool, fast: bool,
-                   drop=None) -> Phase:
+                   drop=None, overflow: bool = False):
     """The phases of one segment from the state ``x = (ia, ω)`` at its start, stacked
-    (leading axis :data:`PHASES`); ``drop`` (V), when given, opposes the current."""
+    (leading axis :data:`PHASES`); ``drop`` (V), when given, opposes the current.  With
+    ``overflow``, also whether the last of them ends inside the segment (a change the
+    solution does not follow)."""
     first = _classify(p, va, tl, tc, limit, x[0], x[1], coulomb, drop)
 
     def next_phase(ph, _):
@@ -276,8 +279,11 @@ def segment_phases(p, x, va, tl, tc, limit, length, coulomb: bool, fast: bool,
                            w=jnp.where(jnp.isfinite(t0), nxt.w, ph.w))
         return nxt, nxt
 
-    _, rest = jax.lax.scan(next_phase, first, None, length=PHASES - 1)
-    return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), first, rest)
+    last, rest = jax.lax.scan(next_phase, first, None, length=PHASES - 1)
+    phases = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), first, rest)
+    if not overflow:
+        return phases
+    return phases, jnp.isfinite(next_phase(last, None)[0].t0)
 
 
 def state_in_segment(p, phases: Phase, va, tl, tc, limit, tau, fast=False, drop=None):

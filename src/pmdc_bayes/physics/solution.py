@@ -103,7 +103,7 @@ def initial_state(p: Params, exp: Experiment, coulomb: bool):
 
 def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
                     fast: bool = False, limit=None, with_angle: bool = False, lags=None,
-                    drop=None):
+                    drop=None, overflow: bool = False):
     """Exact ``(ia, ω)`` in the experiment's padded ``(C, L)`` sample layout, and with
     ``with_angle`` the angle turned since each trace's start (rad), exact too
     (:mod:`.angle`).
@@ -116,19 +116,25 @@ def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
     returned as its sensor reads it (:mod:`.sensor`), settled at each trace's start.
     ``drop`` (V), when given, is a voltage drop at the brushes and driver, which opposes
     the current (the regime-switching solution of :mod:`.limited`).
+    ``overflow=True`` appends, per segment, whether its regime changes more often than
+    the :data:`~.limited.PHASES` the regime-switching solution follows (the prediction
+    is then not exact after the last of them; always False without a limit or drop).
     """
     lags = (None, None) if lags is None else tuple(lags)
     mus = tuple(None if tau is None else sensor.pole(tau) for tau in lags)
     if drop is not None and limit is None:
         limit = NO_LIMIT
     if limit is not None:
-        out = _simulate_limited(p, exp, coulomb, fast, limit, with_angle, mus, drop)
+        out = _simulate_limited(p, exp, coulomb, fast, limit, with_angle, mus, drop, overflow)
     else:
         out = _simulate_free(p, exp, coulomb, fast, with_angle, mus)
+        if overflow:
+            out = out + (jnp.zeros(exp.seg_va.shape, bool),)
+    extra = out[-1:] if overflow else ()
     if not with_angle:
-        return out[:2]
-    ia, w, totals, within, w_start = out
-    return ia, w, assemble_angle(exp, totals, within, w_start)
+        return out[:2] + extra
+    ia, w, totals, within, w_start = out[:5]
+    return (ia, w, assemble_angle(exp, totals, within, w_start)) + extra
 
 
 def _drags(p: Params, exp: Experiment, tc0):
@@ -235,9 +241,10 @@ def _simulate_free(p: Params, exp: Experiment, coulomb: bool, fast: bool, angle:
 
 
 def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, limit,
-                      angle: bool, mus, drop):
+                      angle: bool, mus, drop, overflow: bool = False):
     """:func:`_simulate_free` with a current-limited driver or a voltage drop: each
-    segment split into its regimes by :func:`.limited.segment_phases`."""
+    segment split into its regimes by :func:`.limited.segment_phases`; with
+    ``overflow``, also whether each segment changes regime more often than they follow."""
     b_x, tc_x, seen = _drags(p, exp, p.Tc if coulomb else 0.0)
 
     def start(ps, va, tl, mode, xg):
@@ -246,15 +253,21 @@ def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, lim
 
     def advance(ps, x, va, tl, length):
         phases = limited.segment_phases(ps, x, va, tl, ps.Tc, limit, length, coulomb, fast,
-                                        drop)
+                                        drop, overflow)
+        record = phases
+        if overflow:
+            phases = phases[0]
         x_end = limited.state_in_segment(ps, phases, va, tl, ps.Tc, limit, length, fast, drop)
         total = angle_in_segment(ps, phases, va, tl, ps.Tc, limit, length, *x_end, drop=drop)
-        return phases, phases, x_end, total
+        return record, phases, x_end, total
 
     x0 = start(seen(b_x[0], tc_x[0]), exp.seg_va[0], exp.seg_tl[0], exp.seg_mode[0],
                exp.seg_x0[0])
     phases, totals, starts, b_seen, tl_seen = _scan(
         exp, _pass(start, advance, seen, limit, fast, mus, drop), x0, mus, b_x, tc_x)
+    flags = None
+    if overflow:
+        phases, flags = phases
     # (segments, PHASES) → (PHASES, chunks, 1 or L): each sample's segment's phases.
     c = exp.sample_segments
     per_chunk = jax.tree_util.tree_map(lambda a: jnp.moveaxis(a[c], -1, 0), phases)
@@ -262,10 +275,11 @@ def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, lim
     va, tl = exp.seg_va[c], tl_seen[c]
     ia, w = limited.state_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, fast, drop)
     ia_r, w_r = _readings(exp, pc, va, tl, limit, per_chunk, starts, mus, ia, w, fast, drop)
+    extra = () if flags is None else (flags,)
     if not angle:
-        return ia_r, w_r
+        return (ia_r, w_r) + extra
     within = angle_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, ia, w, drop)
-    return ia_r, w_r, totals, within, per_chunk.w[0]
+    return (ia_r, w_r, totals, within, per_chunk.w[0]) + extra
 
 
 def simulate(p: Params, exp: Experiment, *, coulomb: bool = False):
