@@ -52,6 +52,32 @@ class Predictions:
                 for tr, a in zip(self.session.traces, self.exp.split(angle), strict=True)]
 
     @x64
+    def predict_draws(self, thetas) -> list:
+        """Per trace ``(ia, ω, angle)`` at each θ of ``thetas`` ``(N, P)``, as the
+        sensors read them: NumPy arrays ``(N, samples)`` in time order, the angle None
+        for a trace without a position sensor.  One compiled call for all of them (a few
+        θ at a time), where :meth:`predict` would be one call each."""
+        if self.exp is None:
+            return []
+        block = self.blocks[0]
+
+        def run(ts, d):
+            d = d["traces"]
+
+            def one(t):
+                r = block.residuals(self, t, d)
+                return tuple(d["exp"].unpad(d[k] - x) for k, x in zip(
+                    ("current", "speed", "position"), (r[1], r[0], r[2]), strict=True))
+
+            return jax.lax.map(one, ts, batch_size=4)
+
+        fn = self.compiled("predict-draws", lambda: jax.jit(run))
+        ia, w, angle = (np.asarray(x) for x in fn(jnp.asarray(thetas), self.data))
+        split = [self.exp.split(x) for x in (ia, w, angle)]
+        return [(i, v, a if tr.position is not None else None)
+                for tr, i, v, a in zip(self.session.traces, *split, strict=True)]
+
+    @x64
     def beyond_phases(self, theta) -> list:
         """Per trace, the start times (s) of its input segments whose regime changes
         more often at θ than the regime-switching solution follows (its prediction there

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import functools
 import io
-import warnings
 
 import matplotlib
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -22,7 +21,7 @@ from .._format import row_format
 from ..io.units import display_unit
 
 __all__ = ["subplots", "styled", "png", "COLORS", "LABELS", "scale_of",
-           "arviz_plot", "Line2D", "NullLocator", "STYLE"]
+           "Line2D", "NullLocator", "STYLE"]
 
 COLORS = {"measured": "0.35", "closed_form": "tab:orange", "map": "tab:blue",
           "mean": "tab:green", "truth": "tab:purple", "published": "tab:red"}
@@ -52,9 +51,10 @@ def subplots(nrows: int = 1, ncols: int = 1, *, figsize=None, **kwargs):
 
 
 def png(fig) -> bytes:
-    """The figure as PNG bytes."""
+    """The figure as PNG bytes, as laid out (every figure function lays itself out with
+    ``tight_layout``; a tight bounding box on saving would draw the figure twice)."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", bbox_inches="tight")
+    fig.savefig(buf, format="png")
     return buf.getvalue()
 
 
@@ -65,13 +65,3 @@ def scale_of(name: str, value: float, unit: str) -> tuple[float, str]:
     ``summary.json``."""
     f = row_format(value, None)
     return 10.0 ** -f.exponent, f"{name} ({f.suffix}{display_unit(unit)})"
-
-
-def arviz_plot(fn, *args, **kwargs):
-    """Call an ArviZ plotting function.  ArviZ 0.23's matplotlib backend passes a dict
-    to ``normalize_kwargs``, which matplotlib 3.11 deprecates; the plot is unaffected,
-    so that one notice is silenced here (and only here)."""
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message="Passing a dict or None as alias_mapping",
-                                category=matplotlib.MatplotlibDeprecationWarning)
-        return fn(*args, **kwargs)

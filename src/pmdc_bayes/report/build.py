@@ -10,8 +10,9 @@ from ._doc import Bullets, Figure, Paragraph, Section, Table, fmt
 from .adequacy import CONDITIONAL, adequacy_section, selection_section
 from .comparison import compare_closed_form
 from .export import controller_model
+from .fig_chains import chains_figure, ranks_figure
 from .fig_control import response_figure
-from .fig_params import chains_figure, corner_figure, forest_figure, ranks_figure
+from .fig_params import corner_figure, forest_figure
 from .fig_steady import steady_figure
 from .fig_traces import trace_figure
 from .predictive import METHODS
@@ -192,8 +193,8 @@ def _diagnostics(ctx) -> Section:
     sec = Section("Diagnostics")
     sec.add(diagnostics_table(ctx))
     if ctx.has_posterior:
-        sec.add(Figure("chains", "Trace plot of the walkers (ArviZ).", chains_figure(ctx)))
-        sec.add(Figure("ranks", "Rank plots (ArviZ), walkers pooled into four sets.",
+        sec.add(Figure("chains", "Trace plot of the walkers.", chains_figure(ctx)))
+        sec.add(Figure("ranks", "Rank plots, walkers pooled into four sets.",
                        ranks_figure(ctx)))
     else:
         sec.add(Paragraph("No chains to show (--no-mcmc)."))

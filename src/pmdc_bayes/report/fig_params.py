@@ -1,4 +1,4 @@
-"""Parameter figures: the corner (pair) plot, the forest plot and the chain plots."""
+"""Parameter figures: the corner (pair) plot and the forest plot."""
 
 from __future__ import annotations
 
@@ -10,15 +10,13 @@ from ._plot import (
     COLORS,
     Line2D,
     NullLocator,
-    arviz_plot,
     png,
     scale_of,
     styled,
     subplots,
 )
 
-__all__ = ["corner_figure", "forest_figure", "forest_points", "chains_figure", "ranks_figure",
-           "CORNER_NAMES"]
+__all__ = ["corner_figure", "forest_figure", "forest_points", "CORNER_NAMES"]
 
 CORNER_NAMES = ("J", "B", "K", "Tc")
 _N_SCATTER = 3000
@@ -205,78 +203,5 @@ def forest_figure(ctx, rows) -> bytes:
                   "logarithmic beyond)")
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=4, frameon=False)
     ax.set_title(f"Every parameter relative to its {ctx.best_label} (value under each name)")
-    fig.tight_layout()
-    return png(fig)
-
-
-def _grouped(ctx, groups: int):
-    """The posterior with the walkers pooled into ``groups`` sets (for readable ranks),
-    thinned to at most ~500 draws per walker."""
-    from ..inference.diagnostics import az
-
-    post = ctx.idata.posterior
-    out = {}
-    for n in ctx.names:
-        x = np.asarray(post[n].values)
-        g = min(groups, x.shape[0])
-        x = x[: (x.shape[0] // g) * g, :: max(1, x.shape[1] // 500)]
-        out[n] = x.reshape(g, -1)
-    return az.from_dict(posterior=out)
-
-
-@styled
-def chains_figure(ctx) -> bytes:
-    """PNG: ArviZ trace plot of every walker (marginal density and draws against step),
-    each parameter in a power-of-ten unit so the ticks stay short."""
-    from ..inference.diagnostics import az
-
-    post = ctx.idata.posterior
-    scaled, labels = {}, {}
-    for name in ctx.names:
-        x = np.asarray(post[name].values)
-        x = x[:, :: max(1, x.shape[1] // 500)]  # at most ~500 steps per walker drawn
-        f, labels[name] = scale_of(name, float(np.mean(x)), ctx.unit(name))
-        scaled[name] = x * f
-    n = len(ctx.names)
-    fig, axes = subplots(n, 2, figsize=(9, 1.6 * n + 0.5), squeeze=False)
-    arviz_plot(az.plot_trace, az.from_dict(posterior=scaled), var_names=list(ctx.names),
-               combined=True, compact=True, axes=axes,
-               trace_kwargs={"alpha": 0.25, "linewidth": 0.4})
-    for row, name in zip(axes, ctx.names, strict=True):
-        row[0].set_title(f"{labels[name]}: marginal, all walkers", fontsize=9)
-        row[1].set_title(f"{labels[name]} against step (thinned), one line per walker",
-                         fontsize=9)
-        for ax in row:
-            ax.tick_params(labelsize=7)
-            ax.ticklabel_format(axis="both", useOffset=False)
-        row[0].locator_params(axis="x", nbins=6)
-        row[1].locator_params(axis="y", nbins=4)
-    axes[-1][1].set_xlabel("draw index after burn-in (thinned)")
-    axes[-1][0].set_xlabel("parameter value (unit in the title)")
-    fig.tight_layout()
-    return png(fig)
-
-
-@styled
-def ranks_figure(ctx, groups: int = 4) -> bytes:
-    """PNG: ArviZ rank plots, the walkers pooled into ``groups`` sets; bars near uniform
-    (the dashed line) mean the sets sample the same distribution."""
-    from ..inference.diagnostics import az
-
-    n = len(ctx.names)
-    cols = 3
-    rows = -(-n // cols)
-    fig, axes = subplots(rows, cols, figsize=(9, 2.2 * rows + 0.5), squeeze=False)
-    arviz_plot(az.plot_rank, _grouped(ctx, groups), var_names=list(ctx.names), kind="bars",
-                 ax=axes.ravel()[:n])
-    walkers = ctx.idata.posterior.sizes["chain"]
-    for ax, name in zip(axes.ravel(), ctx.names, strict=False):
-        ax.set_title(f"{name}", fontsize=9)
-        ax.set_xlabel("rank of the draw (all draws)", fontsize=8)
-        ax.set_ylabel(f"walker set ({walkers // groups} walkers each)", fontsize=8)
-        ax.tick_params(labelsize=7)
-    for ax in axes.ravel()[n:]:
-        ax.set_axis_off()
-    fig.suptitle("Rank plots of the chains", x=0.02, ha="left")
     fig.tight_layout()
     return png(fig)

@@ -102,9 +102,9 @@ def predict_traces(model, values: dict, draws, noise_sd: dict, *, seed: int = 0,
             "map": run(_theta(model, values["map"]))}
     per_draw = None
     if draws is not None:
-        sims = [run(model.theta(dict(zip(model.names, d, strict=True)))) for d in draws]
-        per_draw = [tuple(None if sims[0][k][j] is None else np.stack([s[k][j] for s in sims])
-                          for j in range(3)) for k in range(len(model.session.traces))]
+        thetas = np.stack([np.asarray(model.theta(dict(zip(model.names, d, strict=True))))
+                           for d in draws])
+        per_draw = model.predict_draws(thetas)
     rng = np.random.default_rng(seed)
     out = []
     for k, tr in enumerate(model.session.traces):
