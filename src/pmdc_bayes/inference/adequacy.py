@@ -32,7 +32,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from .._x64 import x64
-from .channels import CoastDownBlock, TraceBlock
+from .channels import CoastDownBlock
 
 __all__ = ["Finding", "Adequacy", "assess", "whiteness", "fit_percent", "systematic_misfit"]
 
@@ -274,18 +274,14 @@ def _coast_down_pairs(model, fit):
 
 
 def _position_pairs(model, fit):
-    """(channel name, observed, predicted) for each trace's angle, where read."""
+    """(channel name, observed, predicted) for each trace's angle, where read (from the
+    compiled prediction the trace channels use)."""
     out = []
-    for block in model.blocks:
-        if isinstance(block, TraceBlock) and block.offsets:
-            d = model.data[block.key]
-            r = block.residuals(model, np.asarray(fit.theta), d)[2]
-            per_trace = model.exp.split(np.asarray(d["exp"].unpad(r)))
-            for tr, rk in zip(model.session.traces, per_trace, strict=True):
-                if tr.position is not None:
-                    ok = np.isfinite(tr.position)
-                    out.append((f"{tr.name}: position", tr.position[ok],
-                                tr.position[ok] - rk[ok]))
+    angles = model.predict_angles(np.asarray(fit.theta)) if model.exp is not None else []
+    for tr, angle in zip(model.session.traces, angles, strict=True):
+        if tr.position is not None:
+            ok = np.isfinite(tr.position)
+            out.append((f"{tr.name}: position", tr.position[ok], np.asarray(angle)[ok]))
     return out
 
 

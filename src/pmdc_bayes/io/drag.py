@@ -30,7 +30,7 @@ class Drag(NamedTuple):
         return self.quadratic != 0.0 or len(self.curve) > 0
 
     @property
-    def any(self) -> bool:
+    def nonzero(self) -> bool:
         """Whether there is any drag at all."""
         return self.constant != 0.0 or self.viscous != 0.0 or self.curved
 

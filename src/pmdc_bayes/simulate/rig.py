@@ -172,7 +172,7 @@ def rig_trace(truth: dict, rig: RigSpec, spec) -> dict[str, np.ndarray]:
     ``position`` (counted angle, NaN where unread) and ``speed`` from it; edges of a
     rotor that turns back carry their ``direction`` (1 forward, 0 backward)."""
     m = _motor(truth, rig, spec.encoder)
-    if spec.drag.any:  # the trace's known load, on top of any unknown one
+    if spec.drag.nonzero:  # the trace's known load, on top of any unknown one
         c, v = m.extra_load.get(spec.name, (0.0, 0.0))[:2]
         d = spec.drag
         m = replace(m, extra_load={**m.extra_load, spec.name: d._replace(

@@ -245,7 +245,7 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
         if tr.kind == COAST_DOWN:  # its table says no more: the armature is open
             continue
         out.append(f"voltage = {_pairs(tr.voltage)}")
-        if tr.drag.any:
+        if tr.drag.nonzero:
             out.append(f"drag = {_drag_entry(tr)}")
         if tr.load_torque is not None:
             out.append(f"load_torque = {_pairs(tr.load_torque)}")
