@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["SessionError", "UsageError"]
+__all__ = ["SessionError", "UsageError", "FitFailed"]
 
 
 class SessionError(ValueError):
@@ -33,3 +33,8 @@ class NotApplicable(SessionError):
     """The paper's closed-form method cannot run on this session (it lacks a steady
     current or a step).  A fit seeds itself from the data instead; the closed-form
     command alone reports it as bad input."""
+
+
+class FitFailed(RuntimeError):
+    """The fit cannot go on from its MAP (its curvature is not finite: the model
+    overflows near the optimum).  One line; the command line exits with code 1."""

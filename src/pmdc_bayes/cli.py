@@ -15,7 +15,7 @@ from pathlib import Path
 from . import _signals, cachedir
 from ._cli_parser import build_parser
 from ._console import gate_failure_text, print_fit
-from ._errors import SessionError, UsageError
+from ._errors import FitFailed, SessionError, UsageError
 from .io.bundled import session_path
 from .io.units import display_unit
 from .rundir import check_writable
@@ -126,6 +126,9 @@ def _fit_lot(args, paths) -> int:
         except (SessionError, UsageError) as exc:
             print(f"pmdc-bayes: error: {exc}", file=sys.stderr)
             entries.append(LotEntry(path, EXIT_USAGE, error=str(exc)))
+        except FitFailed as exc:
+            print(f"pmdc-bayes: error: {exc}", file=sys.stderr)
+            entries.append(LotEntry(path, EXIT_FAILED, error=str(exc)))
     if not args.quiet:
         print(lot_table(entries))
     if args.out is not None:
@@ -234,6 +237,9 @@ def main(argv: list[str] | None = None) -> int:
     except (SessionError, UsageError) as exc:
         print(f"pmdc-bayes: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except FitFailed as exc:
+        print(f"pmdc-bayes: error: {exc}", file=sys.stderr)
+        return EXIT_FAILED
     except _signals.Terminated:
         print("pmdc-bayes: terminated (no partial output is left)", file=sys.stderr)
         return 143

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._errors import UsageError
+from ._errors import FitFailed, UsageError
 from ._x64 import x64
 from .inference.adequacy import assess
 from .inference.cache import announcing
@@ -111,6 +111,8 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     model = build_model(session, cf, coulomb=coulomb)
     say(f"MAP fit of {len(model.names)} parameters")
     fit = fit_map(model, seed=seed)
+    if not np.all(np.isfinite(fit.cov_log)):
+        raise FitFailed(f"{session.root}: the MAP fit failed: {fit.message}")
     ident = identifiability(model, fit)
     wall["map"] = time.perf_counter() - t0
     t0 = time.perf_counter()

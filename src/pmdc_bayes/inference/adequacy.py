@@ -203,6 +203,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     """Every adequacy check of ``fit`` (a :class:`~.fit.FitResult` of ``model``)."""
     from .checks import (
         bench_checks,
+        drag_checks,
         plausibility_checks,
         search_checks,
         solver_checks,
@@ -255,6 +256,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     findings += found
     findings += search_checks(fit)
     findings += solver_checks(model, fit)
+    findings += drag_checks(model)
     findings.sort(key=lambda f: f.severity != "fail")
     verdict = "inadequate" if any(f.severity == "fail" for f in findings) else "adequate"
     diagnosis = diagnose(model, fit, preds, findings) if verdict == "inadequate" else ()
@@ -288,8 +290,9 @@ def _position_pairs(model, fit):
 def _steady_pairs(model, fit):
     """(channel name, observed, predicted) for the steady speeds and currents."""
     st = model.steady
-    p = model.circuit(np.asarray(fit.theta))
-    w, i = model.steady_prediction(p, st["v"], st["tl"], model.drop(np.asarray(fit.theta)))
+    theta = np.asarray(fit.theta)
+    p = type(model.params(theta))(*(float(x) for x in model.circuit(theta)))  # on the host
+    w, i = model.steady_prediction(p, st["v"], st["tl"], float(model.drop(theta)))
     out = []
     for name, obs, pred, mask in (("steady: speed", st["w"], w, st["w_mask"]),
                                   ("steady: current", st["i"], i, st["i_mask"])):

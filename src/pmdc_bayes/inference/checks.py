@@ -12,6 +12,8 @@ from ..physics.limited import PHASES
 from .adequacy import BENCH_FAIL_Z, BENCH_WARN_Z, PEAK_RATIO, RISE_RATIO, Finding, _g
 from .levels import unloaded_levels
 
+CURVE_REACH = 1.05  # a trace this much faster than its drag curve's last point is warned
+
 __all__ = ["bench_checks", "plausibility_checks", "search_checks", "rise_time", "step_time",
            "step_start_check"]
 
@@ -242,4 +244,22 @@ def solver_checks(model, fit) -> list:
             f"{PHASES}, so the model's prediction after them is not exact",
             "log the voltage as a column (each sample starts a segment of its own) or "
             "shorten the trace's constant stretches"))
+    return out
+
+
+def drag_checks(model) -> list:
+    """Traces that run faster than their declared drag curve reaches: beyond its last
+    point the drag is extended along its last slope, which the curve does not measure."""
+    out = []
+    for tr in model.session.traces:
+        if not tr.drag.curve or tr.speed is None or not np.any(np.isfinite(tr.speed)):
+            continue
+        last, top = tr.drag.curve[-1][0], float(np.nanmax(np.abs(tr.speed)))
+        if top > CURVE_REACH * last:
+            out.append(Finding(
+                "known load", tr.name, "warn", f"{top / last:.3g}x its last point",
+                f"{tr.name}: the speed reaches {top:.4g} rad/s, {top / last:.3g} times the "
+                f"last point of its drag curve ({last:.4g} rad/s); beyond it the drag is "
+                "its last slope extended, which nothing measured: the fit there rests on "
+                "that guess", "extend the curve to the trace's top speed"))
     return out

@@ -127,6 +127,36 @@ def _unit_slips(ratios, outliers) -> dict[str, str]:
     return out
 
 
+def _level_sentence(name: str, miss: float, against: str, alt: str = "") -> str:
+    """A trace that settles ``miss`` (relative) off ``against``, in words."""
+    where = f"{name}: settles {100 * abs(miss):.2g} % {'below' if miss < 0 else 'above'} {against}"
+    if miss < 0:
+        return (f"{where}: an unmeasured load on this trace (a brake, a generator, a rubbing "
+                f"coupling){alt}; declare its load torque, or fit it: [model] unknown_load "
+                f"= [{name!r}]")
+    return (f"{where}: this trace turned more freely than the rest of the session says (a "
+            "load on the other traces that this one lacks, a coupling removed), or its "
+            "voltage was higher than the session says; check the bench and the voltage")
+
+
+def _declared_drag_rules(session, ratios, slips) -> list[str]:
+    """Traces with a declared drag that settle off the model's level: the drag declared
+    too strong (the speed settles above) or too weak (below)."""
+    out = []
+    for tr in session.traces:
+        r = ratios.get(tr.name)
+        if not tr.drag.nonzero or r is None or tr.name in slips or abs(r - 1) <= LEVEL_MISS:
+            continue
+        way = "strong" if r > 1 else "weak"
+        out.append(f"{tr.name}: settles {100 * abs(r - 1):.2g} % {'above' if r > 1 else 'below'}"
+                   f" the model's speed under its declared drag: the drag is declared too "
+                   f"{way} (check its curve, coefficients and units: the curve's speeds are in "
+                   "the trace's speed unit, its torques in its load_torque unit)"
+                   + ("" if r > 1 else ", or the trace carries a load beside it: [model] "
+                      f"unknown_load = [{tr.name!r}]"))
+    return out
+
+
 def _level_rules(model, fit, preds, findings):
     """Sentences on the steady levels: unmeasured loads, unit slips, an offset."""
     session, out = model.session, []
@@ -138,7 +168,9 @@ def _level_rules(model, fit, preds, findings):
             ratios[tr.name] = float(np.mean(tr.speed[-n_end:])) / mod
     outliers = level_outliers(session)
     if outliers is None:  # too few levels for a line: compare with the model instead
-        misses = {k: r - 1 for k, r in ratios.items() if abs(r - 1) > LEVEL_MISS}
+        declared = {tr.name for tr in session.traces if tr.drag.nonzero}  # said below
+        misses = {k: r - 1 for k, r in ratios.items()
+                  if abs(r - 1) > LEVEL_MISS and k not in declared}
         outliers = misses if len(misses) < len(ratios) else {}
         alt = ", or a voltage drop the other traces hide"
     else:
@@ -155,10 +187,8 @@ def _level_rules(model, fit, preds, findings):
     for name, m in outliers.items():
         if name in slips:
             continue
-        out.append(f"{name}: settles {100 * abs(m):.2g} % {'below' if m < 0 else 'above'} "
-                   "the speed the other levels imply: an unmeasured load on this trace "
-                   f"(a brake, a generator, a rubbing coupling){alt}; declare its load "
-                   f"torque, or fit it: [model] unknown_load = [{name!r}]")
+        out.append(_level_sentence(name, m, "the speed the other levels imply", alt))
+    out += _declared_drag_rules(session, ratios, slips)
     icpt, offset = voltage_intercept(session), friction_offset(session)
     coulomb = (offset is not None and offset["current"] > 3 * offset["se"]
                and offset["current"] > 0.05 * offset["mean_current"])

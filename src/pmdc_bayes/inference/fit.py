@@ -120,7 +120,9 @@ def laplace(model: SessionModel, theta, terms: Terms | None = None):
     """
     if terms is None:
         terms = GaussNewton(model).terms(theta)
-    H = terms.H_noise
+    H = np.asarray(terms.H_noise)
+    if not np.all(np.isfinite(H)):  # the model overflows near θ: no curvature to invert
+        return np.full(H.shape, np.nan), H
     vals, vecs = np.linalg.eigh(0.5 * (H + H.T))
     vals = np.clip(vals, 1e-12 * max(vals.max(), 1e-300), None)
     cov = (vecs / vals) @ vecs.T
@@ -183,6 +185,8 @@ def _modes(thetas, logp, ok, cov, evaluate) -> tuple[list[int], list[int]]:
 
 
 def _precision(cov) -> np.ndarray:
+    if not np.all(np.isfinite(cov)):
+        return np.zeros_like(cov)
     vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
     return (vecs / np.clip(vals, 1e-300, None)) @ vecs.T
 
@@ -215,7 +219,11 @@ def _finish(model, states, origins, evaluate) -> FitResult:
     elif not ok[best]:
         reasons.append(f"Levenberg–Marquardt stopped before the optimum at the best start "
                        f"({states[best].stopped} after {states[best].steps} steps)")
-    if not np.all(np.isfinite(sd_log)):
+    if not np.all(np.isfinite(cov)):
+        reasons.append("the curvature at the optimum is not finite: the model's predictions "
+                       "overflow near it (check the magnitudes the session gives, such as a "
+                       "known load's coefficients and curve)")
+    elif not np.all(np.isfinite(sd_log)):
         reasons.append("the curvature at the optimum is singular")
     status = "failed" if reasons else "converged"
     n_agree = int(agree.sum())

@@ -26,7 +26,8 @@ def settled(y) -> bool:
 def unloaded_levels(session) -> tuple[np.ndarray, list]:
     """Every unloaded steady level (rows of voltage, speed, current or NaN) and, per
     row, the trace it ends (None for tables and operating points); traces that end
-    before they settle give none."""
+    before they settle, or that drive a load (a load torque, a declared drag), give
+    none."""
     rows, names = [], []
     for tab in session.steady_tables:
         cur = tab.current if tab.current is not None else np.full(tab.voltage.size, np.nan)
@@ -39,7 +40,7 @@ def unloaded_levels(session) -> tuple[np.ndarray, list]:
             rows.append((op.voltage, op.speed, np.nan if op.current is None else op.current))
             names.append(None)
     for tr in session.traces:
-        if np.all(tr.load_torque.values == 0) and settled(tr.speed):
+        if np.all(tr.load_torque.values == 0) and not tr.drag.nonzero and settled(tr.speed):
             n = max(3, tr.n // 10)
             i = np.nan if tr.current is None else float(np.mean(tr.current[-n:]))
             rows.append((float(tr.voltage.values[-1]), float(np.mean(tr.speed[-n:])), i))

@@ -12,7 +12,7 @@ from ._csv import read_columns
 from ._position import angle_si, edge_angles, edges_flag, speed_estimate, unwrap_time
 from ._toml import Table as _Table
 from ._toml import describe as _describe
-from .drag import read_drag
+from .drag import check_curve_reach, read_drag
 from .session import COAST_DOWN, Schedule, Trace
 from .units import to_si
 
@@ -194,6 +194,7 @@ def _trace(t: _Table, root: Path) -> Trace:
     initial = _initial(t, u)
     drag = read_drag(t, u)
     m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial)
+    check_curve_reach(t, drag, m["speed"], u)
     return Trace(name=name, kind=kind, file=path, time=m["time"], speed=m["speed"],
                  current=si.get("current"), voltage=inputs["voltage"],
                  load_torque=inputs["load_torque"], voltage_logged="voltage" in si,

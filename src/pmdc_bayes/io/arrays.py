@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import UsageError
+from .drag import Drag
+from .units import from_si
 
 __all__ = ["session_from_arrays"]
 
@@ -128,6 +130,15 @@ def _trace(name: str, data, directory: Path, file: str) -> str:
                                  "constant, nor (time, value) pairs")
             entry[key] = pairs.tolist()
     entry.update({k: rest[k] for k in _TRACE_KEYS if k in rest and k != "kind"})
+    if isinstance(entry.get("drag"), Drag):  # a trace's own record (SI): the same table
+        d = entry["drag"]
+        entry["drag"] = {k: getattr(d, k) for k in ("constant", "viscous", "quadratic")
+                         if getattr(d, k)}
+        if d.curve:  # in the trace's units, as session.toml reads a curve
+            units = entry.get("units") or {}
+            entry["drag"]["curve"] = [[from_si(w, "speed", units.get("speed", "rad/s")),
+                                       from_si(x, "torque", units.get("load_torque", "N*m"))]
+                                      for w, x in d.curve]
     _write_csv(directory / file, columns)
     return _table("[[trace]]", entry, where)
 

@@ -6,9 +6,12 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from ._toml import Table, describe
+import numpy as np
 
-__all__ = ["Drag", "NO_DRAG", "read_drag"]
+from ._toml import Table, describe
+from .units import from_si
+
+__all__ = ["Drag", "NO_DRAG", "read_drag", "check_curve_reach"]
 
 
 class Drag(NamedTuple):
@@ -44,9 +47,9 @@ def _curve(sub: Table, u: dict) -> tuple:
     pairs = sub.data["curve"]
     example = "curve = [[0, 0], [100, 0.004], [200, 0.015]]"
     if not isinstance(pairs, list) or len(pairs) < 2:
+        got = (f"{len(pairs)} point(s)" if isinstance(pairs, list) else describe(pairs))
         sub.fail("curve", f"expected a list of at least two [speed, torque] points, got "
-                 f"{describe(pairs)}; write e.g. {example} (speed and torque in the "
-                 "trace's units)")
+                 f"{got}; write e.g. {example} (speed and torque in the trace's units)")
     points = []
     for i, pair in enumerate(pairs):
         if not isinstance(pair, list) or len(pair) != 2:
@@ -79,3 +82,18 @@ def read_drag(t: Table, u: dict) -> Drag:
                 sub.number("viscous", "damping", default=0.0, low=0.0),
                 sub.number("quadratic", default=0.0, low=0.0),
                 _curve(sub, u) if "curve" in sub.data else ())
+
+
+def check_curve_reach(t: Table, drag: Drag, speed, u: dict) -> None:
+    """A curve whose last slope falls so far that, extended to the speed the trace
+    reaches (``speed``, rad/s), it would drive the motor (a negative drag): refused,
+    since a drag opposes the motion and the curve says nothing there."""
+    if len(drag.curve) < 2 or speed is None or not np.any(np.isfinite(speed)):
+        return
+    (w1, t1), (w2, t2) = drag.curve[-2:]
+    top = float(np.nanmax(np.abs(speed)))
+    if top > w2 and t2 + (t2 - t1) / (w2 - w1) * (top - w2) < 0:
+        reach = f"{from_si(top, 'speed', u['speed']):.4g} {u['speed']}"
+        t.fail("drag.curve", f"the curve's last slope, extended to {reach} (the trace's top "
+               "speed), gives a negative torque, a load that drives the motor; extend the "
+               "curve with points measured up to that speed")

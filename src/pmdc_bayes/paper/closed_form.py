@@ -258,7 +258,10 @@ def closed_form(session: Session) -> ClosedForm:
         tau = sr.tau
         used["tau"] = f"step reading {sr.name!r}"
     elif steps:
-        tr = max(steps, key=lambda s: (turns(s), abs(step_of(s)[2] - step_of(s)[1])))
+        # the largest step that turns, one without a declared drag where there is one
+        # (equation (9) knows no load)
+        tr = max(steps, key=lambda s: (turns(s), not s.drag.nonzero,
+                                       abs(step_of(s)[2] - step_of(s)[1])))
         t_step, _, _ = step_of(tr)
         try:
             tau = read_time_constant(tr.time, tr.speed, t_step=t_step).tau

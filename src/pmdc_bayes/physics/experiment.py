@@ -87,8 +87,9 @@ class Experiment(NamedTuple):
 
     @property
     def seg_trace(self) -> jax.Array:
-        """The trace of each segment."""
-        return jnp.cumsum(self.seg_first.astype(jnp.int32)) - 1
+        """The trace of each segment (NumPy when the experiment is concrete)."""
+        xp = jnp if isinstance(self.seg_first, jax.core.Tracer) else np
+        return xp.cumsum(xp.asarray(self.seg_first).astype(xp.int32)) - 1
 
     @property
     def sample_segments(self) -> jax.Array:
@@ -133,8 +134,13 @@ class Experiment(NamedTuple):
         return t.reshape(-1)[np.asarray(self.index)]
 
     def pad(self, values) -> jax.Array:
-        """Place per-sample values (traces concatenated) into the padded layout."""
-        flat = jnp.zeros(self.tau.size).at[self.index].set(jnp.asarray(values))
+        """Place per-sample values (traces concatenated) into the padded layout (NumPy
+        when nothing is traced: a host-side array needs no compiled scatter)."""
+        if any(isinstance(x, jax.core.Tracer) for x in (values, self.index, self.tau)):
+            flat = jnp.zeros(self.tau.size).at[self.index].set(jnp.asarray(values))
+            return flat.reshape(self.tau.shape)
+        flat = np.zeros(self.tau.size)
+        flat[np.asarray(self.index)] = np.asarray(values)
         return flat.reshape(self.tau.shape)
 
     def unpad(self, padded) -> jax.Array:

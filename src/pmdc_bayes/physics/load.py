@@ -8,8 +8,9 @@ and extended beyond the last point along its last slope.
 
 The curved part has no closed-form solution, so the exact solution replaces it on
 each short segment by its tangent at the segment's starting speed ``ω0``: a load torque
-``f(ω0) − f′(ω0)·ω0`` and a viscous drag ``f′(ω0)`` (an exponential Rosenbrock step,
-second order in the segment's length); :func:`linearisation_cuts` gives the segments.
+``f(ω0) − f′(ω0)·ω0`` and a viscous drag ``f′(ω0)`` (an exponential Rosenbrock step),
+plus the mean over the segment of what the tangent leaves out of the quadratic part
+(:func:`curved_start`); :func:`linearisation_cuts` gives the segments.
 The same formula serves NumPy (the simulators, the closed form) and JAX (the model).
 """
 
@@ -153,22 +154,36 @@ _STEADY_ITERATIONS = 8  # Newton steps of a steady start under a curved drag
 
 def curved_start(start, seen, curve):
     """For a segment with a curved drag ``curve`` (its ``(q, speeds, torques)``, or
-    None): ``tangent(x)``, the viscous drag and load that replace it near the state
-    ``x`` (its tangent at ``x``'s speed; zeros without one), and ``begin(b, tc, va, tl,
-    mode, x0)``, ``start`` (of :func:`~.solution._pass`) under the segment's drag
-    ``(b, tc)`` and the curve, a steady state solved by Newton steps on the tangent."""
+    None): ``along(b, tc, tl, x, length)``, the viscous drag and load that replace it on
+    a segment of ``length`` from the state ``x`` (unchanged without one), and ``begin(b,
+    tc, va, tl, mode, x0)``, ``start`` (of :func:`~.solution._pass`) under the
+    segment's drag ``(b, tc)`` and the curve, a steady state solved by Newton steps on
+    the tangent.
+
+    ``along`` takes the curve's tangent at ``x``'s speed and adds the mean over the
+    segment of what the tangent leaves out of its quadratic part, ``q·(ω − ω0)²``, with
+    the speed moving at its rate at ``x``: ``q·(ω̇·length)²/3``.  Without that term the
+    tangent's error has one sign all along a speed's rise, and the speed's error adds
+    up in an angle; with it, the error is third order in the segment's length."""
     if curve is None:
-        return (lambda x: (0.0, 0.0),
+        return (lambda b, tc, tl, x, length: (b, tl),
                 lambda b, tc, va, tl, mode, xg: start(seen(b, tc), va, tl, mode, xg))
 
-    def tangent(x):
-        return curve_tangent(x[1], *curve, jnp)
+    def along(b, tc, tl, x, length):
+        db, dt = curve_tangent(x[1], *curve, jnp)
+        ps = seen(b + db, tc)
+        drive = ps.K * x[0] - tl - dt
+        held = (x[1] == 0) & (jnp.abs(drive) <= ps.Tc)
+        rate = jnp.where(held, 0.0, (drive - ps.B * x[1] - ps.Tc * jnp.sign(x[1])) / ps.J)
+        moved = rate * length
+        way = jnp.where(x[1] != 0, jnp.sign(x[1]), jnp.sign(moved))
+        return b + db, tl + dt + way * curve[0] * moved * moved / 3.0
 
     def begin(b, tc, va, tl, mode, xg):
         x = start(seen(b, tc), va, tl, mode, xg)
         for _ in range(_STEADY_ITERATIONS):
-            db, dt = tangent(x)
+            db, dt = curve_tangent(x[1], *curve, jnp)
             x = start(seen(b + db, tc), va, tl + dt, mode, xg)
         return x
 
-    return tangent, begin
+    return along, begin

@@ -162,11 +162,10 @@ def _pass(start, advance, seen, limit, fast: bool, mus, drop=None):
     def step(carry, seg_in):
         x, y = carry
         va, tl, length, first, mode, xg, b, tc, curve = seg_in
-        tangent, begin = load.curved_start(start, seen, curve)
+        along, begin = load.curved_start(start, seen, curve)
         xi = begin(b, tc, va, tl, mode, xg)
         x = (jnp.where(first, xi[0], x[0]), jnp.where(first, xi[1], x[1]))
-        db, dt = tangent(x)
-        b, tl = b + db, tl + dt
+        b, tl = along(b, tc, tl, x, length)
         ps = seen(b, tc)
         record, phases, x_end, total = advance(ps, x, va, tl, length)
         starts, y_end = [], []
