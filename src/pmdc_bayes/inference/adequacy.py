@@ -203,6 +203,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     """Every adequacy check of ``fit`` (a :class:`~.fit.FitResult` of ``model``)."""
     from .checks import (
         bench_checks,
+        bound_checks,
         drag_checks,
         plausibility_checks,
         search_checks,
@@ -257,6 +258,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     findings += search_checks(fit)
     findings += solver_checks(model, fit)
     findings += drag_checks(model)
+    findings += bound_checks(model, fit)
     findings.sort(key=lambda f: f.severity != "fail")
     verdict = "inadequate" if any(f.severity == "fail" for f in findings) else "adequate"
     diagnosis = diagnose(model, fit, preds, findings) if verdict == "inadequate" else ()

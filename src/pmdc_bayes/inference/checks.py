@@ -13,6 +13,7 @@ from .adequacy import BENCH_FAIL_Z, BENCH_WARN_Z, PEAK_RATIO, RISE_RATIO, Findin
 from .levels import unloaded_levels
 
 CURVE_REACH = 1.05  # a trace this much faster than its drag curve's last point is warned
+BOUND_Z = 2.0  # a motor parameter this many prior sd below its prior's centre, prior-bound
 
 __all__ = ["bench_checks", "plausibility_checks", "search_checks", "rise_time", "step_time",
            "step_start_check"]
@@ -262,4 +263,32 @@ def drag_checks(model) -> list:
                 f"last point of its drag curve ({last:.4g} rad/s); beyond it the drag is "
                 "its last slope extended, which nothing measured: the fit there rests on "
                 "that guess", "extend the curve to the trace's top speed"))
+    return out
+
+
+def bound_checks(model, fit) -> list:
+    """Motor parameters pressed against zero, their physical bound: the MAP lies more
+    than :data:`BOUND_Z` prior sd below its prior's centre and only the prior holds it
+    there (posterior as wide as the prior), so the data want less than none of it and
+    another part of the model does its work."""
+    out = []
+    centre, scale = model.registry.prior_arrays()
+    width = np.asarray(model.prior_sd)
+    sd_log = np.sqrt(np.clip(np.diag(fit.cov_log), 0.0, None))
+    for k, spec in enumerate(model.registry.specs):
+        if (spec.block not in ("motor", "friction") or spec.prior.kind != "lognormal"
+                or spec.prior.source == "bench"):
+            continue
+        z = (float(fit.theta[k]) - centre[k]) / scale[k]
+        if z < -BOUND_Z and sd_log[k] > 0.8 * width[k]:
+            value = float(np.exp(fit.theta[k]))
+            out.append(Finding(
+                "physical bound", spec.name, "fail", f"{-z:.2g} prior sd below its centre",
+                f"{spec.name} is pressed against zero: the fit puts it at {value:.3g} "
+                f"{spec.unit}, {-z:.2g} prior sd below its prior's centre "
+                f"({np.exp(centre[k]):.3g}), where only the prior holds it: the data want "
+                f"less than none of it, and another part of the model does its work",
+                "check what else carries it (a declared load too strong, a friction model "
+                "the data do not need: --friction viscous for Tc); if it is truly "
+                "negligible, rerun with --allow-inadequate"))
     return out

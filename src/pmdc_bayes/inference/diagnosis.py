@@ -232,6 +232,8 @@ def _finding_rules(model, fit, findings, already=()):
     for f in findings:
         if f.severity != "fail":
             continue
+        if f.check == "physical bound":
+            out.append(f"{f.where} at its bound: {f.suggestion}")
         if f.check == "solver":
             out.append(f"{f.where}: the solution's limit, not necessarily the model's: "
                        f"{f.suggestion}")
