@@ -146,7 +146,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
                 "names": list(model.names), "noise_sd": fit.noise_sd},
         "identifiability": ident,
         "consistency": consistency_checks(session, cf),
-        "residuals": {"closed_form": trace_rms(model, cf_theta, coulomb=False),
+        "residuals": {"closed_form": trace_rms(model, cf_theta),
                       "map": trace_rms(model, fit.theta)},
         "versions": versions(),
     }

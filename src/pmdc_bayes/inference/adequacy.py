@@ -219,7 +219,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     if closed_form is not None and session.traces:
         theta_cf = np.asarray(model.theta(dict(closed_form.params(), Tc=1e-12)))
         try:
-            preds_cf = model.predict(theta_cf, coulomb=False)
+            preds_cf = model.predict(theta_cf)  # Tc ≈ 0: the viscous motor, one program
         except (ValueError, FloatingPointError):
             preds_cf = None
     by_name = {c.name: c for c in model.channels}

@@ -5,26 +5,17 @@ from __future__ import annotations
 import math
 import re
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
 from .diagnostics import az
+from .predictions import RESIDUAL_BATCH
 
 __all__ = ["to_inference_data", "lumped", "LL_DRAWS"]
 
 LL_DRAWS = 400  # at most this many draws carry a pointwise log-likelihood (for LOO)
-_LL_BATCH = 50
-
-
-def _pointwise_fn(model):
-    """:meth:`SessionModel.padded_residuals` over a batch of θ, compiled once per
-    session structure."""
-    fn = model.compiled("pointwise-residuals", lambda: jax.jit(
-        lambda thetas, data: jax.lax.map(lambda t: model.padded_residuals(t, data=data),
-                                         thetas, batch_size=4)))
-    return lambda thetas: fn(thetas, model.data)
+_LL_BATCH = RESIDUAL_BATCH
 
 
 def _padded_pointwise(model, theta):
@@ -57,7 +48,7 @@ def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
     """At every ``thin``-th draw, per observation (in channel order): the log-likelihood
     and a replicate of the observation (the model's prediction plus Gaussian noise at
     its channel's level), each ``(chains, kept, n_obs)`` float32, filled batch by batch."""
-    fn = _pointwise_fn(model)
+    fn = model.residuals_of_batch
     sel = model.observation_selection()
     observed = np.concatenate(model.observed_values())
     sub = chain_log[:, ::thin]

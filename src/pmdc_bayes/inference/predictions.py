@@ -10,7 +10,9 @@ import numpy as np
 from .._x64 import x64
 from ..physics.solution import simulate_padded
 
-__all__ = ["Predictions"]
+__all__ = ["Predictions", "RESIDUAL_BATCH"]
+
+RESIDUAL_BATCH = 50  # θ per call of the batched residuals (pointwise likelihood, draws)
 
 
 class Predictions:
@@ -51,28 +53,37 @@ class Predictions:
         return [a if tr.position is not None else None
                 for tr, a in zip(self.session.traces, self.exp.split(angle), strict=True)]
 
+    def residuals_of_batch(self, thetas) -> list:
+        """:meth:`~.objective.SessionModel.padded_residuals` at each θ of ``thetas``
+        ``(RESIDUAL_BATCH, P)``: per output ``(residual, σ²)``, a leading axis over the
+        θ.  One compiled program per session structure, for the pointwise
+        log-likelihood and the predictive draws alike."""
+        fn = self.compiled("pointwise-residuals", lambda: jax.jit(
+            lambda ts, data: jax.lax.map(lambda t: self.padded_residuals(t, data=data), ts,
+                                         batch_size=4)))
+        return fn(jnp.asarray(thetas), self.data)
+
     @x64
     def predict_draws(self, thetas) -> list:
         """Per trace ``(ia, ω, angle)`` at each θ of ``thetas`` ``(N, P)``, as the
         sensors read them: NumPy arrays ``(N, samples)`` in time order, the angle None
-        for a trace without a position sensor.  One compiled call for all of them (a few
-        θ at a time), where :meth:`predict` would be one call each."""
+        for a trace without a position sensor; from :meth:`residuals_of_batch` (the
+        observation less the residual), :data:`RESIDUAL_BATCH` θ a call."""
         if self.exp is None:
             return []
-        block = self.blocks[0]
-
-        def run(ts, d):
-            d = d["traces"]
-
-            def one(t):
-                r = block.residuals(self, t, d)
-                return tuple(d["exp"].unpad(d[k] - x) for k, x in zip(
-                    ("current", "speed", "position"), (r[1], r[0], r[2]), strict=True))
-
-            return jax.lax.map(one, ts, batch_size=4)
-
-        fn = self.compiled("predict-draws", lambda: jax.jit(run))
-        ia, w, angle = (np.asarray(x) for x in fn(jnp.asarray(thetas), self.data))
+        thetas = np.asarray(thetas, dtype=float)
+        n = thetas.shape[0]
+        m = -(-n // RESIDUAL_BATCH) * RESIDUAL_BATCH
+        padded = np.concatenate([thetas, np.repeat(thetas[:1], m - n, axis=0)])
+        d = self.data["traces"]
+        out = {k: [] for k in ("current", "speed", "position")}
+        for a in range(0, m, RESIDUAL_BATCH):
+            outs = self.residuals_of_batch(padded[a:a + RESIDUAL_BATCH])
+            for k, (r, _) in zip(("speed", "current", "position"), outs[:3], strict=True):
+                out[k].append(np.asarray(d[k])[None] - np.asarray(r))
+        unpad = np.asarray(self.exp.index)
+        ia, w, angle = (np.concatenate(out[k])[:n].reshape(n, -1)[:, unpad]
+                        for k in ("current", "speed", "position"))
         split = [self.exp.split(x) for x in (ia, w, angle)]
         return [(i, v, a if tr.position is not None else None)
                 for tr, i, v, a in zip(self.session.traces, *split, strict=True)]

@@ -93,12 +93,12 @@ def predict_traces(model, values: dict, draws, noise_sd: dict, *, seed: int = 0,
     """
     if model.exp is None:
         return []
-    def run(theta, coulomb=None):
-        pairs = model.predict(theta, coulomb=coulomb)
+    def run(theta):
+        pairs = model.predict(theta)
         return [(ia, w, a) for (ia, w), a in zip(pairs, model.predict_angles(theta),
                                                   strict=True)]
 
-    runs = {"closed_form": run(_theta(model, values["closed_form"]), coulomb=False),
+    runs = {"closed_form": run(_theta(model, values["closed_form"])),
             "map": run(_theta(model, values["map"]))}
     per_draw = None
     if draws is not None:
