@@ -15,7 +15,7 @@ import pytest
 from conftest import replace_once
 
 from pmdc_bayes._errors import SessionError
-from pmdc_bayes.inference.checks import drag_checks
+from pmdc_bayes.inference.model_checks import drag_checks
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.io.session import Drag
 from pmdc_bayes.simulate.session import simulate_session

@@ -4,10 +4,11 @@ The public names below are imported on first use, so that ``import pmdc_bayes`` 
 command line's start-up) stays light.
 """
 
-from ._errors import SessionError, UsageError
+from ._errors import FitFailed, SessionError, UsageError
 
 __all__ = [
     "ClosedForm",
+    "FitFailed",
     "RunResult",
     "Session",
     "SessionError",

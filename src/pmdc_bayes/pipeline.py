@@ -57,13 +57,13 @@ def _rms(x) -> float:
     return float(np.sqrt(np.mean(x * x))) if x.size else float("nan")
 
 
-def trace_rms(model, theta, *, coulomb=None) -> dict:
+def trace_rms(model, theta) -> dict:
     """Per trace RMS of the residuals of each channel it logged: ``speed`` (rad/s),
     ``current`` (A), ``position`` (rad; where an encoder's count has not started, no
     sample).  A speed estimated from the angle is not a measurement and has no row."""
     out = {}
     angles = model.predict_angles(theta)
-    for tr, (ia, w), a in zip(model.session.traces, model.predict(theta, coulomb=coulomb),
+    for tr, (ia, w), a in zip(model.session.traces, model.predict(theta),
                               angles, strict=True):
         row = {}
         if tr.speed_logged:

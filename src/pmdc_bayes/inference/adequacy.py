@@ -201,23 +201,16 @@ def _g(x: float) -> str:
 @x64
 def assess(model, fit, closed_form=None) -> Adequacy:
     """Every adequacy check of ``fit`` (a :class:`~.fit.FitResult` of ``model``)."""
-    from .checks import (
-        bench_checks,
-        bound_checks,
-        drag_checks,
-        plausibility_checks,
-        search_checks,
-        solver_checks,
-        step_start_check,
-    )
+    from .checks import bench_checks, plausibility_checks, search_checks, step_start_check
     from .diagnosis import diagnose
+    from .model_checks import bound_checks, drag_checks, solver_checks
 
     session = model.session
     channels, findings = {}, []
     preds = model.predict(fit.theta)
     preds_cf = None
     if closed_form is not None and session.traces:
-        theta_cf = np.asarray(model.theta(dict(closed_form.params(), Tc=1e-12)))
+        theta_cf = np.asarray(model.theta(dict(closed_form.params(), Tc=0.0)))
         try:
             preds_cf = model.predict(theta_cf)  # Tc ≈ 0: the viscous motor, one program
         except (ValueError, FloatingPointError):

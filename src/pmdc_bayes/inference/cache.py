@@ -32,8 +32,6 @@ export.register_namedtuple_serialization(Experiment, serialized_name="pmdc_bayes
 
 
 _WORDS = {"gauss-newton": "MAP's (Gauss–Newton)", "predict": "prediction",
-          "predict-coulomb=False": "viscous model's prediction",
-          "predict-coulomb=True": "Coulomb model's prediction",
           "log_posterior_batch": "sampler's log-posterior",
           "pointwise-residuals": "pointwise log-likelihood"}  # names in the progress lines
 _TRACED_PACKAGES = ("physics", "inference")

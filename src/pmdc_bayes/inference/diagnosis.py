@@ -7,10 +7,11 @@ Each rule reads the data and the MAP prediction:
   better on the data than on the model, means dead time or a sensor lag; a rise that
   is a ramp on the data but not on the model means a current-limited driver;
 * a logged current with a **flat top** well below the model's peak: a current limit;
-* the **steady levels** (:mod:`.levels`): a trace off the line the other levels draw
-  means an unmeasured load on it; a speed-voltage line crossing zero speed well above
-  0 V means a voltage drop (brushes, driver), a current left at zero speed means
-  Coulomb friction;
+* the **steady levels** (:mod:`.diagnosis_levels`, from :mod:`.levels`): a trace off
+  the line the other levels draw means an unmeasured load on it (or, with a declared
+  drag, a drag declared too strong or too weak); a speed-voltage line crossing zero
+  speed well above 0 V means a voltage drop (brushes, driver), a current left at zero
+  speed means Coulomb friction;
 * **anti-correlated noise** on a speed: a speed differenced from encoder counts;
 * a **bench resistance** below or above the fitted one; and unit slips (a ratio of
   2π, 60/2π or 1000 between the data and the model).
@@ -21,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .checks import step_time
-from .levels import LEVEL_MISS, friction_offset, level_outliers, voltage_intercept
+from .diagnosis_levels import level_rules
 from .noise import noise_scale
 from .onset import departure, onset_shape
 
@@ -33,11 +34,6 @@ LATE_SHARE = 0.03  # ... and this share of the rise time counts as late
 SLOW_START = 1.5  # fitted La/Ra this many times the bench's: something delays the start
 DEPART = 5.0  # a channel has left rest when it is this many noise sd from its level ...
 DEPART_SPAN = 0.01  # ... and this share of its span
-UNIT_RATIOS = {"rpm given as rad/s": 60 / (2 * np.pi), "rad/s given as rpm": 2 * np.pi / 60,
-               "rev/s given as rad/s": 1 / (2 * np.pi), "rad/s given as rev/s": 2 * np.pi,
-               "mA given as A": 1000.0, "A given as mA": 1e-3,
-               "a reversed sign (the speed counts the other way)": -1.0}
-SLIP_TOLERANCE = 0.03
 
 
 def _late_start(tr, y, yhat, s0, t_step, t_rise):
@@ -113,104 +109,6 @@ def _flat_top(tr, ia):
                 f"would draw {peak:.3g} A: a current-limited driver: --add current-limit, "
                 f"or current_limit = {top:.3g} under [model] in session.toml"]
     return []
-
-
-def _unit_slips(ratios, outliers) -> dict[str, str]:
-    """Traces whose settled speed is a unit ratio (or -1) times what the model or the
-    other traces' levels imply: trace name -> the slip's label."""
-    out = {}
-    for name, r in ratios.items():
-        seen = [r] + ([1 + outliers[name]] if name in outliers else [])
-        for label, ratio in UNIT_RATIOS.items():
-            if any(abs(x / ratio - 1) < SLIP_TOLERANCE for x in seen):
-                out[name] = label
-    return out
-
-
-def _level_sentence(name: str, miss: float, against: str, alt: str = "") -> str:
-    """A trace that settles ``miss`` (relative) off ``against``, in words."""
-    where = f"{name}: settles {100 * abs(miss):.2g} % {'below' if miss < 0 else 'above'} {against}"
-    if miss < 0:
-        return (f"{where}: an unmeasured load on this trace (a brake, a generator, a rubbing "
-                f"coupling){alt}; declare its load torque, or fit it: [model] unknown_load "
-                f"= [{name!r}]")
-    return (f"{where}: this trace turned more freely than the rest of the session says (a "
-            "load on the other traces that this one lacks, a coupling removed), or its "
-            "voltage was higher than the session says; check the bench and the voltage")
-
-
-def _declared_drag_rules(session, ratios, slips) -> list[str]:
-    """Traces with a declared drag that settle off the model's level: the drag declared
-    too strong (the speed settles above) or too weak (below)."""
-    out = []
-    for tr in session.traces:
-        r = ratios.get(tr.name)
-        if not tr.drag.nonzero or r is None or tr.name in slips or abs(r - 1) <= LEVEL_MISS:
-            continue
-        way = "strong" if r > 1 else "weak"
-        out.append(f"{tr.name}: settles {100 * abs(r - 1):.2g} % {'above' if r > 1 else 'below'}"
-                   f" the model's speed under its declared drag: the drag is declared too "
-                   f"{way} (check its curve, coefficients and units: the curve's speeds are in "
-                   "the trace's speed unit, its torques in its load_torque unit)"
-                   + ("" if r > 1 else ", or the trace carries a load beside it: [model] "
-                      f"unknown_load = [{tr.name!r}]"))
-    return out
-
-
-def _level_rules(model, fit, preds, findings):
-    """Sentences on the steady levels: unmeasured loads, unit slips, an offset."""
-    session, out = model.session, []
-    ratios = {}
-    for tr, (_, w) in zip(session.traces, preds, strict=True):
-        n_end = max(3, tr.n // 10)
-        mod = float(np.mean(w[-n_end:]))
-        if abs(mod) > 0:
-            ratios[tr.name] = float(np.mean(tr.speed[-n_end:])) / mod
-    outliers = level_outliers(session)
-    if outliers is None:  # too few levels for a line: compare with the model instead
-        declared = {tr.name for tr in session.traces if tr.drag.nonzero}  # said below
-        misses = {k: r - 1 for k, r in ratios.items()
-                  if abs(r - 1) > LEVEL_MISS and k not in declared}
-        outliers = misses if len(misses) < len(ratios) else {}
-        alt = ", or a voltage drop the other traces hide"
-    else:
-        alt = ""
-    slips = _unit_slips(ratios, outliers)
-    if slips and len(slips) == len(ratios) and len(set(slips.values())) == 1:
-        label = next(iter(slips.values()))
-        out.append(f"the logged speeds are {UNIT_RATIOS[label]:.4g} x what the rest of the "
-                   f"session implies: a unit slip ({label}); check the units in session.toml")
-    else:
-        out += [f"{name}: its speed is {UNIT_RATIOS[label]:.4g} x what the rest of the "
-                f"session implies: {label}; check this trace's units and sign in session.toml"
-                for name, label in slips.items()]
-    for name, m in outliers.items():
-        if name in slips:
-            continue
-        out.append(_level_sentence(name, m, "the speed the other levels imply", alt))
-    out += _declared_drag_rules(session, ratios, slips)
-    icpt, offset = voltage_intercept(session), friction_offset(session)
-    coulomb = (offset is not None and offset["current"] > 3 * offset["se"]
-               and offset["current"] > 0.05 * offset["mean_current"])
-    if coulomb and not model.coulomb:
-        out.append(f"the steady current extrapolates to {offset['current']:.3g} A at zero "
-                   "speed: a friction torque that does not grow with speed (Coulomb "
-                   "friction); fit with --friction coulomb")
-    elif (icpt and "Vdrop" in model.registry and any(
-            f.where.startswith("steady") or f.where == "no-load speed"
-            for f in findings if f.severity == "fail")):
-        out.append("the steady levels miss the model even with a fitted voltage drop "
-                   f"({float(fit.values['Vdrop']):.3g} V): the session's steady numbers "
-                   "disagree with each other or with the traces (see the consistency "
-                   "checks), or friction or load differ between them")
-    elif (icpt and icpt["voltage"] > 3 * icpt["se"]
-            and icpt["voltage"] > 0.01 * icpt["largest_voltage"]):
-        why = ("" if model.coulomb or offset is not None
-               else ", or Coulomb friction (try --friction coulomb)")
-        out.append(f"the steady speed-voltage line crosses zero speed at "
-                   f"{icpt['voltage']:.3g} V, not 0 V: a voltage drop at the brushes or "
-                   f"driver (--add voltage-drop){why}")
-    return out
 
 
 def _finding_rules(model, fit, findings, already=()):
@@ -302,7 +200,7 @@ def diagnose(model, fit, preds, findings) -> list[str]:
         # fails on those parameters while its traces only warn
         out += _flat_top(tr, pred[0])
         out += _start_rules(model, tr, pred, step_time(tr))
-    out += _level_rules(model, fit, preds, findings)
+    out += level_rules(model, fit, preds, findings)
     out += _finding_rules(model, fit, findings, out)
     if not out:
         out.append("no single known pattern explains the misfit; look at the residual "

@@ -223,8 +223,7 @@ def _finish(model, states, origins, evaluate) -> FitResult:
         reasons.append("the curvature at the optimum is not finite: the model's predictions "
                        "overflow near it (check the magnitudes the session gives, such as a "
                        "known load's coefficients and curve)")
-    elif not np.all(np.isfinite(sd_log)):
-        reasons.append("the curvature at the optimum is singular")
+
     status = "failed" if reasons else "converged"
     n_agree = int(agree.sum())
     n_wide = sum(o == "over the prior's range" for o in origins)

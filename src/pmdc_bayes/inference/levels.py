@@ -23,11 +23,11 @@ def settled(y) -> bool:
     return abs(b - a) <= 0.005 * abs(b) + 4 * noise_scale(y) / np.sqrt(n)
 
 
-def unloaded_levels(session) -> tuple[np.ndarray, list]:
+def unloaded_levels(session, *, with_drag: bool = False) -> tuple[np.ndarray, list]:
     """Every unloaded steady level (rows of voltage, speed, current or NaN) and, per
     row, the trace it ends (None for tables and operating points); traces that end
-    before they settle, or that drive a load (a load torque, a declared drag), give
-    none."""
+    before they settle, or that drive a load (a load torque, a declared drag unless
+    ``with_drag``), give none."""
     rows, names = [], []
     for tab in session.steady_tables:
         cur = tab.current if tab.current is not None else np.full(tab.voltage.size, np.nan)
@@ -40,7 +40,8 @@ def unloaded_levels(session) -> tuple[np.ndarray, list]:
             rows.append((op.voltage, op.speed, np.nan if op.current is None else op.current))
             names.append(None)
     for tr in session.traces:
-        if np.all(tr.load_torque.values == 0) and not tr.drag.nonzero and settled(tr.speed):
+        dragged = tr.drag.nonzero and not with_drag
+        if np.all(tr.load_torque.values == 0) and not dragged and settled(tr.speed):
             n = max(3, tr.n // 10)
             i = np.nan if tr.current is None else float(np.mean(tr.current[-n:]))
             rows.append((float(tr.voltage.values[-1]), float(np.mean(tr.speed[-n:])), i))

@@ -8,7 +8,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._x64 import x64
-from ..physics.solution import simulate_padded
 
 __all__ = ["Predictions", "RESIDUAL_BATCH"]
 
@@ -20,26 +19,12 @@ class Predictions:
     (a mixin: it reads the model's session, experiment, blocks and rig effects)."""
 
     @x64
-    def predict(self, theta, *, coulomb: bool | None = None):
+    def predict(self, theta):
         """Per trace ``(ia, ω)`` in time order (A, rad/s, as the sensors read them), as
-        NumPy arrays; ``coulomb`` overrides the model's friction path."""
+        NumPy arrays."""
         if self.exp is None:
             return []
-        c = self.coulomb_path if coulomb is None else coulomb
-        if c == self.coulomb_path:
-            ia, w = self._predicted(theta)[:2]
-            return list(zip(self.exp.split(ia), self.exp.split(w), strict=True))
-
-        def run(t, d):
-            d = d["traces"]
-            ia, w = simulate_padded(self.circuit(t), self.inputs(t, d["exp"]), coulomb=c,
-                                    limit=self.limit(t), lags=self.lags(t),
-                                    drop=self.armature_drop(t))
-            ia, w = self.sensed(t, ia, w)
-            return d["exp"].unpad(ia), d["exp"].unpad(w)
-
-        fn = self.compiled(f"predict-coulomb={c}", lambda: jax.jit(run))
-        ia, w = fn(jnp.asarray(theta), self.data)
+        ia, w = self._predicted(theta)[:2]
         return list(zip(self.exp.split(ia), self.exp.split(w), strict=True))
 
     @x64

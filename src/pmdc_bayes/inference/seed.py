@@ -98,6 +98,9 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
                    else "bench measurement")}
     rows, _ = unloaded_levels(session)
     rows = rows[(rows[:, 0] != 0) & (rows[:, 1] != 0)] if rows.size else rows
+    if not rows.size:  # only traces with a declared drag settle: a rougher start from them
+        rows, _ = unloaded_levels(session, with_drag=True)
+        rows = rows[(rows[:, 0] != 0) & (rows[:, 1] != 0)] if rows.size else rows
     if not rows.size:
         raise SessionError(toml, "no steady speed to start the fit from: log a step until "
                            "the speed settles, or add a [[steady_table]]", where="trace")

@@ -130,6 +130,8 @@ def _trace(name: str, data, directory: Path, file: str) -> str:
                                  "constant, nor (time, value) pairs")
             entry[key] = pairs.tolist()
     entry.update({k: rest[k] for k in _TRACE_KEYS if k in rest and k != "kind"})
+    if isinstance(entry.get("drag"), Drag) and not entry["drag"].nonzero:
+        del entry["drag"]  # a trace's record of no drag
     if isinstance(entry.get("drag"), Drag):  # a trace's own record (SI): the same table
         d = entry["drag"]
         entry["drag"] = {k: getattr(d, k) for k in ("constant", "viscous", "quadratic")

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..io.session import Trace
-from .load import linearisation_cuts, with_drags
+from .load import drag_cuts, with_drags
 
 __all__ = [
     "INITIAL_MODES",
@@ -269,7 +269,7 @@ def _trace_spec(trace: Trace, delay: float = 0.0):
     cuts = None
     if trace.drag.curved:
         breaks = np.concatenate([trace.voltage.times, trace.load_torque.times])
-        cuts = linearisation_cuts(trace.time, breaks, trace.speed) - delay
+        cuts = drag_cuts(trace.drag, trace.time, breaks, trace.speed) - delay
     return (trace.time - delay, trace.voltage.times, trace.voltage.values,
             trace.load_torque.times, trace.load_torque.values, init, cuts)
 

@@ -22,13 +22,11 @@ import numpy as np
 from ..io.drag import Drag
 
 __all__ = ["drag_torque", "with_drags", "curved_start", "curve_torque", "curve_tangent",
-           "curve_arrays", "linearisation_cuts", "GROWTH", "ALONG_SPEED"]
+           "curve_arrays", "linearisation_cuts", "drag_cuts", "GROWTH", "ALONG_SPEED"]
 
 GROWTH = 1.25  # each linearisation segment after an input change this much longer
 ALONG_SPEED = 100  # a linearisation segment ends where the speed moved 1/100 of its range
-
-
-
+ZERO_SAMPLES = 8  # every sample this close to the speed's sign change or a kink cuts too
 
 
 def drag_torque(drag: Drag, w):
@@ -39,11 +37,11 @@ def drag_torque(drag: Drag, w):
             + curve_torque(w, q[0], kw[0], kt[0], np))
 
 
-def curve_arrays(drags, knots: int | None = None):
+def curve_arrays(drags):
     """Per drag its ``quadratic`` and its curve's speeds and torques, padded to a common
-    number of points (``knots``, at least 2) along the last slope: ``(q (n,), speeds
-    (n, M), torques (n, M))``, NumPy."""
-    m = max([2] + [len(d.curve) for d in drags] + ([knots] if knots else []))
+    number of points (at least 2) along the last slope: ``(q (n,), speeds (n, M),
+    torques (n, M))``, NumPy."""
+    m = max([2] + [len(d.curve) for d in drags])
     q = np.array([float(d.quadratic) for d in drags])
     kw, kt = np.zeros((len(drags), m)), np.zeros((len(drags), m))
     for k, d in enumerate(drags):
@@ -81,7 +79,7 @@ def curve_tangent(w0, q, kw, kt, xp=np):
     return b, curve_torque(w0, q, kw, kt, xp) - b * w0
 
 
-def linearisation_cuts(time, breaks, speed=None, *, first: float | None = None,
+def linearisation_cuts(time, breaks, speed=None, *, kinks=(), first: float | None = None,
                        ratio: float = GROWTH, longest: float | None = None,
                        per_range: int = ALONG_SPEED) -> np.ndarray:
     """The times inside a curved trace (samples ``time``) where its drag's tangent is
@@ -90,7 +88,9 @@ def linearisation_cuts(time, breaks, speed=None, *, first: float | None = None,
     (default: the trace's span / 4000), each step ``ratio`` times the last, none longer
     than ``longest`` (default: the span / 40).  With the trace's observed ``speed``,
     also a cut wherever the (smoothed) speed has moved by another ``1/per_range`` of its
-    range, so that a fast transient the inputs do not explain is cut finely too."""
+    range, so that a fast transient the inputs do not explain is cut finely too, and at
+    every sample within :data:`ZERO_SAMPLES` of where it changes sign or its size
+    crosses one of the ``kinks`` (the speeds where the curve's slope changes)."""
     t = np.asarray(time, dtype=float)
     t0, t1 = float(t[0]), float(t[-1])
     span = t1 - t0
@@ -103,6 +103,8 @@ def linearisation_cuts(time, breaks, speed=None, *, first: float | None = None,
     ends = np.append(starts[1:], t1)
     cuts = []
     for a, b in zip(starts, ends, strict=True):
+        if b - a <= 2 * first:  # inputs that change every sample cut finely already
+            continue
         h, x = first, a
         while True:
             x += h
@@ -111,25 +113,45 @@ def linearisation_cuts(time, breaks, speed=None, *, first: float | None = None,
             cuts.append(x)
             h = min(h * ratio, longest)
     if speed is not None:
-        cuts.extend(_along(t, np.asarray(speed, dtype=float), per_range))
+        cuts.extend(_along(t, np.asarray(speed, dtype=float), per_range, kinks))
     return np.unique(np.asarray(cuts))
 
 
-def _along(t, w, per_range: int) -> np.ndarray:
+def drag_cuts(drag: Drag, time, breaks, speed=None) -> np.ndarray:
+    """:func:`linearisation_cuts` of a trace with the curved ``drag`` (its kinks: the
+    curve's inner points)."""
+    return linearisation_cuts(time, breaks, speed, kinks=[w for w, _ in drag.curve[1:-1]])
+
+
+def _along(t, w, per_range: int, kinks=()) -> np.ndarray:
     """The times where the trace's smoothed speed has moved by another ``1/per_range``
-    of its range (NaN readings skipped)."""
+    of its range, and the samples around those where it changes sign or its size
+    crosses a speed of ``kinks`` (NaN readings skipped)."""
     ok = np.isfinite(w)
     t, w = t[ok], w[ok]
     if t.size < 3:
         return np.zeros(0)
     k = max(1, t.size // 200)
-    smooth = np.convolve(w, np.ones(k) / k, mode="same") if k > 1 else w
+    if k > 1:  # a moving mean, the ends padded with their own values (not zeros)
+        padded = np.concatenate([np.full(k // 2, w[0]), w, np.full(k - 1 - k // 2, w[-1])])
+        smooth = np.convolve(padded, np.ones(k) / k, mode="valid")
+    else:
+        smooth = w
     spread = float(np.ptp(smooth))
     if not spread > 0:
         return np.zeros(0)
     moved = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(smooth)))]) / spread
     marks = np.arange(1, int(moved[-1] * per_range)) / per_range
-    return t[np.searchsorted(moved, marks)]
+    # where the speed changes sign (the quadratic part's curvature changes sign) or its
+    # size crosses a kink of the curve, a segment's tangent cannot follow the curve: the
+    # samples around it cut too
+    flips = np.flatnonzero(np.sign(smooth[1:]) * np.sign(smooth[:-1]) < 0)
+    size = np.abs(smooth)
+    for k in kinks:
+        flips = np.concatenate([flips, np.flatnonzero((size[1:] - k) * (size[:-1] - k) < 0)])
+    near = (flips[:, None] + np.arange(-ZERO_SAMPLES, ZERO_SAMPLES + 2)[None, :]).ravel()
+    near = near[(near > 0) & (near < t.size - 1)]
+    return np.concatenate([t[np.searchsorted(moved, marks)], t[near]])
 
 
 def with_drags(exp, drags):
@@ -174,9 +196,9 @@ def curved_start(start, seen, curve):
         ps = seen(b + db, tc)
         drive = ps.K * x[0] - tl - dt
         held = (x[1] == 0) & (jnp.abs(drive) <= ps.Tc)
-        rate = jnp.where(held, 0.0, (drive - ps.B * x[1] - ps.Tc * jnp.sign(x[1])) / ps.J)
+        way = jnp.where(x[1] != 0, jnp.sign(x[1]), jnp.sign(drive))  # friction opposes it
+        rate = jnp.where(held, 0.0, (drive - ps.B * x[1] - ps.Tc * way) / ps.J)
         moved = rate * length
-        way = jnp.where(x[1] != 0, jnp.sign(x[1]), jnp.sign(moved))
         return b + db, tl + dt + way * curve[0] * moved * moved / 3.0
 
     def begin(b, tc, va, tl, mode, xg):
