@@ -150,3 +150,22 @@ def test_from_arrays_takes_a_trace_s_drag_record(tmp_path):
     got = s.trace("fan").drag
     assert got.constant == 1e-3 and got.quadratic == 2e-7
     np.testing.assert_allclose(np.asarray(got.curve), np.asarray(drag.curve), rtol=1e-9)
+
+
+def test_a_record_of_no_drag_and_a_speed_only_session_whose_traces_all_carry_one(tmp_path):
+    import numpy as np
+
+    import pmdc_bayes
+    from pmdc_bayes.inference.seed import fit_seed
+
+    t = np.linspace(0.0, 1.0, 201)
+    w = 100 * (1 - np.exp(-np.maximum(t - 0.1, 0.0) / 0.1))
+    trace = {"time": t, "speed": w, "voltage": [[0.0, 0.0], [0.1, 6.0]]}
+    s = pmdc_bayes.Session.from_arrays(Ra=(2.0, 0.05), traces={"plain": {**trace,
+                                                                        "drag": Drag()}})
+    assert s.trace("plain").drag == Drag()
+    # speed only, every trace loaded by a declared drag: the seed reads their levels
+    s = pmdc_bayes.Session.from_arrays(Ra=(2.0, 0.05), traces={"fan": {
+        **trace, "drag": {"quadratic": 1e-7}}})
+    seed = fit_seed(s)
+    assert not seed.applicable and seed.K > 0 and seed.J > 0
