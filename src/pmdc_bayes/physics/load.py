@@ -55,28 +55,25 @@ def curve_arrays(drags):
     return q, kw, kt
 
 
-def _interval(s, kw, xp):
-    i = xp.searchsorted(kw, s, side="right") - 1
-    i = xp.clip(i, 0, kw.shape[-1] - 2)
-    return i
+def _piece(w, q, kw, kt, xp):
+    """``(|ω|, g(|ω|), g′(|ω|))`` of the curved part's ``g`` (the right-hand slope at a
+    point of the curve)."""
+    s = xp.abs(w)
+    i = xp.clip(xp.searchsorted(kw, s, side="right") - 1, 0, kw.shape[-1] - 2)
+    slope = (kt[i + 1] - kt[i]) / (kw[i + 1] - kw[i])
+    return s, q * s * s + kt[i] + slope * (s - kw[i]), 2.0 * q * s + slope
 
 
 def curve_torque(w, q, kw, kt, xp=np):
     """The curved part of the drag at speed ``w``: ``sign(ω)·(q·ω² + curve(|ω|))``."""
-    s = xp.abs(w)
-    i = _interval(s, kw, xp)
-    slope = (kt[i + 1] - kt[i]) / (kw[i + 1] - kw[i])
-    return xp.sign(w) * (q * s * s + kt[i] + slope * (s - kw[i]))
+    return xp.sign(w) * _piece(w, q, kw, kt, xp)[1]
 
 
 def curve_tangent(w0, q, kw, kt, xp=np):
     """The tangent of the curved part at ``w0``: ``(b, t0)`` with ``f(ω) ≈ t0 + b·ω``
     near ``w0`` (``b = f′(ω0)``, the right-hand slope at a point of the curve)."""
-    s = xp.abs(w0)
-    i = _interval(s, kw, xp)
-    slope = (kt[i + 1] - kt[i]) / (kw[i + 1] - kw[i])
-    b = 2.0 * q * s + slope
-    return b, curve_torque(w0, q, kw, kt, xp) - b * w0
+    _, g, b = _piece(w0, q, kw, kt, xp)
+    return b, xp.sign(w0) * g - b * w0
 
 
 def linearisation_cuts(time, breaks, speed=None, *, kinks=(), first: float | None = None,
@@ -117,10 +114,11 @@ def linearisation_cuts(time, breaks, speed=None, *, kinks=(), first: float | Non
     return np.unique(np.asarray(cuts))
 
 
-def drag_cuts(drag: Drag, time, breaks, speed=None) -> np.ndarray:
+def drag_cuts(drag: Drag, time, breaks, speed=None, **grid) -> np.ndarray:
     """:func:`linearisation_cuts` of a trace with the curved ``drag`` (its kinks: the
-    curve's inner points)."""
-    return linearisation_cuts(time, breaks, speed, kinks=[w for w, _ in drag.curve[1:-1]])
+    curve's inner points); ``grid`` as there."""
+    return linearisation_cuts(time, breaks, speed, kinks=[w for w, _ in drag.curve[1:-1]],
+                              **grid)
 
 
 def _along(t, w, per_range: int, kinks=()) -> np.ndarray:
@@ -131,10 +129,10 @@ def _along(t, w, per_range: int, kinks=()) -> np.ndarray:
     t, w = t[ok], w[ok]
     if t.size < 3:
         return np.zeros(0)
-    k = max(1, t.size // 200)
-    if k > 1:  # a moving mean, the ends padded with their own values (not zeros)
-        padded = np.concatenate([np.full(k // 2, w[0]), w, np.full(k - 1 - k // 2, w[-1])])
-        smooth = np.convolve(padded, np.ones(k) / k, mode="valid")
+    n = max(1, t.size // 200)
+    if n > 1:  # a moving mean, the ends padded with their own values (not zeros)
+        padded = np.concatenate([np.full(n // 2, w[0]), w, np.full(n - 1 - n // 2, w[-1])])
+        smooth = np.convolve(padded, np.ones(n) / n, mode="valid")
     else:
         smooth = w
     spread = float(np.ptp(smooth))

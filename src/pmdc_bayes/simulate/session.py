@@ -29,7 +29,7 @@ from ..inference.nuisances import initial_speed_name
 from ..io.units import from_si, to_si
 from ..physics import motor
 from ..physics.experiment import stack_experiments, with_drags
-from ..physics.load import linearisation_cuts
+from ..physics.load import drag_cuts
 from ..physics.solution import Params, simulate
 from ._write import HEADER, check_out, write_session_files
 from .coast import ideal_coast_down, rig_coast_down
@@ -84,8 +84,8 @@ def true_trace(truth: dict, spec: TraceSpec):
     va_t, va_v = zip(*spec.voltage, strict=True)
     tl_t, tl_v = zip(*(spec.load_torque or ((0.0, 0.0),)), strict=True)
     # a curved drag's tangent taken again on a finer grid than the fit's
-    cuts = (linearisation_cuts(shifted, np.concatenate([va_t, tl_t]), ratio=1.1,
-                               longest=(shifted[-1] - shifted[0]) / 400)
+    cuts = (drag_cuts(spec.drag, shifted, np.concatenate([va_t, tl_t]), ratio=1.1,
+                      longest=(shifted[-1] - shifted[0]) / 400)
             if spec.drag.curved else None)
     exp = with_drags(stack_experiments([(shifted, va_t, va_v, tl_t, tl_v, spec.initial,
                                          cuts)]), [spec.drag])
