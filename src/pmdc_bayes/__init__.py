@@ -5,6 +5,7 @@ command line's start-up) stays light.
 """
 
 from ._errors import FitFailed, SessionError, UsageError
+from ._lazy import lazy_names
 
 __all__ = [
     "ClosedForm",
@@ -43,15 +44,4 @@ _LAZY = {
 }
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        import importlib
-
-        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'pmdc_bayes' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())

@@ -101,6 +101,7 @@ def _cmd_fit(args) -> int:
     paths = expand_sessions(args.session, note=None if args.quiet else _note)
     if not args.no_cache:
         cachedir.enable()
+    _start_drawing()
     if len(paths) == 1:
         status = _fit_one(args, paths[0], args.out)[0]
     else:
@@ -108,6 +109,14 @@ def _cmd_fit(args) -> int:
     if not args.no_cache:
         cachedir.prune()
     return status
+
+
+def _start_drawing() -> None:
+    """Start the processes that draw the report's figures now, so that they import
+    matplotlib while the session loads and the fit runs."""
+    from .report._render import start
+
+    start()
 
 
 def _fit_lot(args, paths) -> int:
@@ -187,6 +196,7 @@ def _cmd_report(args) -> int:
     check_writable(run_dir, what="copy the run to a writable place and report there")
     if not args.no_cache:
         cachedir.enable()
+    _start_drawing()
     paths = write_report(run_dir, say=_stage_printer(args))
     if not args.quiet:
         print(f"Wrote {paths['html']}, {paths['markdown'].name}, {paths['controller'].name} "

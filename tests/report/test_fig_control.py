@@ -52,4 +52,4 @@ def test_the_band_is_the_spread_of_the_draws_and_holds_the_estimate():
 def test_without_a_posterior_or_a_closed_form_only_the_estimate_is_drawn():
     curves = response_curves(_ctx(None, with_cf=False))
     assert "band" not in curves and "closed_form" not in curves
-    assert response_figure(_ctx(None, with_cf=False))[:8] == b"\x89PNG\r\n\x1a\n"
+    assert response_figure(_ctx(None, with_cf=False)).png()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -53,6 +53,22 @@ def _table_rows(md: str, title: str) -> list[list[str]]:
     return [[c.strip() for c in line.strip("|").split("|")] for line in block.splitlines()[2:]]
 
 
+def test_every_figure_of_the_report_goes_to_a_worker(demo_run, monkeypatch):
+    """No figure of a full report falls back to this process (an artist that does not
+    pickle would, silently, and cost the report its parallel drawing)."""
+    from pmdc_bayes.report._context import load_context
+    from pmdc_bayes.report._doc import Figure
+    from pmdc_bayes.report._render import WORKERS_ENV
+    from pmdc_bayes.report.build import build_sections
+
+    monkeypatch.setenv(WORKERS_ENV, "2")
+    sections, _ = build_sections(load_context(demo_run))
+    figures = [b for sec in sections for b in sec.blocks if isinstance(b, Figure)]
+    assert len(figures) >= 8
+    assert [f.name for f in figures if not f.png.in_worker] == []
+    assert all(f.png.png()[:8] == PNG_MAGIC for f in figures)
+
+
 def test_demo_report_files_figures_and_tables(demo_run):
     html = (demo_run / "report.html").read_text(encoding="utf-8")
     assert "http://" not in html and "https://" not in html  # nothing fetched to view it

@@ -50,7 +50,7 @@ def _ctx(posterior: bool):
                           draws=draws if posterior else None, has_posterior=posterior,
                           best=values.get("mean", values["map"]),
                           best_label="posterior mean" if posterior else "MAP",
-                          cf_label="closed form", truth=None,
+                          cf_label="closed form", truth=None, log_names=NAMES,
                           model=SimpleNamespace(registry={
                               n: SimpleNamespace(transform="log", description=f"the {n}")
                               for n in NAMES}))

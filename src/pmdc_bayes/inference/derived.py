@@ -9,7 +9,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..physics import motor
-from .diagnostics import HDI_PROB, az
 
 __all__ = ["derived_quantities", "derived_draws", "LABELS"]
 
@@ -67,6 +66,8 @@ def derived_quantities(draws_si: dict[str, np.ndarray], *, voltage: float) -> di
         equal-length 1-D arrays, e.g. :meth:`pmdc_bayes.inference.sampling.Posterior.draws_si`.
     voltage : armature voltage (V) for the no-load and stall quantities.
     """
+    from .diagnostics import HDI_PROB, az  # ArviZ is imported only when there are draws
+
     out = {}
     for name, (unit, x) in derived_draws(draws_si, voltage=voltage).items():
         lo, hi = az.hdi(x, hdi_prob=HDI_PROB)

@@ -1,121 +1,16 @@
 """The uncertainty report of a finished run: ``report.html``, ``report.md``,
-``figures/*.png`` and ``controller.json`` in the run directory.
+``figures/*.png`` and ``controller.json`` in the run directory (:mod:`.write`).
 
-:func:`write_report` regenerates everything from ``summary.json``, ``posterior.nc``
-(optional: without it the posterior parts are skipped and the report says so) and the
-run's own copy of the session.  Matplotlib is used here only, with the Agg backend.
+The public names are imported on first use, so that importing a submodule (as the
+processes that draw the figures do, see :mod:`._render`) does not import the rest.
 """
 
-from __future__ import annotations
-
-import dataclasses
-import json
-import os
-import tempfile
-import time
-from pathlib import Path
-
-from .._errors import UsageError
-from .._x64 import x64
-from ..io._jsonio import dumps
-from ..rundir import default_mode
-from ._context import context_from_result, load_context
-from .build import CONTROLLER_FILE, build_sections
-from .export import controller_model, to_control
-from .html import render_html
-from .markdown import render_markdown
+from .._lazy import lazy_names
 
 __all__ = ["write_report", "report_stage", "controller_model", "to_control"]
 
-FIGURES = "figures"
+_LAZY = {"write_report": ".write", "report_stage": ".write", "controller_model": ".export",
+         "to_control": ".export"}
 
 
-def _write(path: Path, data: bytes | str) -> None:
-    """Write via a temporary file in the same directory and ``os.replace``."""
-    raw = data.encode("utf-8") if isinstance(data, str) else data
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(raw)
-        os.chmod(tmp, default_mode())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def _figures(sections):
-    """The figures, each renamed if its file name (case-folded, as some file systems
-    compare names) is taken by an earlier one."""
-    figs, taken = [], set()
-    for sec in sections:
-        for i, fig in enumerate(sec.blocks):
-            if type(fig).__name__ != "Figure":
-                continue
-            name, k = fig.name, 2
-            while name.casefold() in taken:
-                name, k = f"{fig.name}-{k}", k + 1
-            if name != fig.name:
-                fig = sec.blocks[i] = dataclasses.replace(fig, name=name)
-            taken.add(name.casefold())
-            figs.append(fig)
-    return figs
-
-
-@x64
-def write_report(run_dir, *, result=None, into=None, say=None) -> dict[str, Path]:
-    """Write the report of a run; return the paths written.
-
-    Parameters
-    ----------
-    run_dir : the run directory (read when ``result`` is not given; named in the report).
-    result : the run's :class:`~pmdc_bayes.inference.result.RunResult`, when in memory.
-    into : where to write (default ``run_dir``), e.g. a run directory still being built.
-    say : called with a line as each stage starts (None: silent).
-
-    Keys of the result: ``html``, ``markdown``, ``controller`` and ``figures`` (a list).
-    Raises :class:`pmdc_bayes.UsageError` when ``run_dir`` holds no usable run.
-    """
-    say = say or (lambda text: None)
-    if result is None:
-        say(f"reading {run_dir}: summary.json, its copy of the session, posterior.nc")
-    ctx = load_context(run_dir) if result is None else context_from_result(result, run_dir)
-    dest = Path(run_dir if into is None else into)
-    say("drawing the figures and building the tables")
-    sections, model = build_sections(ctx)
-    s = ctx.summary["session"]
-    title = f"pmdc-bayes report: {s['motor']} (session {s['name']!r})"
-    figdir = dest / FIGURES
-    if figdir.exists() and not figdir.is_dir():
-        raise UsageError(f"{figdir}: a file where the report's figures go; move it away "
-                         "and rerun")
-    figdir.mkdir(exist_ok=True)
-    say(f"writing report.html, report.md, {CONTROLLER_FILE} and the figures into {dest}")
-    figs = []
-    for fig in _figures(sections):
-        path = figdir / f"{fig.name}.png"
-        _write(path, fig.png)
-        figs.append(path)
-    paths = {"html": dest / "report.html", "markdown": dest / "report.md",
-             "controller": dest / CONTROLLER_FILE, "figures": figs}
-    _write(paths["controller"], json.dumps(model, indent=2))
-    _write(paths["markdown"], render_markdown(title, sections, figdir=FIGURES))
-    _write(paths["html"], render_html(title, sections))
-    return paths
-
-
-def report_stage(result, run_dir, into) -> dict[str, Path]:
-    """The report stage of ``pmdc-bayes fit``: write the report of ``result`` into the run
-    directory being built (``into``), record its wall time in
-    ``summary["diagnostics"]["wall_s"]`` (``report`` and ``total``) and rewrite
-    ``summary.json`` there."""
-    t0 = time.perf_counter()
-    paths = write_report(run_dir, result=result, into=into)
-    summary = result.summary
-    wall = summary.setdefault("diagnostics", {}).setdefault("wall_s", {})
-    dt = time.perf_counter() - t0
-    # a result written twice counts its report once
-    wall["total"] = wall.get("total", 0.0) - wall.get("report", 0.0) + dt
-    wall["report"] = dt
-    _write(Path(into) / "summary.json", dumps(summary))
-    return paths
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())

@@ -38,11 +38,12 @@ class Table:
 
 @dataclass(frozen=True)
 class Figure:
-    """A PNG figure: ``name`` (file stem in ``figures/``), caption and the PNG bytes."""
+    """A PNG figure: ``name`` (file stem in ``figures/``), caption and the PNG bytes (or,
+    until the report is written, the :class:`~._render.Drawing` that gives them)."""
 
     name: str
     caption: str
-    png: bytes
+    png: object
 
 
 @dataclass

@@ -9,7 +9,6 @@ the report's style, so the caller's ``rcParams`` are left as they were.
 from __future__ import annotations
 
 import functools
-import io
 
 import matplotlib
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -19,6 +18,7 @@ from matplotlib.ticker import NullLocator
 
 from .._format import row_format
 from ..io.units import display_unit
+from ._render import draw
 
 __all__ = ["subplots", "styled", "png", "COLORS", "LABELS", "scale_of",
            "Line2D", "NullLocator", "STYLE"]
@@ -50,12 +50,11 @@ def subplots(nrows: int = 1, ncols: int = 1, *, figsize=None, **kwargs):
     return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
-def png(fig) -> bytes:
-    """The figure as PNG bytes, as laid out (every figure function lays itself out with
-    ``tight_layout``; a tight bounding box on saving would draw the figure twice)."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    return buf.getvalue()
+def png(fig, rect=(0.0, 0.0, 1.0, 1.0)):
+    """The figure, laid out by ``tight_layout(rect=rect)`` and rendered to PNG in the
+    report's style: a :class:`~._render.Drawing` whose ``png()`` gives the bytes,
+    drawn in a worker process when there is one (:mod:`._render`)."""
+    return draw(fig, rect, STYLE)
 
 
 def scale_of(name: str, value: float, unit: str) -> tuple[float, str]:

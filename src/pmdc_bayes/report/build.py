@@ -7,6 +7,8 @@ import re
 import numpy as np
 
 from ._doc import Bullets, Figure, Paragraph, Section, Table, fmt
+from ._render import later
+from ._view import METHODS
 from .adequacy import CONDITIONAL, adequacy_section, selection_section
 from .comparison import compare_closed_form
 from .export import controller_model
@@ -15,7 +17,6 @@ from .fig_control import response_figure
 from .fig_params import corner_figure, forest_figure
 from .fig_steady import steady_figure
 from .fig_traces import trace_figure
-from .predictive import METHODS
 from .published import published_findings
 from .tables import (
     comparison_table,
@@ -110,10 +111,10 @@ def _parameters(ctx) -> Section:
     sec.add(parameter_table(ctx))
     sec.add(Figure("forest", "Every parameter on a common relative scale: closed form, MAP ± 2 "
                    "sd (Laplace), posterior 94 % HDI and, for a simulated session, the truth.",
-                   forest_figure(ctx, None)))
+                   later(forest_figure, ctx.view(), None)))
     sec.add(Figure("corner", "Pair plot of the mechanical parameters with the closed-form "
                    "point (an arrow at the edge points to it when it lies off the axes), the "
-                   "MAP and the truth when known.", corner_figure(ctx)))
+                   "MAP and the truth when known.", later(corner_figure, ctx.view())))
     sec.add(derived_table(ctx))
     return sec
 
@@ -160,7 +161,8 @@ def _traces(ctx) -> Section:
                           + " (rad/s for speed, A for current, rad for angle)."))
     for tp in ctx.predictions:
         sec.add(Figure(f"trace_{_safe(tp.trace.name)}", f"Trace {tp.trace.name!r}: measured "
-                       "against the models, residuals underneath.", trace_figure(tp, ctx.cf_label)))
+                       "against the models, residuals underneath.",
+                       later(trace_figure, tp, ctx.cf_label)))
     return sec
 
 
@@ -175,7 +177,8 @@ def _holdout(ctx):
             sec.add(Paragraph(f"Held-out {tp.trace.name!r} {c}: RMS prediction error "
                               + ", ".join(parts) + f" (noise level {fmt(tp.noise[c], 3)})."))
         sec.add(Figure(f"heldout_{_safe(tp.trace.name)}", f"Held-out trace {tp.trace.name!r} "
-                       "predicted by each parameter set.", trace_figure(tp, ctx.cf_label)))
+                       "predicted by each parameter set.",
+                       later(trace_figure, tp, ctx.cf_label)))
     return sec
 
 
@@ -193,9 +196,10 @@ def _diagnostics(ctx) -> Section:
     sec = Section("Diagnostics")
     sec.add(diagnostics_table(ctx))
     if ctx.has_posterior:
-        sec.add(Figure("chains", "Trace plot of the walkers.", chains_figure(ctx)))
+        sec.add(Figure("chains", "Trace plot of the walkers.",
+                       later(chains_figure, ctx.view())))
         sec.add(Figure("ranks", "Rank plots, walkers pooled into four sets.",
-                       ranks_figure(ctx)))
+                       later(ranks_figure, ctx.view())))
     else:
         sec.add(Paragraph("No chains to show (--no-mcmc)."))
     return sec

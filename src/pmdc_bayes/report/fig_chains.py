@@ -7,6 +7,7 @@ import numpy as np
 from matplotlib.collections import LineCollection
 
 from ._plot import COLORS, png, scale_of, styled, subplots
+from ._render import Drawing
 
 __all__ = ["chains_figure", "ranks_figure", "pooled_ranks"]
 
@@ -18,12 +19,12 @@ _SET_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "
 def _draws(ctx, name: str) -> np.ndarray:
     """``(walkers, steps)`` draws of ``name`` (SI), thinned to at most
     :data:`_MAX_STEPS` steps per walker."""
-    x = np.asarray(ctx.idata.posterior[name].values)
+    x = ctx.chains[name]
     return x[:, :: max(1, x.shape[1] // _MAX_STEPS)]
 
 
 @styled
-def chains_figure(ctx) -> bytes:
+def chains_figure(ctx) -> Drawing:
     """PNG: per parameter the marginal density of every walker's draws pooled, and each
     walker against step (thinned), in a power-of-ten unit so that the ticks stay short."""
     n = len(ctx.names)
@@ -53,7 +54,6 @@ def chains_figure(ctx) -> bytes:
         row[1].locator_params(axis="y", nbins=4)
     axes[-1][1].set_xlabel("draw index after burn-in (thinned)")
     axes[-1][0].set_xlabel("parameter value (unit in the title)")
-    fig.tight_layout()
     return png(fig)
 
 
@@ -71,14 +71,14 @@ def pooled_ranks(x: np.ndarray, groups: int, bins: int = _BINS) -> np.ndarray:
 
 
 @styled
-def ranks_figure(ctx, groups: int = 4) -> bytes:
+def ranks_figure(ctx, groups: int = 4) -> Drawing:
     """PNG: rank plots, the walkers pooled into ``groups`` sets; bars near uniform (the
     dashed line) mean the sets sample the same distribution."""
     n = len(ctx.names)
     cols = 3
     rows = -(-n // cols)
     fig, axes = subplots(rows, cols, figsize=(9, 2.2 * rows + 0.5), squeeze=False)
-    walkers = ctx.idata.posterior.sizes["chain"]
+    walkers = ctx.chains[ctx.names[0]].shape[0]
     for ax, name in zip(axes.ravel(), ctx.names, strict=False):
         x = _draws(ctx, name)
         hist = pooled_ranks(x, groups)
@@ -95,5 +95,4 @@ def ranks_figure(ctx, groups: int = 4) -> bytes:
     for ax in axes.ravel()[n:]:
         ax.set_axis_off()
     fig.suptitle("Rank plots of the chains", x=0.02, ha="left")
-    fig.tight_layout()
     return png(fig)

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..physics.response import frequency_response, poles, step_response
 from ._plot import COLORS, LABELS, png, styled, subplots
+from ._render import Drawing
 
 __all__ = ["response_curves", "response_figure", "N_RESPONSE_DRAWS"]
 
@@ -45,7 +46,7 @@ def response_curves(ctx) -> dict:
 
 
 @styled
-def response_figure(ctx) -> bytes:
+def response_figure(ctx) -> Drawing:
     c = response_curves(ctx)
     fig, (ax_s, ax_g, ax_p) = subplots(1, 3, figsize=(11.0, 3.2))
     x = {"step": (ax_s, c["time"]), "gain_db": (ax_g, c["frequency"]),
@@ -70,5 +71,4 @@ def response_figure(ctx) -> bytes:
     ax_p.set(xscale="log", xlabel="frequency (rad/s)", ylabel="phase (deg)",
              title="Bode phase")
     ax_s.legend(loc="lower right")
-    fig.tight_layout()
     return png(fig)

@@ -15,6 +15,7 @@ from ._plot import (
     styled,
     subplots,
 )
+from ._render import Drawing
 
 __all__ = ["corner_figure", "forest_figure", "forest_points", "CORNER_NAMES"]
 
@@ -61,7 +62,7 @@ def _mark(ax, x, y, lims, style, label):
 
 
 @styled
-def corner_figure(ctx) -> bytes:
+def corner_figure(ctx) -> Drawing:
     """PNG: pair plot of J, B, K (and Tc) with the closed form, MAP and truth."""
     names = [n for n in CORNER_NAMES if n in ctx.names]
     d, source = _samples(ctx, names)
@@ -120,7 +121,6 @@ def corner_figure(ctx) -> bytes:
         text.append(labels[k])
     fig.legend(handles, text, loc="upper right", bbox_to_anchor=(0.98, 0.98), frameon=False)
     fig.suptitle("Pair plot of the mechanical parameters", x=0.02, ha="left")
-    fig.tight_layout()
     return png(fig)
 
 
@@ -132,7 +132,7 @@ def forest_points(ctx) -> dict[str, dict]:
     say)."""
     ref, params = ctx.best, ctx.summary["parameters"]
     out = {}
-    for n in (n for n in ctx.names if ctx.model.registry[n].transform == "log"):
+    for n in (n for n in ctx.names if n in ctx.log_names):
         p = params[n]
 
         def rel(v, n=n):
@@ -146,8 +146,14 @@ def forest_points(ctx) -> dict[str, dict]:
     return out
 
 
+def _percent(v, _pos) -> str:
+    """A tick label of the forest plot's axis (a module-level function, so that the
+    figure pickles for the drawing processes)."""
+    return f"{v:+g} %" if v else "0"
+
+
 @styled
-def forest_figure(ctx, rows) -> bytes:
+def forest_figure(ctx, rows) -> Drawing:
     """PNG: every parameter relative to the reference (posterior mean, else MAP), in %:
     closed form, MAP ± 2 sd, posterior 94 % HDI and truth (:func:`forest_points`).  The
     axis is symmetric-log, linear within the widest ± 2 sd interval, so narrow intervals
@@ -189,7 +195,7 @@ def forest_figure(ctx, rows) -> bytes:
     ticks = [0.0] + [sg * float(f"{lin:.1g}") for sg in (-1, 1)]
     ticks += [sg * 10.0**e for e in range(-3, 4) for sg in (-1, 1) if 10.0**e > 3 * lin]
     ax.set_xticks(sorted(t for t in ticks if lo <= t <= hi))
-    ax.xaxis.set_major_formatter(lambda v, _: f"{v:+g} %" if v else "0")
+    ax.xaxis.set_major_formatter(_percent)
     ax.xaxis.set_minor_locator(NullLocator())
     ax.axvline(0.0, color="k", lw=0.7)
     ax.set_yticks(range(len(names)))
@@ -203,5 +209,4 @@ def forest_figure(ctx, rows) -> bytes:
                   "logarithmic beyond)")
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=4, frameon=False)
     ax.set_title(f"Every parameter relative to its {ctx.best_label} (value under each name)")
-    fig.tight_layout()
     return png(fig)

@@ -8,7 +8,8 @@ import numpy as np
 
 from ..physics.motor import steady_with_drop, time_constant
 from ._plot import COLORS, png, styled, subplots
-from .predictive import BAND
+from ._render import Drawing
+from ._view import BAND
 from .published import FIGURE6_SIMULATED, PAPER_SESSION, TABLE2_SIMULATED
 
 __all__ = ["steady_points", "steady_figure"]
@@ -67,7 +68,7 @@ def _predict(ctx, vals, v, tl, *, viscous=False):
                                 np.atleast_1d(np.asarray(tl, float)))
     p = {n: np.asarray(vals.get(n, 0.0), dtype=float)[..., None]
          for n in ("Ra", "K", "B", "Tc", "Vdrop")}
-    tc = None if viscous or not ctx.model.coulomb else p["Tc"]
+    tc = None if viscous or not ctx.coulomb else p["Tc"]
     _, w = steady_with_drop(p["Ra"], p["K"], p["B"], v, tl, tc, p["Vdrop"])
     return np.atleast_2d(w)
 
@@ -97,7 +98,7 @@ _MARKERS = {"steady tables and operating points": "o", "step readings (final spe
 
 
 @styled
-def steady_figure(ctx) -> bytes:
+def steady_figure(ctx) -> Drawing:
     """PNG: 2×2 panels, speed–voltage and speed–torque lines (top) and residuals of the
     measured points against the closed form and the MAP (bottom)."""
     pts = steady_points(ctx)
@@ -143,5 +144,4 @@ def steady_figure(ctx) -> bytes:
                     label=f"measured − {ctx.cf_label}")
     axes[1, 1].plot([], [], "P", color=COLORS["map"], mec="k", mew=0.4, label="measured − MAP")
     axes[1, 1].legend(loc="lower left", fontsize=7, ncol=1)
-    fig.tight_layout()
     return png(fig)

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._plot import COLORS, LABELS, png, styled, subplots
-from .predictive import TracePrediction
+from ._render import Drawing
+from ._view import TracePrediction
 
 __all__ = ["trace_figure"]
 
@@ -54,7 +55,7 @@ def _channel(ax, rax, tp: TracePrediction, c: str, t, cf_label: str):
 
 
 @styled
-def trace_figure(tp: TracePrediction, cf_label: str = LABELS["closed_form"]) -> bytes:
+def trace_figure(tp: TracePrediction, cf_label: str = LABELS["closed_form"]) -> Drawing:
     """PNG: speed (and current) with the closed form (or the seed, named by ``cf_label``),
     MAP and predictive band, residuals."""
     chans = tp.channels
@@ -72,5 +73,4 @@ def trace_figure(tp: TracePrediction, cf_label: str = LABELS["closed_form"]) -> 
     h2, l2 = axes[1].get_legend_handles_labels()
     fig.legend(h1 + h2, l1 + l2, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.975),
                frameon=False, markerscale=5)
-    fig.tight_layout(rect=(0, 0, 1, 0.93))
-    return png(fig)
+    return png(fig, rect=(0, 0, 1, 0.93))

@@ -9,61 +9,12 @@ alone (draws without noise).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..inference.objective import noise_scale
-from ..io.session import Trace
+from ._view import BAND, METHODS, TracePrediction, _measured, trace_channels
 
 __all__ = ["TracePrediction", "predict_traces", "trace_channels", "BAND", "METHODS"]
-
-BAND = (0.03, 0.97)  # quantiles of the 94 % band
-METHODS = {"closed_form": "closed form", "map": "MAP", "mean": "posterior predictive"}
-
-
-@dataclass(frozen=True)
-class TracePrediction:
-    """One trace's measurements and predictions (SI: A, rad/s, rad).
-
-    ``sims[method][channel]`` with method in ``closed_form``, ``map`` and, with a
-    posterior, ``mean`` (the posterior predictive mean); channel ``speed``,
-    ``current`` or ``position`` (those the trace logs, :func:`trace_channels`).  ``band`` and
-    ``param_band`` map a channel to ``(lower, upper)`` 94 % limits of the posterior
-    predictive and of the parameter uncertainty alone (None without a posterior).
-    ``noise`` is the measurement noise sd per channel used for the predictive;
-    ``rms`` the RMS error per method and channel; ``coverage`` the fraction of
-    measured samples inside the predictive band.
-    """
-
-    trace: Trace
-    held_out: bool
-    sims: dict
-    band: dict | None
-    param_band: dict | None
-    noise: dict
-    rms: dict
-    coverage: dict | None
-
-    def measured(self, channel: str) -> np.ndarray:
-        return _measured(self.trace, channel)
-
-    @property
-    def channels(self) -> tuple:
-        return trace_channels(self.trace)
-
-
-def trace_channels(tr: Trace) -> tuple:
-    """The channels a trace logged: ``speed`` (unless estimated from an angle),
-    ``current``, ``position``."""
-    return tuple(c for c, y in (("speed", tr.speed if tr.speed_logged else None),
-                                ("current", tr.current), ("position", tr.position))
-                 if y is not None)
-
-
-def _measured(tr: Trace, channel: str) -> np.ndarray:
-    return {"speed": tr.speed, "current": tr.current, "position": tr.position}[channel]
-
 
 def _theta(model, values: dict):
     return model.theta(values)
