@@ -298,12 +298,14 @@ def _end_to_end(tmp: Path, session: str, label: str, extra=()) -> dict:
                          env={"PMDC_BAYES_CACHE": str(cache)}, cwd=ROOT, log=log)
         summary = run_dir / "summary.json"
         if summary.exists():
-            r["stages"] = json.loads(summary.read_text())["diagnostics"].get("wall_s", {})
+            diag = json.loads(summary.read_text())["diagnostics"]
+            r["stages"], r["compile"] = diag.get("wall_s", {}), diag.get("compile_s", {})
         else:
             tail = log.read_text().strip().splitlines()[-1:]
             r["error"] = tail[0] if tail else "no output"
         out[state] = r
-        stages = ", ".join(f"{k} {v:.2f} s" for k, v in r.get("stages", {}).items())
+        stages = ", ".join(f"{k} {v:.2f} s (compiling {r['compile'].get(k, 0.0):.2f} s)"
+                           for k, v in r.get("stages", {}).items())
         print(f"  {label}, {state}: {r['wall']:.2f} s wall, exit {r['returncode']}, peak "
               f"{r['peak_mib']:,.0f} MiB ({r['peak_how']}); stages: {stages or r.get('error')}",
               flush=True)
@@ -518,7 +520,11 @@ def _section(m: dict, r: dict, quick: bool) -> str:
           "posterior, writing), with `PMDC_BAYES_CACHE` set to a fresh directory (cold: "
           "everything compiles) and then to the same directory again (warm: compiled "
           "functions from the cache).  Stages from `summary.json`'s "
-          "`diagnostics.wall_s`; \"other\" is the process wall time minus their total "
+          "`diagnostics.wall_s`, in brackets the seconds of it spent making JAX programs "
+          "(tracing, lowering, compiling or loading them from the cache: "
+          "`diagnostics.compile_s`, in any thread, so the programs of the later stages, "
+          "which a thread makes while the MAP runs, count in the MAP's row; they can "
+          "exceed the wall time); \"other\" is the process wall time minus their total "
           "(start-up, imports, writing the run directory).  The shapes: `data/demo` (4 "
           "traces, 10,204 samples, Coulomb friction, speed and current), the simulated "
           "session above (3 traces × 10,000 samples, viscous), `data/bench` (4 traces of "
@@ -531,8 +537,9 @@ def _section(m: dict, r: dict, quick: bool) -> str:
           "|---|---|---:|" + "---:|" * len(stage_keys) + "---:|---:|---:|"]
     for session, runs in r["e2e"].items():
         for label, v in runs.items():
-            st = v.get("stages", {})
-            cells = [f"{st[k]:.2f}" if k in st else "—" for k in stage_keys]
+            st, co = v.get("stages", {}), v.get("compile", {})
+            cells = [(f"{st[k]:.2f}" + (f" ({co[k]:.2f})" if k in co else ""))
+                     if k in st else "—" for k in stage_keys]
             other = f"{v['wall'] - st['total']:.2f}" if "total" in st else "—"
             L.append(f"| {session} | {label} | {v['wall']:.2f} | " + " | ".join(cells)
                      + f" | {other} | {v['returncode']} | {v['peak_mib']:,.0f} |")

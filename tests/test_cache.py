@@ -168,3 +168,52 @@ def test_fit_says_when_it_compiles_for_a_new_session_shape(disk_cache, tmp_path,
     cli.main(["fit", "paper", "--no-mcmc", "--out", str(tmp_path / "b"), "-v"])
     second = capsys.readouterr().err
     assert "MAP fit of" in second and "compiling the" not in second
+
+
+@pytest.mark.parametrize("on_disk", [False, True])
+def test_threads_that_reach_a_new_program_together_make_it_once(on_disk, request):
+    import threading
+
+    if on_disk:
+        request.getfixturevalue("disk_cache")
+    traces = []
+
+    def body(x):
+        traces.append(1)  # runs once per trace
+        return jnp.sin(x) * 2.0
+
+    fn = cache.compiled(("test_threads", on_disk), lambda: jax.jit(body))
+    start = threading.Barrier(4)
+    out = [None] * 4
+
+    def call(k):
+        start.wait()
+        out[k] = np.asarray(fn(jnp.arange(5.0) + 0.0))
+
+    workers = [threading.Thread(target=call, args=(k,)) for k in range(4)]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join()
+    assert all(np.array_equal(o, 2.0 * np.sin(np.arange(5.0))) for o in out)
+    assert len(traces) == 1
+    assert len({id(p) for p in fn.programs.values()}) == 1
+
+
+def test_compile_seconds_count_a_new_program_and_not_a_second_call():
+    x, y = np.arange(7.0), np.arange(7.0) + 1.0  # NumPy: no eager JAX op to compile
+    before = cache.compile_seconds()
+    f = jax.jit(lambda x: jnp.cumsum(jnp.exp(x)) @ jnp.ones(7))
+    f(x)
+    made = cache.compile_seconds()
+    assert made > before
+    f(y)
+    assert cache.compile_seconds() == made
+    clock = cache.StageClock()
+    with clock.stage("again"):
+        f(x)
+    with clock.stage("new"):
+        jax.jit(lambda x: jnp.tanh(x) ** 3)(y)
+    clock.total()
+    assert clock.compile["again"] == 0.0 < clock.compile["new"] <= clock.compile["total"]
+    assert set(clock.wall) == {"again", "new", "total"}

@@ -7,7 +7,6 @@ replaces a good one.
 
 from __future__ import annotations
 
-import time
 from datetime import datetime
 from importlib import metadata
 from pathlib import Path
@@ -17,12 +16,13 @@ import numpy as np
 from ._errors import FitFailed, UsageError
 from ._x64 import x64
 from .inference.adequacy import assess
-from .inference.cache import announcing
+from .inference.cache import StageClock, announcing
 from .inference.fit import fit_map
 from .inference.identifiability import identifiability
 from .inference.objective import build_model
 from .inference.result import RunResult
 from .inference.seed import fit_seed
+from .inference.warmup import WarmUp
 from .io._jsonio import dumps
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
@@ -95,30 +95,32 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     describe the misfit) unless ``allow_inadequate``.
     """
     say = say or (lambda text: None)
-    t_start = time.perf_counter()
+    clock = StageClock()
     for name in holdout:
         if name not in {t.name for t in session_full.traces}:
             _no_trace(session_full, name)
     session = session_full.without_traces(holdout) if holdout else session_full
-    wall = {}
-    t0 = time.perf_counter()
-    say("closed form (the paper's method), or a seed from the data")
-    cf = fit_seed(session)
-    wall["closed_form"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    coulomb = None if friction is None else friction == "coulomb"
-    model = build_model(session, cf, coulomb=coulomb)
-    say(f"MAP fit of {len(model.names)} parameters")
-    fit = fit_map(model, seed=seed)
-    if not np.all(np.isfinite(fit.cov_log)):
-        raise FitFailed(f"{session.root}: the MAP fit failed: {fit.message}")
-    ident = identifiability(model, fit)
-    wall["map"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    say("adequacy checks")
-    adequacy = assess(model, fit, cf)
-    wall["adequacy"] = time.perf_counter() - t0
+    with clock.stage("closed_form"):
+        say("closed form (the paper's method), or a seed from the data")
+        cf = fit_seed(session)
+    with clock.stage("map"):
+        coulomb = None if friction is None else friction == "coulomb"
+        model = build_model(session, cf, coulomb=coulomb)
+        warm = WarmUp(model, mcmc=mcmc)  # the later stages' programs, meanwhile
+        try:
+            say(f"MAP fit of {len(model.names)} parameters")
+            fit = fit_map(model, seed=seed)
+            if not np.all(np.isfinite(fit.cov_log)):
+                raise FitFailed(f"{session.root}: the MAP fit failed: {fit.message}")
+            ident = identifiability(model, fit)
+        except BaseException:
+            warm.stop()
+            raise
+    with clock.stage("adequacy"):
+        say("adequacy checks")
+        adequacy = assess(model, fit, cf)
+    if not adequacy.ok and not allow_inadequate:
+        warm.stop()
 
     cf_theta = _closed_form_theta(model, cf)
     params = {}
@@ -154,29 +156,29 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
         summary["truth"] = {k: session.truth.get(k) for k in model.names}
     summary["diagnostics"] = {"gates_passed": None, "failures": []}
     post = None
-    wall["mcmc"] = 0.0
+    clock.wall["mcmc"] = clock.compile["mcmc"] = 0.0
     if mcmc and not adequacy.ok and not allow_inadequate:
         mcmc = False
         summary["diagnostics"]["sampler_message"] = (
             "not sampled: the data reject the model (pass --allow-inadequate to sample it)")
     if mcmc:
-        t0 = time.perf_counter()
-        say("sampling the posterior (emcee)")
-        post, stats = _posterior_stage(model, fit, seed=seed, progress=progress,
-                                       max_seconds=max_sampling_seconds)
-        for name in model.names:
-            params[name].update(stats["summary"][name])
-        summary["derived"] = stats["derived"]
-        summary["laplace_check"] = stats["laplace_check"]
-        summary["diagnostics"].update(stats["diagnostics"])
-        if compare_friction:
-            summary["model_comparison"] = _compare_friction(
-                session, cf, model, post, seed=seed, progress=progress,
-                max_seconds=max_sampling_seconds)
-        wall["mcmc"] = time.perf_counter() - t0
-    wall["report"] = 0.0
-    wall["total"] = time.perf_counter() - t_start
-    summary["diagnostics"]["wall_s"] = wall
+        with clock.stage("mcmc"):
+            say("sampling the posterior (emcee)")
+            post, stats = _posterior_stage(model, fit, seed=seed, progress=progress,
+                                           max_seconds=max_sampling_seconds)
+            for name in model.names:
+                params[name].update(stats["summary"][name])
+            summary["derived"] = stats["derived"]
+            summary["laplace_check"] = stats["laplace_check"]
+            summary["diagnostics"].update(stats["diagnostics"])
+            if compare_friction:
+                summary["model_comparison"] = _compare_friction(
+                    session, cf, model, post, seed=seed, progress=progress,
+                    max_seconds=max_sampling_seconds)
+    clock.wall["report"] = clock.compile["report"] = 0.0
+    clock.total()
+    summary["diagnostics"]["wall_s"] = clock.wall
+    summary["diagnostics"]["compile_s"] = clock.compile
     draws = None if post is None else post.draws.reshape(-1, len(model.names))
     return RunResult(summary, session, session_full, cf, model, fit, draws,
                      None if post is None else post.idata, adequacy)

@@ -127,12 +127,8 @@ def _traced(kernel) -> list[int]:
     """How many times each program behind a compiled kernel was traced: the jitted
     function itself, or (when an earlier run in this process enabled the disk cache)
     each program loaded from disk, one per signature of its arguments."""
-    from pmdc_bayes.inference import cache as _cache
-
-    if isinstance(kernel, _cache._Exported):
-        programs = {id(p): p for p in kernel.programs.values()}.values()
-        return [len(programs)] + [p._cache_size() for p in programs]
-    return [kernel._cache_size()]
+    programs = {id(p): p for p in kernel.programs.values()}.values()
+    return [len(programs)] + [p._cache_size() for p in programs]
 
 
 @pytest.mark.slow

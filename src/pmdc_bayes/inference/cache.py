@@ -15,6 +15,7 @@ import contextlib
 import hashlib
 import os
 import threading
+import time
 from pathlib import Path
 
 import jax
@@ -22,7 +23,7 @@ from jax import export
 
 from ..physics.solution import Experiment
 
-__all__ = ["enable", "compiled", "cache_dir", "announcing"]
+__all__ = ["enable", "compiled", "cache_dir", "announcing", "compile_seconds", "StageClock"]
 
 _IN_MEMORY: dict = {}
 _STATE = {"dir": None, "announce": None}
@@ -82,33 +83,40 @@ def announcing(say):
         _STATE["announce"] = previous
 
 
-class _Exported:
-    """Calls a program exported to disk, one per signature of its arguments (an
-    exported program has fixed shapes); exports it on the first call if missing.  Each
-    loaded program is called through ``jax.jit``, whose compilation XLA's persistent
-    cache keeps."""
+class _Compiled:
+    """Calls a compiled function, one program per signature of its arguments, each
+    made under a lock on its first call (so that a program a background thread is
+    compiling, see :mod:`.warmup`, is waited for, never compiled twice).
 
-    def __init__(self, jitted, stem: Path):
+    With a disk cache (``stem`` given) the program is exported there (an exported
+    program has fixed shapes) or loaded from it, and called through ``jax.jit``,
+    whose compilation XLA's persistent cache keeps."""
+
+    def __init__(self, jitted, stem: Path | None):
         self.jitted, self.stem, self.programs = jitted, stem, {}
         self.lock = threading.Lock()
 
-    def _program(self, args):
+    def __call__(self, *args):
         leaves, treedef = jax.tree_util.tree_flatten(args)
         fast = (treedef, tuple((type(x), getattr(x, "shape", None), getattr(x, "dtype", None))
                                for x in leaves))
-        if fast in self.programs:
-            return self.programs[fast]
-        with self.lock:  # threads (the sampler's ensembles) load or export it once
-            return self._load(args, leaves, treedef, fast)
+        program = self.programs.get(fast)
+        if program is not None:
+            return program(*args)
+        with self.lock:  # threads (a warm-up, the sampler's ensembles) make it once
+            program = self.programs.get(fast)
+            if program is not None:
+                return program(*args)
+            signature = repr((treedef, [(jax.numpy.shape(x), str(jax.numpy.result_type(x)))
+                                        for x in leaves]))
+            program = self.programs.get(signature) or self._load(args, signature)
+            out = program(*args)  # compiles it, or loads it from XLA's cache
+            self.programs[signature] = self.programs[fast] = program
+            return out
 
-    def _load(self, args, leaves, treedef, fast):
-        if fast in self.programs:
-            return self.programs[fast]
-        signature = repr((treedef, [(jax.numpy.shape(x), str(jax.numpy.result_type(x)))
-                                    for x in leaves]))
-        if signature in self.programs:
-            self.programs[fast] = self.programs[signature]
-            return self.programs[signature]
+    def _load(self, args, signature: str):
+        if self.stem is None:
+            return self.jitted
         digest = hashlib.sha256(signature.encode()).hexdigest()[:16]
         file = self.stem.with_name(f"{self.stem.name}-{digest}.jaxexport")
         exp = None
@@ -134,20 +142,67 @@ class _Exported:
                     tmp.unlink(missing_ok=True)
         # Called through jit: one fast dispatch per call instead of an eager custom-VJP
         # call of the exported module (about 3 ms of Python per call).
-        self.programs[signature] = self.programs[fast] = jax.jit(exp.call)
-        return self.programs[signature]
+        return jax.jit(exp.call)
 
-    def __call__(self, *args):
-        return self._program(args)(*args)
+
+_BUILDING = threading.Lock()
 
 
 def compiled(key: tuple, build):
     """The function ``build()`` returns (a ``jax.jit``-ed function of arrays), built once
     per ``key``; exported to and loaded from disk when :func:`enable` was called."""
-    if key not in _IN_MEMORY:
-        fn = build()
-        if _STATE["dir"] is not None:
-            digest = hashlib.sha256(repr(key).encode()).hexdigest()[:24]
-            fn = _Exported(fn, _STATE["dir"] / f"{key[0]}-{digest}")
-        _IN_MEMORY[key] = fn
-    return _IN_MEMORY[key]
+    fn = _IN_MEMORY.get(key)
+    if fn is None:
+        with _BUILDING:
+            fn = _IN_MEMORY.get(key)
+            if fn is None:
+                digest = hashlib.sha256(repr(key).encode()).hexdigest()[:24]
+                stem = None if _STATE["dir"] is None else _STATE["dir"] / f"{key[0]}-{digest}"
+                fn = _IN_MEMORY[key] = _Compiled(build(), stem)
+    return fn
+
+
+# JAX's own timings of making a program: tracing a top-level function, lowering it to
+# MLIR, and compiling it with XLA (or loading it from the persistent cache).
+_COMPILE_EVENTS = frozenset({"/jax/core/compile/jaxpr_trace_duration",
+                             "/jax/core/compile/jaxpr_to_mlir_module_duration",
+                             "/jax/core/compile/backend_compile_duration"})
+_CLOCK = {"seconds": 0.0, "listening": False}
+
+
+def _on_duration(event: str, duration: float, **_) -> None:
+    if event in _COMPILE_EVENTS:
+        _CLOCK["seconds"] += duration
+
+
+def compile_seconds() -> float:
+    """Seconds this process has spent making JAX programs (tracing, lowering, compiling
+    or loading them from the persistent cache) since the first call (which starts the
+    count by listening to :mod:`jax.monitoring`)."""
+    if not _CLOCK["listening"]:
+        jax.monitoring.register_event_duration_secs_listener(_on_duration)
+        _CLOCK["listening"] = True
+    return _CLOCK["seconds"]
+
+
+class StageClock:
+    """Wall time and the part of it spent making JAX programs, per stage of a run
+    (``wall`` and ``compile``, in seconds, keyed by stage)."""
+
+    def __init__(self):
+        self.wall, self.compile = {}, {}
+        self._t0, self._c0 = time.perf_counter(), compile_seconds()
+
+    @contextlib.contextmanager
+    def stage(self, name: str):
+        t0, c0 = time.perf_counter(), compile_seconds()
+        try:
+            yield
+        finally:
+            self.wall[name] = time.perf_counter() - t0
+            self.compile[name] = compile_seconds() - c0
+
+    def total(self) -> None:
+        """Record the time since the clock started as ``total``."""
+        self.wall["total"] = time.perf_counter() - self._t0
+        self.compile["total"] = compile_seconds() - self._c0

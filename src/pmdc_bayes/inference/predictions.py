@@ -42,10 +42,11 @@ class Predictions:
         """:meth:`~.objective.SessionModel.padded_residuals` at each θ of ``thetas``
         ``(RESIDUAL_BATCH, P)``: per output ``(residual, σ²)``, a leading axis over the
         θ.  One compiled program per session structure, for the pointwise
-        log-likelihood and the predictive draws alike."""
+        log-likelihood and the predictive draws alike.  The θ are taken one at a time
+        (``lax.map``): measured on the demo, that compiles in 1.7 s against 2.9 s for
+        a body vectorised over 4 θ, runs as fast, and keeps memory at one θ's."""
         fn = self.compiled("pointwise-residuals", lambda: jax.jit(
-            lambda ts, data: jax.lax.map(lambda t: self.padded_residuals(t, data=data), ts,
-                                         batch_size=4)))
+            lambda ts, data: jax.lax.map(lambda t: self.padded_residuals(t, data=data), ts)))
         return fn(jnp.asarray(thetas), self.data)
 
     @x64

@@ -34,11 +34,12 @@ from .diagnostics import (
 from .ensembles import ENSEMBLES, Ensembles, r_hat_between
 from .idata import LL_DRAWS, to_inference_data
 from .moves import LaplaceIndependenceMove, default_moves
+from .predictions import RESIDUAL_BATCH
 from .stopping import CHECK, TAU_RTOL, gate_shortfall, next_gate_check, stop_message
 
 __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
            "compare_laplace", "loo_compare", "format_loo", "default_moves",
-           "LaplaceIndependenceMove"]
+           "LaplaceIndependenceMove", "warm_up"]
 
 CHUNK = 200  # steps between autocorrelation checks while the chain is too short to stop
 THINNED_NEAR = 1.3  # a thinned gate check this close to the gates is redone unthinned
@@ -94,6 +95,33 @@ def _log_posterior_batch(model):
     fn = model.compiled("log_posterior_batch", lambda: jax.jit(
         lambda thetas, data: model.log_posterior_batch(thetas, data=data)))
     return lambda thetas: fn(thetas, model.data)
+
+
+def _layout(ndim: int, n_walkers: int | None = None) -> tuple[int, int, int]:
+    """``(walkers, ensembles, batch)``: the walkers (even, at least two per parameter),
+    the independent ensembles they form, and the θ per call of the batch log-posterior
+    (half an ensemble: emcee moves half its walkers at a time)."""
+    if n_walkers is None:
+        n_walkers = max(32, 4 * ndim)
+    n_walkers += n_walkers % 2
+    if n_walkers < 2 * ndim:
+        raise ValueError(f"n_walkers={n_walkers} is too few for {ndim} parameters; "
+                         f"use at least {2 * ndim}")
+    # independent ensembles when each can have 2 walkers per parameter and an even count
+    k = ENSEMBLES if n_walkers % (2 * ENSEMBLES) == 0 and \
+        n_walkers // ENSEMBLES >= 2 * ndim else 1
+    return n_walkers, k, max(1, n_walkers // (2 * k))
+
+
+@x64
+def warm_up(model, theta, n_walkers: int | None = None) -> None:
+    """Make (compile, or load from the cache) the programs :func:`sample_posterior`
+    calls, by calling them once at ``theta``: the batch log-posterior, in the batch
+    size the sampler uses, and the pointwise residuals of its ArviZ record."""
+    _, _, batch = _layout(len(model.names), n_walkers)
+    theta = np.asarray(theta, dtype=float)
+    _log_posterior_batch(model)(jnp.asarray(np.repeat(theta[None], batch, axis=0)))
+    model.residuals_of_batch(np.repeat(theta[None], RESIDUAL_BATCH, axis=0))
 
 
 class _LogProb:
@@ -185,19 +213,11 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     """
     t_start = time.perf_counter()
     ndim = len(model.names)
-    if n_walkers is None:
-        n_walkers = max(32, 4 * ndim)
-    n_walkers += n_walkers % 2
-    if n_walkers < 2 * ndim:
-        raise ValueError(f"n_walkers={n_walkers} is too few for {ndim} parameters; "
-                         f"use at least {2 * ndim}")
-    # independent ensembles when each can have 2 walkers per parameter and an even count
-    k = ENSEMBLES if n_walkers % (2 * ENSEMBLES) == 0 and \
-        n_walkers // ENSEMBLES >= 2 * ndim else 1
+    n_walkers, k, batch = _layout(ndim, n_walkers)
     if progress is None:  # a terminal, or a notebook (where tqdm.auto draws a widget)
         progress = sys.stderr.isatty() or "ipykernel" in sys.modules
     batch_fn = _log_posterior_batch(model)
-    log_prob = _LogProb(batch_fn, max(1, n_walkers // (2 * k)))
+    log_prob = _LogProb(batch_fn, batch)
     rng = np.random.default_rng(seed)
     p0, lp0 = _initial(fit, log_prob, n_walkers, rng)
     sampler = Ensembles(k, n_walkers, ndim, log_prob, p0, lp0, seed=seed,

@@ -12,11 +12,11 @@ import dataclasses
 import json
 import os
 import tempfile
-import time
 from pathlib import Path
 
 from .._errors import UsageError
 from .._x64 import x64
+from ..inference.cache import StageClock
 from ..io._jsonio import dumps
 from ..rundir import default_mode
 from ._context import context_from_result, load_context
@@ -127,16 +127,18 @@ def write_report(run_dir, *, result=None, into=None, say=None) -> dict[str, Path
 
 def report_stage(result, run_dir, into) -> dict[str, Path]:
     """The report stage of ``pmdc-bayes fit``: write the report of ``result`` into the run
-    directory being built (``into``), record its wall time in
-    ``summary["diagnostics"]["wall_s"]`` (``report`` and ``total``) and rewrite
-    ``summary.json`` there."""
-    t0 = time.perf_counter()
-    paths = write_report(run_dir, result=result, into=into)
-    summary = result.summary
-    wall = summary.setdefault("diagnostics", {}).setdefault("wall_s", {})
-    dt = time.perf_counter() - t0
-    # a result written twice counts its report once
-    wall["total"] = wall.get("total", 0.0) - wall.get("report", 0.0) + dt
-    wall["report"] = dt
-    _write(Path(into) / "summary.json", dumps(summary))
+    directory being built (``into``), record its wall time and the part of it spent
+    making JAX programs in ``summary["diagnostics"]`` (``wall_s`` and ``compile_s``:
+    ``report`` and ``total``) and rewrite ``summary.json`` there."""
+    clock = StageClock()
+    with clock.stage("report"):
+        paths = write_report(run_dir, result=result, into=into)
+    diag = result.summary.setdefault("diagnostics", {})
+    for key, times in (("wall_s", clock.wall), ("compile_s", clock.compile)):
+        record = diag.setdefault(key, {})
+        # a result written twice counts its report once
+        record["total"] = record.get("total", 0.0) - record.get("report", 0.0) \
+            + times["report"]
+        record["report"] = times["report"]
+    _write(Path(into) / "summary.json", dumps(result.summary))
     return paths

@@ -1,0 +1,59 @@
+"""The warm-up thread makes the programs of a fit's later stages while the MAP runs:
+each once, the very ones the stages then call, and none when stopped first."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pmdc_bayes.inference import cache
+from pmdc_bayes.inference.fit import fit_map
+from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.inference.sampling import sample_posterior
+from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.warmup import WarmUp
+from pmdc_bayes.io.loader import load_session
+
+LATER = {"predict", "log_posterior_batch", "pointwise-residuals"}
+
+
+def _model(session_dir):
+    session = load_session(session_dir)
+    return build_model(session, fit_seed(session))
+
+
+def _made(model) -> dict:
+    """Per program name of ``model``'s structure, the programs made (signatures)."""
+    key = model.structure_key()
+    return {k[0]: len({id(p) for p in fn.programs.values()})
+            for k, fn in cache._IN_MEMORY.items() if k[1:] == key}
+
+
+def test_the_warm_up_makes_what_the_sampler_then_calls(session_dir):
+    cache._IN_MEMORY.clear()
+    model = _model(session_dir)
+    warm = WarmUp(model, mcmc=True)
+    fit = fit_map(model, seed=0)  # meanwhile, in this thread
+    warm.thread.join()
+    made = _made(model)
+    assert LATER <= set(made) and all(made[n] == 1 for n in LATER)
+    post = sample_posterior(model, fit, seed=0, max_steps=400, progress=False)
+    assert np.isfinite(post.draws).all()
+    assert {n: _made(model)[n] for n in LATER} == {n: 1 for n in LATER}  # none made again
+
+
+def test_without_mcmc_only_the_prediction_is_made(session_dir):
+    cache._IN_MEMORY.clear()
+    model = _model(session_dir)
+    WarmUp(model, mcmc=False).thread.join()
+    made = _made(model)
+    assert "predict" in made and not ({"log_posterior_batch", "pointwise-residuals"} & set(made))
+
+
+def test_a_stopped_warm_up_begins_nothing_more(session_dir):
+    cache._IN_MEMORY.clear()
+    model = _model(session_dir)
+    warm = WarmUp(model, mcmc=True, start=False)  # stopped before its thread starts
+    warm.stop()
+    warm.thread.start()
+    warm.thread.join()
+    assert not (LATER & set(_made(model)))
