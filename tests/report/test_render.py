@@ -116,3 +116,40 @@ def test_the_report_style_applies_in_the_worker(fresh_pool):
     raw = d.png()
     width, height = np.frombuffer(raw[16:24], dtype=">u4")
     assert (int(width), int(height)) == (4 * 110, 3 * 110)
+
+
+def test_workers_end_when_the_process_they_draw_for_is_killed(tmp_path):
+    import signal
+    import time
+
+    script = tmp_path / "killed.py"
+    script.write_text(textwrap.dedent("""
+        import time
+        from pmdc_bayes.report import _render
+        from pmdc_bayes.report._plot import png, subplots
+        fig, ax = subplots()
+        ax.plot([0, 1], [1, 0])
+        assert png(fig).png()[:4] == b"\\x89PNG"  # the workers are up
+        print(*_render._pool._processes, flush=True)
+        time.sleep(120)
+        """), encoding="utf-8")
+    env = {**os.environ, _render.WORKERS_ENV: "2"}
+    with subprocess.Popen([sys.executable, str(script)], env=env, stdout=subprocess.PIPE,
+                          text=True) as proc:
+        pids = [int(p) for p in proc.stdout.readline().split()]
+        assert len(pids) == 2
+        proc.send_signal(signal.SIGKILL)  # no clean-up of any kind in the parent
+        proc.wait(timeout=30)
+
+    def alive(pid):
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        with open(f"/proc/{pid}/stat", encoding="ascii") as fh:  # a zombie has ended
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+
+    deadline = time.monotonic() + 20
+    while any(alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(alive(p) for p in pids)

@@ -16,7 +16,9 @@ import threading
 
 from .._x64 import x64
 
-__all__ = ["WarmUp"]
+__all__ = ["WarmUp", "THREAD_NAME"]
+
+THREAD_NAME = "pmdc-bayes warm-up"
 
 
 class WarmUp:
@@ -27,7 +29,7 @@ class WarmUp:
                  start: bool = True):
         self.model, self.mcmc, self.n_walkers = model, mcmc, n_walkers
         self._stop = threading.Event()
-        self.thread = threading.Thread(target=self._run, name="pmdc-bayes warm-up",
+        self.thread = threading.Thread(target=self._run, name=THREAD_NAME,
                                        daemon=False)
         if start:
             self.thread.start()

@@ -21,7 +21,7 @@ import pickle
 import signal
 import sys
 
-__all__ = ["Drawing", "draw", "later", "start", "workers", "WORKERS_ENV"]
+__all__ = ["Drawing", "draw", "later", "start", "shutdown", "workers", "WORKERS_ENV"]
 
 WORKERS_ENV = "PMDC_BAYES_DRAW_WORKERS"
 _MAX_WORKERS = 2
@@ -45,9 +45,20 @@ def workers() -> int:
     return min(_MAX_WORKERS, cores) if cores >= 2 else 0
 
 
+def _exit_with(parent) -> None:
+    parent.join()
+    os._exit(0)
+
+
 def _worker_init() -> None:
+    import multiprocessing
+    import threading
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ[WORKERS_ENV] = "0"  # a worker draws its own figures itself
+    parent = multiprocessing.parent_process()
+    if parent is not None:  # a worker never outlives the process it draws for (killed)
+        threading.Thread(target=_exit_with, args=(parent,), daemon=True).start()
     import matplotlib.figure  # noqa: F401  (imported once, before the first figure)
     from matplotlib.backends import backend_agg  # noqa: F401
 
@@ -85,6 +96,15 @@ def start():
         else:
             sys.modules["__main__"] = main
     return _pool
+
+
+def shutdown() -> None:
+    """Stop the workers, once the figures they have begun are drawn (a later figure
+    starts a new pool)."""
+    global _pool
+    if _pool is not None:
+        _pool.shutdown(wait=True, cancel_futures=True)
+        _pool = None
 
 
 def _render(fig, rect, style) -> bytes:
