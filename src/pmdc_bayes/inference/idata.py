@@ -49,8 +49,7 @@ def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
     and a replicate of the observation (the model's prediction plus Gaussian noise at
     its channel's level), each ``(chains, kept, n_obs)`` float32, filled batch by batch."""
     fn = model.residuals_of_batch
-    sel = model.observation_selection()
-    observed = np.concatenate(model.observed_values())
+    observed = np.concatenate(model.observed_values()).astype(np.float32)
     sub = chain_log[:, ::thin]
     flat = sub.reshape(-1, sub.shape[-1])
     n = flat.shape[0]
@@ -58,17 +57,22 @@ def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
     padded = np.concatenate([flat, np.repeat(flat[:1], m - n, axis=0)])
     ll = np.empty((n, observed.size), np.float32)
     replicate = np.empty_like(ll)
+    where = None
     for a in range(0, m, _LL_BATCH):
         outs = [(np.asarray(r), np.asarray(v))
                 for r, v in fn(jnp.asarray(padded[a:a + _LL_BATCH]))]
-        pick = [np.broadcast_to(x, r.shape).reshape(_LL_BATCH, -1) for r, v in outs
-                for x in (r, v)]
-        r = np.concatenate([pick[2 * k][:, idx] for k, idx in sel], axis=1)
-        v = np.concatenate([pick[2 * k + 1][:, idx] for k, idx in sel], axis=1)
-        keep = slice(0, min(_LL_BATCH, n - a))
-        ll[a:a + _LL_BATCH] = (-0.5 * (np.log(2 * np.pi * v) + r * r / v))[keep]
-        replicate[a:a + _LL_BATCH] = (observed - r + np.sqrt(v) * rng.standard_normal(
-            r.shape))[keep]
+        if where is None:  # each channel's observations, as indices into its output
+            where = [(k, (slice(None), *np.unravel_index(idx, outs[k][0].shape[1:])))
+                     for k, idx in model.observation_selection()]
+        # picked straight out of the outputs (σ² stays a broadcast view), in float32
+        r = np.concatenate([outs[k][0][at] for k, at in where], axis=1, dtype=np.float32)
+        v = np.concatenate([np.broadcast_to(outs[k][1], outs[k][0].shape)[at]
+                            for k, at in where], axis=1, dtype=np.float32)
+        keep = min(_LL_BATCH, n - a)
+        r, v = r[:keep], v[:keep]
+        ll[a:a + keep] = -0.5 * (np.log(np.float32(2 * np.pi) * v) + r * r / v)
+        replicate[a:a + keep] = observed - r + np.sqrt(v) * rng.standard_normal(
+            r.shape, dtype=np.float32)
     return ll.reshape(*sub.shape[:2], -1), replicate.reshape(*sub.shape[:2], -1)
 
 
