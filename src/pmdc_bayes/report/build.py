@@ -230,10 +230,13 @@ def _export(ctx) -> tuple[Section, dict]:
 
 
 def build_sections(ctx) -> tuple[list[Section], dict]:
-    """The report's sections and the controller model (for ``controller.json``)."""
+    """The report's sections and the controller model (for ``controller.json``).  The
+    sections whose figures take longest to draw are built first, so that their drawing
+    starts first (:mod:`._render`)."""
+    diagnostics = _diagnostics(ctx)
     export, model = _export(ctx)
     parts = [_glance(ctx), adequacy_section(ctx), selection_section(ctx), _overview(ctx),
              _published(ctx),
              _parameters(ctx), _comparison(ctx),
-             _traces(ctx), _holdout(ctx), _steady(ctx), export, _diagnostics(ctx)]
+             _traces(ctx), _holdout(ctx), _steady(ctx), export, diagnostics]
     return [p for p in parts if p is not None], model
