@@ -1,4 +1,4 @@
-"""The warm-up thread makes the programs of a fit's later stages while the MAP runs:
+"""The warm-up threads make the programs of a fit's later stages while the MAP runs:
 each once, the very ones the stages then call, and none when stopped first."""
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ def test_the_warm_up_makes_what_the_sampler_then_calls(session_dir):
     model = _model(session_dir)
     warm = WarmUp(model, mcmc=True)
     fit = fit_map(model, seed=0)  # meanwhile, in this thread
-    warm.thread.join()
+    warm.join()
     made = _made(model)
     assert LATER <= set(made) and all(made[n] == 1 for n in LATER)
     post = sample_posterior(model, fit, seed=0, max_steps=400, progress=False)
@@ -44,7 +44,7 @@ def test_the_warm_up_makes_what_the_sampler_then_calls(session_dir):
 def test_without_mcmc_only_the_prediction_is_made(session_dir):
     cache._IN_MEMORY.clear()
     model = _model(session_dir)
-    WarmUp(model, mcmc=False).thread.join()
+    WarmUp(model, mcmc=False).join()
     made = _made(model)
     assert "predict" in made and not ({"log_posterior_batch", "pointwise-residuals"} & set(made))
 
@@ -52,8 +52,8 @@ def test_without_mcmc_only_the_prediction_is_made(session_dir):
 def test_a_stopped_warm_up_begins_nothing_more(session_dir):
     cache._IN_MEMORY.clear()
     model = _model(session_dir)
-    warm = WarmUp(model, mcmc=True, start=False)  # stopped before its thread starts
+    warm = WarmUp(model, mcmc=True, start=False)  # stopped before its threads start
     warm.stop()
-    warm.thread.start()
-    warm.thread.join()
+    warm.start()
+    warm.join()
     assert not (LATER & set(_made(model)))

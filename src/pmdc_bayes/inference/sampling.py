@@ -34,7 +34,6 @@ from .diagnostics import (
 from .ensembles import ENSEMBLES, Ensembles, r_hat_between
 from .idata import LL_DRAWS, to_inference_data
 from .moves import LaplaceIndependenceMove, default_moves
-from .predictions import RESIDUAL_BATCH
 from .stopping import CHECK, TAU_RTOL, gate_shortfall, next_gate_check, stop_message
 
 __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
@@ -115,13 +114,12 @@ def _layout(ndim: int, n_walkers: int | None = None) -> tuple[int, int, int]:
 
 @x64
 def warm_up(model, theta, n_walkers: int | None = None) -> None:
-    """Make (compile, or load from the cache) the programs :func:`sample_posterior`
-    calls, by calling them once at ``theta``: the batch log-posterior, in the batch
-    size the sampler uses, and the pointwise residuals of its ArviZ record."""
+    """Make (compile, or load from the cache) the batch log-posterior
+    :func:`sample_posterior` calls, in the batch size it uses, by calling it once at
+    ``theta``."""
     _, _, batch = _layout(len(model.names), n_walkers)
     theta = np.asarray(theta, dtype=float)
     _log_posterior_batch(model)(jnp.asarray(np.repeat(theta[None], batch, axis=0)))
-    model.residuals_of_batch(np.repeat(theta[None], RESIDUAL_BATCH, axis=0))
 
 
 class _LogProb:
