@@ -32,6 +32,7 @@ class ReportContext(FigureView):
     Attributes
     ----------
     run_dir : the run directory.
+    session : the session the fit saw (hold-out traces removed).
     session_full : the session with every trace (hold-out traces included).
     cf : the closed form of ``session``.
     model : the objective of ``session`` (its friction model is the run's).
@@ -41,6 +42,7 @@ class ReportContext(FigureView):
     """
 
     run_dir: Path
+    session: Session
     session_full: Session
     cf: ClosedForm
     model: SessionModel

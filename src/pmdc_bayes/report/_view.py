@@ -8,7 +8,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..io.session import Session, Trace
+from ..io.session import Trace
 
 __all__ = ["FigureView", "TracePrediction", "trace_channels", "BAND", "METHODS"]
 
@@ -66,7 +66,6 @@ class FigureView:
     Attributes
     ----------
     summary : ``summary.json`` as a dict.
-    session : the session the fit saw (hold-out traces removed).
     names : parameter names in θ order.
     values : ``{"closed_form" | "map" | "mean": {name: SI value}}`` (``mean`` only with
         a posterior); the closed form has ``Tc = 0``.
@@ -79,7 +78,6 @@ class FigureView:
     """
 
     summary: dict
-    session: Session
     names: tuple
     values: dict
     truth: dict | None
