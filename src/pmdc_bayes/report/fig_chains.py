@@ -20,7 +20,7 @@ def _draws(ctx, name: str) -> np.ndarray:
     """``(walkers, steps)`` draws of ``name`` (SI), thinned to at most
     :data:`_MAX_STEPS` steps per walker."""
     x = ctx.chains[name]
-    return x[:, :: max(1, x.shape[1] // _MAX_STEPS)]
+    return x[:, :: max(1, -(-x.shape[1] // _MAX_STEPS))]
 
 
 @styled
