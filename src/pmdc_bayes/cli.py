@@ -272,7 +272,8 @@ def run() -> None:
     exit code, its output flushed.  Every file the command writes is complete and in
     place before :func:`main` returns; ending at once skips the interpreter's teardown
     of the compiled programs (about half a second).  The processes drawing figures are
-    stopped, and a thread still making a program waited for, as a normal exit would."""
+    stopped, and a thread still making a program waited for, as a normal exit would.
+    Under a profiler or a coverage tool the exit is a normal one."""
     code = main()
     render = sys.modules.get("pmdc_bayes.report._render")  # each imported when used
     warmup = sys.modules.get("pmdc_bayes.inference.warmup")
@@ -281,6 +282,8 @@ def run() -> None:
     for thread in threading.enumerate() if warmup is not None else ():
         if thread.name == warmup.THREAD_NAME:
             thread.join()
+    if sys.getprofile() is not None or sys.gettrace() is not None:
+        sys.exit(code)  # a profiler or coverage tool writes its record at a normal exit
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()
