@@ -213,10 +213,13 @@ def _stage_printer(args):
     if args.quiet or not (args.verbose or sys.stderr.isatty()):
         return None
     start = time.perf_counter()
+    lock = threading.Lock()  # the warm-up threads announce their compilations too
 
     def say(text: str) -> None:
-        print(f"pmdc-bayes: [{time.perf_counter() - start:6.1f} s] {text}", file=sys.stderr,
-              flush=True)
+        line = f"pmdc-bayes: [{time.perf_counter() - start:6.1f} s] {text}\n"
+        with lock:
+            sys.stderr.write(line)  # one write: a line is never split by another
+            sys.stderr.flush()
 
     return say
 
