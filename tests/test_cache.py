@@ -2,6 +2,7 @@
 unwritable entries, bounded, and cleared without touching anything else."""
 
 import os
+import sys
 
 import jax
 import jax.numpy as jnp
@@ -217,3 +218,35 @@ def test_compile_seconds_count_a_new_program_and_not_a_second_call():
     clock.total()
     assert clock.compile["again"] == 0.0 < clock.compile["new"] <= clock.compile["total"]
     assert set(clock.wall) == {"again", "new", "total"}
+
+
+def test_a_stage_line_is_one_write_so_threads_cannot_split_it(monkeypatch):
+    """The warm-up threads announce their compilations while the main thread announces
+    its stages: each line goes out in one write (a print of the text and then of the
+    newline could be split by another thread's line)."""
+    import argparse
+    import threading
+
+    writes = []
+
+    class Stream:
+        def write(self, text):
+            writes.append(text)
+
+        def flush(self):
+            pass
+
+        def isatty(self):
+            return False
+
+    monkeypatch.setattr(sys, "stderr", Stream())
+    say = cli._stage_printer(argparse.Namespace(quiet=False, verbose=True))
+    threads = [threading.Thread(target=say, args=(f"compiling program {k}",))
+               for k in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(writes) == 8
+    assert all(w.startswith("pmdc-bayes: [") and w.endswith("\n") and w.count("\n") == 1
+               for w in writes)
