@@ -6,6 +6,7 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+import re  # noqa: E402
 import types  # noqa: E402
 import warnings  # noqa: E402
 
@@ -92,6 +93,15 @@ def test_a_sampler_out_of_time_stops_with_the_reason_and_a_usable_record(tiny):
     a = sample_posterior(model, fit, seed=5, **QUICK)
     b = sample_posterior(model, fit, seed=5, max_seconds=3600.0, **QUICK)
     np.testing.assert_array_equal(a.draws, b.draws)
+
+
+def test_the_progress_bar_starts_at_what_the_rule_needs_not_at_the_cap(tiny, capsys):
+    model, fit = tiny
+    sample_posterior(model, fit, seed=5, max_steps=10**6, progress=True)
+    err = capsys.readouterr().err
+    totals = [int(t) for t in re.findall(r"\| *\d+/(\d+) \[", err)]
+    assert totals and totals[0] <= 300  # the first estimate and one to compare it with
+    assert max(totals) < 10**5  # never the cap
 
 
 def test_a_chain_long_enough_stopped_early_says_what_it_still_lacks(tiny):

@@ -225,7 +225,10 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     tau_prev, converged, settled, steps, gate_at = None, False, None, 0, 0
     check_at = CHUNK  # the step of the next estimate of τ (and perhaps of the gates)
     adapted = 0  # the step of the proposals' last refit: the chain before it is burn-in
-    bar = tqdm(total=max_steps, disable=not progress, file=sys.stderr, unit="step")
+    # the bar's length: until τ is first estimated, the least the stopping rule can
+    # need (a first estimate and one to compare it with); then what it needs at τ
+    bar = tqdm(total=min(max_steps, CHUNK + CHECK), disable=not progress, file=sys.stderr,
+               unit="step")
     t_loop, out_of_time = time.perf_counter(), False
     with bar:
         while steps < max_steps:
