@@ -102,7 +102,6 @@ def _cmd_fit(args) -> int:
     paths = expand_sessions(args.session, note=None if args.quiet else _note)
     if not args.no_cache:
         cachedir.enable()
-    _start_drawing()
     if len(paths) == 1:
         status = _fit_one(args, paths[0], args.out)[0]
     else:
@@ -110,14 +109,6 @@ def _cmd_fit(args) -> int:
     if not args.no_cache:
         cachedir.prune()
     return status
-
-
-def _start_drawing() -> None:
-    """Start the processes that draw the report's figures now, so that they import
-    matplotlib while the session loads and the fit runs."""
-    from .report._render import start
-
-    start()
 
 
 def _fit_lot(args, paths) -> int:
@@ -197,7 +188,6 @@ def _cmd_report(args) -> int:
     check_writable(run_dir, what="copy the run to a writable place and report there")
     if not args.no_cache:
         cachedir.enable()
-    _start_drawing()
     paths = write_report(run_dir, say=_stage_printer(args))
     if not args.quiet:
         print(f"Wrote {paths['html']}, {paths['markdown'].name}, {paths['controller'].name} "
@@ -274,23 +264,37 @@ def run() -> None:
     """The command's entry point: :func:`main`, then the process ends at once with its
     exit code, its output flushed.  Every file the command writes is complete and in
     place before :func:`main` returns; ending at once skips the interpreter's teardown
-    of the compiled programs (about half a second).  The processes drawing figures are
-    stopped, and a thread still making a program waited for, as a normal exit would.
-    Under a profiler or a coverage tool the exit is a normal one."""
+    of the compiled programs (about half a second).  After a success the processes
+    drawing figures are stopped and a thread still making a program is waited for, as
+    a normal exit would; after a failure or an interrupt neither is waited for.  Under
+    a profiler or a coverage tool the exit is a normal one."""
     code = main()
-    render = sys.modules.get("pmdc_bayes.report._render")  # each imported when used
-    warmup = sys.modules.get("pmdc_bayes.inference.warmup")
-    if render is not None:
-        render.shutdown()
-    for thread in threading.enumerate() if warmup is not None else ():
-        if thread.name == warmup.THREAD_NAME:
-            thread.join()
-    if sys.getprofile() is not None or sys.gettrace() is not None:
+    try:
+        render = sys.modules.get("pmdc_bayes.report._render")  # each imported when used
+        warmup = sys.modules.get("pmdc_bayes.inference.warmup")
+        if render is not None:
+            render.shutdown(wait=code == 0)
+        for thread in threading.enumerate() if warmup is not None and code == 0 else ():
+            if thread.name == warmup.THREAD_NAME:
+                thread.join()
+    except KeyboardInterrupt:
+        code = 130
+    if _observed():
         sys.exit(code)  # a profiler or coverage tool writes its record at a normal exit
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()
     os._exit(code)
+
+
+def _observed() -> bool:
+    """Whether a profiler or tracer watches this process (``sys.setprofile``,
+    ``sys.settrace``, or from Python 3.12 a ``sys.monitoring`` tool)."""
+    if sys.getprofile() is not None or sys.gettrace() is not None:
+        return True
+    monitoring = getattr(sys, "monitoring", None)
+    return monitoring is not None and any(monitoring.get_tool(i) is not None
+                                          for i in range(6))
 
 
 if __name__ == "__main__":

@@ -107,16 +107,13 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
         coulomb = None if friction is None else friction == "coulomb"
         model = build_model(session, cf, coulomb=coulomb)
         warm = WarmUp(model, mcmc=mcmc)  # the later stages' programs, meanwhile
-        try:
+        with warm.stopped_on_error():
             say(f"MAP fit of {len(model.names)} parameters")
             fit = fit_map(model, seed=seed)
             if not np.all(np.isfinite(fit.cov_log)):
                 raise FitFailed(f"{session.root}: the MAP fit failed: {fit.message}")
             ident = identifiability(model, fit)
-        except BaseException:
-            warm.stop()
-            raise
-    with clock.stage("adequacy"):
+    with clock.stage("adequacy"), warm.stopped_on_error():
         say("adequacy checks")
         adequacy = assess(model, fit, cf)
     if not adequacy.ok and not allow_inadequate:
@@ -162,7 +159,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
         summary["diagnostics"]["sampler_message"] = (
             "not sampled: the data reject the model (pass --allow-inadequate to sample it)")
     if mcmc:
-        with clock.stage("mcmc"):
+        with clock.stage("mcmc"), warm.stopped_on_error():
             say("sampling the posterior (emcee)")
             post, stats = _posterior_stage(model, fit, seed=seed, progress=progress,
                                            max_seconds=max_sampling_seconds)
@@ -223,6 +220,9 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     name = session_full.name
     out = Path(out) if out is not None else default_out_dir(name)
     check_replaceable(out, force)
+    from .report._render import start
+
+    start()  # the processes that draw the report: they import matplotlib meanwhile
     selection = None
     if compare:
         import dataclasses

@@ -153,3 +153,41 @@ def test_workers_end_when_the_process_they_draw_for_is_killed(tmp_path):
     while any(alive(p) for p in pids) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not any(alive(p) for p in pids)
+
+
+def _draw_in_child(queue):
+    """In a forked or daemonic child: draw a figure and report its first bytes."""
+    queue.put(line_figure(30).png()[:8])
+
+
+@pytest.mark.parametrize("how", ["fork", "daemon"])
+def test_a_forked_or_daemonic_child_draws_its_own_figures(fresh_pool, how):
+    """A fork of a process whose pool runs cannot use that pool (it would wait forever),
+    and a daemonic process may not start one: both draw in-process."""
+    assert line_figure(10).in_worker  # the parent's pool is up
+    ctx = multiprocessing.get_context("fork" if how == "fork" else "spawn")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_draw_in_child, args=(queue,), daemon=how == "daemon")
+    child.start()
+    try:
+        assert queue.get(timeout=60) == b"\x89PNG\r\n\x1a\n"
+    finally:
+        child.join(timeout=60)
+        if child.is_alive():
+            child.kill()
+    assert child.exitcode == 0
+
+
+def test_the_callers_rcparams_change_neither_path(fresh_pool, monkeypatch):
+    import matplotlib
+
+    with matplotlib.rc_context({"lines.linewidth": 6.0, "axes.facecolor": "0.8",
+                                "font.size": 15}):
+        remote = line_figure(40)
+        assert remote.in_worker
+        got = remote.png()
+        monkeypatch.setenv(_render.WORKERS_ENV, "0")
+        here = line_figure(40).png()
+        assert matplotlib.rcParams["lines.linewidth"] == 6.0  # left as the caller set it
+    assert got == here
+    assert got == line_figure(40).png()  # and as under matplotlib's defaults

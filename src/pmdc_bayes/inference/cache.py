@@ -168,21 +168,24 @@ _COMPILE_EVENTS = frozenset({"/jax/core/compile/jaxpr_trace_duration",
                              "/jax/core/compile/jaxpr_to_mlir_module_duration",
                              "/jax/core/compile/backend_compile_duration"})
 _CLOCK = {"seconds": 0.0, "listening": False}
+_CLOCK_LOCK = threading.Lock()  # programs are made in several threads at once
 
 
 def _on_duration(event: str, duration: float, **_) -> None:
     if event in _COMPILE_EVENTS:
-        _CLOCK["seconds"] += duration
+        with _CLOCK_LOCK:
+            _CLOCK["seconds"] += duration
 
 
 def compile_seconds() -> float:
     """Seconds this process has spent making JAX programs (tracing, lowering, compiling
     or loading them from the persistent cache) since the first call (which starts the
     count by listening to :mod:`jax.monitoring`)."""
-    if not _CLOCK["listening"]:
-        jax.monitoring.register_event_duration_secs_listener(_on_duration)
-        _CLOCK["listening"] = True
-    return _CLOCK["seconds"]
+    with _CLOCK_LOCK:
+        if not _CLOCK["listening"]:
+            jax.monitoring.register_event_duration_secs_listener(_on_duration)
+            _CLOCK["listening"] = True
+        return _CLOCK["seconds"]
 
 
 class StageClock:

@@ -12,6 +12,7 @@ program makes it again and reports its own error.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 
 import numpy as np
@@ -52,6 +53,16 @@ class WarmUp:
     def stop(self) -> None:
         """Begin no further program (one being made is finished)."""
         self._stop.set()
+
+    @contextlib.contextmanager
+    def stopped_on_error(self):
+        """Stop when the block raises (an error or an interrupt): nothing more is made
+        for stages that will not run."""
+        try:
+            yield
+        except BaseException:
+            self.stop()
+            raise
 
     @x64  # in these threads too: JAX's 64-bit mode is a thread's own setting
     def _run(self, jobs) -> None:

@@ -2,15 +2,15 @@
 
 Each figure is a :class:`matplotlib.figure.Figure` with its own Agg canvas (no pyplot
 figure manager, so nothing is shown in a notebook and the backend is never switched),
-and every figure function runs inside :func:`styled`, a ``matplotlib.rc_context`` with
-the report's style, so the caller's ``rcParams`` are left as they were.
+and every figure function runs inside :func:`styled`: matplotlib's defaults with the
+report's style on top (:func:`~._render.report_rc`), so the report looks the same
+whatever the caller's ``rcParams``, and they are left as they were.
 """
 
 from __future__ import annotations
 
 import functools
 
-import matplotlib
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -18,7 +18,7 @@ from matplotlib.ticker import NullLocator
 
 from .._format import row_format
 from ..io.units import display_unit
-from ._render import draw
+from ._render import draw, report_rc
 
 __all__ = ["subplots", "styled", "png", "COLORS", "LABELS", "scale_of",
            "Line2D", "NullLocator", "STYLE"]
@@ -37,7 +37,7 @@ def styled(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        with matplotlib.rc_context(STYLE):
+        with report_rc(STYLE):
             return fn(*args, **kwargs)
 
     return wrapper

@@ -15,13 +15,16 @@ the pool cannot start or breaks.  Workers ignore Ctrl-C: the main process handle
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import pickle
 import signal
 import sys
+import threading
 
-__all__ = ["Drawing", "draw", "later", "start", "shutdown", "workers", "WORKERS_ENV"]
+__all__ = ["Drawing", "draw", "later", "start", "shutdown", "workers", "report_rc",
+           "WORKERS_ENV"]
 
 WORKERS_ENV = "PMDC_BAYES_DRAW_WORKERS"
 _MAX_WORKERS = 2
@@ -55,6 +58,7 @@ def _worker_init() -> None:
     import threading
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked while spawned
     os.environ[WORKERS_ENV] = "0"  # a worker draws its own figures itself
     parent = multiprocessing.parent_process()
     if parent is not None:  # a worker never outlives the process it draws for (killed)
@@ -67,50 +71,97 @@ def _ready() -> bool:
     return True
 
 
+_LOCK = threading.Lock()
+
+
+def _forget_pool() -> None:
+    """In a forked child: the parent's pool is not this process's to use."""
+    global _pool, _broken, _LOCK
+    _pool, _broken, _LOCK = None, False, threading.Lock()
+
+
+os.register_at_fork(after_in_child=_forget_pool)
+
+
 def start():
     """Start the pool (idempotent) and return it, or None when figures are drawn
-    in-process.  Starting early lets the workers import matplotlib while the fit runs."""
+    in-process: also in a process that :mod:`multiprocessing` started (a daemonic one
+    may not have children, and one that ends by ``os._exit`` would leave a pool it
+    waits for).  Starting early lets the workers import matplotlib while the fit
+    runs."""
     global _pool, _broken
+    import multiprocessing
+
     n = workers()
-    if n == 0 or _broken or _pool is not None:
-        return None if n == 0 or _broken else _pool
+    with _LOCK:
+        if n == 0 or _broken or multiprocessing.parent_process() is not None:
+            return None
+        if _pool is None:
+            _pool = _spawn(n)
+            _broken = _pool is None
+        return _pool
+
+
+def _spawn(n: int):
+    """A pool of ``n`` spawned workers, started now, or None when that fails."""
     import multiprocessing
     import types
     from concurrent.futures import ProcessPoolExecutor
 
     # A spawned process runs the parent's ``__main__`` again unless it is hidden: a
     # user's script without a ``__main__`` guard would run once per worker.  The workers
-    # start here, on these submissions, while a blank ``__main__`` stands in.
-    main = sys.modules.get("__main__")
-    sys.modules["__main__"] = types.ModuleType("__main__")
+    # start here, on these submissions, while a blank ``__main__`` stands in; Ctrl-C is
+    # held back meanwhile (the mask is inherited; a worker then ignores it).
+    main, blank = sys.modules.get("__main__"), types.ModuleType("__main__")
+    sys.modules["__main__"] = blank
+    in_main = threading.current_thread() is threading.main_thread()
+    if in_main:
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    pool = None
     try:
-        _pool = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("spawn"),
-                                    initializer=_worker_init)
+        pool = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_worker_init)
         for _ in range(n):
-            _pool.submit(_ready)
-    except (OSError, RuntimeError, ImportError):
-        _broken, _pool = True, None
+            pool.submit(_ready)
+    except Exception:  # noqa: BLE001  (no pool: the figures are drawn in this process)
+        if pool is not None:
+            pool.shutdown(wait=False, cancel_futures=True)
+        pool = None
     finally:
-        if main is None:
-            del sys.modules["__main__"]
-        else:
-            sys.modules["__main__"] = main
-    return _pool
+        if sys.modules.get("__main__") is blank:
+            if main is None:
+                del sys.modules["__main__"]
+            else:
+                sys.modules["__main__"] = main
+        if in_main:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    return pool
 
 
-def shutdown() -> None:
-    """Stop the workers, once the figures they have begun are drawn (a later figure
-    starts a new pool)."""
+def shutdown(wait: bool = True) -> None:
+    """Stop the workers, once the figures they have begun are drawn (``wait=False``:
+    at once, dropping what is queued); a later figure starts a new pool."""
     global _pool
-    if _pool is not None:
-        _pool.shutdown(wait=True, cancel_futures=True)
-        _pool = None
+    with _LOCK:
+        pool, _pool = _pool, None
+    if pool is not None:
+        pool.shutdown(wait=wait, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def report_rc(style):
+    """matplotlib's defaults with ``style`` on top, whatever the caller has set (restored
+    after), so that a figure is the same drawn here or in a worker."""
+    import matplotlib
+
+    with matplotlib.rc_context():
+        matplotlib.rcdefaults()
+        matplotlib.rcParams.update(style)
+        yield
 
 
 def _render(fig, rect, style) -> bytes:
-    import matplotlib
-
-    with matplotlib.rc_context(style):
+    with report_rc(style):
         fig.tight_layout(rect=rect)
         buf = io.BytesIO()
         fig.savefig(buf, format="png")

@@ -124,6 +124,11 @@ class FigureView:
         sd = np.array([self.summary["parameters"][n]["map_sd"] for n in self.names])
         return corr * np.outer(sd, sd)
 
-    def view(self) -> FigureView:
-        """This record as a plain :class:`FigureView` (what a worker process receives)."""
-        return FigureView(**{f.name: getattr(self, f.name) for f in fields(FigureView)})
+    def view(self, *, draws: bool = True, chains: bool = True) -> FigureView:
+        """This record as a plain :class:`FigureView` (what a worker process receives),
+        without the posterior draws or the chains when the figure does not read them
+        (they are pickled for each figure)."""
+        v = {f.name: getattr(self, f.name) for f in fields(FigureView)}
+        v["draws"] = v["draws"] if draws else None
+        v["chains"] = v["chains"] if chains else None
+        return FigureView(**v)

@@ -111,10 +111,10 @@ def _parameters(ctx) -> Section:
     sec.add(parameter_table(ctx))
     sec.add(Figure("forest", "Every parameter on a common relative scale: closed form, MAP ± 2 "
                    "sd (Laplace), posterior 94 % HDI and, for a simulated session, the truth.",
-                   later(forest_figure, ctx.view(), None)))
+                   later(forest_figure, ctx.view(chains=False), None)))
     sec.add(Figure("corner", "Pair plot of the mechanical parameters with the closed-form "
                    "point (an arrow at the edge points to it when it lies off the axes), the "
-                   "MAP and the truth when known.", later(corner_figure, ctx.view())))
+                   "MAP and the truth when known.", later(corner_figure, ctx.view(chains=False))))
     sec.add(derived_table(ctx))
     return sec
 
@@ -197,9 +197,9 @@ def _diagnostics(ctx) -> Section:
     sec.add(diagnostics_table(ctx))
     if ctx.has_posterior:
         sec.add(Figure("chains", "Trace plot of the walkers.",
-                       later(chains_figure, ctx.view())))
+                       later(chains_figure, ctx.view(draws=False))))
         sec.add(Figure("ranks", "Rank plots, walkers pooled into four sets.",
-                       later(ranks_figure, ctx.view())))
+                       later(ranks_figure, ctx.view(draws=False))))
     else:
         sec.add(Paragraph("No chains to show (--no-mcmc)."))
     return sec
