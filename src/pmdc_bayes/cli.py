@@ -264,16 +264,16 @@ def run() -> None:
     """The command's entry point: :func:`main`, then the process ends at once with its
     exit code, its output flushed.  Every file the command writes is complete and in
     place before :func:`main` returns; ending at once skips the interpreter's teardown
-    of the compiled programs (about half a second).  After a success the processes
-    drawing figures are stopped and a thread still making a program is waited for, as
-    a normal exit would; after a failure or an interrupt neither is waited for.  Under
-    a profiler or a coverage tool the exit is a normal one."""
+    of the compiled programs (about half a second).  The processes drawing figures
+    are stopped first (queued figures dropped), and after a success a thread still
+    making a program is waited for, as a normal exit would.  Under a profiler or a
+    coverage tool the exit is a normal one."""
     code = main()
     try:
         render = sys.modules.get("pmdc_bayes.report._render")  # each imported when used
         warmup = sys.modules.get("pmdc_bayes.inference.warmup")
-        if render is not None:
-            render.shutdown(wait=code == 0)
+        if render is not None:  # figures queued are dropped, one being drawn finishes
+            render.shutdown()
         for thread in threading.enumerate() if warmup is not None and code == 0 else ():
             if thread.name == warmup.THREAD_NAME:
                 thread.join()

@@ -106,9 +106,9 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     with clock.stage("map"):
         coulomb = None if friction is None else friction == "coulomb"
         model = build_model(session, cf, coulomb=coulomb)
+        say(f"MAP fit of {len(model.names)} parameters")
         warm = WarmUp(model, mcmc=mcmc)  # the later stages' programs, meanwhile
         with warm.stopped_on_error():
-            say(f"MAP fit of {len(model.names)} parameters")
             fit = fit_map(model, seed=seed)
             if not np.all(np.isfinite(fit.cov_log)):
                 raise FitFailed(f"{session.root}: the MAP fit failed: {fit.message}")
