@@ -55,7 +55,6 @@ def _exit_with(parent) -> None:
 
 def _worker_init() -> None:
     import multiprocessing
-    import threading
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked while spawned
