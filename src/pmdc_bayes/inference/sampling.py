@@ -41,6 +41,7 @@ __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "g
            "LaplaceIndependenceMove", "warm_up"]
 
 CHUNK = 200  # steps between autocorrelation checks while the chain is too short to stop
+PILOT = 50  # the first check: whether the independence proposals can take more steps
 THINNED_NEAR = 1.3  # a thinned gate check this close to the gates is redone unthinned
 ADAPT_UNTIL = 4 * CHUNK  # the independence proposals may be refitted up to here ...
 ADAPT_BELOW = 0.3  # ... while fewer than this share of their proposals are accepted,
@@ -191,16 +192,19 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     max_steps : step cap; a capped run says so in ``capped`` and ``message``.
     min_tau_multiple : stop once the chain (after the proposals' last refit, see
         :mod:`.moves`) is this many τ_max long, every τ changed by less than 5 % since
-        the previous check or the chain twice that long (τ is estimated every 200 steps; once
-        the chain is long enough, every 100 steps or 5 % of its length, whichever is
-        more), and the draws after burn-in already pass the gates (R-hat ≤ 1.01, bulk
-        and tail ESS ≥ 400; while they are far from it, on a thinned chain, and again
-        only after the steps that their shortfall predicts).
+        the previous check or the chain twice that long (τ is estimated after 50 steps
+        with the default moves, then every 200 steps; once the chain is long enough,
+        every 100 steps or 5 % of its length, whichever is more), and the draws after
+        burn-in already pass the gates (R-hat ≤ 1.01, bulk and tail ESS ≥ 400; while
+        they are far from it, on a thinned chain, and again only after the steps that
+        their shortfall predicts).
     progress : a tqdm bar (on stderr, or a notebook's widget); default in a terminal or
         a Jupyter kernel.
     moves : emcee moves; default :func:`default_moves` (Laplace independence proposals,
         refitted on each ensemble's own chain during the first 800 steps where they do
-        not describe it, and differential evolution); moves given here are not refitted.
+        not describe it, mixed with differential evolution, and given nine steps in
+        ten from the first check on where they are mostly accepted); moves given here
+        are not adapted.
     ll_draws : at most this many draws carry the pointwise log-likelihood in ``idata``
         (evenly thinned along each chain).
     max_seconds : a limit on the sampling's wall time (checked between chunks of
@@ -223,7 +227,9 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
 
     names = tuple(model.names)
     tau_prev, converged, settled, steps, gate_at = None, False, None, 0, 0
-    check_at = CHUNK  # the step of the next estimate of τ (and perhaps of the gates)
+    # the step of the next estimate of τ (and perhaps of the gates); the default moves
+    # are first checked early, on whether their independence proposals deserve more steps
+    check_at = PILOT if moves is None else CHUNK
     adapted = 0  # the step of the proposals' last refit: the chain before it is burn-in
     # the bar's length: until τ is first estimated, the least the stopping rule can
     # need (a first estimate and one to compare it with); then what it needs at τ
@@ -241,7 +247,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
             if steps < check_at and steps < max_steps and not timed_out:
                 continue
             if moves is None and steps <= ADAPT_UNTIL and steps < max_steps and not timed_out \
-                    and sampler.adapt(below=ADAPT_BELOW, wider=ADAPT_WIDER):
+                    and sampler.adapt(below=ADAPT_BELOW, wider=ADAPT_WIDER,
+                                      refit=steps > PILOT):
                 adapted, tau_prev, check_at = steps, None, steps + CHUNK
                 continue
             tau = sampler.get_autocorr_time(discard=adapted)
