@@ -47,9 +47,12 @@ def _identifier(name: str, taken: set) -> str:
 def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
     """At every ``thin``-th draw, per observation (in channel order): the log-likelihood
     and a replicate of the observation (the model's prediction plus Gaussian noise at
-    its channel's level), each ``(chains, kept, n_obs)`` float32, filled batch by batch."""
+    its channel's level), each ``(chains, kept, n_obs)`` float32, filled batch by batch
+    (the next batch computed while this one is unpacked)."""
     fn = model.residuals_of_batch
     observed = np.concatenate(model.observed_values()).astype(np.float32)
+    selection = model.observation_selection()
+    ends = np.cumsum([idx.size for _, idx in selection])
     sub = chain_log[:, ::thin]
     flat = sub.reshape(-1, sub.shape[-1])
     n = flat.shape[0]
@@ -57,22 +60,29 @@ def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
     padded = np.concatenate([flat, np.repeat(flat[:1], m - n, axis=0)])
     ll = np.empty((n, observed.size), np.float32)
     replicate = np.empty_like(ll)
-    where = None
+    ahead = fn(jnp.asarray(padded[:_LL_BATCH]))
     for a in range(0, m, _LL_BATCH):
-        outs = [(np.asarray(r), np.asarray(v))
-                for r, v in fn(jnp.asarray(padded[a:a + _LL_BATCH]))]
-        if where is None:  # each channel's observations, as indices into its output
-            where = [(k, (slice(None), *np.unravel_index(idx, outs[k][0].shape[1:])))
-                     for k, idx in model.observation_selection()]
-        # picked straight out of the outputs (σ² stays a broadcast view), in float32
-        r = np.concatenate([outs[k][0][at] for k, at in where], axis=1, dtype=np.float32)
-        v = np.concatenate([np.broadcast_to(outs[k][1], outs[k][0].shape)[at]
-                            for k, at in where], axis=1, dtype=np.float32)
+        outs = ahead
+        if a + _LL_BATCH < m:  # dispatched now, computed while this batch is unpacked
+            ahead = fn(jnp.asarray(padded[a + _LL_BATCH:a + 2 * _LL_BATCH]))
         keep = min(_LL_BATCH, n - a)
-        r, v = r[:keep], v[:keep]
-        ll[a:a + keep] = -0.5 * (np.log(np.float32(2 * np.pi) * v) + r * r / v)
-        replicate[a:a + keep] = observed - r + np.sqrt(v) * rng.standard_normal(
-            r.shape, dtype=np.float32)
+        for (k, idx), end in zip(selection, ends, strict=True):
+            # the channel's residuals, and σ² (one value per row of the output, so its
+            # logarithm and root are taken there), picked per observation, in float32
+            r = np.asarray(outs[k][0]).reshape(_LL_BATCH, -1)[:keep]
+            var = np.asarray(outs[k][1]).reshape(_LL_BATCH, -1)[:keep]
+            rows = idx // (r.shape[1] // var.shape[1])
+            r = np.take(r, idx, axis=1).astype(np.float32)
+            out = ll[a:a + keep, end - idx.size:end]  # in place: these arrays are large
+            np.multiply(r, r, out=out)
+            out *= np.take((0.5 / var).astype(np.float32), rows, axis=1)
+            np.subtract(np.take((-0.5 * np.log(2 * np.pi * var)).astype(np.float32), rows,
+                                axis=1), out, out=out)
+            out = replicate[a:a + keep, end - idx.size:end]
+            out[...] = rng.standard_normal(out.shape, dtype=np.float32)
+            out *= np.take(np.sqrt(var).astype(np.float32), rows, axis=1)
+            out += observed[end - idx.size:end]
+            out -= r
     return ll.reshape(*sub.shape[:2], -1), replicate.reshape(*sub.shape[:2], -1)
 
 
