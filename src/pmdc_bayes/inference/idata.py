@@ -46,9 +46,11 @@ def _identifier(name: str, taken: set) -> str:
 
 def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
     """At every ``thin``-th draw, per observation (in channel order): the log-likelihood
-    and a replicate of the observation (the model's prediction plus Gaussian noise at
-    its channel's level), each ``(chains, kept, n_obs)`` float32, filled batch by batch
-    (the next batch computed while this one is unpacked)."""
+    (float64: on a precise posterior an observation's log-density differs between
+    draws by less than float32 resolves, and those differences are what PSIS-LOO
+    reads) and a replicate of the observation (the model's prediction plus Gaussian
+    noise at its channel's level, float32), each ``(chains, kept, n_obs)``, filled
+    batch by batch (the next batch computed while this one is unpacked)."""
     fn = model.residuals_of_batch
     observed = np.concatenate(model.observed_values()).astype(np.float32)
     selection = model.observation_selection()
@@ -58,8 +60,8 @@ def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
     n = flat.shape[0]
     m = math.ceil(n / _LL_BATCH) * _LL_BATCH
     padded = np.concatenate([flat, np.repeat(flat[:1], m - n, axis=0)])
-    ll = np.empty((n, observed.size), np.float32)
-    replicate = np.empty_like(ll)
+    ll = np.empty((n, observed.size))
+    replicate = np.empty((n, observed.size), np.float32)
     ahead = fn(jnp.asarray(padded[:_LL_BATCH]))
     for a in range(0, m, _LL_BATCH):
         outs = ahead
@@ -68,16 +70,15 @@ def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
         keep = min(_LL_BATCH, n - a)
         for (k, idx), end in zip(selection, ends, strict=True):
             # the channel's residuals, and σ² (one value per row of the output, so its
-            # logarithm and root are taken there), picked per observation, in float32
+            # logarithm and root are taken there), picked per observation
             r = np.asarray(outs[k][0]).reshape(_LL_BATCH, -1)[:keep]
             var = np.asarray(outs[k][1]).reshape(_LL_BATCH, -1)[:keep]
             rows = idx // (r.shape[1] // var.shape[1])
-            r = np.take(r, idx, axis=1).astype(np.float32)
+            r = np.take(r, idx, axis=1)
             out = ll[a:a + keep, end - idx.size:end]  # in place: these arrays are large
             np.multiply(r, r, out=out)
-            out *= np.take((0.5 / var).astype(np.float32), rows, axis=1)
-            np.subtract(np.take((-0.5 * np.log(2 * np.pi * var)).astype(np.float32), rows,
-                                axis=1), out, out=out)
+            out *= np.take(0.5 / var, rows, axis=1)
+            np.subtract(np.take(-0.5 * np.log(2 * np.pi * var), rows, axis=1), out, out=out)
             out = replicate[a:a + keep, end - idx.size:end]
             out[...] = rng.standard_normal(out.shape, dtype=np.float32)
             out *= np.take(np.sqrt(var).astype(np.float32), rows, axis=1)
@@ -138,7 +139,7 @@ def to_inference_data(model, chain_log: np.ndarray, log_prob: np.ndarray,
     split = np.cumsum([idx.size for _, idx in model.observation_selection()])[:-1]
     kept = {"chain": np.arange(chains), "draw": np.arange(0, draws, thin)}
 
-    def per_channel(x):  # float32: a few significant digits suffice, and these are large
+    def per_channel(x):
         return {nm: xr.DataArray(part, dims=["chain", "draw", *dims[nm]],
                                  coords={**kept, dims[nm][0]: coords[dims[nm][0]]},
                                  attrs={"units": units[nm]})

@@ -33,7 +33,7 @@ from .diagnostics import (
 )
 from .ensembles import ENSEMBLES, Ensembles, r_hat_between
 from .idata import LL_DRAWS, to_inference_data
-from .moves import LaplaceIndependenceMove, default_moves
+from .moves import LaplaceIndependenceMove, LaplaceMixture, default_moves
 from .stopping import CHECK, TAU_RTOL, gate_shortfall, next_gate_check, stop_message
 
 __all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
@@ -61,7 +61,8 @@ class Posterior:
     acceptance : per-walker acceptance fraction over the whole run.
     tau : integrated autocorrelation time per parameter (steps), at the end.
     n_steps, burn_in : steps run and steps discarded: those before the independence
-        proposals' last refit (``idata.posterior.attrs['adapted']``, 0 without one) and
+        proposals' last refit (``idata.posterior.attrs['adapted']``, 0 without one;
+        ``attrs['independence_share']`` the share of steps they then took) and
         ``ceil(2·max τ)`` after it.
     capped : the run hit ``max_steps`` before the stopping rule; ``message`` says why.
     wall_time : seconds spent sampling (including the log-likelihood for ``idata``).
@@ -295,6 +296,10 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws, seed=seed)
     idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged),
                                  ensembles=k, adapted=adapted)
+    shares = [m.share for ms in sampler.moves for m, _ in ms
+              if isinstance(m, LaplaceMixture)] if moves is None else []
+    if shares:  # the independence proposals' share of the steps the kept draws took
+        idata.posterior.attrs["independence_share"] = float(np.mean(shares))
     si = model.registry.to_values(chain)
     return Posterior(names, si, chain, lp, acc,
                      dict(zip(names, map(float, tau), strict=True)), steps, burn,
