@@ -48,6 +48,7 @@ from model_speed import _fmt_rate, _load, _machine, _measure, _per_trace_log_pos
 from pmdc_bayes.inference.diagnostics import az  # noqa: E402
 from pmdc_bayes.inference.ensembles import ENSEMBLES  # noqa: E402
 from pmdc_bayes.inference.fit import fit_map  # noqa: E402
+from pmdc_bayes.inference.moves import SHARE_TRUSTED, LaplaceIndependenceMove, LaplaceMixture  # noqa: E402
 from pmdc_bayes.inference.objective import build_model  # noqa: E402
 from pmdc_bayes.inference.sampling import default_moves, sample_posterior, to_inference_data  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
@@ -223,7 +224,8 @@ def _project_sampler(model, fit) -> dict:
     res = {"cold": cold, "warm": warm, "record": record, "ess": _ess(post.idata),
            "walkers": walkers, "steps": post.n_steps, "burn": post.burn_in,
            "kept": post.draws.shape[0] * post.draws.shape[1], "message": post.message,
-           "evaluations": walkers * (post.n_steps + 1), "tau": post.tau}
+           "evaluations": walkers * (post.n_steps + 1), "tau": post.tau,
+           "share": post.idata.posterior.attrs.get("independence_share")}
     print(f"  {post.message}; {walkers} walkers, burn-in {post.burn_in}, "
           f"{res['kept']:,} kept draws")
     print(f"  wall: {cold:.2f} s cold (compiling), {warm:.2f} s warm, of which the ArviZ "
@@ -240,7 +242,11 @@ def _baseline_sampler(bl, base, fit, budget: float, walkers: int, base_rate: flo
     rng = np.random.default_rng(0)
     p0 = rng.multivariate_normal(np.asarray(fit.theta), np.asarray(fit.cov_log),
                                  size=walkers, method="eigh")
-    chain, wall, steps = bl.run_emcee(base.log_posterior, p0, budget_s=budget, seed=0)
+    # the project's moves, at the share its run ended with (the baseline has no pilot)
+    share = project["share"] if project["share"] is not None else 0.5
+    moves = [(LaplaceMixture(LaplaceIndependenceMove(fit.theta, fit.cov_log), share=share), 1.0)]
+    chain, wall, steps = bl.run_emcee(base.log_posterior, p0, budget_s=budget, seed=0,
+                                      moves=moves)
     tau = emcee.autocorr.integrated_time(chain, tol=0)
     names = list(base.names)
     res = {"wall": wall, "steps": steps, "walkers": walkers, "tau": {}, "ess": {}, "rate": {},
@@ -465,7 +471,7 @@ def _section(m: dict, r: dict, quick: bool) -> str:
     # ESS
     L += ["### Effective samples per second", "",
           f"Project: `sample_posterior` (emcee, {proj['walkers']} walkers, "
-          f"{_moves_label()}, batched exact log-posterior) from the MAP's Laplace "
+          f"{_moves_label(proj.get('share'))}, batched exact log-posterior) from the MAP's Laplace "
           f"approximation; {proj['message']}; {proj['kept']:,} kept draws after a burn-in of "
           f"{proj['burn']} steps.  ESS: ArviZ bulk ESS of the kept draws (walkers as "
           "chains).  Times: the whole `sample_posterior` call (initial ensemble, emcee "
@@ -473,7 +479,8 @@ def _section(m: dict, r: dict, quick: bool) -> str:
           f"{proj['warm']:.2f} s with every function already compiled and "
           f"{proj['cold']:.2f} s on the first call, which compiles; the ArviZ record alone "
           f"(`to_inference_data`, timed again on its own) takes {proj['record']:.2f} s.", "",
-          f"Baseline: emcee with the same {bs['walkers']} walkers and moves, one Python "
+          f"Baseline: emcee with the same {bs['walkers']} walkers and moves (the "
+          "independence share fixed at the one the project's run ended with), one Python "
           f"log-probability call per walker and step, run for a fixed "
           f"{bs['wall']:.0f} s budget ({bs['steps']} steps) from the same start.  "
           "**Extrapolated**: τ from `emcee.autocorr.integrated_time(chain, tol=0)` on this "
@@ -581,11 +588,15 @@ def _section(m: dict, r: dict, quick: bool) -> str:
     return "\n".join(L)
 
 
-def _moves_label() -> str:
-    """The sampler's default moves (they need a fit only for their centre and scale)."""
+def _moves_label(share: float | None = None) -> str:
+    """The sampler's default moves (they need a fit only for their centre and scale),
+    and the independence proposals' share of the steps the run ended with."""
     stand_in = SimpleNamespace(theta=np.zeros(1), cov_log=np.eye(1))
-    moves = " + ".join(f"{type(m).__name__} {w:g}" for m, w in default_moves(stand_in))
-    return f"{ENSEMBLES} independent ensembles, {moves}"
+    (mix, _), = default_moves(stand_in)
+    end = "" if share is None else f", {share:g} in the run measured"
+    return (f"{ENSEMBLES} independent ensembles, {type(mix).__name__}: "
+            f"{type(mix.independence).__name__} on {mix.share:g} of the steps "
+            f"({SHARE_TRUSTED:g} once trusted{end}), {type(mix.other).__name__} on the rest")
 
 
 def _scaling_notes(rows) -> list[str]:
