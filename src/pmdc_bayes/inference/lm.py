@@ -12,21 +12,25 @@ Levenberg–Marquardt, the starts ``vmap``-ped through its ``while_loop``) took 
 compile on the demo and over 3 minutes on the current-limited bench, against 6 s and
 15 s for this kernel.
 
-:func:`levenberg_marquardt` moves several starts in turn on the host, each by its own
-damped steps (Marquardt's scaling, Nielsen's update of the damping), each step
-accepted only when the exact log-posterior rises.  With the weights re-evaluated at
-every point, a Gauss–Newton step of the weighted residuals is a step of the
-integrated likelihood itself, so the fixed point is the exact MAP.
+:func:`levenberg_marquardt` moves several starts on the host, a round at a time, the
+starts of a round side by side in threads (one per core), each by its own damped
+steps (Marquardt's scaling, Nielsen's update of the damping), each step accepted only
+when the exact log-posterior rises.  With the weights re-evaluated at every point, a
+Gauss–Newton step of the weighted residuals is a step of the integrated likelihood
+itself, so the fixed point is the exact MAP.
 """
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import x64
 from .channels import entry_weights
 from .objective import NU0, integrated_log_likelihood, noise_weights
 
@@ -232,26 +236,37 @@ def _step(s: Start, evaluate) -> None:
             return
 
 
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # no affinity on this platform
+        return os.cpu_count() or 1
+
+
 def levenberg_marquardt(evaluate, starts, *, abandon=None) -> list[Start]:
-    """Levenberg–Marquardt from each of ``starts`` (θ rows), moved in turn.
+    """Levenberg–Marquardt from each of ``starts`` (θ rows), a step of each per round.
 
     ``evaluate(θ)`` returns the :class:`Terms` at θ.  ``abandon(start, best_lp)``,
     checked after each round of steps, stops a start that is not worth finishing (a
     poor local optimum far below the best); it is then not ``converged``.
     """
-    states = [Start(evaluate(np.asarray(th, dtype=float))) for th in starts]
-    for s in states:
-        if not s.terms.finite:
-            s.done, s.stopped = True, "the model is not finite at the start"
-    while True:
-        active = [s for s in states if not s.done]
-        if not active:
-            return states
-        for s in active:
-            _step(s, evaluate)
-        if abandon is not None:
-            lps = [s.lp for s in states if np.isfinite(s.lp)]
-            best = max(lps) if lps else -np.inf
-            for s in states:
-                if not s.done and abandon(s, best):
-                    s.done, s.stopped = True, "far below the best"
+    with ThreadPoolExecutor(min(len(starts), _cores()) or 1) as pool:
+        states = list(pool.map(x64(lambda th: Start(evaluate(np.asarray(th, dtype=float)))),
+                               starts))
+        for s in states:
+            if not s.terms.finite:
+                s.done, s.stopped = True, "the model is not finite at the start"
+        while True:
+            active = [s for s in states if not s.done]
+            if not active:
+                return states
+            # the starts are independent: each thread steps one (the compiled kernel
+            # runs outside Python's lock, so on several cores they run side by side)
+            for _ in pool.map(x64(lambda s: _step(s, evaluate)), active):
+                pass
+            if abandon is not None:
+                lps = [s.lp for s in states if np.isfinite(s.lp)]
+                best = max(lps) if lps else -np.inf
+                for s in states:
+                    if not s.done and abandon(s, best):
+                        s.done, s.stopped = True, "far below the best"
