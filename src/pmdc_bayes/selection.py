@@ -4,10 +4,10 @@
 motor; + dead time; + a speed-sensor lag; + voltage drop; + voltage drop with either
 of the first two; + a speed sensor's lag and offset, as a tachometer has; + an unknown
 load on the traces whose levels stand out; + a driver's current limit) to the same
-session and checks each for
-adequacy at its MAP.  With MCMC, every candidate the data do not reject is sampled
-and the candidates are compared by PSIS-LOO (they share every observation: the
-nuisances change the prediction, not the data).
+session and checks each for adequacy at its MAP (the next candidates' programs are
+compiled in a background thread while one is fitted).  With MCMC, every candidate the
+data do not reject is sampled and the candidates are compared by PSIS-LOO (they share
+every observation: the nuisances change the prediction, not the data).
 
 The recommendation is the simplest candidate the data do not reject (fewest
 parameters).  When LOO prefers a larger adequate candidate by more than
@@ -35,6 +35,7 @@ from .inference.levels import level_outliers
 from .inference.objective import build_model
 from .inference.sampling import sample_posterior
 from .inference.seed import fit_seed
+from .inference.warmup import WarmUp
 from .io.session import Session
 
 __all__ = ["CANDIDATES", "LOO_MARGIN", "EVIDENCE_MARGIN", "applicable", "compare_nuisances",
@@ -84,27 +85,32 @@ def compare_nuisances(session: Session, *, friction: str | None = None, seed: in
     LOO, each posterior sampled for at most ``max_seconds``; the recommended candidate
     and why (a dict ready for JSON)."""
     coulomb = None if friction is None else friction == "coulomb"
-    rows, idata = [], {}
+    rows, idata, prepared = [], {}, []
     loaded = _suspect_traces(session)
     for name, nuisances in applicable(session, candidates):
         s = dataclasses.replace(session, nuisances=nuisances,
                                 loaded_traces=loaded if "unknown_load" in nuisances else (),
                                 load_kinds=())
         seed_cf = fit_seed(s)
-        model = build_model(s, seed_cf, coulomb=coulomb)
-        fit = fit_map(model, seed=seed)
-        adequacy = assess(model, fit, seed_cf)
-        rows.append({"name": name, "nuisances": list(nuisances), "n_params": len(model.names),
-                     "loaded_traces": list(s.unknown_load_traces()),
-                     "verdict": adequacy.verdict, "converged": fit.status == "converged",
-                     "log_posterior": float(fit.log_posterior),
-                     "log_evidence": laplace_log_evidence(model, fit),
-                     "failures": [f"{f.where}: {f.check}" for f in adequacy.findings
-                                  if f.severity == "fail"],
-                     "loo": None})
-        if mcmc and adequacy.ok:
-            idata[name] = sample_posterior(model, fit, seed=seed, progress=progress,
-                                           max_seconds=max_seconds).idata
+        prepared.append((name, nuisances, s, seed_cf, build_model(s, seed_cf, coulomb=coulomb)))
+    # the next candidates' programs are made while this one is fitted
+    ahead = WarmUp.fits([p[-1] for p in prepared[1:]])
+    with ahead.stopped_on_error():
+        for name, nuisances, s, seed_cf, model in prepared:
+            fit = fit_map(model, seed=seed)
+            adequacy = assess(model, fit, seed_cf)
+            rows.append({"name": name, "nuisances": list(nuisances),
+                         "n_params": len(model.names),
+                         "loaded_traces": list(s.unknown_load_traces()),
+                         "verdict": adequacy.verdict, "converged": fit.status == "converged",
+                         "log_posterior": float(fit.log_posterior),
+                         "log_evidence": laplace_log_evidence(model, fit),
+                         "failures": [f"{f.where}: {f.check}" for f in adequacy.findings
+                                      if f.severity == "fail"],
+                         "loo": None})
+            if mcmc and adequacy.ok:
+                idata[name] = sample_posterior(model, fit, seed=seed, progress=progress,
+                                               max_seconds=max_seconds).idata
     if idata:
         for r in loo_compare(idata):
             next(row for row in rows if row["name"] == r["model"])["loo"] = r

@@ -57,3 +57,19 @@ def test_a_stopped_warm_up_begins_nothing_more(session_dir):
     warm.start()
     warm.join()
     assert not (LATER & set(_made(model)))
+
+
+def test_fits_makes_each_models_fitting_programs_which_the_fits_then_use(session_dir):
+    import dataclasses
+
+    cache._IN_MEMORY.clear()
+    session = load_session(session_dir)
+    models = [build_model(s, fit_seed(s)) for s in
+              (session, dataclasses.replace(session, nuisances=("dead_time",)))]
+    assert models[0].structure_key() != models[1].structure_key()
+    warm = WarmUp.fits(models)
+    warm.join()
+    for model in models:
+        assert {n: c for n, c in _made(model).items()} == {"gauss-newton": 1, "predict": 1}
+        fit_map(model, seed=0)
+        assert _made(model)["gauss-newton"] == 1  # the fit called the program made ahead

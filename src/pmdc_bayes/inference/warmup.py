@@ -6,13 +6,16 @@ sampler's batch log-posterior, the pointwise residuals of the ArviZ record) depe
 only on the session's structure, so background threads make them meanwhile, each by
 one call at the seed θ; XLA compiles outside the GIL, so on two cores they overlap.
 A program the calling thread reaches first is waited for, never made twice
-(:class:`.cache._Compiled`).  A failure here is dropped: the stage that needs the
-program makes it again and reports its own error.
+(:class:`.cache._Compiled`).  A run that fits several models in turn (``--compare``)
+makes the next models' fitting programs the same way (:meth:`WarmUp.fits`).  A failure
+here is dropped: the stage that needs the program makes it again and reports its own
+error.
 """
 
 from __future__ import annotations
 
 import contextlib
+import queue
 import threading
 
 import numpy as np
@@ -28,15 +31,35 @@ THREAD_NAME = "pmdc-bayes warm-up"
 class WarmUp:
     """Background threads making ``model``'s later programs: the prediction, then (when
     ``mcmc``) the sampler's batch log-posterior, and in a thread of its own the
-    pointwise residuals; :meth:`stop` skips what has not begun."""
+    pointwise residuals; :meth:`stop` skips what has not begun.  :meth:`fits` makes
+    the programs of several fits instead."""
 
     def __init__(self, model, *, mcmc: bool, n_walkers: int | None = None,
                  start: bool = True):
-        self.model, self.n_walkers = model, n_walkers
-        self._stop = threading.Event()
-        lines = [[self._predict] + ([self._sampler] if mcmc else [])]
+        self.n_walkers = n_walkers
+        lines = [[(model, self._predict)] + ([(model, self._sampler)] if mcmc else [])]
         if mcmc:
-            lines.append([self._pointwise])
+            lines.append([(model, self._pointwise)])
+        self._threads(lines, start)
+
+    @classmethod
+    def fits(cls, models, *, threads: int = 2, start: bool = True) -> WarmUp:
+        """``threads`` threads making, model after model (each taking the next job in
+        order), what a MAP fit and its adequacy checks call (the Gauss–Newton kernel,
+        the prediction): for a run that fits several models in turn (``--compare``),
+        so that the next models' programs are made while this one is fitted (an XLA
+        compilation keeps to one core: two at a time on two cores)."""
+        self = cls.__new__(cls)
+        self.n_walkers = None
+        jobs = queue.SimpleQueue()
+        for m in models:
+            for job in (self._kernel, self._predict):
+                jobs.put((m, job))
+        self._threads([jobs] * max(1, threads), start)
+        return self
+
+    def _threads(self, lines, start: bool) -> None:
+        self._stop = threading.Event()
         self.threads = [threading.Thread(target=self._run, args=(jobs,), name=THREAD_NAME,
                                          daemon=False) for jobs in lines]
         if start:
@@ -66,23 +89,38 @@ class WarmUp:
 
     @x64  # in these threads too: JAX's 64-bit mode is a thread's own setting
     def _run(self, jobs) -> None:
-        theta = self.model.theta_seed()
-        for job in jobs:
-            if self._stop.is_set():
+        """The jobs of ``jobs`` (a list, or a queue shared with other threads)."""
+        if isinstance(jobs, list):
+            pending = queue.SimpleQueue()
+            for item in jobs:
+                pending.put(item)
+            jobs = pending
+        while not self._stop.is_set():
+            try:
+                model, job = jobs.get_nowait()
+            except queue.Empty:
                 return
             try:
-                job(theta)
+                job(model, model.theta_seed())
             except Exception:  # noqa: BLE001  (the stage that needs it reports it)
                 pass
 
-    def _predict(self, theta) -> None:
-        self.model.predict(theta)
+    @staticmethod
+    def _kernel(model, theta) -> None:
+        from .lm import GaussNewton
 
-    def _sampler(self, theta) -> None:
+        GaussNewton(model).terms(theta)
+
+    @staticmethod
+    def _predict(model, theta) -> None:
+        model.predict(theta)
+
+    def _sampler(self, model, theta) -> None:
         from .sampling import warm_up
 
-        warm_up(self.model, theta, self.n_walkers)
+        warm_up(model, theta, self.n_walkers)
 
-    def _pointwise(self, theta) -> None:
+    @staticmethod
+    def _pointwise(model, theta) -> None:
         theta = np.asarray(theta, dtype=float)
-        self.model.residuals_of_batch(np.repeat(theta[None], RESIDUAL_BATCH, axis=0))
+        model.residuals_of_batch(np.repeat(theta[None], RESIDUAL_BATCH, axis=0))
