@@ -22,7 +22,6 @@ itself, so the fixed point is the exact MAP.
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -30,6 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._cores import usable_cores
 from .._x64 import x64
 from .channels import entry_weights
 from .objective import NU0, integrated_log_likelihood, noise_weights
@@ -236,13 +236,6 @@ def _step(s: Start, evaluate) -> None:
             return
 
 
-def _cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # no affinity on this platform
-        return os.cpu_count() or 1
-
-
 def levenberg_marquardt(evaluate, starts, *, abandon=None) -> list[Start]:
     """Levenberg–Marquardt from each of ``starts`` (θ rows), a step of each per round.
 
@@ -250,7 +243,7 @@ def levenberg_marquardt(evaluate, starts, *, abandon=None) -> list[Start]:
     checked after each round of steps, stops a start that is not worth finishing (a
     poor local optimum far below the best); it is then not ``converged``.
     """
-    with ThreadPoolExecutor(min(len(starts), _cores()) or 1) as pool:
+    with ThreadPoolExecutor(min(len(starts), usable_cores()) or 1) as pool:
         states = list(pool.map(x64(lambda th: Start(evaluate(np.asarray(th, dtype=float)))),
                                starts))
         for s in states:

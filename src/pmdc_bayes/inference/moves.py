@@ -111,8 +111,8 @@ class LaplaceMixture(emcee.moves.Move):
     :data:`SHARE_TRUSTED`.  An accepted independence proposal is a nearly independent
     draw, so on a near-Gaussian posterior the larger share cuts τ (on the benchmark
     session from about 3.5 steps to 1.7, and the steps to convergence from 400 to
-    350, the 50-step pilot included); differential evolution keeps a tenth of the steps so that the chain still
-    moves where the proposals reach poorly.
+    350, the 50-step pilot included); differential evolution keeps a tenth of the
+    steps so that the chain still moves where the proposals reach poorly.
     """
 
     def __init__(self, independence: LaplaceIndependenceMove, other=None, *,

@@ -23,6 +23,8 @@ import signal
 import sys
 import threading
 
+from .._cores import usable_cores
+
 __all__ = ["Drawing", "draw", "later", "start", "shutdown", "workers", "report_rc",
            "WORKERS_ENV"]
 
@@ -41,10 +43,7 @@ def workers() -> int:
             return max(0, int(raw))
         except ValueError:
             return 0
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
+    cores = usable_cores()
     return min(_MAX_WORKERS, cores) if cores >= 2 else 0
 
 
