@@ -20,6 +20,7 @@ import threading
 
 import numpy as np
 
+from .._cores import usable_cores
 from .._x64 import x64
 from .predictions import RESIDUAL_BATCH
 
@@ -43,12 +44,14 @@ class WarmUp:
         self._threads(lines, start)
 
     @classmethod
-    def fits(cls, models, *, threads: int = 2, start: bool = True) -> WarmUp:
-        """``threads`` threads making, model after model (each taking the next job in
-        order), what a MAP fit and its adequacy checks call (the Gauss–Newton kernel,
-        the prediction): for a run that fits several models in turn (``--compare``),
-        so that the next models' programs are made while this one is fitted (an XLA
-        compilation keeps to one core: two at a time on two cores)."""
+    def fits(cls, models, *, threads: int | None = None, start: bool = True) -> WarmUp:
+        """``threads`` threads (default: two, or one on a single core) making, model
+        after model (each taking the next job in order), what a MAP fit and its
+        adequacy checks call (the Gauss–Newton kernel, the prediction): for a run that
+        fits several models in turn (``--compare``), so that the next models' programs
+        are made while this one is fitted (an XLA compilation keeps to one core)."""
+        if threads is None:
+            threads = min(2, usable_cores())
         self = cls.__new__(cls)
         self.n_walkers = None
         jobs = queue.SimpleQueue()
