@@ -5,7 +5,7 @@ motor; + dead time; + a speed-sensor lag; + voltage drop; + voltage drop with ei
 of the first two; + a speed sensor's lag and offset, as a tachometer has; + an unknown
 load on the traces whose levels stand out; + a driver's current limit) to the same
 session and checks each for adequacy at its MAP (the next candidates' programs are
-compiled in a background thread while one is fitted).  With MCMC, every candidate the
+compiled in background threads while one is fitted).  With MCMC, every candidate the
 data do not reject is sampled and the candidates are compared by PSIS-LOO (they share
 every observation: the nuisances change the prediction, not the data).
 

@@ -29,6 +29,13 @@ __all__ = ["WarmUp", "THREAD_NAME"]
 THREAD_NAME = "pmdc-bayes warm-up"
 
 
+def _queue(items) -> queue.SimpleQueue:
+    jobs = queue.SimpleQueue()
+    for item in items:
+        jobs.put(item)
+    return jobs
+
+
 class WarmUp:
     """Background threads making ``model``'s later programs: the prediction, then (when
     ``mcmc``) the sampler's batch log-posterior, and in a thread of its own the
@@ -38,9 +45,9 @@ class WarmUp:
     def __init__(self, model, *, mcmc: bool, n_walkers: int | None = None,
                  start: bool = True):
         self.n_walkers = n_walkers
-        lines = [[(model, self._predict)] + ([(model, self._sampler)] if mcmc else [])]
+        lines = [_queue([(model, self._predict)] + ([(model, self._sampler)] if mcmc else []))]
         if mcmc:
-            lines.append([(model, self._pointwise)])
+            lines.append(_queue([(model, self._pointwise)]))
         self._threads(lines, start)
 
     @classmethod
@@ -54,10 +61,7 @@ class WarmUp:
             threads = min(2, usable_cores())
         self = cls.__new__(cls)
         self.n_walkers = None
-        jobs = queue.SimpleQueue()
-        for m in models:
-            for job in (self._kernel, self._predict):
-                jobs.put((m, job))
+        jobs = _queue((m, job) for m in models for job in (self._kernel, self._predict))
         self._threads([jobs] * max(1, threads), start)
         return self
 
@@ -91,13 +95,8 @@ class WarmUp:
             raise
 
     @x64  # in these threads too: JAX's 64-bit mode is a thread's own setting
-    def _run(self, jobs) -> None:
-        """The jobs of ``jobs`` (a list, or a queue shared with other threads)."""
-        if isinstance(jobs, list):
-            pending = queue.SimpleQueue()
-            for item in jobs:
-                pending.put(item)
-            jobs = pending
+    def _run(self, jobs: queue.SimpleQueue) -> None:
+        """The jobs of ``jobs`` (a queue, perhaps shared with other threads), in order."""
         while not self._stop.is_set():
             try:
                 model, job = jobs.get_nowait()
