@@ -1,0 +1,90 @@
+"""What a plan cannot say, added to a rendered session: a trace's voltage logged as a
+column instead of a schedule, and a step reading (a 63.2 % time and a final speed read
+off a plot of the rig's step response)."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from .plan import Plan, TraceSpec
+from .rig import rig_steady, rig_trace
+from .session import _csv, _f, _inline
+
+__all__ = ["log_voltage_column", "add_step_reading", "STEP_READING_SD"]
+
+STEP_READING_SD = 0.01  # relative error of a time and a speed read off a plot
+
+
+def _held(pairs, t: np.ndarray) -> np.ndarray:
+    """A schedule's value at each time ``t`` (the last pair at or before it)."""
+    times = np.array([a for a, _ in pairs])
+    values = np.array([b for _, b in pairs])
+    return values[np.searchsorted(times, t + 1e-12 * max(1.0, float(t[-1])), side="right") - 1]
+
+
+def log_voltage_column(files: dict[str, str], plan: Plan, name: str) -> dict[str, str]:
+    """``files`` with trace ``name``'s voltage schedule written as a column ``va`` of its
+    CSV (the value at each sample, held to the next: exact when the schedule switches
+    on samples) and the schedule removed from ``session.toml``."""
+    spec = next(t for t in plan.traces if t.name == name)
+    rows = files[f"{name}.csv"].rstrip("\n").split("\n")
+    header = rows[0].split(",")
+    data = np.array([[float(x) for x in r.split(",")] for r in rows[1:]])
+    t = data[:, header.index("t")]
+    cols = {h: data[:, k] for k, h in enumerate(header)}
+    cols["va"] = _held(spec.voltage, t)
+    out = dict(files)
+    out[f"{name}.csv"] = _csv(cols)
+    lines = files["session.toml"].split("\n")
+    start = lines.index(f'name = "{name}"')
+    end = next((k for k in range(start, len(lines)) if not lines[k].strip()), len(lines))
+    for k in range(start, end):
+        if lines[k].startswith("columns = { "):
+            lines[k] = lines[k][:-2] + ', voltage = "va" }'
+        elif lines[k].startswith("voltage = ["):
+            lines[k] = None
+    out["session.toml"] = "\n".join(x for x in lines if x is not None)
+    return out
+
+
+def _tau_63(plan: Plan, voltage: float, tau_m: float) -> float:
+    """The 63.2 % time of the rig's noise-free step from rest (linear between 4,000
+    samples over six mechanical time constants)."""
+    duration = 6.0 * tau_m
+    spec = TraceSpec(name="reading", kind="step", duration=duration, rate=4000 / duration,
+                     voltage=((0.0, voltage),), load_torque=None, initial="rest",
+                     speed_unit="rad/s", record_current=False, speed_noise=0.0,
+                     speed_quantum=0.0, current_noise=0.0, current_quantum=0.0, delay=0.0)
+    tr = rig_trace(plan.truth, plan.rig, spec)
+    w, t = tr["speed"], tr["time"]
+    level = 0.632 * w[-1]
+    k = int(np.argmax(w >= level))
+    return float(t[k - 1] + (level - w[k - 1]) / (w[k] - w[k - 1]) * (t[k] - t[k - 1]))
+
+
+def add_step_reading(files: dict[str, str], plan: Plan, seed: int) -> dict[str, str]:
+    """``files`` with a ``[[step_reading]]`` at the largest voltage of the plan's traces:
+    the rig's 63.2 % time and steady speed, each with :data:`STEP_READING_SD` relative
+    Gaussian error.  Only where the electrical time constant is under 5 % of the
+    mechanical one (what a 63.2 % reading measures); ``files`` unchanged otherwise."""
+    p = plan.truth
+    tau_m = p["J"] * p["Ra"] / (p["K"] ** 2 + p["Ra"] * p["B"])
+    if p["La"] / p["Ra"] > 0.05 * tau_m:
+        return files
+    v = max(abs(b) for tr in plan.traces for _, b in tr.voltage)
+    _, w = rig_steady(plan.truth, plan.rig, np.array([v]), np.array([0.0]))
+    z = np.random.default_rng([int(seed), 632]).standard_normal(2)
+    tau = _tau_63(plan, v, tau_m) * (1 + STEP_READING_SD * z[0])
+    speed = float(w[0]) * (1 + STEP_READING_SD * z[1])
+    units = {"voltage": '"V"', "final_speed": '"rad/s"', "tau": '"s"'}
+    block = ["", "[[step_reading]]", 'name = "plot"', f"voltage = {_f(v)}",
+             f"final_speed = {_f(speed)}", f"tau = {_f(tau)}", f"units = {_inline(units)}"]
+    text = files["session.toml"].rstrip("\n").split("\n")
+    first = next((k for k, x in enumerate(text) if re.fullmatch(r"\[\[trace\]\]", x)),
+                 len(text))
+    while first > 0 and (text[first - 1].startswith("#") or not text[first - 1].strip()):
+        first -= 1
+    return dict(files, **{"session.toml": "\n".join(text[:first] + block + text[first:])
+                          + "\n"})

@@ -1,0 +1,320 @@
+"""Random sessions over the whole session format, drawn by the independent bench simulator.
+
+:func:`fuzz_plan` draws a motor over four decades of size and a plan for it: one to
+three traces of the kinds real benches log (a step from rest or from a steady speed,
+an up-down, a staircase of many levels of both signs, a load change at constant voltage
+with several load steps, a coast-down), sample rates of 0.2–20 kHz, short and long
+records, speed noise of 0.1–5 % of the trace's span (sometimes quantised, in rad/s or
+rpm, or counted by an encoder at the samples or at its edges), current channels or
+not, a steady table (with or without currents), an operating point, a step reading.
+The plan always has a ``[rig]``, so every reading comes from
+:mod:`pmdc_bayes.simulate.bench` (LSODA on its own motor, not the fitted model).  With
+``misspecified`` (a key of :data:`NON_IDEALITIES`) the rig carries that one
+non-ideality, sized so that it matters.
+
+:func:`fuzz_session` renders the plan with :func:`~.session.render_session` (the writer
+of ``pmdc-bayes simulate``), adds what plans cannot say (a voltage logged as a column,
+a step reading: :mod:`._fuzz_extra`) and writes the directory the loader reads.  The
+same seed gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ._fuzz_extra import add_step_reading, log_voltage_column
+from ._write import write_session_files
+from .bench import BenchMotor, steady_point
+from .plan import check_plan
+from .session import render_session
+
+__all__ = ["NON_IDEALITIES", "TRACE_SHAPES", "FuzzedSession", "fuzz_motor", "fuzz_plan",
+           "fuzz_files", "fuzz_session"]
+
+TRACE_SHAPES = ("step from rest", "step from steady", "up-down", "staircase",
+                "load change", "coast-down")
+
+#: non-ideality -> the fit parameter names its truth is recorded under
+NON_IDEALITIES = ("dead time", "speed lag", "voltage drop", "source resistance",
+                  "current limit", "unknown load", "encoder speed", "speed gain",
+                  "speed offset")
+
+MAX_SAMPLES = 12_000  # per trace: keeps a fit of a fuzzed session to seconds
+
+
+@dataclass(frozen=True)
+class FuzzedSession:
+    """A fuzzed session: where it was written, its truth and what it is made of."""
+
+    seed: int
+    misspecified: str | None
+    path: Path | None
+    truth: dict
+    shapes: tuple[str, ...]  # one label per item: trace shapes, tables, points ...
+    features: frozenset  # "speed only", "quantised", "encoder position", ...
+
+
+def _log_uniform(rng, lo, hi) -> float:
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def fuzz_motor(rng: np.random.Generator, coulomb: bool) -> tuple[dict, float]:
+    """True parameters over four decades of size, and the motor's nominal voltage.
+
+    Nominal voltage 3–200 V, stall current 0.5–500 A (about 2 W to 100 kW), no-load
+    speed 50–2000 rad/s, La/Ra 0.1–5 ms, mechanical time constant 5 ms–1 s, viscous
+    friction 2–30 % of the damping; Coulomb friction 5–30 % of the no-load torque."""
+    v = _log_uniform(rng, 3.0, 200.0)
+    ra = v / _log_uniform(rng, 0.5, 500.0)
+    k = v / _log_uniform(rng, 50.0, 2000.0)
+    la = ra * _log_uniform(rng, 1e-4, 5e-3)
+    damping = float(rng.uniform(0.02, 0.3))
+    b = damping * k * k / ra / (1 - damping)
+    j = _log_uniform(rng, 5e-3, 1.0) * (k * k + ra * b) / ra
+    tc = 0.0
+    if coulomb:
+        tc = float(rng.uniform(0.05, 0.3)) * b * k * v / (ra * b + k * k)
+    return dict(Ra=ra, La=la, K=k, B=b, J=j, Tc=tc), v
+
+
+def _rate_and_duration(rng, tau_m: float, holds: float) -> tuple[float, float]:
+    """A sample rate (Hz) of 0.2–20 kHz and a record of ``holds`` mechanical time
+    constants, the rate lowered (or raised) to keep 60–MAX_SAMPLES samples."""
+    duration = holds * tau_m
+    rate = _log_uniform(rng, 200.0, 20_000.0)
+    rate = min(max(rate, 60.0 / duration), MAX_SAMPLES / duration)
+    return float(f"{rate:.6g}"), float(f"{duration:.6g}")
+
+
+def _trace(rng, shape: str, name: str, truth: dict, v: float, tau_m: float,
+           motor: BenchMotor, column: bool) -> dict:
+    """A plan ``[[trace]]`` of ``shape``; switching times on the sample grid when the
+    voltage will be logged as a column (then a zero-order hold is exact)."""
+    sign = 1.0 if rng.uniform() < 0.7 else -1.0
+    top = sign * v * float(rng.uniform(0.4, 1.0))
+    t = {"name": name, "kind": "step", "initial": "rest"}
+    if shape == "staircase":
+        n = int(rng.integers(4, 11))
+        levels = v * rng.uniform(0.2, 1.0, n) * rng.choice([-1.0, 1.0], n)
+        holds = rng.uniform(1.5, 4.0, n)
+        rate, duration = _rate_and_duration(rng, tau_m, float(holds.sum()) + 0.5)
+        starts = (0.5 + np.concatenate([[0.0], np.cumsum(holds)[:-1]])) * tau_m
+        t.update(kind="free-form", voltage=[[0.0, 0.0]] + [[float(a), float(b)] for a, b in
+                                                           zip(starts, levels, strict=True)])
+    elif shape == "up-down":
+        rate, duration = _rate_and_duration(rng, tau_m, float(rng.uniform(4.0, 12.0)))
+        t1, t2 = 0.1 * duration, float(rng.uniform(0.45, 0.6)) * duration
+        back = -top if rng.uniform() < 0.5 else 0.0
+        t.update(kind="free-form", voltage=[[0.0, 0.0], [t1, top], [t2, back]])
+    elif shape == "load change":
+        rate, duration = _rate_and_duration(rng, tau_m, float(rng.uniform(4.0, 15.0)))
+        n = int(rng.integers(1, 4))
+        room = truth["K"] * abs(top) / truth["Ra"] - truth["Tc"]
+        loads = np.sort(rng.uniform(0.05, 0.5, n)) * room * np.sign(top)
+        times = duration * (np.arange(1, n + 1) / (n + 1))
+        t.update(kind="load_change", initial="steady", voltage=[[0.0, top]],
+                 load_torque=[[0.0, 0.0]] + [[float(a), float(b)] for a, b in
+                                             zip(times, loads, strict=True)])
+    elif shape == "coast-down":
+        rate, duration = _rate_and_duration(rng, tau_m, float(rng.uniform(1.0, 4.0)))
+        w0 = steady_point(motor, abs(top))[0]
+        return {"name": name, "kind": "coast-down", "duration": duration, "rate": rate,
+                "initial": {"speed": float(f"{w0:.6g}")},
+                "speed_noise": float(f"{_log_uniform(rng, 1e-3, 5e-2) * w0:.4g}")}
+    else:
+        rate, duration = _rate_and_duration(rng, tau_m, float(rng.uniform(1.5, 12.0)))
+        t0 = float(rng.uniform(0.02, 0.2)) * duration
+        if shape == "step from steady":
+            t.update(initial="steady", voltage=[[0.0, top * float(rng.uniform(0.2, 0.7))],
+                                                [t0, top]])
+        else:
+            t.update(voltage=[[0.0, 0.0], [t0, top]])
+    grid = (lambda x: round(x * rate) / rate) if column else (lambda x: x)
+    for key in ("voltage", "load_torque"):
+        if key in t:
+            t[key] = [[float(f"{grid(a):.9g}"), float(f"{b:.6g}")] for a, b in t[key]]
+    t["voltage"][0][0] = 0.0
+    if "load_torque" in t:
+        t["load_torque"][0][0] = 0.0
+    t.update(duration=duration, rate=rate)
+    return t
+
+
+def _sensors(rng, t: dict, motor: BenchMotor, v: float, features: set) -> None:
+    """Noise, quantum, unit, encoder and current channel of a driven trace."""
+    span = steady_point(motor, v)[0]
+    i_span = v / motor.Ra
+    edges_ok = t["initial"] == "rest" and t["kind"] == "step"
+    u = rng.uniform()
+    if u < 0.12 or (u < 0.2 and edges_ok):
+        revs = span * t["duration"] / (2 * math.pi)
+        output = "position" if u < 0.12 else "edges"
+        cap = 20_000 if output == "edges" else 1e9
+        counts = int(max(1, min(int(rng.choice([16, 64, 256, 1024, 4096])), cap / revs)))
+        t["encoder"] = {"counts_per_rev": counts, "output": output}
+        features.add(f"encoder {output}")
+    else:
+        t["speed_noise"] = float(f"{_log_uniform(rng, 1e-3, 5e-2) * span:.4g}")
+        if rng.uniform() < 0.3:
+            t["speed_quantum"] = float(f"{_log_uniform(rng, 1e-3, 2e-2) * span:.4g}")
+            features.add("quantised speed")
+        if rng.uniform() < 0.3:
+            t["speed_unit"] = "rpm"
+    record = rng.uniform() < 0.5
+    t["record_current"] = bool(record)
+    if record:
+        t["current_noise"] = float(f"{_log_uniform(rng, 1e-3, 5e-2) * i_span:.4g}")
+
+
+def _rig(rng, key: str | None, truth: dict, v: float, tau_m: float, names, traces) -> dict:
+    """``[rig]`` with the one non-ideality ``key`` (empty for an in-class session)."""
+    if key is None:
+        return {}
+    if key == "dead time":
+        return {"dead_time": float(f"{rng.uniform(0.05, 0.15) * tau_m:.4g}")}
+    if key == "speed lag":
+        return {"speed_lag": float(f"{rng.uniform(0.1, 0.3) * tau_m:.4g}")}
+    if key == "voltage drop":
+        return {"voltage_drop": float(f"{rng.uniform(0.08, 0.15) * v:.4g}")}
+    if key == "source resistance":
+        return {"source_resistance": float(f"{rng.uniform(0.4, 0.8) * truth['Ra']:.4g}")}
+    if key == "current limit":
+        return {"current_limit": float(f"{rng.uniform(0.2, 0.4) * v / truth['Ra']:.4g}")}
+    if key == "unknown load":
+        name = str(rng.choice(names))
+        w = v * truth["K"] / (truth["Ra"] * truth["B"] + truth["K"] ** 2)
+        return {"unknown_load": {name: {"viscous": float(f"{2.0 * truth['B']:.4g}"),
+                                        "constant": float(f"{0.1 * truth['B'] * w:.4g}")}}}
+    if key == "speed gain":
+        return {"speed_gain": float(f"{rng.uniform(1.06, 1.15):.4g}")}
+    if key == "speed offset":
+        w = v * truth["K"] / (truth["Ra"] * truth["B"] + truth["K"] ** 2)
+        return {"speed_offset": float(f"{rng.uniform(0.03, 0.06) * w:.4g}")}
+    if key == "encoder speed":
+        for t in traces:  # every driven trace's speed: encoder counts differenced
+            if t["kind"] != "coast-down":
+                t.pop("speed_noise", None), t.pop("speed_quantum", None)
+                t["encoder"] = {"counts_per_rev": 64, "output": "speed"}
+        return {}
+    raise ValueError(f"unknown non-ideality {key!r}; use one of {NON_IDEALITIES}")
+
+
+def fuzz_plan(seed: int, *, misspecified: str | None = None, shapes=None,
+              trace_current: bool | None = None, steady: str | None = None
+              ) -> tuple[dict, dict]:
+    """A random plan and what it holds.
+
+    Parameters
+    ----------
+    seed : the draw (``numpy.random.default_rng(seed)``) and the plan's noise seed.
+    misspecified : a key of :data:`NON_IDEALITIES`, or None for an in-class session.
+    shapes : the trace shapes to draw from (default :data:`TRACE_SHAPES`).
+    trace_current : force (True) or forbid (False) the driven traces' current channels.
+    steady : ``"table"``, ``"table without current"`` or ``"point"`` to force that
+        steady reading (and no other); default a random mix.
+
+    Returns
+    -------
+    (plan, extras)
+        The plan dict for :func:`~.plan.check_plan`; ``extras`` says which trace logs
+        its voltage as a column and whether to add a step reading.
+    """
+    if misspecified is not None and misspecified not in NON_IDEALITIES:
+        raise ValueError(f"unknown non-ideality {misspecified!r}; use one of {NON_IDEALITIES}")
+    rng = np.random.default_rng(seed)
+    coulomb = rng.uniform() < 0.3
+    truth, v = fuzz_motor(rng, coulomb)
+    motor = BenchMotor(**truth)
+    tau_m = truth["J"] * truth["Ra"] / (truth["K"] ** 2 + truth["Ra"] * truth["B"])
+    features: set = set()
+    pool = tuple(shapes or TRACE_SHAPES)
+    kinds = [str(rng.choice(pool)) for _ in range(int(rng.integers(1, 4)))]
+    if all(k == "coast-down" for k in kinds):
+        kinds[0] = "step from rest"
+    traces, columns = [], []
+    for n, shape in enumerate(kinds):
+        column = shape != "coast-down" and rng.uniform() < 0.3
+        t = _trace(rng, shape, f"tr{n}_{shape.replace(' ', '_').replace('-', '_')}", truth,
+                   v, tau_m, motor, column)
+        if shape != "coast-down":
+            _sensors(rng, t, motor, v, features)
+            if trace_current is not None:
+                t["record_current"] = trace_current
+                t.setdefault("current_noise", 0.01 * v / truth["Ra"])
+            edges = t.get("encoder", {}).get("output") == "edges"
+            if column and not edges:
+                columns.append(t["name"])
+        traces.append(t)
+    plan = {"seed": int(seed), "motor": {"name": f"fuzzed motor {seed}",
+                                         "friction": "coulomb" if coulomb else "viscous"},
+            "truth": truth, "bench": {"Ra": {"sd": float(f"{0.03 * truth['Ra']:.4g}"),
+                                             "unit": "ohm"}},
+            "trace": traces}
+    if rng.uniform() < 0.7:
+        plan["bench"]["La"] = {"sd": float(f"{0.1 * truth['La']:.4g}"), "unit": "H"}
+    w_top = steady_point(motor, v)[0]
+    i_level = (truth["B"] * w_top + truth["Tc"]) / truth["K"]
+    draw = rng.uniform(size=3)
+    want_table = draw[0] < 0.6 if steady is None else steady.startswith("table")
+    if want_table:
+        volts = np.sort(v * rng.uniform(0.25, 1.0, int(rng.integers(3, 9))))
+        tab = {"name": "steady", "voltages": [float(f"{x:.5g}") for x in volts],
+               "speed_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * w_top:.4g}")}
+        if (draw[1] < 0.5 if steady is None else steady == "table"):
+            tab["current_sd"] = float(f"{_log_uniform(rng, 1e-3, 5e-2) * i_level:.4g}")
+        plan["steady_table"] = [tab]
+    if (draw[2] < 0.4 if steady is None else steady == "point"):
+        plan["operating_point"] = [{
+            "name": "point", "supply_voltage": float(f"{1.25 * v:.5g}"),
+            "duty": float(f"{rng.uniform(0.3, 0.8):.3g}"),
+            "speed_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * w_top:.4g}"),
+            "current_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * i_level:.4g}")}]
+    plan["rig"] = _rig(rng, misspecified, truth, v, tau_m, [t["name"] for t in traces
+                                                             if t["kind"] != "coast-down"],
+                       traces)
+    step = steady is None and rng.uniform() < 0.15
+    return plan, {"columns": tuple(columns), "step_reading": bool(step),
+                  "shapes": tuple(kinds), "features": frozenset(features)}
+
+
+def fuzz_files(seed: int, **kw) -> tuple[dict[str, str], dict, dict]:
+    """The files of a fuzzed session (name -> text), its plan and extras."""
+    plan, extras = fuzz_plan(seed, **kw)
+    spec = check_plan(plan)
+    files = render_session(spec, int(seed))
+    for name in extras["columns"]:
+        files = log_voltage_column(files, spec, name)
+    if extras["step_reading"]:
+        files = add_step_reading(files, spec, seed)
+    return files, plan, extras
+
+
+def fuzz_session(seed: int, *, misspecified: str | None = None, out=None, shapes=None,
+                 trace_current: bool | None = None, steady: str | None = None
+                 ) -> FuzzedSession:
+    """Draw the session of ``seed`` (see :func:`fuzz_plan`) and, given ``out``, write it
+    there (replacing an earlier fuzzed session) for :func:`~pmdc_bayes.io.loader.load_session`."""
+    import json
+
+    files, plan, extras = fuzz_files(seed, misspecified=misspecified, shapes=shapes,
+                                     trace_current=trace_current, steady=steady)
+    path = None
+    if out is not None:
+        path = Path(out)
+        write_session_files(files, path, force=True)
+    features = set(extras["features"])
+    traces = [t for t in plan["trace"] if t["kind"] != "coast-down"]
+    if not any(t.get("record_current") for t in traces):
+        features.add("no trace current")
+    if extras["columns"]:
+        features.add("voltage column")
+    labels = list(extras["shapes"]) + [k.replace("_", " ") for k in
+                                       ("steady_table", "operating_point") if k in plan]
+    if extras["step_reading"]:
+        labels.append("step reading")
+    return FuzzedSession(int(seed), misspecified, path, json.loads(files["truth.json"]),
+                         tuple(labels), frozenset(features))
