@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..paper.changes import plateaus
+
 __all__ = ["settled", "unloaded_levels", "voltage_intercept", "friction_offset", "level_outliers"]
 
 LEVEL_MISS = 0.03  # a level off the others' line by more than this fraction of itself
@@ -23,11 +25,18 @@ def settled(y) -> bool:
     return abs(b - a) <= 0.005 * abs(b) + 4 * noise_scale(y) / np.sqrt(n)
 
 
-def unloaded_levels(session, *, with_drag: bool = False) -> tuple[np.ndarray, list]:
+def unloaded_levels(session, *, with_drag: bool = False,
+                    held: bool = False) -> tuple[np.ndarray, list]:
     """Every unloaded steady level (rows of voltage, speed, current or NaN) and, per
     row, the trace it ends (None for tables and operating points); traces that end
     before they settle, or that drive a load (a load torque, a declared drag unless
-    ``with_drag``), give none."""
+    ``with_drag``), give none.
+
+    With ``held``, a trace gives a level at the end of every plateau its voltage is held
+    on (:func:`pmdc_bayes.paper.changes.plateaus`, a staircase's every step) where its
+    speed has settled and no load is applied, named by the trace; the voltage of a
+    level is the mean of the input over the samples its speed is read from.
+    """
     rows, names = [], []
     for tab in session.steady_tables:
         cur = tab.current if tab.current is not None else np.full(tab.voltage.size, np.nan)
@@ -40,13 +49,40 @@ def unloaded_levels(session, *, with_drag: bool = False) -> tuple[np.ndarray, li
             rows.append((op.voltage, op.speed, np.nan if op.current is None else op.current))
             names.append(None)
     for tr in session.traces:
-        dragged = tr.drag.nonzero and not with_drag
-        if np.all(tr.load_torque.values == 0) and not dragged and settled(tr.speed):
-            n = max(3, tr.n // 10)
-            i = np.nan if tr.current is None else float(np.mean(tr.current[-n:]))
-            rows.append((float(tr.voltage.values[-1]), float(np.mean(tr.speed[-n:])), i))
+        if tr.drag.nonzero and not with_drag:
+            continue
+        for row in (_held_levels(tr) if held else _end_level(tr)):
+            rows.append(row)
             names.append(tr.name)
     return np.asarray(rows, float).reshape(-1, 3), names
+
+
+def _end_level(tr) -> list[tuple]:
+    """The level a trace ends on, when it settles there unloaded (none otherwise)."""
+    if not (np.all(tr.load_torque.values == 0) and settled(tr.speed)):
+        return []
+    n = max(3, tr.n // 10)
+    i = np.nan if tr.current is None else float(np.mean(tr.current[-n:]))
+    v = (float(np.mean(tr.voltage.at(tr.time[-n:]))) if tr.voltage_logged
+         else float(tr.voltage.values[-1]))
+    return [(v, float(np.mean(tr.speed[-n:])), i)]
+
+
+def _held_levels(tr) -> list[tuple]:
+    """The settled, unloaded end of every plateau a trace's voltage is held on."""
+    cuts = sorted({p.start for p in plateaus(tr)}
+                  | {p.start for p in plateaus(tr, "load_torque")} | {tr.n})
+    out = []
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        n = max(3, (b - a) // 10)
+        if b - a < 3 * n or np.any(tr.load_torque.at(tr.time[a:b]) != 0):
+            continue
+        if not settled(tr.speed[a:b]):
+            continue
+        i = np.nan if tr.current is None else float(np.mean(tr.current[b - n:b]))
+        out.append((float(np.mean(tr.voltage.at(tr.time[b - n:b]))),
+                    float(np.mean(tr.speed[b - n:b])), i))
+    return out
 
 
 def voltage_intercept(session) -> dict | None:

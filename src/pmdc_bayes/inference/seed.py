@@ -9,11 +9,13 @@ from .._errors import NotApplicable, SessionError
 from ..io.session import LA_ASSUMED
 from ..paper.closed_form import ClosedForm, closed_form, j_from_tau, read_time_constant
 from ..physics.motor import gain
-from .levels import unloaded_levels, voltage_intercept
+from ..paper.changes import responses
+from .levels import settled, unloaded_levels, voltage_intercept
 
 __all__ = ["fit_seed", "seed_from_data", "motor_seed", "drop_seed", "FRICTION_SHARE"]
 
 FRICTION_SHARE = 0.1  # without a current, viscous friction is taken as this share of Ra·B + K²
+AT_REST = 0.02  # a steady level below this share of the largest is the motor at rest
 
 
 def fit_seed(session) -> ClosedForm:
@@ -25,48 +27,43 @@ def fit_seed(session) -> ClosedForm:
         return seed_from_data(session, exc.message)
 
 
-def _largest_change(session):
-    """``(trace, t0, t1)``: the driven trace with the largest voltage change (of any
-    kind of trace), or, with no voltage change, the largest load change, and the span
-    from that change to the next change of either input (the response to read)."""
-    best, size = None, 0.0
-    for schedule in ("voltage", "load_torque"):
-        for tr in session.traces:
-            sched = getattr(tr, schedule)
-            values, times = sched.values, sched.times
-            if schedule == "voltage" and tr.initial == "rest":  # from rest: a change at 0 V
-                values, times = np.concatenate([[0.0], values]), np.concatenate([[-np.inf],
-                                                                                 times])
-            if values.size < 2:
-                continue
-            jumps = np.abs(np.diff(values))
-            k = int(np.argmax(jumps))
-            if jumps[k] > size:
-                t0 = max(float(times[k + 1]), float(tr.time[0]))
-                later = [float(x) for x in (*tr.voltage.times, *tr.load_torque.times)
-                         if x > t0]
-                best, size = (tr, t0, min(later, default=np.inf)), float(jumps[k])
-        if best is not None:
-            return best
-    return None
+def _changes(session) -> list:
+    """``(trace, response)`` for every change of a driven trace's voltage, largest first
+    over all traces, then every change of a load
+    (:func:`pmdc_bayes.paper.changes.responses`: each with the span until the next
+    change comparable to it)."""
+    out = []
+    for which in ("voltage", "load_torque"):
+        out += sorted(((tr, r) for tr in session.traces for r in responses(tr, which)),
+                      key=lambda pair: -pair[1].size)
+    return out
 
 
 def _time_constant(session, toml) -> tuple[float, str]:
     """τ and where it was read: a step reading; the largest input change of a driven
-    trace (63.2 % of its response); or a coast-down's 63.2 % decay time."""
+    trace whose response settles before the next change comparable to it (else the
+    largest that crosses 63.2 % of its change at all); or a coast-down's 63.2 % decay
+    time."""
     if session.step_readings:
         return session.step_readings[0].tau, f"step reading {session.step_readings[0].name!r}"
-    change = _largest_change(session)
-    if change is not None:
-        tr, t0, t1 = change
-        keep = tr.time < t1
+    readings, failure = [], None
+    for tr, r in _changes(session):
+        t, y = tr.time[r.start:r.stop], tr.speed[r.start:r.stop]
         try:
-            tau = read_time_constant(tr.time[keep], tr.speed[keep], t_step=t0).tau
+            tau = read_time_constant(t, y, t_step=r.time).tau
         except ValueError as exc:
-            raise SessionError(tr.file, f"cannot read a time constant from trace "
-                               f"{tr.name!r}: {exc}; log the response until the speed "
-                               "settles") from None
-        return tau, f"63.2 % point of trace {tr.name!r} after its change at {t0:g} s"
+            failure = failure or (tr, exc)
+            continue
+        where = f"63.2 % point of trace {tr.name!r} after its change at {r.time:g} s"
+        if settled(y[t >= r.time]):
+            return tau, where
+        readings.append((tau, where))
+    if readings:
+        return readings[0]
+    if failure is not None:
+        tr, exc = failure
+        raise SessionError(tr.file, f"cannot read a time constant from trace {tr.name!r}: "
+                           f"{exc}; log the response until the speed settles")
     for cd in session.coast_downs:
         try:
             return (read_time_constant(cd.time, cd.speed).tau,
@@ -78,17 +75,29 @@ def _time_constant(session, toml) -> tuple[float, str]:
                        where="trace")
 
 
+def _turning(rows: np.ndarray) -> np.ndarray:
+    """The steady levels at which the motor turns: a voltage and a speed both above
+    :data:`AT_REST` of the largest (a held 0 V, or a logged one's noise, is not a
+    level to read a gain or (20) from)."""
+    if not rows.size:
+        return rows
+    v, w = np.abs(rows[:, 0]), np.abs(rows[:, 1])
+    return rows[(v > AT_REST * v.max()) & (w > AT_REST * w.max())]
+
+
 def seed_from_data(session, reason: str = "") -> ClosedForm:
     """Starting values from the session's own numbers, for when the closed form
     cannot run.
 
-    The steady gain G comes from the unloaded steady levels (a line through the origin
-    of speed against voltage).  With currents at those levels, K and B follow from (20)
-    and (19); without, K = 1/(G·(1 + f)) and B = f·K²/Ra with f =
+    The steady gain G comes from the unloaded steady levels at which the motor turns,
+    every held plateau of every trace included (a line through the origin of speed
+    against voltage).  With currents at those levels, K and B follow from (20) and
+    (19); without, K = 1/(G·(1 + f)) and B = f·K²/Ra with f =
     :data:`FRICTION_SHARE` (speed alone cannot split the damping between friction and
     back-emf; the fit's priors are wide and the identifiability section says what the
     data decide).  τ is a step reading's, or the 63.2 % time of the response to the
-    largest voltage (else load) change of any driven trace, and J follows from (9);
+    largest voltage (else load) change of any driven trace that settles before the next
+    change comparable to it, and J follows from (9);
     with neither, J = B·τ from a coast-down's decay.
     """
     toml = session.root / "session.toml"
@@ -96,11 +105,9 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
     used = {"Ra": "bench measurement",
             "La": ("assumed, not measured (La/Ra = 1 ms)" if session.La.source == LA_ASSUMED
                    else "bench measurement")}
-    rows, _ = unloaded_levels(session)
-    rows = rows[(rows[:, 0] != 0) & (rows[:, 1] != 0)] if rows.size else rows
+    rows = _turning(unloaded_levels(session, held=True)[0])
     if not rows.size:  # only traces with a declared drag settle: a rougher start from them
-        rows, _ = unloaded_levels(session, with_drag=True)
-        rows = rows[(rows[:, 0] != 0) & (rows[:, 1] != 0)] if rows.size else rows
+        rows = _turning(unloaded_levels(session, with_drag=True, held=True)[0])
     if not rows.size:
         raise SessionError(toml, "no steady speed to start the fit from: log a step until "
                            "the speed settles, or add a [[steady_table]]", where="trace")

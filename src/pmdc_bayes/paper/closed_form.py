@@ -26,6 +26,7 @@ from ..physics.motor import (
     tf_normalised,
     time_constant,
 )
+from .changes import responses
 from .checks import check_physical, check_trace, step_of, turns
 
 __all__ = [
@@ -131,6 +132,17 @@ def read_time_constant(t, y, *, t_step=None, tail_fraction=0.1) -> TimeConstantR
     t_cross = float(np.mean([_interp(k) for k in crossings]))
     dt = float(np.median(np.diff(t)))
     return TimeConstantReading(t_cross - t_step, t_step, t_cross, initial, final, threshold, dt)
+
+
+def _read_step(tr) -> TimeConstantReading:
+    """The 63.2 % reading of a step trace: the response to its largest voltage change,
+    up to the next change comparable to it (:func:`.changes.responses`; a staircase's
+    one step), else the whole trace from its step."""
+    found = responses(tr)
+    if not found:
+        return read_time_constant(tr.time, tr.speed, t_step=step_of(tr)[0])
+    r = found[0]
+    return read_time_constant(tr.time[r.start:r.stop], tr.speed[r.start:r.stop], t_step=r.time)
 
 
 def only_assumed(used: dict, name: str) -> bool:
@@ -262,9 +274,8 @@ def closed_form(session: Session) -> ClosedForm:
         # (equation (9) knows no load)
         tr = max(steps, key=lambda s: (turns(s), not s.drag.nonzero,
                                        abs(step_of(s)[2] - step_of(s)[1])))
-        t_step, _, _ = step_of(tr)
         try:
-            tau = read_time_constant(tr.time, tr.speed, t_step=t_step).tau
+            tau = _read_step(tr).tau
         except ValueError as exc:
             raise SessionError(tr.file, f"cannot read a time constant from trace {tr.name!r}: "
                                f"{exc}; log the step until the speed settles") from None
