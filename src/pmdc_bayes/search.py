@@ -1,0 +1,336 @@
+"""The rig's model found by a stepwise search over its non-idealities (``fit --compare``).
+
+The search starts from the session's model (the ideal motor without a ``[model]``) and
+moves one step at a time, every candidate fitted at its MAP, checked for adequacy and
+scored by its Laplace evidence (:func:`~.selection.laplace_log_evidence`, compared on
+the Kass–Raftery scale):
+
+- **forward**: the additions the adequacy verdict proposes (its ``proposals``, or the
+  ``--add`` its diagnosis names), or, when the model is rejected and nothing is
+  proposed, every single addition of the registry (:mod:`.terms`) with something in
+  the session to act on.  The best is taken when its evidence beats the current
+  model's by more than :data:`ADD_MARGIN` ("strong"), or when the data reject the
+  current model and not it while its evidence is no lower.  A candidate whose added
+  parameters the data cannot determine (posterior as wide as the prior) is not taken
+  over an adequate model;
+- **backward**: after each addition, every term the search added before it is taken
+  out again when the evidence does not support it (the smaller model's evidence within
+  :data:`REMOVE_MARGIN` of the larger's, and the data not rejecting it unless they
+  reject the larger too);
+- it stops when the data do not reject the model and no proposed addition is clearly
+  better, when no step helps, or after :data:`MAX_FITS` fits.
+
+A candidate is fitted from the usual starts and from its parent's MAP with the added
+parameters at their neutral values (no dead time, no drop, a negligible lag or load, a
+limit far above the currents), so a larger model never ends below the maximum of one it
+contains.  Adequate candidates whose evidence lies within :data:`TIE` of the chosen one
+are reported beside it: the data do not tell them apart.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from ._x64 import x64
+from .inference.adequacy import assess
+from .inference.fit import fit_map
+from .inference.identifiability import PRIOR_DOMINATED
+from .inference.levels import level_outliers
+from .inference.objective import build_model
+from .inference.seed import fit_seed
+from .inference.warmup import WarmUp
+from .io.session import NUISANCES, Session
+from .selection import laplace_log_evidence
+from .terms import LOAD, SHARED, label, model_table, nuisance_of, ordered, terms_of, with_terms
+
+__all__ = ["search_model", "nested_start", "ADD_MARGIN", "REMOVE_MARGIN", "TIE", "MAX_FITS"]
+
+ADD_MARGIN = 3.0  # log Bayes factor an addition must gain over an adequate model ("strong")
+REMOVE_MARGIN = 1.0  # a term whose removal costs less is not supported ("a bare mention")
+TIE = 1.0  # adequate candidates this close in log evidence are reported side by side
+MAX_FITS = 16  # the search's bound on MAP fits
+_ADD = re.compile(r"--add ([a-z][a-z-]*)")
+
+
+def _neutral(spec) -> float:
+    """A parameter's value that leaves the prediction as without it (SI): a drop, dead
+    time or offset of zero, a gain of one, a current limit far above its prior's centre,
+    a lag, load or Coulomb friction far below it."""
+    if spec.transform == "identity":
+        return float(spec.prior.centre)
+    if spec.unit == "1":
+        return 1.0
+    width = 2.0 * spec.prior.width_in_log()
+    return float(spec.prior.centre * math.exp(width if spec.name == "Imax" else -width))
+
+
+def nested_start(model, fit) -> np.ndarray:
+    """θ of ``model`` (its registry's order) at ``fit``'s MAP, every parameter ``fit`` lacks
+    at its neutral value: a start at which the larger model predicts what the smaller did."""
+    values = {s.name: fit.values[s.name] if s.name in fit.values else _neutral(s)
+              for s in model.registry.specs}
+    return np.asarray(model.theta(values), dtype=float)
+
+
+class _Candidate:
+    """One fitted candidate and its row of the search's record."""
+
+    def __init__(self, terms, session, cf, model, parent, move):
+        self.terms, self.session, self.cf, self.model = terms, session, cf, model
+        self.parent, self.move = parent, move
+        self.fit = self.adequacy = None
+        self.log_evidence = math.nan
+        self.undetermined = ()
+        self.why = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.adequacy.ok and self.fit.status == "converged" \
+            and math.isfinite(self.log_evidence)
+
+    def run(self, seed: int) -> None:
+        starts = [] if self.parent is None else [nested_start(self.model, self.parent.fit)]
+        self.fit = fit_map(self.model, seed=seed, alternatives=starts)
+        self.adequacy = assess(self.model, self.fit, self.cf)
+        self.log_evidence = laplace_log_evidence(self.model, self.fit)
+        own = set(self.parent.model.names) if self.parent is not None else set(self.model.names)
+        ratio = np.sqrt(np.clip(np.diag(self.fit.cov_log), 0, None)) / self.model.prior_sd
+        self.undetermined = tuple(n for n, r in zip(self.model.names, ratio, strict=True)
+                                  if n not in own and r > PRIOR_DOMINATED)
+
+    def row(self) -> dict:
+        fit = self.fit
+        parent = self.parent
+        return {"name": label(self.terms), "terms": ordered(self.terms),
+                "n_params": len(self.model.names), "move": self.move,
+                "parent": None if parent is None else label(parent.terms),
+                "verdict": self.adequacy.verdict, "converged": fit.status == "converged",
+                "log_posterior": float(fit.log_posterior), "log_evidence": self.log_evidence,
+                "delta_log_evidence": None if parent is None
+                else self.log_evidence - parent.log_evidence,
+                "undetermined": list(self.undetermined),
+                "failures": [f"{f.where}: {f.check}" for f in self.adequacy.failures()],
+                "values": {n: [fit.values[n], fit.sd[n]] for n in self.model.names},
+                "loo": None, "decision": "dropped", "why": ""}
+
+
+class _Search:
+    def __init__(self, session: Session, *, free_friction: bool, seed: int, max_fits: int,
+                 say):
+        self.session, self.seed, self.max_fits, self.say = session, seed, max_fits, say
+        self.free_friction = free_friction
+        self.done: dict[frozenset, _Candidate] = {}
+        self.order: list[_Candidate] = []
+        self.suspects = _suspect_traces(session)
+
+    def fits_left(self) -> int:
+        return self.max_fits - len(self.order)
+
+    def evaluate(self, moves, parent, kind) -> list[_Candidate]:
+        """The candidates ``parent.terms`` changed by each move (terms to add, or to take
+        out when ``kind`` is ``"remove"``), fitted in order within the bound; one fitted
+        before is not fitted again.  The next candidates' programs are made meanwhile."""
+        new, out = [], []
+        for move in moves:
+            terms = parent.terms - move if kind == "remove" else parent.terms | move
+            if terms in self.done:
+                out.append(self.done[terms])
+                continue
+            if len(new) >= self.fits_left():
+                break
+            s = with_terms(self.session, terms)
+            cf = fit_seed(s)
+            cand = _Candidate(terms, s, cf, build_model(s, cf), parent,
+                              f"{'−' if kind == 'remove' else '+'} {label(move)}")
+            self.done[terms] = cand
+            new.append(cand)
+            out.append(cand)
+        ahead = WarmUp.fits([c.model for c in new[1:]])
+        with ahead.stopped_on_error():
+            for cand in new:
+                cand.run(self.seed)
+                self.order.append(cand)
+                self.say(f"model search: {label(cand.terms)}: {cand.adequacy.verdict}, "
+                         f"log Z {cand.log_evidence:.1f}")
+        ahead.stop()
+        return out
+
+    def start(self, terms) -> _Candidate:
+        s = with_terms(self.session, terms)
+        cf = fit_seed(s)
+        cand = _Candidate(terms, s, cf, build_model(s, cf), None, "start")
+        self.done[terms] = cand
+        cand.run(self.seed)
+        self.order.append(cand)
+        self.say(f"model search: {label(terms)}: {cand.adequacy.verdict}, "
+                 f"log Z {cand.log_evidence:.1f}")
+        return cand
+
+    # -- what to try -------------------------------------------------------------------
+    def _moves_for(self, nuisance: str, trace: str | None) -> list[frozenset]:
+        if nuisance == "dead_time":
+            return [frozenset({SHARED}), frozenset({"dead_time"})] \
+                if len(self.session.traces) > 1 else [frozenset({"dead_time"})]
+        if nuisance == "unknown_load":
+            return [frozenset({LOAD + (trace or t) for t in
+                               ((trace,) if trace else self.suspects)})]
+        return [frozenset({nuisance})]
+
+    def allowed(self, move, held) -> bool:
+        if move & held or not move:
+            return False
+        if (SHARED in held and "dead_time" in move) or ("dead_time" in held and SHARED in move):
+            return False
+        if "coulomb" in move and not self.free_friction:
+            return False
+        keys = {nuisance_of(t) for t in move} - {"coulomb"}
+        return self.session.inert_nuisance(tuple(keys)) is None
+
+    def proposed(self, cand) -> list[frozenset]:
+        """The additions the verdict proposes, in its order."""
+        items = getattr(cand.adequacy, "proposals", ())
+        pairs = [(p.nuisance, getattr(p, "trace", None)) for p in items]
+        if not items:
+            text = " ".join(cand.adequacy.diagnosis)
+            pairs = [(m.replace("-", "_"), None) for m in _ADD.findall(text)]
+            if "--friction coulomb" in text:
+                pairs.append(("coulomb", None))
+        moves = []
+        for nuisance, trace in pairs:
+            if nuisance in NUISANCES or nuisance == "coulomb":
+                moves += self._moves_for(nuisance, trace)
+        return [m for m in dict.fromkeys(moves) if self.allowed(m, cand.terms)]
+
+    def singles(self, cand) -> list[frozenset]:
+        """Every single addition of the registry with something to act on."""
+        moves = [m for n in NUISANCES + ("coulomb",) for m in self._moves_for(n, None)]
+        return [m for m in dict.fromkeys(moves) if self.allowed(m, cand.terms)]
+
+
+def _suspect_traces(session: Session) -> tuple[str, ...]:
+    """The traces an unknown load goes on when the verdict names none: those settling off
+    the line the other traces' levels draw (model-free), else every driven trace."""
+    off = level_outliers(session)
+    return tuple(off) if off else tuple(t.name for t in session.traces)
+
+
+def _better(current, cands) -> tuple[_Candidate | None, str]:
+    """The candidate an addition step takes, and why (None: none)."""
+    best, why = None, ""
+    for c in sorted(cands, key=lambda c: (-c.ok, -c.log_evidence if
+                                          math.isfinite(c.log_evidence) else math.inf)):
+        if c.fit.status != "converged" or not math.isfinite(c.log_evidence):
+            continue
+        gain = c.log_evidence - current.log_evidence
+        if current.ok and c.undetermined:
+            continue
+        if gain > ADD_MARGIN:
+            best, why = c, f"log Z {gain:+.1f} over {label(current.terms)}"
+        elif not current.ok and c.ok and gain >= 0:
+            best, why = c, (f"the data reject {label(current.terms)}, not it "
+                            f"(log Z {gain:+.1f})")
+        if best is not None:
+            break
+    return best, why
+
+
+def _removals(search, current, start_terms, last_move) -> _Candidate:
+    """Every term the search added before ``last_move`` taken out while the evidence does
+    not support it."""
+    changed = True
+    while changed and search.fits_left() > 0:
+        changed = False
+        drop = [frozenset({t}) for t in ordered(current.terms - start_terms - last_move)]
+        for smaller in search.evaluate(drop, current, "remove"):
+            loss = current.log_evidence - smaller.log_evidence
+            if smaller.fit.status == "converged" and loss < REMOVE_MARGIN \
+                    and (smaller.ok or not current.ok):
+                search.done[current.terms].why = (f"{smaller.move[2:]} not supported "
+                                                  f"(log Z {-loss:+.1f} without it)")
+                smaller.why = f"removal kept: log Z {-loss:+.1f}"
+                current, changed = smaller, True
+                break
+    return current
+
+
+@x64
+def search_model(session: Session, *, friction: str | None = None, seed: int = 0,
+                 max_fits: int = MAX_FITS, say=None) -> dict:
+    """The stepwise search on ``session`` (module docstring): every candidate fitted,
+    its verdict, log evidence, the step that made it and why it was kept or dropped; the
+    chosen model (its terms, ``[model]`` table and friction) and why; the adequate
+    candidates the evidence does not tell from it (a dict ready for JSON).  ``friction``
+    given, Coulomb friction is not searched over."""
+    say = say or (lambda text: None)
+    if friction is not None:
+        import dataclasses
+
+        session = dataclasses.replace(session, friction=friction)
+    search = _Search(session, free_friction=friction is None, seed=seed, max_fits=max_fits,
+                     say=say)
+    start_terms = terms_of(session)
+    current = search.start(start_terms)
+    current.why = "the session's model" if start_terms else "the ideal motor"
+    stop = ""
+    while not stop:
+        if search.fits_left() <= 0:
+            stop = f"the bound of {max_fits} fits was reached"
+            break
+        moves, source = search.proposed(current), "proposed by the verdict"
+        tried = search.evaluate(moves, current, "add")
+        best, why = _better(current, tried)
+        if best is None and not current.ok:
+            rest = [m for m in search.singles(current) if m not in moves]
+            tried += search.evaluate(rest, current, "add")
+            best, why = _better(current, tried)
+            source = "every single addition tried"
+        for c in tried:
+            if c is not best and not c.why:
+                c.why = _dropped(current, c, best)
+        if best is None:
+            stop = ("the data do not reject it and no proposed addition is clearly better"
+                    if current.ok else "no addition improves on it")
+            break
+        best.why = f"{why} ({source})"
+        current = _removals(search, best, start_terms, best.terms - best.parent.terms)
+    return _record(search, current, stop, session)
+
+
+def _dropped(current, c, best) -> str:
+    """Why an addition was not taken."""
+    if c.fit.status != "converged":
+        return "the fit did not converge"
+    gain = c.log_evidence - current.log_evidence
+    if current.ok and c.undetermined and gain > ADD_MARGIN:
+        return f"the data cannot determine {', '.join(c.undetermined)}"
+    if best is not None:
+        return f"log Z {c.log_evidence - best.log_evidence:+.1f} against {label(best.terms)}"
+    return f"log Z {gain:+.1f} over {label(current.terms)}: not clearly better"
+
+
+def _record(search, chosen, stop, session) -> dict:
+    rows = []
+    for c in search.order:
+        row = c.row()
+        row["why"] = c.why
+        row["decision"] = "chosen" if c is chosen else "dropped"
+        rows.append(row)
+    ties = [c for c in search.order if c is not chosen and c.ok and chosen.ok
+            and abs(c.log_evidence - chosen.log_evidence) <= TIE]
+    table, friction = model_table(session, chosen.terms)
+    if chosen.ok:
+        reason = f"the data do not reject it; the search stopped: {stop}"
+    else:
+        reason = (f"the data reject every candidate tried; it has the highest evidence "
+                  f"reached, and its diagnosis says what is still missing ({stop})")
+    return {"search": True, "start": label(search.order[0].terms),
+            "candidates": rows, "fits": len(search.order), "max_fits": search.max_fits,
+            "recommended": label(chosen.terms), "terms": ordered(chosen.terms),
+            "nuisances": list(chosen.session.nuisances),
+            "loaded_traces": list(chosen.session.loaded_traces),
+            "shared_dead_time": chosen.session.shared_dead_time,
+            "friction": friction, "model": table, "reason": reason,
+            "equivalent": [label(c.terms) for c in ties]}
