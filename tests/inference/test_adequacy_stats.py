@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.adequacy import fit_percent, inflation_limit, systematic_misfit, whiteness
+from pmdc_bayes.inference.adequacy import fit_percent, systematic_misfit, whiteness
+from pmdc_bayes.inference.calibrate import ratio_p
 from pmdc_bayes.inference.onset import onset_shape
 
 
@@ -47,9 +48,9 @@ def test_systematic_misfit_ignores_white_noise_and_measures_a_wave():
     assert systematic_misfit(noise + wave, 0.5) == pytest.approx(0.2 / np.sqrt(2), rel=0.15)
 
 
-def test_inflation_limit_shrinks_with_more_samples_but_not_below_one_and_a_half():
-    assert inflation_limit(50) > inflation_limit(500) >= 1.5
-    assert inflation_limit(10**6) == 1.5
+def test_the_noise_ratios_p_value_tightens_with_more_samples():
+    assert ratio_p(1.2, 1.0, 50) > 0.05 > ratio_p(1.2, 1.0, 5000)
+    assert ratio_p(1.0, 1.0, 500) == pytest.approx(0.5, abs=1e-12)
 
 
 @pytest.mark.parametrize("kind", ["plain", "delayed", "lagged", "ramp"])

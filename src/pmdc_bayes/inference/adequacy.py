@@ -4,24 +4,29 @@ Integrating each channel's noise level out is right for a correct model; for a w
 one it turns every misfit into "noise" and the intervals stay narrow.  These checks
 look at the fit from outside the likelihood, per channel:
 
-* **noise inflation**: the fitted noise sd against the model-free estimate from the
-  data (sample-to-sample differences, quantisation-aware; see :mod:`.noise`);
-* **residual whiteness**: the autocorrelation of the normalised residuals over lags
-  1..M against the ±z/√n band, summarised by the Ljung–Box statistic, and the
+* **systematic misfit**: the slow part of the residual (a moving average) against what
+  white noise leaves in it, and its size as a fraction of the signal's span;
+* **residual whiteness**: the autocorrelation of the residuals, summarised by the
+  Ljung–Box statistic, a strongly negative lag-1 autocorrelation, and the
   cross-correlation of the residuals with the input (the tests of MATLAB's ``resid``);
-* **systematic misfit**: the slow part of the residual (a moving average, less what
-  white noise leaves in it) as a fraction of the signal's span: the size that decides
-  whether a statistically detectable misfit matters;
+* **noise inflation**: the fitted noise sd against the model-free estimate from the
+  data (second differences, quantisation-aware; see :mod:`.noise`);
 * **fit percentage**: ``100·(1 − ‖y − ŷ‖/‖y − ȳ‖)`` (MATLAB's ``compare``) of the closed
   form and of the MAP;
 * **bench conflict**: each bench-measured quantity's fitted value in bench sd;
-* **plausibility**: derived quantities against what the session itself measured.
+* **plausibility**: derived quantities against what the session itself measured (a
+  rise time, a peak current, a no-load speed).
 
-A channel *fails* when its misfit is both detectable (noise inflated beyond what the
-model-free estimate's own uncertainty allows, or residuals far from white) and
-material (a systematic part above ``MATERIAL_FRACTION`` of the span), or when its
-noise is strongly anti-correlated (a differenced, quantised signal).  Any failure
-makes the verdict "inadequate"; :mod:`.diagnosis` says what the pattern suggests.
+Every statistical check has a p-value from its statistic's distribution under the
+fitted model (:mod:`.calibrate`: a known distribution, or a parametric bootstrap at the
+MAP through the data's sensor path).  The checks that can fail the model form one
+family, corrected by Holm's step-down so that a correct model is called inadequate in
+at most :data:`~.calibrate.FAMILY_LEVEL` of sessions; a check fails when the family
+rejects it *and* its effect is material (a systematic part above
+:data:`~.trace_checks.MATERIAL_FRACTION` of the span, ...).  The warnings are a family
+of their own at the same level.  Any failure makes the verdict "inadequate";
+:mod:`.diagnosis` says what the pattern suggests and lists the non-idealities the
+model lacks (``proposals``).
 """
 
 from __future__ import annotations
@@ -32,23 +37,20 @@ import numpy as np
 from scipy.special import gammaincc
 
 from .._x64 import x64
+from .calibrate import FAMILY_LEVEL, holm, logged_quantum, session_rng
 from .channels import CoastDownBlock
 
 __all__ = ["Finding", "Adequacy", "assess", "whiteness", "fit_percent", "systematic_misfit"]
 
-MATERIAL_FRACTION = 0.015  # systematic misfit that matters, as a fraction of the span
-LJUNG_BOX_P = 1e-3  # residuals are "not white" below this p-value
-ANTI_CORRELATION = -0.3  # lag-1 autocorrelation of a differenced, quantised signal
-BENCH_FAIL_Z = 4.0  # a bench quantity this many bench sd away: the data contradict it
-BENCH_WARN_Z = 3.0
+BENCH_WARN_Z = 3.0  # a bench quantity this many bench sd away is worth a warning
 STEADY_MATERIAL = 0.03  # steady readings missed by 3 % of the largest reading (rms)
-RISE_RATIO = 1.5  # the model's rise time against the observed one, either way
-PEAK_RATIO = 2.0  # the model's peak current against the largest logged one
 
 
 @dataclass(frozen=True)
 class Finding:
-    """One thing the checks found: ``severity`` is ``"fail"`` or ``"warn"``."""
+    """One thing the checks found: ``severity`` is ``"fail"`` or ``"warn"``;
+    ``p_value`` the check's p-value under the fitted model (None for a check that is
+    not statistical: the solver's limit, a parameter at its bound)."""
 
     check: str
     where: str
@@ -56,12 +58,16 @@ class Finding:
     size: str
     message: str
     suggestion: str = ""
+    p_value: float | None = None
 
 
 @dataclass(frozen=True)
 class Adequacy:
     """The verdict (``"adequate"`` or ``"inadequate"``), the findings behind it, the
-    per-channel figures, and the diagnosis in words (what to add to the model)."""
+    per-channel figures, the diagnosis in words and ``proposals``, the non-idealities
+    the diagnosis proposes to add (:class:`~.diagnosis.Proposal`, most specific first);
+    ``level`` is the family-wise false-alarm level of the verdict, ``tests`` every
+    statistical check that ran, with its p-value and whether the family rejected it."""
 
     verdict: str
     findings: tuple = ()
@@ -69,6 +75,9 @@ class Adequacy:
     bench: dict = field(default_factory=dict)
     plausibility: dict = field(default_factory=dict)
     diagnosis: tuple = ()
+    proposals: tuple = ()
+    level: float = FAMILY_LEVEL
+    tests: tuple = ()
 
     @property
     def ok(self) -> bool:
@@ -88,8 +97,11 @@ class Adequacy:
         return f"MODEL INADEQUATE: {f.where}: {f.message}{more}."
 
     def as_json(self) -> dict:
-        return {"verdict": self.verdict, "findings": [asdict(f) for f in self.findings],
-                "diagnosis": list(self.diagnosis), "channels": self.channels,
+        return {"verdict": self.verdict, "family_level": self.level,
+                "findings": [asdict(f) for f in self.findings],
+                "diagnosis": list(self.diagnosis),
+                "proposals": [asdict(p) for p in self.proposals],
+                "tests": list(self.tests), "channels": self.channels,
                 "bench": self.bench, "plausibility": self.plausibility}
 
 
@@ -136,51 +148,9 @@ def systematic_misfit(r, noise_sd: float) -> float:
     return float(np.sqrt(max(0.0, np.mean(smooth**2) - noise_sd**2 / w)))
 
 
-def inflation_limit(n: int) -> float:
-    """Largest ratio of fitted to model-free noise sd a correct model plausibly gives:
-    the robust estimate's relative sd is about 1.2/√n, so 1 + 5 of those, and never
-    below 1.5 (coloured sensor noise that second differences partly miss)."""
-    return float(max(1.5, 1.0 + 5.0 * 1.2 / np.sqrt(max(n, 1))))
-
-
-# -- the checks ------------------------------------------------------------------------
-def _trace_channel(name, unit, y, yhat, yhat_cf, u, s0, sigma) -> tuple[dict, list]:
-    r = y - yhat
-    span = float(np.max(y) - np.min(y)) or float(np.max(np.abs(y))) or 1.0
-    white = whiteness(r / max(sigma, 1e-300), u)
-    sys_rms = systematic_misfit(r, s0)
-    limit = inflation_limit(y.size)
-    row = {"unit": unit, "n": int(y.size), "model_free_sd": s0, "fitted_sd": sigma,
-           "inflation": sigma / s0 if s0 > 0 else float("inf"), "inflation_limit": limit,
-           "whiteness": white, "systematic_rms": sys_rms,
-           "systematic_fraction": sys_rms / span, "span": span,
-           "fit_percent_map": fit_percent(y, yhat),
-           "fit_percent_closed_form": None if yhat_cf is None else fit_percent(y, yhat_cf)}
-    detectable = row["inflation"] > limit or white["p_value"] < LJUNG_BOX_P
-    material = row["systematic_fraction"] > MATERIAL_FRACTION
-    found = []
-    size = (f"noise sd {_g(sigma)} {unit} fitted against {_g(s0)} {unit} from the data "
-            f"(x{row['inflation']:.3g}); systematic misfit {100 * row['systematic_fraction']:.2g} "
-            f"% of the span; fit {row['fit_percent_map']:.1f} %")
-    if detectable and material:
-        found.append(Finding("systematic misfit", name, "fail", size,
-                             f"the model misses the data systematically "
-                             f"({100 * row['systematic_fraction']:.2g} % of the span; its "
-                             f"noise sd is x{row['inflation']:.3g} the data's own)"))
-    elif white["rho1"] < ANTI_CORRELATION and white["p_value"] < LJUNG_BOX_P:
-        found.append(Finding("residual whiteness", name, "fail",
-                             f"lag-1 autocorrelation {white['rho1']:.2f}",
-                             f"the noise is strongly anti-correlated (lag-1 autocorrelation "
-                             f"{white['rho1']:.2f}), so it is not the white noise the "
-                             "likelihood assumes"))
-    elif detectable:
-        found.append(Finding("residual whiteness", name, "warn", size,
-                             "the residuals are not white but the misfit is small; "
-                             "intervals may be somewhat optimistic"))
-    return row, found
-
-
 def _steady_channel(name, unit, y, yhat) -> tuple[dict, list]:
+    """The steady readings' miss, as a size: a handful of readings carries no noise
+    level of its own to calibrate it against, so it warns and does not fail."""
     scale = float(np.max(np.abs(y))) if y.size else 1.0
     rel = np.abs(y - yhat) / max(scale, 1e-300)
     rms = float(np.sqrt(np.mean(rel**2))) if rel.size else 0.0
@@ -188,10 +158,11 @@ def _steady_channel(name, unit, y, yhat) -> tuple[dict, list]:
            "largest_miss_fraction": float(np.max(rel)) if rel.size else 0.0}
     found = []
     if rms > STEADY_MATERIAL:
-        found.append(Finding("systematic misfit", name, "fail",
+        found.append(Finding("steady miss", name, "warn",
                              f"rms miss {100 * rms:.2g} % of the largest reading",
                              f"the model misses the steady readings by {100 * rms:.2g} % of "
-                             "the largest reading (rms)"))
+                             "the largest reading (rms; not tested: the readings carry no "
+                             "noise level of their own)"))
     return row, found
 
 
@@ -199,15 +170,31 @@ def _g(x: float) -> str:
     return f"{x:.3g}"
 
 
+def _judge(tests: list, key: str) -> tuple[list, list]:
+    """Holm's correction over ``tests``: the findings of those rejected with a material
+    effect (their p-values attached), and the record of every test."""
+    reject = holm([t.p_value for t in tests])
+    found, record = [], []
+    for t, r in zip(tests, reject, strict=True):
+        f = t.finding
+        record.append({"family": key, "check": f.check, "where": f.where,
+                       "p_value": t.p_value, "material": t.material, "rejected": bool(r)})
+        if r and t.material:
+            found.append(type(f)(**{**asdict(f), "p_value": t.p_value}))
+    return found, record
+
+
 @x64
 def assess(model, fit, closed_form=None) -> Adequacy:
     """Every adequacy check of ``fit`` (a :class:`~.fit.FitResult` of ``model``)."""
-    from .checks import bench_checks, plausibility_checks, search_checks, step_start_check
+    from .checks import bench_checks, plausibility_tests, search_checks, step_start_test
     from .diagnosis import diagnose
     from .model_checks import bound_checks, drag_checks, solver_checks
+    from .trace_checks import channel_tests
 
     session = model.session
-    channels, findings = {}, []
+    rng = session_rng(session)
+    channels, findings, fails, warns = {}, [], [], []
     preds = model.predict(fit.theta)
     preds_cf = None
     if closed_form is not None and session.traces:
@@ -217,6 +204,18 @@ def assess(model, fit, closed_form=None) -> Adequacy:
         except (ValueError, FloatingPointError):
             preds_cf = None
     by_name = {c.name: c for c in model.channels}
+
+    def channel(name, y, yhat, ycf, u, quantum):
+        ch = by_name[name]
+        sigma = float(fit.noise_sd.get(name, ch.s0))
+        row, f, w = channel_tests(name, y, yhat, u, ch.s0, sigma, rng, quantum=quantum)
+        row["unit"] = ch.unit
+        row["fit_percent_closed_form"] = None if ycf is None else fit_percent(y, ycf)
+        channels[name] = row
+        fails.extend(f)
+        warns.extend(w)
+        return sigma
+
     for k, tr in enumerate(session.traces):
         ia, w = preds[k]
         cf = preds_cf[k] if preds_cf is not None else (None, None)
@@ -225,38 +224,43 @@ def assess(model, fit, closed_form=None) -> Adequacy:
                                    ("current", tr.current, ia, cf[0])):
             if y is None:
                 continue
-            name = f"{tr.name}: {what}"
-            ch = by_name[name]
-            row, found = _trace_channel(name, ch.unit, np.asarray(y), np.asarray(yhat),
-                                        None if ycf is None else np.asarray(ycf), u,
-                                        ch.s0, float(fit.noise_sd.get(name, ch.s0)))
-            channels[name] = row
-            findings += found
+            y, yhat = np.asarray(y), np.asarray(yhat)
+            quantum = logged_quantum(y)
+            sigma = channel(f"{tr.name}: {what}", y, yhat,
+                            None if ycf is None else np.asarray(ycf), u, quantum)
             # a fitted dead time takes up a step's timing
             if "dead_time" not in session.nuisances:
-                findings += step_start_check(tr, what, np.asarray(y), np.asarray(yhat), ch.s0)
-    for name, y, yhat in _coast_down_pairs(model, fit) + _position_pairs(model, fit):
-        ch = by_name[name]
-        row, found = _trace_channel(name, ch.unit, y, yhat, None, None, ch.s0,
-                                    float(fit.noise_sd.get(name, ch.s0)))
-        channels[name] = row
-        findings += found
+                fails += step_start_test(tr, what, y, yhat, by_name[f"{tr.name}: {what}"].s0,
+                                         sigma=sigma, rng=rng, quantum=quantum)
+    for name, y, yhat in _coast_down_pairs(model, fit):
+        channel(name, y, yhat, None, None, logged_quantum(y))
+    for name, y, yhat, q in _position_pairs(model, fit):
+        channel(name, y, yhat, None, None, q)
     for name, y, yhat in _steady_pairs(model, fit):
         row, found = _steady_channel(name, by_name[name].unit, y, yhat)
         channels[name] = row
         findings += found
-    bench, found = bench_checks(model, fit)
+    bench, found, tests = bench_checks(model, fit)
     findings += found
-    plaus, found = plausibility_checks(model, fit, preds)
+    fails += tests
+    plaus, found, tests = plausibility_tests(model, fit, preds, rng)
     findings += found
+    fails += tests
+    failed, record = _judge(fails, "verdict")
+    warned, record_w = _judge(warns, "warnings")
+    findings += failed + warned
+    failing = {f.where for f in findings if f.severity == "fail"}
+    findings = [f for f in findings if f.severity == "fail" or f.where not in failing]
     findings += search_checks(fit)
     findings += solver_checks(model, fit)
     findings += drag_checks(model)
     findings += bound_checks(model, fit)
     findings.sort(key=lambda f: f.severity != "fail")
     verdict = "inadequate" if any(f.severity == "fail" for f in findings) else "adequate"
-    diagnosis = diagnose(model, fit, preds, findings) if verdict == "inadequate" else ()
-    return Adequacy(verdict, tuple(findings), channels, bench, plaus, tuple(diagnosis))
+    diagnosis, proposals = (diagnose(model, fit, preds, findings) if verdict == "inadequate"
+                            else ((), ()))
+    return Adequacy(verdict, tuple(findings), channels, bench, plaus, tuple(diagnosis),
+                    tuple(proposals), FAMILY_LEVEL, tuple(record + record_w))
 
 
 def _coast_down_pairs(model, fit):
@@ -272,14 +276,15 @@ def _coast_down_pairs(model, fit):
 
 
 def _position_pairs(model, fit):
-    """(channel name, observed, predicted) for each trace's angle, where read (from the
-    compiled prediction the trace channels use)."""
+    """(channel name, observed, predicted, encoder count) for each trace's angle, where
+    read (from the compiled prediction the trace channels use)."""
     out = []
     angles = model.predict_angles(np.asarray(fit.theta)) if model.exp is not None else []
     for tr, angle in zip(model.session.traces, angles, strict=True):
         if tr.position is not None:
             ok = np.isfinite(tr.position)
-            out.append((f"{tr.name}: position", tr.position[ok], np.asarray(angle)[ok]))
+            out.append((f"{tr.name}: position", tr.position[ok], np.asarray(angle)[ok],
+                        float(tr.encoder_step or 0.0)))
     return out
 
 

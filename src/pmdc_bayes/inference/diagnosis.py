@@ -25,8 +25,9 @@ from .checks import step_time
 from .diagnosis_levels import level_rules
 from .noise import noise_scale
 from .onset import departure, onset_shape
+from .proposals import Proposal, has, said
 
-__all__ = ["diagnose"]
+__all__ = ["diagnose", "Proposal"]
 
 BETTER = 0.6  # a shape explains the onset when its error is below this share of the plain one
 LATE_SAMPLES = 2  # a start later than the model's by at least this many samples ...
@@ -74,27 +75,29 @@ def _start_rules(model, tr, pred, t_step):
     if lates or lagged:
         late = max(lates.values()) if lates else data["dead_time"] - fitted["dead_time"]
         if "current" in lates:
-            out.append(f"{tr.name}: the current and speed start about {1e3 * late:.2g} ms "
+            out.append(said(f"{tr.name}: the current and speed start about {1e3 * late:.2g} ms "
                        "later than the model allows: add a dead time between the command "
                        "and the motion (driver, PWM start, logging trigger): --add dead-time, "
                        "or dead_time = true under [model] in session.toml (\"shared\" when "
-                       "one driver and logger serve every trace)")
+                       "one driver and logger serve every trace)",
+                            Proposal("dead_time", tr.name)))
         elif tr.current is not None:
-            out.append(f"{tr.name}: the speed starts about {1e3 * late:.2g} ms later than "
+            out.append(said(f"{tr.name}: the speed starts about {1e3 * late:.2g} ms later than "
                        "the model allows while the current starts on time: a lag in the "
                        "speed sensor or its filter: --add speed-lag, or speed_lag = true "
-                       "under [model] in session.toml")
+                       "under [model] in session.toml", Proposal("speed_lag")))
         else:
-            out.append(f"{tr.name}: the speed starts about {1e3 * late:.2g} ms later than "
+            out.append(said(f"{tr.name}: the speed starts about {1e3 * late:.2g} ms later than "
                        "the model allows: add a dead time between the command and the "
                        "motion (--add dead-time), or a speed-sensor/filter lag "
-                       "(--add speed-lag)")
+                       "(--add speed-lag)", Proposal("dead_time", tr.name),
+                            Proposal("speed_lag")))
     if ramp:
-        out.append(f"{tr.name}: the speed ramps up at a constant rate for "
+        out.append(said(f"{tr.name}: the speed ramps up at a constant rate for "
                    f"{1e3 * data['ramp_time']:.3g} ms before turning exponential: a "
                    "current-limited driver (a ramp instead of an exponential at the start): "
                    "--add current-limit, or current_limit = true (or the driver's limit in "
-                   "A) under [model] in session.toml")
+                   "A) under [model] in session.toml", Proposal("current_limit")))
     return out
 
 
@@ -105,9 +108,10 @@ def _flat_top(tr, ia):
     near = np.abs(np.abs(tr.current) - top) < 0.03 * top
     peak = float(np.max(np.abs(ia)))
     if near.sum() >= 5 and peak > 1.2 * top:
-        return [f"{tr.name}: the logged current is flat at about {top:.3g} A while the model "
+        return [said(f"{tr.name}: the logged current is flat at about {top:.3g} A while the model "
                 f"would draw {peak:.3g} A: a current-limited driver: --add current-limit, "
-                f"or current_limit = {top:.3g} under [model] in session.toml"]
+                f"or current_limit = {top:.3g} under [model] in session.toml",
+                     Proposal("current_limit"))]
     return []
 
 
@@ -121,12 +125,14 @@ def _finding_rules(model, fit, findings, already=()):
         bench = la.centre / ra.centre
         current = any(tr.current is not None for tr in model.session.traces)
         if fitted > SLOW_START * bench or (current and fitted > bench):
-            out.append(f"the fit stretches the electrical time constant La/Ra to "
+            out.append(said(f"the fit stretches the electrical time constant La/Ra to "
                        f"{1e3 * fitted:.2g} ms against {1e3 * bench:.2g} ms on the bench: the "
                        "response starts more slowly than the motor's inductance explains: a "
                        "dead time (--add dead-time) or a speed-sensor/filter lag "
                        "(--add speed-lag)" + (", or a current-sensor/filter lag "
-                                              "(--add current-lag)" if current else ""))
+                                              "(--add current-lag)" if current else ""),
+                            Proposal("dead_time"), Proposal("speed_lag"),
+                            *((Proposal("current_lag"),) if current else ())))
     for f in findings:
         if f.severity != "fail":
             continue
@@ -137,10 +143,12 @@ def _finding_rules(model, fit, findings, already=()):
                        f"{f.suggestion}")
         if f.check == "step start":
             sensor = f.where.rsplit(": ", 1)[-1]
-            out.append(f"{f.where.split(':')[0]}: the model misses the start of the voltage "
+            out.append(said(f"{f.where.split(':')[0]}: the model misses the start of the voltage "
                        "steps: the steps are earlier or later than the session says (a "
                        "logged voltage column, a trigger offset, a dead time): --add "
-                       f"dead-time; or the {sensor} sensor lags: --add {sensor}-lag")
+                       f"dead-time; or the {sensor} sensor lags: --add {sensor}-lag",
+                            Proposal("dead_time", f.where.split(":")[0]),
+                            Proposal(f"{sensor}_lag")))
         if f.check == "residual whiteness" and f.where.endswith("current"):
             out.append(f"{f.where}: {f.message}: a ripple near half the sampling rate (a "
                        "PWM ripple aliased by the sampling) rather than white noise; filter "
@@ -153,10 +161,11 @@ def _finding_rules(model, fit, findings, already=()):
                        "more samples")
         if f.where == "Ra" and f.check in ("bench conflict", "plausibility"):
             if fit.values["Ra"] > model.registry["Ra"].prior.centre:
-                out.append("the fitted resistance exceeds the bench Ra: a supply source "
+                out.append(said("the fitted resistance exceeds the bench Ra: a supply source "
                            "resistance, leads or a driver in the loop; log the terminal "
                            "voltage, or fit the source resistance: --add "
-                           "source-resistance, or source_resistance = true under [model]")
+                           "source-resistance, or source_resistance = true under [model]",
+                                Proposal("source_resistance")))
             else:
                 out.append("the fitted resistance is far below the bench Ra: the ideal motor "
                            "is absorbing something it lacks (a current limit, a voltage "
@@ -164,11 +173,11 @@ def _finding_rules(model, fit, findings, already=()):
         if (f.where in ("K", "J", "B") and f.check == "bench conflict"
                 and "speed_gain" not in model.session.nuisances
                 and any(tr.speed_logged for tr in model.session.traces)):
-            out.append(f"the fit puts {f.where} off its bench value: a speed sensor whose "
+            out.append(said(f"the fit puts {f.where} off its bench value: a speed sensor whose "
                        "calibration is off (a tachometer constant, a scale) scales K, J and B "
                        "together, which a bench value then contradicts; fit the sensor's "
                        "gain: --add speed-gain, or speed_gain = true under [model] (or check "
-                       "the bench value)")
+                       "the bench value)", Proposal("speed_gain")))
     return out
 
 
@@ -190,8 +199,10 @@ def _still(model, tr):
     return []
 
 
-def diagnose(model, fit, preds, findings) -> list[str]:
-    """Sentences naming what the data suggest the model lacks, most specific first."""
+def diagnose(model, fit, preds, findings) -> tuple[list[str], list[Proposal]]:
+    """Sentences naming what the data suggest the model lacks, most specific first, and
+    the additions they propose.  A sentence whose every proposal the model already fits
+    is left out; when that leaves nothing to propose, a sentence says so."""
     out = []
     for tr in model.session.traces:
         out += _still(model, tr)
@@ -202,7 +213,21 @@ def diagnose(model, fit, preds, findings) -> list[str]:
         out += _start_rules(model, tr, pred, step_time(tr))
     out += level_rules(model, fit, preds, findings)
     out += _finding_rules(model, fit, findings, out)
-    if not out:
-        out.append("no single known pattern explains the misfit; look at the residual "
-                   "figures of the failing channels")
-    return list(dict.fromkeys(out))
+    kept, proposals, fitted = [], [], []
+    for text in dict.fromkeys(out):
+        props = getattr(text, "proposals", ())
+        new = [p for p in props if not has(model, p)]
+        if props and not new:
+            fitted += [p for p in props if p not in fitted]
+            continue
+        kept.append(str(text))
+        proposals += [p for p in new if p not in proposals]
+    if fitted and not proposals:
+        names = ", ".join(p.nuisance + (f" on {p.trace}" if p.trace else "") for p in fitted)
+        kept.append(f"the patterns in the data point to what the model already fits "
+                    f"({names}): nothing more to propose; look at the residual figures of "
+                    "the failing channels")
+    if not kept:
+        kept.append("no single known pattern explains the misfit; look at the residual "
+                    "figures of the failing channels")
+    return kept, proposals

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .levels import LEVEL_MISS, friction_offset, level_outliers, voltage_intercept
+from .proposals import COULOMB, Proposal, said
 
 __all__ = ["level_rules", "UNIT_RATIOS"]
 
@@ -30,13 +31,13 @@ def _unit_slips(ratios, outliers) -> dict[str, str]:
     return out
 
 
-def _level_sentence(name: str, miss: float, against: str, alt: str = "") -> str:
+def _level_sentence(name: str, miss: float, against: str, alt: str = ""):
     """A trace that settles ``miss`` (relative) off ``against``, in words."""
     where = f"{name}: settles {100 * abs(miss):.2g} % {'below' if miss < 0 else 'above'} {against}"
     if miss < 0:
-        return (f"{where}: an unmeasured load on this trace (a brake, a generator, a rubbing "
-                f"coupling){alt}; declare its load torque, or fit it: [model] unknown_load "
-                f"= [{name!r}]")
+        return said(f"{where}: an unmeasured load on this trace (a brake, a generator, a "
+                    f"rubbing coupling){alt}; declare its load torque, or fit it: [model] "
+                    f"unknown_load = [{name!r}]", Proposal("unknown_load", name))
     return (f"{where}: this trace turned more freely than the rest of the session says (a "
             "load on the other traces that this one lacks, a coupling removed), or its "
             "voltage was higher than the session says; check the bench and the voltage")
@@ -51,12 +52,13 @@ def _declared_drag_rules(session, ratios, slips) -> list[str]:
         if not tr.drag.nonzero or r is None or tr.name in slips or abs(r - 1) <= LEVEL_MISS:
             continue
         way = "strong" if r > 1 else "weak"
-        out.append(f"{tr.name}: settles {100 * abs(r - 1):.2g} % {'above' if r > 1 else 'below'}"
+        text = (f"{tr.name}: settles {100 * abs(r - 1):.2g} % {'above' if r > 1 else 'below'}"
                    f" the model's speed under its declared drag: the drag is declared too "
                    f"{way} (check its curve, coefficients and units: the curve's speeds are in "
                    "the trace's speed unit, its torques in its load_torque unit)"
                    + ("" if r > 1 else ", or the trace carries a load beside it: [model] "
                       f"unknown_load = [{tr.name!r}]"))
+        out.append(text if r > 1 else said(text, Proposal("unknown_load", tr.name)))
     return out
 
 
@@ -96,9 +98,9 @@ def level_rules(model, fit, preds, findings):
     coulomb = (offset is not None and offset["current"] > 3 * offset["se"]
                and offset["current"] > 0.05 * offset["mean_current"])
     if coulomb and not model.coulomb:
-        out.append(f"the steady current extrapolates to {offset['current']:.3g} A at zero "
-                   "speed: a friction torque that does not grow with speed (Coulomb "
-                   "friction); fit with --friction coulomb")
+        out.append(said(f"the steady current extrapolates to {offset['current']:.3g} A at "
+                        "zero speed: a friction torque that does not grow with speed (Coulomb "
+                        "friction); fit with --friction coulomb", Proposal(COULOMB)))
     elif (icpt and "Vdrop" in model.registry and any(
             f.where.startswith("steady") or f.where == "no-load speed"
             for f in findings if f.severity == "fail")):
@@ -110,7 +112,8 @@ def level_rules(model, fit, preds, findings):
             and icpt["voltage"] > 0.01 * icpt["largest_voltage"]):
         why = ("" if model.coulomb or offset is not None
                else ", or Coulomb friction (try --friction coulomb)")
-        out.append(f"the steady speed-voltage line crosses zero speed at "
-                   f"{icpt['voltage']:.3g} V, not 0 V: a voltage drop at the brushes or "
-                   f"driver (--add voltage-drop){why}")
+        out.append(said(f"the steady speed-voltage line crosses zero speed at "
+                        f"{icpt['voltage']:.3g} V, not 0 V: a voltage drop at the brushes or "
+                        f"driver (--add voltage-drop){why}", Proposal("voltage_drop"),
+                        *(() if why == "" else (Proposal(COULOMB),))))
     return out
