@@ -28,7 +28,8 @@ LAG_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 LOAD_PRIOR_SHARE = 0.3  # centre of an unknown drag's prior, as a share of the motor's own
 LOAD_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 GAIN_PRIOR = 0.1  # sd of a sensor gain's logarithm (a calibration 10 % off at one sd)
-SOURCE_PRIOR = 0.5  # sd of a source resistance, as a share of the bench Ra
+SOURCE_PRIOR = 0.1  # centre of a source resistance's prior, as a share of the bench Ra
+SOURCE_PRIOR_FACTOR = 10.0  # its one-sd width (a factor): 1e-3 to 10 x Ra within 2 sd
 OFFSET_PRIOR = 0.05  # sd of a sensor offset, as a share of the channel's largest reading
 LIMIT_PRIOR_FACTOR = 3.0  # one-sd width (a factor) of an unknown current limit's prior
 LIMIT_SETTING_SD = 0.05  # sd of the limit's logarithm around a driver setting the user gave
@@ -102,9 +103,11 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
       :func:`_load_specs`; ``b_seed`` is the motor's seeded viscous friction).
 
     * ``source_resistance`` — ``Rs`` (Ω), the resistance between the logged voltage
-      (the supply's) and the terminals; prior normal, centre 0, sd
-      :data:`SOURCE_PRIOR` × the bench Ra (the data and the bench Ra split the
-      circuit's resistance between them).
+      (the supply's) and the terminals, positive (log-transformed); prior log-normal,
+      centred on :data:`SOURCE_PRIOR` × the bench Ra, a factor
+      :data:`SOURCE_PRIOR_FACTOR` wide (one sd), so "none" (a thousandth of Ra) stays
+      within two sd (the data and the bench Ra split the circuit's resistance between
+      them).
 
     * ``speed_gain``, ``speed_offset``, ``current_gain``, ``current_offset`` — the
       traces' sensor calibration (see :func:`_calibration_specs`).
@@ -113,6 +116,7 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
       :func:`_limit_specs`).
 
     The drop and the dead times are untransformed (they may be zero or of either sign).
+    The source resistance, the lags, the drags and the current limit are positive.
     """
     specs = _limit_specs(session)
     if "voltage_drop" in session.nuisances:
@@ -122,9 +126,10 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
                                float(drop_seed), transform="identity",
                                description="voltage drop at brushes and driver"))
     if "source_resistance" in session.nuisances:
+        centre = SOURCE_PRIOR * session.Ra.value
         specs.append(ParamSpec("Rs", "ohm", "driver",
-                               Prior("normal", 0.0, SOURCE_PRIOR * session.Ra.value,
-                                     "nuisance"), 0.0, transform="identity",
+                               Prior("lognormal", centre, float(np.log(SOURCE_PRIOR_FACTOR)),
+                                     "nuisance"), centre,
                                description="resistance of the supply, leads and driver"))
     dts = [float(np.median(np.diff(tr.time))) for tr in session.traces
            + session.coast_downs]
