@@ -89,7 +89,8 @@ def test_runs_are_named_after_their_sessions_and_an_earlier_lot_is_kept(tmp_path
 
 def test_a_lot_fits_every_motor_and_tables_them(tmp_path, capsys):
     lot, out = _lot(tmp_path), tmp_path / "runs"
-    code = main(["fit", str(lot), "--no-mcmc", "--out", str(out), "--allow-inadequate"])
+    code = main(["fit", str(lot), "--no-mcmc", "--no-search", "--out", str(out),
+                 "--allow-inadequate"])
     text = capsys.readouterr()
     assert code == 2  # m3's bad input; m1 and m2 were fitted all the same
     assert "m3/session.toml:line 1" in text.err
@@ -102,7 +103,7 @@ def test_a_lot_fits_every_motor_and_tables_them(tmp_path, capsys):
     assert rows[0]["K"] == rows[1]["K"]  # the same data give the same motor
     assert rows[2]["K"] == "" and "TOML syntax error" in rows[2]["error"]
     # without --allow-inadequate the paper's rejected model is each motor's status
-    code = main(["fit", str(lot / "m1"), str(lot / "m2"), "--no-mcmc", "--quiet",
+    code = main(["fit", str(lot / "m1"), str(lot / "m2"), "--no-mcmc", "--no-search", "--quiet",
                  "--out", str(tmp_path / "strict")])
     assert code == 3
     rows = _rows(tmp_path / "strict" / "lot.csv")

@@ -193,7 +193,8 @@ def test_report_names_the_damaged_file_of_the_runs_copy(session_dir, tmp_path, c
 # --- through the command line, on one fitted run of a small session ----------------------
 
 def _fit_cli(*args, **kw):
-    return subprocess.Popen([sys.executable, "-m", "pmdc_bayes", "fit", *map(str, args)],
+    return subprocess.Popen([sys.executable, "-m", "pmdc_bayes", "fit", "--no-search",
+                             *map(str, args)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
 
 

@@ -173,10 +173,19 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                     "current-limit (the driver's, fitted; current_limit = A in [model] "
                     "gives its setting); same as [model] in session.toml")
     ft.add_argument("--compare", action="store_true",
-                    help="fit the candidate sets of rig non-idealities (ideal, + dead-time, "
-                    "+ speed-lag, + voltage-drop, + voltage-drop with either, + unknown-load, "
-                    "+ current-limit), check each for adequacy, compare the adequate ones "
-                    "by LOO, and run the simplest adequate one")
+                    help="search for the rig's model from the session's own: add, one at a "
+                    "time, the non-idealities the adequacy verdict proposes (or, when the "
+                    "model is rejected, any of + dead-time, + voltage-drop, + speed-lag, "
+                    "+ current-lag, + unknown-load, + speed-gain, + speed-offset, "
+                    "+ current-gain, + current-offset, + source-resistance, + current-limit, "
+                    "+ Coulomb friction), remove what the evidence does not support, stop "
+                    "when the data no longer reject the model and no addition is clearly "
+                    "better (Laplace evidence); then run the chosen model and write it as "
+                    "[model] into the run's copy of session.toml.  A plain fit of a session "
+                    "without [model] searches too when the ideal model is rejected")
+    ft.add_argument("--no-search", action="store_true",
+                    help="fit the session's model as it is, even when it declares no [model] "
+                    "and the data reject the ideal model")
     ft.add_argument("--allow-inadequate", action="store_true",
                     help="go on (sample the posterior, exit 0) even when the adequacy checks "
                     "reject the model; every value stays labelled as conditional on it")

@@ -37,7 +37,7 @@ def print_fit(summary: dict, out) -> bool:
     if "model_selection" in summary:
         from .selection import format_selection
 
-        print("Candidate models (--compare):")
+        print("The model, found by a search (--compare; --no-search skips it):")
         for line in format_selection(summary["model_selection"]):
             print(f"  {line}")
     print(headline_text(summary))

@@ -18,7 +18,7 @@ __all__ = ["fit"]
 
 
 def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, holdout=(),
-        seed: int = 0, allow_inadequate: bool = False, progress=None,
+        seed: int = 0, allow_inadequate: bool = False, progress=None, search=None,
         max_sampling_seconds: float | None = SAMPLING_SECONDS) -> RunResult:
     """Fit a session: the closed form, the MAP, the adequacy checks and (``mcmc``) the
     posterior, all in memory; nothing is written until ``result.write(dir)``.
@@ -33,6 +33,11 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
     friction : ``"viscous"`` or ``"coulomb"``; by default the session's.
     holdout : names of traces kept out of the fit.
     progress : the sampler's progress bar; by default in a terminal or a notebook.
+    search : run the model search of :mod:`.search` (``fit --compare``) and fit the model
+        it chooses: True always (from the session's model), False never; by default
+        (None) when the session declares no ``[model]``, nothing is added and the data
+        reject the ideal model.  The search is recorded in
+        ``summary["model_selection"]``.
     max_sampling_seconds : stop a sampler that has not converged after this long, with
         the reason in ``summary["diagnostics"]`` (its gates then fail); None: no limit.
 
@@ -61,10 +66,19 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
                              "fit; leave it out")
     if friction not in (None, "viscous", "coulomb"):
         raise UsageError(f"friction: {friction!r} is not 'viscous' or 'coulomb'")
+    held = tuple([holdout] if isinstance(holdout, str) else holdout)
+    selection = None
+    if search or (search is None and not names and not session.nuisances):
+        from .pipeline import search_session
+
+        session, selection = search_session(session, holdout=held, friction=friction,
+                                            seed=seed, say=None, compare=bool(search))
     result = fit_session(session, mcmc=mcmc, friction=friction, seed=seed,
-                         holdout=tuple([holdout] if isinstance(holdout, str) else holdout),
+                         holdout=held,
                          progress=progress, allow_inadequate=allow_inadequate,
                          max_sampling_seconds=max_sampling_seconds)
+    if selection is not None:
+        result.summary["model_selection"] = selection
     if changed:
         result.summary["session"]["changed_in_memory"] = True
     return result

@@ -99,6 +99,9 @@ def _cmd_fit(args) -> int:
     if args.compare and args.add:
         raise UsageError("--compare chooses the non-idealities itself; drop --add (or drop "
                          "--compare to fit the ones you name)")
+    if args.compare and args.no_search:
+        raise UsageError("--compare is the model search; drop --no-search (or drop "
+                         "--compare to fit the session's own model)")
     paths = expand_sessions(args.session, note=None if args.quiet else _note)
     if not args.no_cache:
         cachedir.enable()
@@ -148,7 +151,8 @@ def _fit_one(args, path, out) -> tuple[int, dict, Path]:
         friction=args.friction, seed=args.seed, holdout=args.holdout or (),
         compare_friction=args.compare_friction, allow_inadequate=args.allow_inadequate,
         add=tuple(a.replace("-", "_") for a in args.add or ()), compare=args.compare,
-        pi=args.pi, max_sampling_seconds=args.max_sampling_seconds or None,
+        search=not args.no_search, pi=args.pi,
+        max_sampling_seconds=args.max_sampling_seconds or None,
     )
     if args.quiet:
         with contextlib.redirect_stdout(io.StringIO()):

@@ -27,9 +27,10 @@ from .io._jsonio import dumps
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
 from .paper.consistency import consistency_checks
-from .rundir import check_replaceable, copy_session, write_atomically
+from .rundir import check_replaceable, copy_session, write_atomically, write_model
 
-__all__ = ["fit_session", "run_fit", "write_run", "default_out_dir", "versions"]
+__all__ = ["fit_session", "run_fit", "search_session", "write_run", "default_out_dir",
+           "versions"]
 
 SAMPLING_SECONDS = 60.0  # default bound on the sampler's wall time (s)
 _LIBRARIES = ("pmdc-bayes", "jax", "jaxlib", "diffrax", "optimistix", "emcee", "arviz", "numpy")
@@ -194,7 +195,7 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
             mcmc: bool = True, friction: str | None = None, seed: int = 0,
             holdout=(), compare_friction: bool = False,
             progress=None, allow_inadequate: bool = False,
-            add=(), compare: bool = False, say=None, pi=None,
+            add=(), compare: bool = False, search: bool = True, say=None, pi=None,
             max_sampling_seconds: float | None = SAMPLING_SECONDS) -> tuple[Path, dict]:
     """Fit a session directory and write the run directory ``out``: ``summary.json``,
     ``posterior.nc`` (with MCMC) and the report, all built beside ``out`` and moved into
@@ -202,9 +203,12 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
 
     Returns the run directory and the summary.  Raises :class:`UsageError` for an
     existing ``out`` without ``force``.  ``add`` names rig non-idealities to fit on top
-    of those the session declares (``io.session.NUISANCES``); ``compare`` first fits the
-    candidate sets of :mod:`.selection` and then runs the recommended one, recording the
-    comparison under ``"model_selection"``.  ``pi = (kp, ki, delay)`` records the
+    of those the session declares (``io.session.NUISANCES``); ``compare`` first runs the
+    model search of :mod:`.search` from the session's model and then the model it chose,
+    recording the search under ``"model_selection"`` and writing the chosen model into
+    the run's copy of ``session.toml``; without ``compare`` the search runs when the
+    session declares no ``[model]``, nothing is added and the data reject the ideal model
+    (``search=False``: never).  ``pi = (kp, ki, delay)`` records the
     stability margins of that PI speed loop under ``"pi_loop"``.
     """
     say = say or (lambda text: None)
@@ -224,18 +228,10 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
 
     start()  # the processes that draw the report: they import matplotlib meanwhile
     selection = None
-    if compare:
-        import dataclasses
-
-        from .selection import compare_nuisances
-
-        fitted = session_full.without_traces(holdout) if holdout else session_full
-        selection = compare_nuisances(fitted, friction=friction, seed=seed, mcmc=mcmc,
-                                      progress=progress, max_seconds=max_sampling_seconds)
-        session_full = dataclasses.replace(session_full,
-                                           nuisances=tuple(selection["nuisances"]),
-                                           loaded_traces=tuple(selection["loaded_traces"]),
-                                           load_kinds=())
+    if compare or (search and not add and not session_full.nuisances):
+        session_full, selection = search_session(session_full, holdout=holdout,
+                                                 friction=friction, seed=seed, say=say,
+                                                 compare=compare)
     with announcing(say):
         result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
                              holdout=holdout, compare_friction=compare_friction,
@@ -250,6 +246,21 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     return out, result.summary
 
 
+def search_session(session_full: Session, *, holdout, friction, seed, say, compare):
+    """The session with the model the search chose, and the search's record (None when,
+    run without ``compare``, the data do not reject the session's model)."""
+    from .search import search_model
+    from .terms import with_terms
+
+    fitted = session_full.without_traces(holdout) if holdout else session_full
+    with announcing(say):
+        selection = search_model(fitted, friction=friction, seed=seed, say=say)
+    if not compare and selection["fits"] == 1 and selection["candidates"][0]["verdict"] \
+            == "adequate":
+        return session_full, None
+    return with_terms(session_full, selection["terms"]), selection
+
+
 def write_run(result: RunResult, out: Path, *, force: bool = False) -> Path:
     """Write a run directory (summary, posterior, report) atomically: everything is
     built in a temporary sibling and renamed into place only when complete."""
@@ -257,6 +268,10 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> Path:
 
     def fill(tmp: Path):
         result.summary["session"]["files"] = copy_session(result.session_full, tmp)
+        chosen = result.summary.get("model_selection")
+        if chosen:
+            result.summary["session"]["copy_rewritten"] = write_model(
+                result.session_full, tmp, chosen["model"], chosen["friction"])
         (tmp / "summary.json").write_text(dumps(result.summary))
         if result.idata is not None:
             # uncompressed: 0.4 s instead of 2.4 s for a demo-sized run, 30 % larger

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import errno
 import hashlib
+import json
 import os
 import shutil
 import tempfile
@@ -17,7 +18,7 @@ from . import _signals
 from ._errors import UsageError
 
 __all__ = ["RUN_MARKER", "SESSION_COPY", "is_run_dir", "check_replaceable", "write_atomically",
-           "default_mode", "copy_session", "changed_files", "check_writable"]
+           "default_mode", "copy_session", "changed_files", "check_writable", "write_model"]
 
 
 RUN_MARKER = ".pmdc-bayes-run"
@@ -45,6 +46,65 @@ def copy_session(session, dest: Path) -> dict[str, str]:
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(f, target)
     return hashes
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(map(_toml_value, value)) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{json.dumps(k)} = {_toml_value(v)}"
+                                for k, v in value.items()) + " }"
+    return repr(float(value))
+
+
+def _with_model(text: str, table: dict, friction: str) -> str:
+    """``session.toml``'s text with its ``[model]`` table (and sub-tables) replaced by
+    ``table`` and ``[motor] friction`` set to ``friction``."""
+    out, skip, in_motor = [], False, False
+    for line in text.splitlines():
+        head = line.strip()
+        if head.startswith("["):
+            name = head.strip("[]").strip()
+            skip = name == "model" or name.startswith("model.")
+            in_motor = name == "motor"
+            if in_motor and not skip:
+                out += [line, f"friction = {_toml_value(friction)}"]
+                continue
+        if skip or (in_motor and head.split("=")[0].strip() == "friction"):
+            continue
+        out.append(line)
+    if table:
+        out += ["", "[model]"] + [f"{k} = {_toml_value(v)}" for k, v in table.items()]
+    return "\n".join(out) + "\n"
+
+
+def write_model(session, dest: Path, table: dict, friction: str) -> dict[str, str] | None:
+    """Write the model a search chose (``table``, the ``[model]`` keys, and ``friction``)
+    into the run's copy of ``session.toml`` under ``dest``, so that reading the copy gives
+    the chosen model; ``{"session.toml": sha256}`` of the rewritten copy, or None when
+    the copy is incomplete or the rewritten text would not read back as that model (the
+    copy is then left as it was).  The record of the original files' hashes is kept."""
+    from .io.loader import load_session
+    from .terms import model_table, terms_of
+
+    toml = dest / SESSION_COPY / "session.toml"
+    if not toml.is_file():
+        return None
+    original = toml.read_text(encoding="utf-8")
+    toml.write_text(_with_model(original, table, friction), encoding="utf-8")
+    try:
+        back = load_session(toml.parent)
+        same = model_table(back, terms_of(back)) == (table, friction)
+    except Exception:  # a text the edit could not keep valid: the copy stays the original
+        same = False
+    if not same:
+        toml.write_text(original, encoding="utf-8")
+        return None
+    return {"session.toml": _sha256(toml)}
 
 
 def changed_files(root: Path, hashes: dict[str, str]) -> list[str]:

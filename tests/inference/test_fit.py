@@ -106,8 +106,8 @@ def test_demo_identifiability_does_not_flag_la(demo_fit):
 @pytest.mark.slow
 def test_fit_command_writes_summary_and_refuses_to_overwrite(tmp_path):
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "pmdc_bayes", "fit", "paper", "--no-mcmc", "--out", str(out),
-           "--allow-inadequate"]
+    cmd = [sys.executable, "-m", "pmdc_bayes", "fit", "paper", "--no-mcmc", "--no-search",
+           "--out", str(out), "--allow-inadequate"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "summary.json").read_text())

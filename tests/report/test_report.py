@@ -33,7 +33,8 @@ def demo_run(tmp_path_factory):
 @pytest.fixture(scope="module")
 def paper_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("report") / "paper"
-    run_fit(bundled_session_dir("paper"), out=out, mcmc=True, seed=0, allow_inadequate=True)
+    run_fit(bundled_session_dir("paper"), out=out, mcmc=True, seed=0, allow_inadequate=True,
+            search=False)
     return out
 
 
@@ -211,7 +212,7 @@ def test_controller_export_matches_posterior_mean(demo_run):
 
 def test_no_posterior_report_says_so(tmp_path):
     out = tmp_path / "nomcmc"
-    run_fit(bundled_session_dir("paper"), out=out, mcmc=False)
+    run_fit(bundled_session_dir("paper"), out=out, mcmc=False, search=False)
     assert not (out / "posterior.nc").exists()
     html = (out / "report.html").read_text(encoding="utf-8")
     assert "No posterior was sampled" in html and "chains" not in {
@@ -222,7 +223,8 @@ def test_no_posterior_report_says_so(tmp_path):
 
 def test_report_quiet_prints_nothing_and_verbose_a_line_per_stage(tmp_path, capsys):
     out = tmp_path / "nomcmc"
-    run_fit(bundled_session_dir("paper"), out=out, mcmc=False, allow_inadequate=True)
+    run_fit(bundled_session_dir("paper"), out=out, mcmc=False, allow_inadequate=True,
+            search=False)
     capsys.readouterr()
     assert main(["report", str(out), "--quiet", "--no-cache"]) == 0
     assert capsys.readouterr() == ("", "")

@@ -170,7 +170,9 @@ def _run_session(run_dir: Path, info: dict):
     there is a copy); with the nuisances the fit added."""
     copy = run_dir / SESSION_COPY
     hashes = info.get("files") or {}
-    damaged = changed_files(copy, hashes) if (copy / "session.toml").is_file() else None
+    # a model search writes the model it chose into the copy's session.toml
+    copied = {**hashes, **(info.get("copy_rewritten") or {})}
+    damaged = changed_files(copy, copied) if (copy / "session.toml").is_file() else None
     if damaged == []:
         return _with_nuisances(load_session(copy), run_dir, info)
     changed = changed_files(Path(info["path"]), hashes)

@@ -6,7 +6,7 @@ from .._format import row_format
 from ..io.units import display_unit
 from ._doc import Bullets, Paragraph, Section, Table, fmt
 
-__all__ = ["adequacy_section", "selection_section", "bench_table", "CONDITIONAL"]
+__all__ = ["adequacy_section", "bench_table", "CONDITIONAL"]
 
 CONDITIONAL = ("Every value and interval below is CONDITIONAL on a model the data reject "
                "(see 'Model adequacy'): treat them as a description of the misfit, not as "
@@ -81,22 +81,4 @@ def bench_table(ctx, bench: dict) -> Table:
                                   "bench sd away"), tuple(rows),
                  "Each value rounded to its own uncertainty: the bench value to the bench "
                  "sd, the fitted value to the fit's sd.")
-
-
-def selection_section(ctx) -> Section | None:
-    """The candidate models of ``fit --compare`` and the one chosen (None without it)."""
-    sel = ctx.summary.get("model_selection")
-    if not sel:
-        return None
-    sec = Section("Model choice")
-    sec.add(Paragraph(f"Fitted: {sel['recommended']}, {sel['reason']}. Each candidate was "
-                      "fitted to the whole session and checked for adequacy at its MAP; "
-                      "the adequate ones were compared by PSIS-LOO when sampled."))
-    rows = tuple((r["name"], str(r["n_params"]), r["verdict"], f"{r['log_posterior']:.1f}",
-                  "—" if r["loo"] is None else f"{r['loo']['elpd_loo']:.1f} ± "
-                  f"{r['loo']['se']:.1f}",
-                  "; ".join(r["failures"]) or "—") for r in sel["candidates"])
-    sec.add(Table("Candidates", ("candidate", "parameters", "verdict", "log-posterior at MAP",
-                                 "elpd_loo", "checks failed"), rows))
-    return sec
 

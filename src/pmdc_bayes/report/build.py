@@ -9,7 +9,7 @@ import numpy as np
 from ._doc import Bullets, Figure, Paragraph, Section, Table, fmt
 from ._render import later
 from ._view import METHODS
-from .adequacy import CONDITIONAL, adequacy_section, selection_section
+from .adequacy import CONDITIONAL, adequacy_section
 from .comparison import compare_closed_form
 from .export import controller_model
 from .fig_chains import chains_figure, ranks_figure
@@ -17,6 +17,7 @@ from .fig_control import response_figure
 from .fig_params import corner_figure, forest_figure
 from .fig_steady import steady_figure
 from .fig_traces import trace_figure
+from .model_choice import selection_section
 from .published import published_findings
 from .tables import (
     comparison_table,
