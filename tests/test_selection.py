@@ -101,8 +101,10 @@ def test_an_addition_is_taken_only_when_the_evidence_or_the_verdict_calls_for_it
     best, why = _better(adequate, [_cand("speed_lag", True, 100.0 + ADD_MARGIN + 0.1),
                                    _cand("dead_time", True, 110.0)])
     assert best.terms == {"dead_time"} and "+10.0" in why
-    # parameters the data cannot determine are not taken over an adequate model
+    # parameters the data cannot determine are not taken over an adequate model, nor a
+    # model the data reject, however probable
     assert _better(adequate, [_cand("speed_gain", True, 120.0, ("speed_gain",))])[0] is None
+    assert _better(adequate, [_cand("speed_lag", False, 200.0)])[0] is None
     # a model the data reject gives way to an adequate one no less probable, ...
     rejected = _cand("", False, 100.0)
     best, why = _better(rejected, [_cand("dead_time", True, 100.5),
@@ -186,3 +188,70 @@ def test_a_larger_model_never_ends_below_the_one_it_contains():
     cfit = fit_map(child, seed=0, n_starts=1, alternatives=[start])
     assert cfit.log_posterior >= pfit.log_posterior - 1e-9 * abs(pfit.log_posterior)
     assert np.isfinite(cfit.log_posterior)
+
+
+PLAN = """\
+seed = 5
+[motor]
+name = "delayed motor"
+[truth]
+Ra = 2.0
+La = 2e-3
+K = 0.05
+B = 2e-5
+J = 2e-5
+[bench.Ra]
+sd = 0.06
+unit = "ohm"
+[bench.La]
+sd = 0.2
+unit = "mH"
+[[steady_table]]
+name = "sweep"
+voltages = [4.0, 8.0, 12.0]
+speed_sd = 0.2
+current_sd = 0.001
+[[trace]]
+name = "step_12v"
+kind = "step"
+duration = 0.12
+rate = 5000.0
+voltage = [[0.0, 0.0], [0.01, 12.0]]
+speed_noise = 0.05
+current_noise = 0.002
+delay = 3e-3
+"""
+
+
+@pytest.mark.slow
+def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path):
+    """No [model], the ideal model rejected (a 3 ms dead time): a plain fit searches, fits
+    the model it chose, and writes it into the run's copy of session.toml; the report
+    re-read from the run and a refit of the copy (without a search) use that model."""
+    from pmdc_bayes.inference.result import read_run
+    from pmdc_bayes.pipeline import run_fit
+    from pmdc_bayes.simulate.session import simulate_session
+
+    (tmp_path / "plan.toml").write_text(PLAN)
+    session = simulate_session(tmp_path / "plan.toml", tmp_path / "session")
+    out, summary = run_fit(session, out=tmp_path / "run", mcmc=False)
+    sel = summary["model_selection"]
+    assert sel["candidates"][0]["name"] == "ideal"
+    assert sel["candidates"][0]["verdict"] == "inadequate"
+    assert "dead_time" in sel["nuisances"], format_selection(sel)
+    assert summary["adequacy"]["verdict"] == "adequate"
+    names = list(summary["fit"]["names"])
+    copy = load_session(out / SESSION_COPY)
+    assert terms_of(copy) == frozenset(sel["terms"])
+    assert "[model]" not in (session / "session.toml").read_text()
+    again = read_run(out)  # what `pmdc-bayes report RUN` reads
+    assert list(again.model.names) == names
+    _, refit = run_fit(out / SESSION_COPY, out=tmp_path / "refit", mcmc=False, search=False)
+    assert "model_selection" not in refit
+    assert list(refit["fit"]["names"]) == names
+    for name in names:
+        a, b = summary["parameters"][name], refit["parameters"][name]
+        assert abs(a["map"] - b["map"]) <= 1e-3 * a["map_sd"] + 1e-12, name
+    # --no-search: the session's own (ideal) model, rejected, no search recorded
+    _, plain = run_fit(session, out=tmp_path / "plain", mcmc=False, search=False)
+    assert "model_selection" not in plain and plain["adequacy"]["verdict"] == "inadequate"

@@ -225,7 +225,7 @@ def _better(current, cands) -> tuple[_Candidate | None, str]:
         if c.fit.status != "converged" or not math.isfinite(c.log_evidence):
             continue
         gain = c.log_evidence - current.log_evidence
-        if current.ok and c.undetermined:
+        if current.ok and (c.undetermined or not c.ok):
             continue
         if gain > ADD_MARGIN:
             best, why = c, f"log Z {gain:+.1f} over {label(current.terms)}"
@@ -275,7 +275,7 @@ def search_model(session: Session, *, friction: str | None = None, seed: int = 0
     current = search.start(start_terms)
     current.why = "the session's model" if start_terms else "the ideal motor"
     stop = ""
-    while not stop:
+    for _ in range(max_fits):  # each step fits at least one new candidate or stops
         if search.fits_left() <= 0:
             stop = f"the bound of {max_fits} fits was reached"
             break
@@ -296,6 +296,7 @@ def search_model(session: Session, *, friction: str | None = None, seed: int = 0
             break
         best.why = f"{why} ({source})"
         current = _removals(search, best, start_terms, best.terms - best.parent.terms)
+    stop = stop or f"the bound of {max_fits} steps was reached"
     return _record(search, current, stop, session)
 
 
