@@ -154,10 +154,12 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
     ft.add_argument("--compare-friction", action="store_true",
                     help="also fit and sample the other friction model and compare the two "
                     "by PSIS-LOO (ArviZ)")
-    ft.add_argument("--max-sampling-seconds", type=_seconds, default=60.0, metavar="S",
-                    help="stop the sampler after S seconds of sampling if it has not "
-                    "converged by then, saying how long it would need (default 60; 0 for "
-                    "no limit); a posterior stopped so fails its gates")
+    ft.add_argument("--max-sampling-seconds", type=_seconds, default=0.0, metavar="S",
+                    help="also stop the sampler after S seconds of sampling if it has not "
+                    "converged by then, saying how long it would need (default 0: no limit; "
+                    "the sampler stops by its step budget, the same on any machine, and a "
+                    "wall-time limit makes the result depend on the machine's load); a "
+                    "posterior stopped so fails its gates")
     ft.add_argument("--allow-unconverged", action="store_true",
                     help="exit 0 even if the fit or the sampler fails its checks")
     ft.add_argument("--add", action="append", metavar="NUISANCE",

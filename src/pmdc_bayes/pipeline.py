@@ -32,7 +32,8 @@ from .rundir import check_replaceable, copy_session, write_atomically, write_mod
 __all__ = ["fit_session", "run_fit", "search_session", "write_run", "default_out_dir",
            "versions"]
 
-SAMPLING_SECONDS = 60.0  # default bound on the sampler's wall time (s)
+SAMPLING_SECONDS = None  # no bound on the sampler's wall time by default: it stops
+# by its step budget, so a run's result does not depend on the machine's load
 _LIBRARIES = ("pmdc-bayes", "jax", "jaxlib", "diffrax", "optimistix", "emcee", "arviz", "numpy")
 
 
@@ -88,8 +89,9 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
                 max_sampling_seconds: float | None = SAMPLING_SECONDS) -> RunResult:
     """Every stage of a fit, in memory: closed form → MAP → adequacy → (MCMC); the
     run's result.  ``say``, when given, is called with a line as each stage starts.
-    ``max_sampling_seconds`` bounds the sampler's wall time (None: no bound); a
-    posterior stopped by it fails its gates with the reason.
+    The sampler stops by its rule or its step budget (the same on any machine);
+    ``max_sampling_seconds``, when given, also bounds its wall time (default None: no
+    bound); a posterior stopped by either fails its gates with the reason.
 
     ``summary`` of the result is what ``summary.json`` holds; nothing is written.  When
     the adequacy checks reject the model the posterior is not sampled (it would only

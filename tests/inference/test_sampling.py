@@ -6,7 +6,10 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+import math  # noqa: E402
 import re  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
 import types  # noqa: E402
 import warnings  # noqa: E402
 
@@ -20,14 +23,15 @@ from pmdc_bayes.inference.idata import _padded_pointwise, lumped  # noqa: E402
 from pmdc_bayes.inference.moves import SHARE_TRUSTED  # noqa: E402
 from pmdc_bayes.inference.sampling import (  # noqa: E402
     PILOT,
+    Stop,
     _log_posterior_batch,
-    _LogProb,
     az,
     gates,
     loo_compare,
     sample_posterior,
     summarize,
 )
+from pmdc_bayes.inference.logprob import LogProb as _LogProb  # noqa: E402
 from pmdc_bayes.inference.stopping import stop_message  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.paper.closed_form import ClosedForm, closed_form  # noqa: E402
@@ -51,7 +55,8 @@ PLAN = {
                "speed_unit": "rad/s", "record_current": True, "speed_noise": 0.3,
                "current_noise": 0.005}],
 }
-QUICK = {"max_steps": 300, "min_tau_multiple": 1e9, "progress": False}  # a fixed length
+# a fixed length: a rule never met, and no giving up before the cap
+QUICK = {"max_steps": 300, "min_tau_multiple": 1e9, "budget": math.inf, "progress": False}
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +79,7 @@ def test_same_seed_same_draws_other_seed_other_draws(tiny):
     assert a.draws.shape == (32, 300 - a.burn_in, 5)
     n = min(a.draws.shape[1], c.draws.shape[1])  # burn-in depends on the τ estimate
     assert not np.any(a.draws[:, -n:] == c.draws[:, -n:])  # continuous: nothing in common
-    assert a.capped and "max_steps=300" in a.message
+    assert a.capped and "max_steps=300" in a.message and a.stop is Stop.STEP_CAP
 
 
 def test_a_sampler_out_of_time_stops_with_the_reason_and_a_usable_record(tiny):
@@ -82,8 +87,8 @@ def test_a_sampler_out_of_time_stops_with_the_reason_and_a_usable_record(tiny):
     chunks, says so and how long it would need, and still returns its draws."""
     model, fit = tiny
     post = sample_posterior(model, fit, seed=5, max_steps=10**6, min_tau_multiple=1e9,
-                            progress=False, max_seconds=0.5)
-    assert post.capped
+                            budget=math.inf, progress=False, max_seconds=0.5)
+    assert post.capped and post.stop is Stop.TIME_LIMIT
     assert "s of sampling (the limit, 0.5 s;" in post.message
     assert "would be needed" in post.message and "--max-sampling-seconds" in post.message
     assert 0 < post.n_steps < 10**6 and post.draws.shape[1] == post.n_steps - post.burn_in
@@ -95,6 +100,43 @@ def test_a_sampler_out_of_time_stops_with_the_reason_and_a_usable_record(tiny):
     a = sample_posterior(model, fit, seed=5, **QUICK)
     b = sample_posterior(model, fit, seed=5, max_seconds=3600.0, **QUICK)
     np.testing.assert_array_equal(a.draws, b.draws)
+
+
+def _busy(n: int):
+    """``n`` processes spinning on the CPU: a busy machine."""
+    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+
+
+def test_the_stop_and_the_draws_do_not_depend_on_the_machines_load(tiny):
+    """The same seed gives the same draws, stop, message and verdict on a machine kept
+    busy by two spinning processes, with a generous wall-time limit and a larger step
+    cap, as on the machine as it is: for a run the rule stops and for one that gives up
+    because the rule projects more steps than its budget (50 × τ_max beyond 120 steps),
+before the steps the rule needs."""
+    model, fit = tiny
+    idle = sample_posterior(model, fit, seed=7, progress=False)
+    over = sample_posterior(model, fit, seed=7, budget=120, progress=False)
+    spinners = _busy(2)
+    try:
+        busy = sample_posterior(model, fit, seed=7, max_steps=10**6, max_seconds=3600.0,
+                                progress=False)
+        busy_over = sample_posterior(model, fit, seed=7, max_steps=10**6, budget=120,
+                                     max_seconds=3600.0, progress=False)
+    finally:
+        for p in spinners:
+            p.kill()
+            p.wait()
+    assert idle.stop is Stop.CONVERGED and not idle.capped
+    assert over.stop is Stop.OVER_BUDGET and over.n_steps < idle.n_steps
+    assert over.message.startswith(f"gave up after {over.n_steps} steps: the chain would "
+                                   "need about"), over.message
+    for a, b in ((idle, busy), (over, busy_over)):
+        np.testing.assert_array_equal(a.draws, b.draws)
+        np.testing.assert_array_equal(a.log_prob, b.log_prob)
+        assert (a.n_steps, a.burn_in, a.stop, a.message) == \
+            (b.n_steps, b.burn_in, b.stop, b.message)
+        assert gates(summarize(a), posterior=a) == gates(summarize(b), posterior=b)
+    assert gates(summarize(over), posterior=over)[1][0].startswith("run capped: gave up")
 
 
 def test_the_progress_bar_starts_at_what_the_rule_needs_not_at_the_cap(tiny, capsys):
@@ -342,10 +384,11 @@ def test_derived_quantities_by_hand():
 # Negative control
 
 
-def test_unidentifiable_friction_hits_the_cap_and_fails_the_gates(tmp_path, monkeypatch):
+def test_unidentifiable_friction_gives_up_and_fails_the_gates(tmp_path, monkeypatch):
     """One operating point cannot split the friction torque between B·ω and Tc: with a
     flat prior on B the posterior is a long curved ridge in (log B, log Tc) that the
-    ensemble cannot cross in a short run."""
+    ensemble cannot cross in a short run: the steps the rule projects exceed the budget
+    long before the cap."""
     truth = dict(TRUTH, Tc=2.5e-3)
     plan = {"seed": 3, "motor": {"name": "Ridge", "friction": "coulomb"}, "truth": truth,
             "bench": BENCH, "operating_point": [CHOPPER]}
@@ -364,6 +407,7 @@ def test_unidentifiable_friction_hits_the_cap_and_fails_the_gates(tmp_path, monk
         post = sample_posterior(model, start, seed=0, max_steps=2000, progress=False)
         ok, failures = gates(summarize(post), posterior=post)
     assert post.capped and not ok
+    assert post.stop is Stop.OVER_BUDGET and post.n_steps < 2000  # it gives up early
     slowest = max(post.tau, key=post.tau.get)
     assert slowest in ("B", "Tc"), post.tau
     assert f"slowest parameter {slowest}" in post.message

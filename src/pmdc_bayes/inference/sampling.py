@@ -3,8 +3,10 @@
 :func:`sample_posterior` runs ensemble samplers (independence proposals from the
 Laplace approximation and differential-evolution moves by default) as independent
 ensembles (:mod:`.ensembles`) started around the MAP, in chunks, until the chain is many
-integrated autocorrelation times long and the autocorrelation estimate has settled,
-or until a step cap.  The result, :class:`Posterior`, carries its status in words;
+integrated autocorrelation times long, the autocorrelation estimate has settled and the
+draws pass the gates, or until the steps this rule projects from the chain's own state
+exceed a step budget (:mod:`.stopping`): a stop that depends on the seed and the data,
+not on the machine's load.  The result, :class:`Posterior`, carries its status in words;
 :func:`summarize` and :func:`gates` (in :mod:`pmdc_bayes.inference.diagnostics`) say whether it
 can be trusted.
 """
@@ -33,12 +35,17 @@ from .diagnostics import (
 )
 from .ensembles import ENSEMBLES, Ensembles, r_hat_between
 from .idata import LL_DRAWS, to_inference_data
+from .logprob import LogProb, initial_walkers
+from .logprob import batch_log_posterior as _log_posterior_batch
 from .moves import LaplaceIndependenceMove, LaplaceMixture, default_moves
-from .stopping import CHECK, TAU_RTOL, gate_shortfall, next_gate_check, stop_message
+from .stopping import (CHECK, TAU_RTOL, Stop, gate_shortfall, next_gate_check, over_budget,
+                       steps_needed, stop_message)
 
-__all__ = ["Posterior", "sample_posterior", "to_inference_data", "summarize", "gates",
+__all__ = ["Posterior", "Stop", "sample_posterior", "to_inference_data", "summarize", "gates",
            "compare_laplace", "loo_compare", "format_loo", "default_moves",
            "LaplaceIndependenceMove", "warm_up"]
+
+MAX_STEPS = 20_000  # the step budget: the most steps a run may take
 
 CHUNK = 200  # steps between autocorrelation checks while the chain is too short to stop
 PILOT = 50  # the first check: whether the independence proposals can take more steps
@@ -64,7 +71,8 @@ class Posterior:
         proposals' last refit (``idata.posterior.attrs['adapted']``, 0 without one;
         ``attrs['independence_share']`` the share of steps they then took) and
         ``ceil(2·max τ)`` after it.
-    capped : the run hit ``max_steps`` before the stopping rule; ``message`` says why.
+    capped : the run stopped before the stopping rule was met; ``stop`` says how
+        (:class:`~pmdc_bayes.inference.stopping.Stop`), ``message`` why in words.
     wall_time : seconds spent sampling (including the log-likelihood for ``idata``).
     idata : the ArviZ record (see :func:`to_inference_data`).
     r_hat_between : per parameter, the R-hat across the independent ensembles the
@@ -84,18 +92,11 @@ class Posterior:
     wall_time: float
     idata: az.InferenceData
     r_hat_between: dict | None = None
+    stop: Stop = Stop.CONVERGED
 
     def draws_si(self) -> dict[str, np.ndarray]:
         """All draws of each parameter (SI), chains flattened."""
         return {n: self.draws[..., k].reshape(-1) for k, n in enumerate(self.names)}
-
-
-def _log_posterior_batch(model):
-    """The model's jit-compiled batch log-posterior, compiled once per model (and per
-    batch shape)."""
-    fn = model.compiled("log_posterior_batch", lambda: jax.jit(
-        lambda thetas, data: model.log_posterior_batch(thetas, data=data)))
-    return lambda thetas: fn(thetas, model.data)
 
 
 def _layout(ndim: int, n_walkers: int | None = None) -> tuple[int, int, int]:
@@ -124,52 +125,6 @@ def warm_up(model, theta, n_walkers: int | None = None) -> None:
     _log_posterior_batch(model)(jnp.asarray(np.repeat(theta[None], batch, axis=0)))
 
 
-class _LogProb:
-    """emcee's vectorised ``log_prob_fn``: NumPy ``(n, P)`` in, ``(n,)`` out, -inf for
-    anything non-finite and for |θ| ≥ 700 (parameters beyond e^±700, where exp
-    over- or underflows).  Evaluates in padded batches of a fixed size so the batch
-    log-posterior compiles once, whatever size of batch a move proposes."""
-
-    def __init__(self, fn, batch: int):
-        self.fn, self.batch = fn, batch
-
-    @x64  # in every thread: JAX's 64-bit mode is a thread's own setting
-    def __call__(self, thetas) -> np.ndarray:
-        thetas = np.asarray(thetas, dtype=float)
-        n = thetas.shape[0]
-        ok = np.all(np.isfinite(thetas), axis=1) & np.all(np.abs(thetas) < 700.0, axis=1)
-        out = np.full(n, -np.inf)
-        good = thetas[ok]
-        if good.shape[0] == 0:
-            return out
-        m = math.ceil(good.shape[0] / self.batch) * self.batch
-        padded = np.concatenate([good, np.repeat(good[:1], m - good.shape[0], axis=0)])
-        vals = np.empty(m)
-        for a in range(0, m, self.batch):
-            try:
-                vals[a:a + self.batch] = np.asarray(self.fn(jnp.asarray(padded[a:a + self.batch])))
-            except (ArithmeticError, ValueError, RuntimeError):  # a failed solve is -inf
-                vals[a:a + self.batch] = -np.inf
-        vals = vals[:good.shape[0]]
-        out[ok] = np.where(np.isfinite(vals), vals, -np.inf)
-        return out
-
-
-def _initial(fit, log_prob, n_walkers, rng, scale=1.0):
-    """Walkers drawn from the Laplace approximation, redrawn where the density is -inf."""
-    theta, cov = np.asarray(fit.theta, dtype=float), np.asarray(fit.cov_log) * scale**2
-    p0 = rng.multivariate_normal(theta, cov, size=n_walkers, method="eigh")
-    lp = log_prob(p0)
-    for _ in range(20):
-        bad = ~np.isfinite(lp)
-        if not bad.any():
-            return p0, lp
-        p0[bad] = rng.multivariate_normal(theta, cov, size=int(bad.sum()), method="eigh")
-        lp[bad] = log_prob(p0[bad])
-    raise ValueError(f"{int(bad.sum())} of {n_walkers} initial walkers have a zero posterior "
-                     "density around the MAP; check that fit_map converged (fit.message)")
-
-
 def _burn_in(tau, steps: int, adapted: int) -> int:
     """Steps discarded: those before the proposals' last refit, and 2 τ_max after it
     (at most half of what follows)."""
@@ -178,9 +133,9 @@ def _burn_in(tau, steps: int, adapted: int) -> int:
 
 @x64
 def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
-                     max_steps: int = 20_000, min_tau_multiple: float = 50,
-                     progress: bool | None = None, moves=None,
-                     ll_draws: int = LL_DRAWS, max_seconds: float | None = None) -> Posterior:
+                     max_steps: int = MAX_STEPS, min_tau_multiple: float = 50,
+                     progress: bool | None = None, moves=None, ll_draws: int = LL_DRAWS,
+                     max_seconds: float | None = None, budget: float | None = None) -> Posterior:
     """Sample the posterior of ``model`` with an emcee ensemble started at ``fit``.
 
     Parameters
@@ -190,7 +145,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
         ``N(fit.theta, fit.cov_log)``.
     seed : seeds the initial walkers and emcee's generator; same seed, same draws.
     n_walkers : default ``max(32, 4·ndim)``, rounded up to even.
-    max_steps : step cap; a capped run says so in ``capped`` and ``message``.
+    max_steps : the step budget and hard cap; a capped run says so in ``capped``,
+        ``stop`` and ``message``.
     min_tau_multiple : stop once the chain (after the proposals' last refit, see
         :mod:`.moves`) is this many τ_max long, every τ changed by less than 5 % since
         the previous check or the chain twice that long (τ is estimated after 50 steps
@@ -208,11 +164,16 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
         are not adapted.
     ll_draws : at most this many draws carry the pointwise log-likelihood in ``idata``
         (evenly thinned along each chain).
-    max_seconds : a limit on the sampling's wall time (checked between chunks of
-        steps); a run stopped by it is ``capped``, and ``message`` says what the
-        stopping rule still lacked (:func:`~pmdc_bayes.inference.stopping.stop_message`).
-        A run that converges first does not depend on it; one it stops depends on the
-        machine's speed.
+    max_seconds : an optional limit on the sampling's wall time (checked between
+        chunks of steps; default none); a run stopped by it is ``capped``, and
+        ``message`` says what the stopping rule still lacked
+        (:func:`~pmdc_bayes.inference.stopping.stop_message`).  A run that stops first
+        does not depend on it; one it stops depends on the machine's speed.
+    budget : give up, ``capped``, at a check where the length the rule projects
+        (:func:`~pmdc_bayes.inference.stopping.steps_needed`, from τ and the gates'
+        shortfall) exceeds this many steps (default ``max_steps``; ``math.inf``: run to
+        ``max_steps``).  Without ``max_seconds`` the stop, the draws and the verdict
+        depend only on the model, the fit and ``seed``.
     """
     t_start = time.perf_counter()
     ndim = len(model.names)
@@ -220,14 +181,15 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     if progress is None:  # a terminal, or a notebook (where tqdm.auto draws a widget)
         progress = sys.stderr.isatty() or "ipykernel" in sys.modules
     batch_fn = _log_posterior_batch(model)
-    log_prob = _LogProb(batch_fn, batch)
+    log_prob = LogProb(batch_fn, batch)
     rng = np.random.default_rng(seed)
-    p0, lp0 = _initial(fit, log_prob, n_walkers, rng)
+    p0, lp0 = initial_walkers(fit, log_prob, n_walkers, rng)
     sampler = Ensembles(k, n_walkers, ndim, log_prob, p0, lp0, seed=seed,
                         moves=lambda j: default_moves(fit) if moves is None else moves)
 
     names = tuple(model.names)
-    tau_prev, converged, settled, steps, gate_at = None, False, None, 0, 0
+    budget = max_steps if budget is None else budget
+    tau_prev, stop, settled, steps, gate_at, gate = None, None, None, 0, 0, None
     # the step of the next estimate of τ (and perhaps of the gates); the default moves
     # are first checked early, on whether their independence proposals deserve more steps
     check_at = PILOT if moves is None else CHUNK
@@ -236,21 +198,22 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     # need (a first estimate and one to compare it with); then what it needs at τ
     bar = tqdm(total=min(max_steps, CHUNK + CHECK), disable=not progress, file=sys.stderr,
                unit="step")
-    t_loop, out_of_time = time.perf_counter(), False
+    t_loop = time.perf_counter()
     with bar:
-        while steps < max_steps:
+        while stop is None:
             n = min(CHUNK, max_steps - steps, max(1, check_at - steps))
             sampler.run_mcmc(n)
             _signals.check()  # an interrupt Python dropped in a callback stops here
             steps += n
             bar.update(n)
             timed_out = max_seconds is not None and time.perf_counter() - t_loop >= max_seconds
-            if steps < check_at and steps < max_steps and not timed_out:
+            last = steps >= max_steps or timed_out
+            if steps < check_at and not last:
                 continue
-            if moves is None and steps <= ADAPT_UNTIL and steps < max_steps and not timed_out \
+            if moves is None and steps <= ADAPT_UNTIL and not last \
                     and sampler.adapt(below=ADAPT_BELOW, wider=ADAPT_WIDER,
                                       refit=steps > PILOT):
-                adapted, tau_prev, check_at = steps, None, steps + CHUNK
+                adapted, tau_prev, gate, check_at = steps, None, None, steps + CHUNK
                 continue
             tau = sampler.get_autocorr_time(discard=adapted)
             run = steps - adapted
@@ -271,31 +234,37 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                     if thin > 1 and short <= THINNED_NEAR:  # near: the exact check decides
                         short = gate_shortfall(sampler, burn, k, values=si)
                     if short <= 1.0:
-                        converged = True
+                        stop = Stop.CONVERGED
                         break
+                    gate = (steps, burn, short)
                     gate_at = next_gate_check(steps, burn, max(short, 1.0 + 1e-3))
                     check_at = max(check_at, gate_at)
             tau_prev = tau
-            # the bar's length: what the stopping rule needs at the current τ (and what the
-            # gates' last check predicted), not the cap
-            bar.total = int(min(max_steps, max(steps + CHECK, gate_at,
-                                               adapted + min_tau_multiple * tau.max())))
+            need = steps_needed(steps, adapted, tau, min_tau_multiple=min_tau_multiple,
+                                gates=gate)
+            # the bar's length: what the stopping rule needs at the current τ and the
+            # gates' last check, not the cap
+            bar.total = int(min(max_steps, max(steps + CHECK, gate_at, need)))
             bar.set_postfix(tau_max=f"{tau.max():.0f}")
-            if timed_out:
-                out_of_time = True
-                break
+            if over_budget(steps, adapted, tau, need, budget):
+                stop = Stop.OVER_BUDGET
+            elif last:
+                stop = Stop.STEP_CAP if steps >= max_steps else Stop.TIME_LIMIT
 
+    timed = {"elapsed": time.perf_counter() - t_loop, "max_seconds": max_seconds} \
+        if stop is Stop.TIME_LIMIT else {}
     message = stop_message(steps, tau, names, min_tau_multiple=min_tau_multiple,
-                           settled=settled, converged=converged, max_steps=max_steps,
-                           adapted=adapted, **({"elapsed": time.perf_counter() - t_loop,
-                               "max_seconds": max_seconds} if out_of_time else {}))
+                           settled=settled, converged=stop is Stop.CONVERGED,
+                           adapted=adapted, **timed, **({"need": need, "max_steps": budget}
+                           if stop is Stop.OVER_BUDGET else {"max_steps": max_steps}))
+    converged = stop is Stop.CONVERGED
     burn = _burn_in(tau, steps, adapted)
     chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)  # (walkers, draws, P)
     lp = np.swapaxes(sampler.get_log_prob(discard=burn), 0, 1)
     acc = np.asarray(sampler.acceptance_fraction, dtype=float)
     idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws, seed=seed)
     idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged),
-                                 ensembles=k, adapted=adapted)
+                                 ensembles=k, adapted=adapted, stop=stop.name)
     shares = [m.share for ms in sampler.moves for m, _ in ms
               if isinstance(m, LaplaceMixture)] if moves is None else []
     if shares:  # the independence proposals' share of the steps the kept draws took
@@ -304,4 +273,4 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     return Posterior(names, si, chain, lp, acc,
                      dict(zip(names, map(float, tau), strict=True)), steps, burn,
                      not converged, message, time.perf_counter() - t_start, idata,
-                     r_hat_between(si, k, names))
+                     r_hat_between(si, k, names), stop)
