@@ -133,10 +133,10 @@ def _trace(rng, shape: str, name: str, truth: dict, v: float, tau_m: float,
                                                 [t0, top]])
         else:
             t.update(voltage=[[0.0, 0.0], [t0, top]])
-    grid = (lambda x: round(x * rate) / rate) if column else (lambda x: x)
-    for key in ("voltage", "load_torque"):
+    for key in ("voltage", "load_torque"):  # a column's switch exactly at a sample k/rate
         if key in t:
-            t[key] = [[float(f"{grid(a):.9g}"), float(f"{b:.6g}")] for a, b in t[key]]
+            t[key] = [[round(a * rate) / rate if column else float(f"{a:.9g}"),
+                       float(f"{b:.6g}")] for a, b in t[key]]
     t["voltage"][0][0] = 0.0
     if "load_torque" in t:
         t["load_torque"][0][0] = 0.0
