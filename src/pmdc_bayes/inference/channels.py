@@ -6,7 +6,9 @@ block owns the channels that one prediction serves (one simulation of every trac
 one evaluation of the steady state) and knows three things about them:
 
 * **observations and noise**: it registers its channels (name, unit, number of
-  observations, model-free noise scale) and puts its arrays in the data pytree;
+  observations, model-free noise scale and, for a quantised signal that noise does not
+  dither, the share of readings with independent errors) and puts its arrays in the
+  data pytree;
 * **layout**: for each residual array it returns, the mask of real observations and
   the channel of each entry along the first axis (every entry of a row of a 2-D array
   belongs to that row's channel), and the observed values in the same layout;
@@ -30,7 +32,7 @@ from ..physics.angle import since_first_sample
 from ..physics.experiment import Experiment, steady_points
 from ..physics.sensor import coast_down_reading, pole
 from ..physics.solution import simulate_padded
-from .noise import noise_scale, typical_level
+from .noise import effective_fraction, noise_scale, typical_level
 from .nuisances import initial_speed_name, position_offset_name
 
 __all__ = ["Block", "TraceBlock", "CoastDownBlock", "SteadyBlock", "StepReadingBlock", "blocks_for",
@@ -39,7 +41,7 @@ __all__ = ["Block", "TraceBlock", "CoastDownBlock", "SteadyBlock", "StepReadingB
 
 STEADY_RELATIVE_NOISE = 0.01
 
-AddChannel = Callable[[str, str, int, float], int]
+AddChannel = Callable[..., int]  # (name, unit, n, s0[, alpha]) -> channel index
 
 
 class Block:
@@ -110,7 +112,7 @@ class TraceBlock(Block):
                 if what == "position":
                     ok &= ~resting_counts(tr)
                 chans[what].append(add(f"{tr.name}: {what}", unit, int(ok.sum()),
-                                       noise_scale(y[ok])))
+                                       noise_scale(y[ok]), effective_fraction(y[ok])))
                 values[what].append(np.where(ok, y, 0.0))
                 seen[what].append(ok)
         ct = np.asarray(exp.chunk_trace)
@@ -232,7 +234,8 @@ class CoastDownBlock(Block):
         for k, tr in enumerate(traces):
             t[k, :tr.n], y[k, :tr.n], mask[k, :tr.n] = tr.time - tr.time[0], tr.speed, True
             t[k, tr.n:] = t[k, tr.n - 1]
-            ch.append(add(f"{tr.name}: speed", "rad/s", tr.n, noise_scale(tr.speed)))
+            ch.append(add(f"{tr.name}: speed", "rad/s", tr.n, noise_scale(tr.speed),
+                          effective_fraction(tr.speed)))
         self._data = {"t": t, "speed": y, "mask": mask, "ch": np.asarray(ch)}
 
     @staticmethod

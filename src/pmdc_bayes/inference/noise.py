@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Channel", "noise_scale", "typical_level"]
+__all__ = ["Channel", "noise_scale", "typical_level", "quantum", "effective_fraction"]
 
 
 def noise_scale(y: np.ndarray) -> float:
@@ -26,6 +26,40 @@ def noise_scale(y: np.ndarray) -> float:
     return float(max(mad, quantum, 1e-9 * max(1e-12, np.abs(y).max())))
 
 
+def quantum(y: np.ndarray) -> float:
+    """The step of the lattice a quantised signal's readings lie on (its smallest
+    change, when every change is a whole multiple of it to 1e-6), else 0."""
+    y = np.asarray(y, dtype=float)
+    d = np.abs(np.diff(y))
+    d = d[d > 1e-12 * max(1.0, np.abs(y).max())]
+    if d.size < 2:
+        return 0.0
+    q = float(d.min())
+    return q if np.all(np.abs(d / q - np.rint(d / q)) < 1e-6) else 0.0
+
+
+def effective_fraction(y: np.ndarray) -> float:
+    """The share of a channel's readings that carry independent errors.
+
+    A quantised signal (step ``q``) whose analogue noise is below ``q/2`` is not
+    dithered: between two changes of the reading its error is where the signal sits
+    within one quantum, one error repeated, not fresh noise (Widrow's quantisation
+    theorem needs noise of about ``q/2`` for independent, uniform errors).  Such a
+    channel has about one independent error per run of equal readings: the fraction is
+    ``runs / n``.  Any other channel: 1.
+    """
+    y = np.asarray(y, dtype=float)
+    q = quantum(y)
+    if q == 0.0 or y.size < 3:
+        return 1.0
+    d2 = np.diff(y, 2)
+    analogue = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
+    if analogue >= 0.5 * q:
+        return 1.0
+    runs = 1 + int(np.count_nonzero(np.diff(y)))
+    return float(min(1.0, runs / y.size))
+
+
 @dataclass(frozen=True)
 class Channel:
     """A group of observations sharing one unknown noise level."""
@@ -34,6 +68,7 @@ class Channel:
     unit: str
     n: int
     s0: float
+    alpha: float = 1.0  # share of the n readings with independent errors (effective_fraction)
 
 
 def typical_level(x, mask) -> float:

@@ -8,7 +8,12 @@ a scale ``s0_c`` estimated from the data (model-free, from sample-to-sample
 differences for traces; 1 % of the typical reading for steady points).  σ_c is
 integrated out analytically, so a channel contributes
 ``−(n_c + NU0)/2 · log(NU0·s0_c² + SS_c(θ))`` to the log-posterior, where SS_c is its
-sum of squared residuals.  Bench Ra and La enter as Gaussian priors with their stated
+sum of squared residuals.  A quantised channel that its noise does not dither
+(:func:`.noise.effective_fraction`) repeats one quantisation error over each run of
+equal readings, so only a share ``α_c`` of its readings carry independent errors; its
+likelihood counts ``α_c·n_c`` of them, ``−(α_c·n_c + NU0)/2 · log(NU0·s0_c² +
+α_c·SS_c)`` (the data pytree holds ``α_c·n_c`` and ``s0_c/√α_c``, equal up to a
+constant), while the fitted noise level stays the readings' own.  Bench Ra and La enter as Gaussian priors with their stated
 uncertainty; K, B, J and Tc have log-normal priors centred on the closed-form seed,
 a factor ``PRIOR_FACTOR`` wide (one standard deviation), which do not bind.
 """
@@ -101,12 +106,13 @@ class SessionModel(RigEffects, Predictions):
         """Every array the objective reads, as one pytree: pass it as an argument to a
         compiled function so that sessions of the same shapes share the compilation."""
         d = {b.key: b.data() for b in self.blocks}
-        d.update(n_obs=self.n_obs, s0=self.s0)
+        alpha = np.array([c.alpha for c in self.channels], dtype=float)
+        d.update(n_obs=alpha * self.n_obs, s0=self.s0 / np.sqrt(alpha))
         d["prior_centre"], d["prior_scale"] = self.registry.prior_arrays()
         return jax.tree_util.tree_map(jnp.asarray, d)
 
-    def _add(self, name, unit, n, s0) -> int:
-        self.channels.append(Channel(name, unit, int(n), float(s0)))
+    def _add(self, name, unit, n, s0, alpha=1.0) -> int:
+        self.channels.append(Channel(name, unit, int(n), float(s0), float(alpha)))
         return len(self.channels) - 1
 
     def structure_key(self) -> tuple:
