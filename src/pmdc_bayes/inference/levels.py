@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..paper.changes import plateaus
+from ..paper.changes import AT_REST, plateaus
 
 __all__ = ["settled", "unloaded_levels", "voltage_intercept", "friction_offset", "level_outliers"]
 
@@ -34,8 +34,9 @@ def unloaded_levels(session, *, with_drag: bool = False,
 
     With ``held``, a trace gives a level at the end of every plateau its voltage is held
     on (:func:`pmdc_bayes.paper.changes.plateaus`, a staircase's every step) where its
-    speed has settled and no load is applied, named by the trace; the voltage of a
-    level is the mean of the input over the samples its speed is read from.
+    speed has settled and no load is applied (not one held at 0 V), named by the trace;
+    the voltage of a level is the mean of the input over the samples its speed is read
+    from.
     """
     rows, names = [], []
     for tab in session.steady_tables:
@@ -69,13 +70,19 @@ def _end_level(tr) -> list[tuple]:
 
 
 def _held_levels(tr) -> list[tuple]:
-    """The settled, unloaded end of every plateau a trace's voltage is held on."""
-    cuts = sorted({p.start for p in plateaus(tr)}
+    """The settled, unloaded end of every plateau a trace's voltage is held on, except
+    a plateau at rest (0 V, or a logged 0 V's noise: below :data:`AT_REST` of the
+    trace's largest voltage), which has no gain to read."""
+    held = plateaus(tr)
+    top = max(abs(p.level) for p in held)
+    cuts = sorted({p.start for p in held}
                   | {p.start for p in plateaus(tr, "load_torque")} | {tr.n})
     out = []
     for a, b in zip(cuts[:-1], cuts[1:], strict=True):
         n = max(3, (b - a) // 10)
         if b - a < 3 * n or np.any(tr.load_torque.at(tr.time[a:b]) != 0):
+            continue
+        if abs(float(np.median(tr.voltage.at(tr.time[a:b])))) <= AT_REST * top:
             continue
         if not settled(tr.speed[a:b]):
             continue
