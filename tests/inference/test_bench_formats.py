@@ -19,7 +19,7 @@ from pmdc_bayes.inference.levels import unloaded_levels
 from pmdc_bayes.inference.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.io.session import Schedule, Trace
-from pmdc_bayes.paper.changes import RESPONSE_SHARE, WINDOW, plateaus, responses
+from pmdc_bayes.paper.changes import RESPONSE_SHARE, plateaus, responses
 from pmdc_bayes.physics.motor import gain, state_space
 from pmdc_bayes.simulate.session import simulate_session
 
@@ -43,6 +43,16 @@ def _crossing_time() -> float:
     modes = np.linalg.solve(vec, -x_inf)  # x(t) = x_inf + vec · exp(lam t) · modes
     w = x_inf[0] + np.real(np.exp(np.outer(t, lam)) @ (vec[0] * modes))
     return float(np.interp(1.0 - np.exp(-1.0), w / x_inf[0], t))
+
+
+def _tau_bound(rate, change) -> float:
+    """A τ reading's error: two sampling intervals, plus four speed noise sd over the
+    slope at the crossing of a response to ``change`` (V), plus the shift of the 63.2 %
+    level by the supply's sag over the trace (its final level read that much low:
+    0.632·e·sag·τ)."""
+    tau = _crossing_time()
+    slope = G_TRUE * change * np.exp(-1.0) / tau
+    return 2.0 / rate + 4 * SPEED_SD / slope + (1 - np.exp(-1.0)) * np.e * SAG * tau
 
 
 def _logged(levels, hold, rate, *, t0=0.02, noise=0.03, ripple=0.05, sag=SAG,
@@ -145,7 +155,6 @@ def test_a_later_change_ends_a_response_only_when_comparable_to_it():
                Schedule(np.array([0.0, 0.1, 0.35]), np.array([0.0, 12.0, 18.0])),
                Schedule(np.array([0.0]), np.array([0.0])))
     assert [(p.start, p.level) for p in plateaus(tr)] == [(0, 0.0), (100, 12.0), (350, 18.0)]
-    assert WINDOW < 100
 
 
 SMALLEST_CHANGE = {"staircase": 3.0, "from a steady voltage": 6.0, "mid-motion": 8.0,
@@ -169,18 +178,14 @@ SHAPES = {
 def test_the_seed_reads_gain_and_time_constant_off_every_shape(shape, tmp_path):
     """Speed only, no table: G from every settled plateau, τ from one response.  G
     within 1 % (twice what a level that has settled may still move, 0.5 %); τ within
-    the reading's error: two sampling intervals plus four noise sd over the slope at
-    the crossing of the smallest change, plus the shift of the 63.2 % level by the
-    supply's sag over the trace (its final level read that much low: 0.632·e·sag·τ)."""
+    :func:`_tau_bound` of the smallest change."""
     traces = SHAPES[shape]
     session = load_session(_bench_session(tmp_path / "s", traces, table=False))
     cf = fit_seed(session)
     assert not cf.applicable
     assert cf.G == pytest.approx(G_TRUE, rel=0.01)
-    tau = _crossing_time()
-    slope = G_TRUE * SMALLEST_CHANGE.get(shape, 12.0) * np.exp(-1.0) / tau
-    bound = 2.0 / traces[0]["rate"] + 4 * SPEED_SD / slope + (1 - np.exp(-1.0)) * np.e * SAG * tau
-    assert abs(cf.tau - tau) < bound, cf.used["tau"]
+    bound = _tau_bound(traces[0]["rate"], SMALLEST_CHANGE.get(shape, 12.0))
+    assert abs(cf.tau - _crossing_time()) < bound, cf.used["tau"]
 
 
 def test_every_settled_step_of_a_staircase_is_a_level(tmp_path):
@@ -192,6 +197,16 @@ def test_every_settled_step_of_a_staircase_is_a_level(tmp_path):
     assert np.allclose(rows[:, 1], G_TRUE * rows[:, 0], atol=0.005 * 240.0)
     # the trace's end alone, as before: none, its last two tenths span a change
     assert unloaded_levels(session)[1] == []
+
+
+def test_a_staircase_logged_as_a_step_trace_is_the_closed_form_s(tmp_path):
+    """Up to 12 V and back down to 6 V, with a steady table's currents: the paper's
+    method runs, its sign check reading the response of the largest step (down, the
+    speed falling), not the trace's start against its end (up)."""
+    traces = [_trace("stair", (3.0, 6.0, 12.0, 6.0), 0.15, 1000.0, kind="step")]
+    cf = fit_seed(load_session(_bench_session(tmp_path / "s", traces)))
+    assert cf.applicable, cf.reason
+    assert abs(cf.tau - _crossing_time()) < _tau_bound(1000.0, 6.0)
 
 
 def test_a_trace_that_never_settles_is_refused_in_one_line(tmp_path):

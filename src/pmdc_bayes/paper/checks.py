@@ -14,6 +14,7 @@ import numpy as np
 from .._errors import NotApplicable
 from ..io.session import Session, Trace
 from ..physics.motor import gain
+from .changes import responses
 
 __all__ = ["GAIN_MISMATCH", "SETTLED", "step_of", "turns", "check_trace", "check_physical"]
 
@@ -58,13 +59,17 @@ GAIN_MISMATCH = 2.0  # a trace settling this factor away from the gain (10) cont
 
 def check_trace(session: Session, tr: Trace, K, B, Ra) -> None:
     """Refuse a step trace that contradicts the closed form: a speed moving against the
-    voltage step (a reversed sign), or an unloaded settled speed a factor
-    :data:`GAIN_MISMATCH` away from what the gain (10) predicts (a unit slip between
-    the operating point and the trace)."""
-    _, v0, v1 = step_of(tr)
+    voltage step over its response (a reversed sign), or an unloaded settled speed a
+    factor :data:`GAIN_MISMATCH` away from what the gain (10) predicts (a unit slip
+    between the operating point and the trace)."""
+    found = responses(tr)  # the largest change and its response (a staircase's one step)
+    if found:
+        v0, v1, a, b = found[0].before, found[0].after, found[0].start, found[0].stop
+    else:
+        (_, v0, v1), a, b = step_of(tr), 0, tr.n
     n_tail = max(3, tr.n // 10)
     w_end = float(np.mean(tr.speed[-n_tail:]))
-    moved = w_end - float(np.mean(tr.speed[:3]))
+    moved = float(np.mean(tr.speed[b - max(3, (b - a) // 10):b]) - np.mean(tr.speed[a:a + 3]))
     if (v1 - v0) * moved < 0:
         raise NotApplicable(tr.file, f"trace {tr.name!r}: the speed falls by {abs(moved):.3g} "
                             f"rad/s while the voltage steps {'up' if v1 > v0 else 'down'}: "
