@@ -160,6 +160,11 @@ def _fit_one(args, path, out) -> tuple[int, dict, Path]:
     else:
         adequate = print_fit(summary, out)
     status = 0
+    if summary["fit"]["status"] != "converged" and not args.allow_unconverged:
+        # first, and its exit code first: the verdict was judged where the MAP is not
+        print(f"pmdc-bayes: error: the fit did not converge: {summary['fit']['message']}",
+              file=sys.stderr)
+        status = EXIT_FAILED
     if not adequate:
         first = next(f for f in summary["adequacy"]["findings"] if f["severity"] == "fail")
         hint = next(iter(summary["adequacy"].get("diagnosis") or []), "")
@@ -168,11 +173,7 @@ def _fit_one(args, path, out) -> tuple[int, dict, Path]:
               + ("" if args.allow_inadequate else " (see the report; rerun with "
                  "--allow-inadequate to go on)"), file=sys.stderr)
         if not args.allow_inadequate:
-            return EXIT_INADEQUATE, summary, out
-    if summary["fit"]["status"] != "converged" and not args.allow_unconverged:
-        print(f"pmdc-bayes: error: the fit did not converge: {summary['fit']['message']}",
-              file=sys.stderr)
-        status = EXIT_FAILED
+            return status or EXIT_INADEQUATE, summary, out
     diag = summary["diagnostics"]
     if diag.get("gates_passed") is False and not args.allow_unconverged:
         print("pmdc-bayes: error: the posterior failed its convergence gates: "

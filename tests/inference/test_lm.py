@@ -129,3 +129,50 @@ def test_two_finals_are_one_optimum_unless_a_valley_separates_them():
     # a start that did not converge belongs to no optimum
     modes, label = _modes(thetas, logp, np.array([True, False]), cov, well)
     assert modes == [0] and label == [0, -1]
+
+
+# The step limit: a typed outcome, the best start continued while it improves
+
+
+def test_a_start_at_its_step_limit_ends_with_that_outcome_not_as_converged():
+    """A badly scaled banana (a = 10⁴) from far up its valley needs over a thousand
+    steps: held to 200, the start ends with the outcome MAX_STEPS, far below the top."""
+    (s,) = lm.levenberg_marquardt(_rosenbrock(a=1e4), [np.array([-5.0, 25.0])],
+                                  best_max_steps=lm.MAX_STEPS)
+    assert s.outcome is lm.Outcome.MAX_STEPS and not s.converged
+    assert s.stopped == "step limit" and s.steps == lm.MAX_STEPS and s.improving
+    assert s.lp < -1.0
+
+
+def test_the_best_start_still_improving_is_continued_and_the_others_are_not():
+    """Both starts reach the 200-step limit; the better one, still rising, is given more
+    steps and ends within the resolution of the top, the other ends at the limit."""
+    best, other = lm.levenberg_marquardt(
+        _rosenbrock(a=1e4), [np.array([-1.2, 1.0]), np.array([-5.0, 25.0])])
+    assert best.converged, best.stopped
+    assert lm.MAX_STEPS < best.steps <= lm.BEST_MAX_STEPS and best.limit > lm.MAX_STEPS
+    assert best.lp >= -lm.RESOLUTION * 2
+    assert other.outcome is lm.Outcome.MAX_STEPS and other.steps == lm.MAX_STEPS
+
+
+def test_a_map_whose_start_ends_at_its_step_limit_fails_and_says_so_first(demo_model,
+                                                                           monkeypatch):
+    """With an artificially low limit the MAP's start ends at it: the fit fails, its
+    message opens with why, and its outcome is typed; let the best start go on, and the
+    same fit converges."""
+    import functools
+
+    from pmdc_bayes.inference import fit as fit_module
+
+    low = functools.partial(lm.levenberg_marquardt, max_steps=3, best_max_steps=3)
+    monkeypatch.setattr(fit_module, "levenberg_marquardt", low)
+    fit = fit_map(demo_model)
+    assert fit.status == "failed" and fit.outcome is lm.Outcome.MAX_STEPS
+    assert fit.message.startswith("the MAP is not an optimum: its Levenberg–Marquardt "
+                                  "start stopped at its step limit (3 steps)"), fit.message
+    assert {s["outcome"] for s in fit.starts} <= {"MAX_STEPS", "NONFINITE"}
+    continued = functools.partial(lm.levenberg_marquardt, max_steps=3)
+    monkeypatch.setattr(fit_module, "levenberg_marquardt", continued)
+    fit = fit_map(demo_model)
+    assert fit.ok and fit.outcome.converged, fit.message
+    assert fit.iterations > 3

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._x64 import x64
-from .lm import GaussNewton, Terms, levenberg_marquardt
+from .lm import MAX_STEPS, WINDOW, GaussNewton, Outcome, Terms, levenberg_marquardt
 from .objective import SessionModel, noise_weights
 
 __all__ = ["FitResult", "fit_map", "laplace"]
@@ -47,6 +47,9 @@ class FitResult:
         ``mode_gaps`` how far below the MAP's log-posterior each of the others is.
     weights : per-channel 1/σ² at the MAP; ``noise_sd`` the matching σ.
     iterations : Levenberg–Marquardt steps (evaluations) of the best start.
+    outcome : how the best start ended (:class:`~pmdc_bayes.inference.lm.Outcome`); at
+        its step limit (``Outcome.MAX_STEPS``) the fit has ``status`` ``"failed"`` and
+        its ``message`` says so first.
     """
 
     names: tuple
@@ -64,6 +67,7 @@ class FitResult:
     iterations: int = 0
     n_modes: int = 1
     mode_gaps: tuple = ()
+    outcome: Outcome = Outcome.CONVERGED
 
     @property
     def ok(self) -> bool:
@@ -203,7 +207,8 @@ def _finish(model, states, origins, evaluate) -> FitResult:
     agree = np.array([lab == best for lab in label]) | (np.arange(len(states)) == best)
     starts = [{"start": i, "origin": origins[i], "log_posterior": float(logp[i]),
                "agrees": bool(agree[i]), "solver_ok": bool(ok[i]), "steps": st.steps,
-               "stopped": st.stopped} for i, st in enumerate(states)]
+               "stopped": st.stopped, "outcome": st.outcome.name}
+              for i, st in enumerate(states)]
     w = noise_weights(np.asarray(terms.ss), np.asarray(model.n_obs), np.asarray(model.s0))
     sd_log = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     corr = cov / np.outer(sd_log, sd_log)
@@ -216,6 +221,8 @@ def _finish(model, states, origins, evaluate) -> FitResult:
     if not np.isfinite(logp[best]):
         reasons.append("no start reached a finite log-posterior (the model cannot "
                        "reproduce the data with positive parameters)")
+    elif states[best].outcome is Outcome.MAX_STEPS:
+        reasons.append(_at_step_limit(states[best]))
     elif not ok[best]:
         reasons.append(f"Levenberg–Marquardt stopped before the optimum at the best start "
                        f"({states[best].stopped} after {states[best].steps} steps)")
@@ -234,4 +241,17 @@ def _finish(model, states, origins, evaluate) -> FitResult:
         f"{len(logp)} starts agree ({n_wide} started over the prior's range; {found})")
     return FitResult(tuple(model.names), theta, values, sd, cov, corr, float(logp[best]),
                      status, message, starts, w, noise, states[best].steps, len(modes),
-                     tuple(float(logp[best] - logp[i]) for i in modes[1:]))
+                     tuple(float(logp[best] - logp[i]) for i in modes[1:]),
+                     states[best].outcome)
+
+
+def _at_step_limit(start) -> str:
+    """Why a MAP whose start ended at its step limit is no optimum, in words."""
+    h = start.history
+    gain = h[-1] - h[max(0, len(h) - 1 - WINDOW)] if len(h) > 1 else 0.0
+    raised = f", raised from {MAX_STEPS} while it improved" if start.limit > MAX_STEPS else ""
+    return (f"the MAP is not an optimum: its Levenberg–Marquardt start stopped at its step "
+            f"limit ({start.steps} steps{raised}) with the log-posterior still rising "
+            f"({gain:.3g} over its last {min(WINDOW, max(len(h) - 1, 0))} accepted steps): "
+            "a badly scaled or nearly unidentified direction; the values are where it "
+            "stopped")

@@ -15,13 +15,19 @@ compile on the demo and over 3 minutes on the current-limited bench, against 6 s
 :func:`levenberg_marquardt` moves several starts on the host, a round at a time, the
 starts of a round side by side in threads (one per core), each by its own damped
 steps (Marquardt's scaling, Nielsen's update of the damping), each step accepted only
-when the exact log-posterior rises.  With the weights re-evaluated at every point, a
+when the exact log-posterior rises.  Each start ends with a typed :class:`Outcome`
+(as optimistix's ``RESULTS``): converged, stalled, abandoned, not finite, or at its
+step limit; the best start, the MAP's candidate, is given a larger limit while it
+still improves, and one that ends at it says so rather than passing for an optimum.
+A round's starts depend only on their own state and the round before, never on which
+thread finishes first.  With the weights re-evaluated at every point, a
 Gauss–Newton step of the weighted residuals is a step of the integrated likelihood
 itself, so the fixed point is the exact MAP.
 """
 
 from __future__ import annotations
 
+import enum
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -34,9 +40,10 @@ from .._x64 import x64
 from .channels import entry_weights
 from .objective import NU0, integrated_log_likelihood, noise_weights
 
-__all__ = ["gauss_newton", "GaussNewton", "Terms", "levenberg_marquardt", "Start"]
+__all__ = ["gauss_newton", "GaussNewton", "Terms", "levenberg_marquardt", "Start", "Outcome"]
 
-MAX_STEPS = 200        # steps a start may take
+MAX_STEPS = 200        # steps a start may take ...
+BEST_MAX_STEPS = 2000  # ... and the best start, while it still improves
 DECREMENT_TOL = 1e-8   # converged: ½·gᵀH⁻¹g below this (log-posterior units)
 STALL_TOL = 1e-4       # ... or no step can improve while ½·gᵀH⁻¹g is below this
 DAMPING_MAX = 1e14     # the damping beyond which no step can improve any more
@@ -138,26 +145,45 @@ class GaussNewton:
         return Terms(theta, lp, grad, H, H_noise, ss, G)
 
 
+class Outcome(enum.Enum):
+    """How a start ended, in words."""
+
+    RUNNING = ""
+    CONVERGED = "converged"
+    RESOLVED = "converged to within the posterior's resolution (a slow, curved ridge)"
+    STALLED = "no step improves the log-posterior"
+    MAX_STEPS = "step limit"
+    ABANDONED = "far below the best"
+    NONFINITE = "the model is not finite at the start"
+
+    @property
+    def converged(self) -> bool:
+        return self in (Outcome.CONVERGED, Outcome.RESOLVED)
+
+
 @dataclass
 class Start:
-    """One start's progress: where it is, its terms there, its damping, its steps."""
+    """One start's progress: where it is, its terms there, its damping, its steps (every
+    evaluation counts), its step ``limit`` and how it ended (``outcome``);
+    ``accepted_at`` the step of its last accepted step, ``history`` the log-posterior
+    after each."""
 
     terms: Terms
     damping: float = 1e-3
     nu: float = 2.0
     steps: int = 0
-    done: bool = False
-    converged: bool = False
-    stopped: str = ""
+    limit: int = MAX_STEPS
+    outcome: Outcome = Outcome.RUNNING
+    accepted_at: int = 0
     history: list = field(default_factory=list)
 
-    @property
-    def theta(self):
-        return self.terms.theta
-
-    @property
-    def lp(self):
-        return self.terms.lp
+    theta = property(lambda self: self.terms.theta)
+    lp = property(lambda self: self.terms.lp)
+    done = property(lambda self: self.outcome is not Outcome.RUNNING)
+    converged = property(lambda self: self.outcome.converged)
+    stopped = property(lambda self: self.outcome.value, doc="how it ended, in words")
+    improving = property(lambda self: bool(self.history) and self.steps - self.accepted_at
+                         < WINDOW, doc="whether it accepted a step in its last WINDOW steps")
 
 
 def _hessian(t: Terms) -> np.ndarray:
@@ -198,18 +224,17 @@ def _step(s: Start, evaluate) -> None:
     t = s.terms
     decrement = _decrement(t)
     if decrement < DECREMENT_TOL:
-        s.done, s.converged, s.stopped = True, True, "converged"
+        s.outcome = Outcome.CONVERGED
         return
     if _resolved(s, decrement):
-        s.done, s.converged = True, True
-        s.stopped = "converged to within the posterior's resolution (a slow, curved ridge)"
+        s.outcome = Outcome.RESOLVED
         return
     H = _hessian(t)
     diag = np.diag(t.H)
     scale = np.maximum(diag, 1e-12 * max(float(np.max(diag)), 1e-300))
     while True:
-        if s.steps >= MAX_STEPS:
-            s.done, s.stopped = True, "step limit"
+        if s.steps >= s.limit:
+            s.outcome = Outcome.MAX_STEPS
             return
         s.steps += 1
         A = H + s.damping * np.diag(scale)
@@ -224,32 +249,42 @@ def _step(s: Start, evaluate) -> None:
             rho = gain / predicted
             s.terms = trial
             s.history.append(trial.lp)
+            s.accepted_at = s.steps
             s.damping *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
             s.nu = 2.0
             return
         s.damping *= s.nu
         s.nu *= 2.0
         if s.damping > DAMPING_MAX:
-            ok = _decrement(t) < STALL_TOL
-            s.done, s.converged = True, ok
-            s.stopped = "converged" if ok else "no step improves the log-posterior"
+            s.outcome = Outcome.CONVERGED if _decrement(t) < STALL_TOL else Outcome.STALLED
             return
 
 
-def levenberg_marquardt(evaluate, starts, *, abandon=None) -> list[Start]:
+def levenberg_marquardt(evaluate, starts, *, abandon=None, max_steps: int = MAX_STEPS,
+                        best_max_steps: int = BEST_MAX_STEPS) -> list[Start]:
     """Levenberg–Marquardt from each of ``starts`` (θ rows), a step of each per round.
 
     ``evaluate(θ)`` returns the :class:`Terms` at θ.  ``abandon(start, best_lp)``,
     checked after each round of steps, stops a start that is not worth finishing (a
-    poor local optimum far below the best); it is then not ``converged``.
+    poor local optimum far below the best); it is then not ``converged``.  A start
+    ends at ``max_steps`` steps, except the best one (the MAP's candidate) while it
+    still improves (:attr:`Start.improving`): its limit doubles, up to
+    ``best_max_steps``; one that ends at its limit has the outcome
+    :attr:`Outcome.MAX_STEPS`.
     """
     with ThreadPoolExecutor(min(len(starts), usable_cores()) or 1) as pool:
-        states = list(pool.map(x64(lambda th: Start(evaluate(np.asarray(th, dtype=float)))),
-                               starts))
+        states = list(pool.map(x64(lambda th: Start(evaluate(np.asarray(th, dtype=float)),
+                                                    limit=max_steps)), starts))
         for s in states:
             if not s.terms.finite:
-                s.done, s.stopped = True, "the model is not finite at the start"
+                s.outcome = Outcome.NONFINITE
         while True:
+            lps = [s.lp for s in states if np.isfinite(s.lp)]
+            best = max(lps) if lps else -np.inf
+            for s in states:  # the MAP's candidate goes on while it still improves
+                if s.outcome is Outcome.MAX_STEPS and s.lp == best and s.improving \
+                        and s.limit < best_max_steps:
+                    s.limit, s.outcome = min(2 * s.limit, best_max_steps), Outcome.RUNNING
             active = [s for s in states if not s.done]
             if not active:
                 return states
@@ -262,4 +297,4 @@ def levenberg_marquardt(evaluate, starts, *, abandon=None) -> list[Start]:
                 best = max(lps) if lps else -np.inf
                 for s in states:
                     if not s.done and abandon(s, best):
-                        s.done, s.stopped = True, "far below the best"
+                        s.outcome = Outcome.ABANDONED
