@@ -142,8 +142,8 @@ def test_a_run_that_gives_up_says_how_many_steps_it_would_need_and_why():
     by_tau = stop_message(3000, [3.0, 300.0], names, min_tau_multiple=50.0, settled=True,
                           max_steps=10_000, need=15_000.0)
     assert by_tau.startswith("gave up after 3000 steps: the chain would need about 15000 "
-                             "steps, 50 × τ_max (slowest parameter J, τ ≈ 300 steps), more than the "
-                             "step budget (10000 steps)"), by_tau
+                             "steps, 50 × τ_max (slowest parameter J, τ ≈ 300 steps), more "
+                             "than the step budget (10000 steps)"), by_tau
     gates_short = stop_message(3000, [3.0, 20.0], names, min_tau_multiple=50.0, settled=True,
                                max_steps=10_000, need=40_000.0)
     assert "for the draws after burn-in to reach the gates (R-hat ≤ 1.01" in gates_short

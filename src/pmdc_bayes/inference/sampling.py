@@ -18,7 +18,6 @@ import sys
 import time
 from dataclasses import dataclass
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
