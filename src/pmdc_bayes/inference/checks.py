@@ -9,14 +9,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import norm
 
-from ..io._position import speed_estimate, speed_window
-from ..physics import motor
 from .adequacy import BENCH_WARN_Z, Finding, _g
-from .calibrate import FAMILY_LEVEL, Test, holm, replicates, session_rng, tail_p
-from .levels import unloaded_levels
+from .calibrate import FAMILY_LEVEL, Test, holm, replicates, tail_p
 
-__all__ = ["bench_checks", "plausibility_checks", "plausibility_tests", "search_checks",
-           "rise_time", "step_time", "step_start_check", "step_start_test", "rise_eligible"]
+__all__ = ["bench_checks", "plausibility_checks", "search_checks", "rise_time", "step_time",
+           "step_start_check", "step_start_test"]
 
 COLLAPSE = 0.1  # a bench quantity fitted below this fraction of its bench value
 PRIOR_PULL = 3.0  # a seeded parameter this many prior widths (log) from its seed
@@ -167,172 +164,13 @@ def rise_time(t, y, t_step, level: float = 0.632) -> float | None:
     return float(t[after[0]] - t_step) if after.size else None
 
 
-def _as_logged(trace, w):
-    """The model's speed ``w`` at the trace's samples as the trace's speed was obtained:
-    as it is where a speed was logged; from the angle it turns, by the same estimate
-    as the data's (over the same window, which the counted angle's quantum sets),
-    where the speed was estimated from a counted angle (whose window slows the rise the
-    data show)."""
-    if trace.speed_logged or trace.position is None:
-        return w
-    t = np.asarray(trace.time, dtype=float)
-    w = np.asarray(w, dtype=float)
-    angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
-    read = np.isfinite(trace.position)
-    return speed_estimate(t, np.where(read, angle, np.nan),
-                          speed_window(t, trace.position))
-
-
-def rise_eligible(trace) -> bool:
-    """Whether the trace's speed answers a real voltage step its rise time can be read
-    from: a change of at least half the largest voltage (or a start from rest under a
-    voltage) with the load held, not a load change at a constant voltage."""
-    v = trace.voltage.values
-    if np.ptp(trace.load_torque.values) > 0:
-        return False
-    if v.size < 2:
-        return trace.initial == "rest" and abs(float(v[0])) > 0
-    return float(np.max(np.abs(np.diff(v)))) >= 0.5 * float(np.max(np.abs(v)))
-
-
-def _logged_speeds(model, k, tr, w, sigma, quantum, rng):
-    """Replicates of the trace's speed as logged (rows): the model's speed plus noise
-    through the speed sensor, or its angle plus noise counted by the encoder and
-    differenced as the data's speed was."""
-    if tr.speed_logged or tr.position is None:
-        for block in replicates(w, sigma, rng, quantum=quantum, origin=float(tr.speed[0])):
-            yield from block
-        return
-    t, ok = np.asarray(tr.time, float), np.isfinite(tr.position)
-    angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
-    width = speed_window(t, tr.position)
-    first = float(tr.position[ok][0])
-    for block in replicates(angle[ok] + first, sigma, rng, quantum=tr.encoder_step,
-                            origin=first):
-        for row in block:
-            full = np.full(t.size, np.nan)
-            full[ok] = row
-            yield speed_estimate(t, full, width)
-
-
-def plausibility_tests(model, fit, preds, rng=None) -> tuple[dict, list, list]:
-    """Derived quantities against the session's own measurements: the figures,
-    warnings, and the tests (rise time, peak current, no-load speed), each p-value from
-    a parametric bootstrap at the MAP or the level's own noise."""
-    session = model.session
-    rng = session_rng(session) if rng is None else rng
-    p = fit.values
-    noise_sd = getattr(fit, "noise_sd", {})
-    s0 = {c.name: c.s0 for c in model.channels}
-    out, found, tests = {}, [], []
-    logged = [float(np.max(np.abs(tr.current))) for tr in session.traces
-              if tr.current is not None]
-    volts = [float(np.max(np.abs(tr.voltage.values))) for tr in session.traces]
-    volts += [op.voltage for op in session.operating_points]
-    volts += [float(np.max(np.abs(t.voltage))) for t in session.steady_tables]
-    if volts:
-        v_max = max(volts)
-        out["stall_current"] = {"voltage": v_max, "value": v_max / p["Ra"],
-                                "largest_logged_current": max(logged) if logged else None}
-        i_nl, w_nl = motor.steady_state(p["Ra"], p["K"], p["B"], v_max, 0.0,
-                                        p.get("Tc") if model.coulomb else None)
-        out["no_load_speed"] = {"voltage": v_max, "value": float(w_nl)}
-        tests += _no_load_test(model, p, out, s0)
-    rises = {}
-    for k, (tr, (ia, w)) in enumerate(zip(session.traces, preds, strict=True)):
-        ia, w = np.asarray(ia, float), np.asarray(w, float)
-        if rise_eligible(tr):
-            tests += _rise_test(model, k, tr, w, noise_sd, s0, rng, rises)
-        if tr.current is not None:
-            tests += _peak_test(tr, ia, noise_sd, s0, rng)
-    out["rise_time"] = rises
-    return out, found, tests
-
-
 def plausibility_checks(model, fit, preds, rng=None) -> tuple[dict, list]:
-    """:func:`plausibility_tests` judged as a family of their own: the figures and the
-    findings."""
+    """:func:`~.plausibility.plausibility_tests` judged as a family of their own: the
+    figures and the findings."""
+    from .plausibility import plausibility_tests
+
     out, found, tests = plausibility_tests(model, fit, preds, rng)
     return out, found + _judged(tests)
-
-
-def _rise_test(model, k, tr, w, noise_sd, s0, rng, rises) -> list:
-    """The time to 63 % of the speed's change after the step, on the data against its
-    distribution on replicates of the MAP through the speed's sensor path; the sample
-    interval bounds its resolution (the data's step may fall anywhere within one)."""
-    from .calibrate import logged_quantum
-
-    t_step = step_time(tr)
-    obs, mod = rise_time(tr.time, tr.speed, t_step), rise_time(tr.time, _as_logged(tr, w),
-                                                                t_step)
-    if obs is None or mod is None or not (obs > 0 and mod > 0):
-        return []
-    name = f"{tr.name}: {'speed' if tr.speed_logged or tr.position is None else 'position'}"
-    sigma = float(noise_sd.get(name, s0.get(name, 0.0)))
-    quantum = logged_quantum(tr.speed) if tr.speed_logged else 0.0
-    reps = [rise_time(tr.time, row, t_step) for row in
-            _logged_speeds(model, k, tr, w, sigma, quantum, rng)]
-    reps = np.log([x for x in reps if x is not None and x > 0])
-    dt = float(np.median(np.diff(tr.time)))
-    pv = tail_p(np.log(obs), reps, side="two", floor=dt / (np.sqrt(6.0) * mod))
-    rises[tr.name] = {"observed": obs, "model": mod, "ratio": mod / obs, "p_value": pv}
-    return [Test(Finding("plausibility", f"{tr.name}: speed", "fail", f"x{mod / obs:.2g}",
-                         f"the model rises to 63 % in {_g(mod)} s where the data take "
-                         f"{_g(obs)} s"), pv)]
-
-
-def _peak_test(tr, ia, noise_sd, s0, rng) -> list:
-    """The largest logged |current| against its distribution on replicates of the MAP:
-    a model whose current peaks where the data's never reach (one-sided); a sample's
-    change at the model's peak bounds the resolution."""
-    from .calibrate import logged_quantum
-
-    name = f"{tr.name}: current"
-    sigma = float(noise_sd.get(name, s0.get(name, 0.0)))
-    quantum = logged_quantum(tr.current)
-    obs, peak = float(np.max(np.abs(tr.current))), float(np.max(np.abs(ia)))
-    if not (obs > 0 and peak > 0):
-        return []
-    reps = np.concatenate([np.log(np.max(np.abs(b), axis=1)) for b in
-                           replicates(ia, sigma, rng, quantum=quantum,
-                                      origin=float(tr.current[0]))])
-    j = int(np.argmax(np.abs(ia)))
-    step = float(np.max(np.abs(np.diff(np.abs(ia[max(j - 1, 0):j + 2]))), initial=0.0))
-    pv = tail_p(np.log(obs), reps, side="lower", floor=step / (np.sqrt(6.0) * peak))
-    return [Test(Finding("plausibility", name, "fail", f"x{peak / obs:.2g}",
-                         f"the model's current peaks at {_g(peak)} A but the logged current "
-                         f"never passes {_g(obs)} A"), pv, peak > obs)]
-
-
-def _no_load_test(model, p, out, s0) -> list:
-    """The model's steady speed at the session's largest settled unloaded voltage
-    against the speed logged there, in the level's noise (a trace's end: its speed's
-    model-free noise over the samples averaged; a steady reading: the noise scale of
-    the steady readings); two-sided."""
-    rows, names = unloaded_levels(model.session)
-    if not rows.size:
-        return []
-    j = int(np.argmax(np.abs(rows[:, 0])))
-    v, w_obs, _ = rows[j]
-    _, w_mod = motor.steady_state(p["Ra"], p["K"], p["B"], float(v), 0.0,
-                                  p.get("Tc") if model.coulomb else None)
-    w_mod = float(w_mod)
-    out["no_load_speed"].update(logged_voltage=float(v), logged_speed=float(w_obs),
-                                model_at_logged_voltage=w_mod)
-    if names[j] is None:
-        se = s0.get("steady: speed", 0.0)
-    else:
-        tr = next(t for t in model.session.traces if t.name == names[j])
-        se = s0.get(f"{tr.name}: speed", 0.0) / np.sqrt(max(3, tr.n // 10))
-    if w_obs == 0 or w_mod * w_obs <= 0:
-        pv = 0.0
-    else:
-        pv = float(2 * norm.sf(abs(np.log(w_mod / w_obs)) / max(se / abs(w_obs), 1e-12)))
-    out["no_load_speed"]["p_value"] = pv
-    return [Test(Finding("plausibility", "no-load speed", "fail",
-                         f"x{w_mod / w_obs:.2g}" if w_obs else "logged 0",
-                         f"the model's no-load speed at {_g(float(v))} V is {_g(w_mod)} rad/s "
-                         f"where the session settles at {_g(float(w_obs))} rad/s"), pv)]
 
 
 def search_checks(fit) -> list:
