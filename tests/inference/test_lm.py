@@ -176,3 +176,21 @@ def test_a_map_whose_start_ends_at_its_step_limit_fails_and_says_so_first(demo_m
     fit = fit_map(demo_model)
     assert fit.ok and fit.outcome.converged, fit.message
     assert fit.iterations > 3
+
+
+def test_the_starts_end_alike_whether_one_thread_or_many_steps_them(monkeypatch):
+    """A round's starts depend only on their own state and the round before: with one
+    thread or four (in whatever order they finish), every start ends at the same point
+    after the same steps, with the same outcome, abandonment included."""
+    starts = [np.array(x) for x in ([-1.2, 1.0], [-5.0, 25.0], [2.0, 0.0], [0.5, 3.0])]
+
+    def run(threads):
+        monkeypatch.setattr(lm, "usable_cores", lambda: threads)
+        return lm.levenberg_marquardt(_rosenbrock(a=1e3), starts,
+                                      abandon=lambda s, best: s.steps >= 20 and s.lp < best - 5)
+
+    one, many = run(1), run(4)
+    assert {s.outcome for s in one} >= {lm.Outcome.ABANDONED}
+    for a, b in zip(one, many, strict=True):
+        np.testing.assert_array_equal(a.theta, b.theta)
+        assert (a.steps, a.outcome, a.history) == (b.steps, b.outcome, b.history)
