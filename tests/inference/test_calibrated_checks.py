@@ -98,7 +98,7 @@ def test_a_source_resistance_is_positive_and_none_stays_within_its_prior():
 
 
 def test_the_rise_time_is_not_read_on_a_load_change_at_constant_voltage():
-    from pmdc_bayes.inference.checks import rise_eligible
+    from pmdc_bayes.inference.plausibility import rise_eligible
     from pmdc_bayes.io.session import Schedule
     from pmdc_bayes.simulate.cases import case_session
 

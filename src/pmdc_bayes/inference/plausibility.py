@@ -155,7 +155,9 @@ def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
         return []
     j = int(np.argmax(np.abs(rows[:, 0])))
     v, w_obs, _ = rows[j]
-    _, w_mod = motor.steady_state(p["Ra"], p["K"], p["B"], float(v), 0.0,
+    # a steady point sees V − Vdrop·sign(V) through Ra + Rs
+    v_seen = float(v) - float(p.get("Vdrop", 0.0)) * float(np.sign(v))
+    _, w_mod = motor.steady_state(p["Ra"] + p.get("Rs", 0.0), p["K"], p["B"], v_seen, 0.0,
                                   p.get("Tc") if model.coulomb else None)
     w_mod = float(w_mod)
     out["no_load_speed"].update(logged_voltage=float(v), logged_speed=float(w_obs),
