@@ -199,7 +199,7 @@ def test_every_settled_step_of_a_staircase_is_a_level(tmp_path):
     assert unloaded_levels(session)[1] == []
 
 
-def test_a_staircase_logged_as_a_step_trace_is_the_closed_form_s(tmp_path):
+def test_a_staircase_logged_as_a_step_trace_is_read_by_the_closed_form(tmp_path):
     """Up to 12 V and back down to 6 V, with a steady table's currents: the paper's
     method runs, its sign check reading the response of the largest step (down, the
     speed falling), not the trace's start against its end (up)."""
