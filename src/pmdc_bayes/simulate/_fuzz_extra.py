@@ -18,10 +18,13 @@ STEP_READING_SD = 0.01  # relative error of a time and a speed read off a plot
 
 
 def _held(pairs, t: np.ndarray) -> np.ndarray:
-    """A schedule's value at each time ``t`` (the last pair at or before it)."""
+    """A schedule's value at each sample time ``t`` (the last pair at or before it; a
+    pair within a millionth of a sample interval of a sample counts as at it, as the
+    times written to the CSV are rounded to ten digits)."""
     times = np.array([a for a, _ in pairs])
     values = np.array([b for _, b in pairs])
-    return values[np.searchsorted(times, t + 1e-12 * max(1.0, float(t[-1])), side="right") - 1]
+    tol = 1e-6 * float(np.median(np.diff(t)))
+    return values[np.searchsorted(times, t + tol, side="right") - 1]
 
 
 def log_voltage_column(files: dict[str, str], plan: Plan, name: str) -> dict[str, str]:

@@ -150,7 +150,7 @@ def _sensors(rng, t: dict, motor: BenchMotor, v: float, features: set) -> None:
     i_span = v / motor.Ra
     edges_ok = t["initial"] == "rest" and t["kind"] == "step"
     u = rng.uniform()
-    if u < 0.12 or (u < 0.2 and edges_ok):
+    if u < 0.12 or (u < 0.24 and edges_ok):
         revs = span * t["duration"] / (2 * math.pi)
         output = "position" if u < 0.12 else "edges"
         cap = 20_000 if output == "edges" else 1e9
@@ -273,10 +273,10 @@ def fuzz_plan(seed: int, *, misspecified: str | None = None, shapes=None,
             "duty": float(f"{rng.uniform(0.3, 0.8):.3g}"),
             "speed_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * w_top:.4g}"),
             "current_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * i_level:.4g}")}]
+    step = steady is None and rng.uniform() < 0.15
     plan["rig"] = _rig(rng, misspecified, truth, v, tau_m, [t["name"] for t in traces
                                                              if t["kind"] != "coast-down"],
                        traces)
-    step = steady is None and rng.uniform() < 0.15
     return plan, {"columns": tuple(columns), "step_reading": bool(step),
                   "shapes": tuple(kinds), "features": frozenset(features)}
 

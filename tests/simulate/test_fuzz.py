@@ -1,0 +1,165 @@
+"""The session fuzzer: every shape it promises appears in valid sessions the loader reads,
+the truth is recorded (the motor's, and the rig's for a non-ideality), the same seed
+gives the same bytes, and the formats plans cannot say (a voltage column, a step
+reading) hold what the rig did."""
+
+import json
+
+import numpy as np
+import pytest
+
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.simulate.fuzz import (NON_IDEALITIES, TRACE_SHAPES, fuzz_files, fuzz_plan,
+                                      fuzz_session)
+from pmdc_bayes.simulate.plan import check_plan
+
+MOTOR = ("Ra", "La", "K", "B", "J", "Tc")
+FEATURES = {"quantised speed", "encoder position", "encoder edges", "voltage column",
+            "no trace current"}
+
+
+def _labels(seed) -> set:
+    """What the plan of ``seed`` holds, read off the plan alone (cheap)."""
+    plan, extras = fuzz_plan(seed)
+    out = set(extras["shapes"])
+    for tr in plan["trace"]:
+        enc = tr.get("encoder", {}).get("output")
+        out |= {f"encoder {enc}"} if enc else set()
+        out |= {"quantised speed"} if tr.get("speed_quantum") else set()
+        out |= {"rpm"} if tr.get("speed_unit") == "rpm" else set()
+    out |= {"voltage column"} if extras["columns"] else set()
+    out |= {"step reading"} if extras["step_reading"] else set()
+    for tab in plan.get("steady_table", []):
+        out.add("steady table" if "current_sd" in tab else "steady table without current")
+    out |= {"operating point"} if "operating_point" in plan else set()
+    if not any(t.get("record_current") for t in plan["trace"] if t["kind"] != "coast-down"):
+        out.add("no trace current")
+    return out
+
+
+WANTED = set(TRACE_SHAPES) | FEATURES | {"steady table", "steady table without current",
+                                         "operating point", "step reading", "rpm"}
+
+
+def _covering_seeds() -> list[int]:
+    """The first seed of each thing the fuzzer promises."""
+    seeds, seen = [], set()
+    for seed in range(400):
+        new = (_labels(seed) & WANTED) - seen
+        if new:
+            seeds.append(seed)
+            seen |= new
+        if seen == WANTED:
+            return seeds
+    raise AssertionError(f"no seed below 400 draws {WANTED - seen}")
+
+
+def test_every_shape_loads_with_its_truth(tmp_path):
+    seen = set()
+    for seed in _covering_seeds():
+        f = fuzz_session(seed, out=tmp_path / f"s{seed}")
+        s = load_session(f.path)
+        seen |= set(f.shapes) | f.features
+        assert {k: s.truth[k] for k in MOTOR} == {k: f.truth[k] for k in MOTOR}
+        assert all(f.truth[k] > 0 for k in MOTOR if k != "Tc")
+        assert len(s.traces) + len(s.coast_downs) == sum(x in TRACE_SHAPES for x in f.shapes)
+        for tr in s.traces:
+            assert tr.n >= 3 and np.all(np.diff(tr.time) > 0)
+            if tr.speed_logged:
+                assert np.all(np.isfinite(tr.speed))
+        labels = _labels(seed)
+        assert ("steady table" in labels) == any(t.current is not None
+                                                 for t in s.steady_tables)
+        assert ("operating point" in labels) == bool(s.operating_points)
+        assert ("step reading" in labels) >= bool(s.step_readings)
+        if "rpm" in labels:
+            assert 'speed = "rpm"' in (f.path / "session.toml").read_text()
+    assert (set(TRACE_SHAPES) | FEATURES) - {"step reading"} <= seen
+
+
+def test_sizes_rates_and_noise_span_the_promised_ranges():
+    ra, power, rates, noise = [], [], [], []
+    for seed in range(120):
+        plan, _ = fuzz_plan(seed)
+        t = plan["truth"]
+        ra.append(t["Ra"])
+        w0 = max(tr["initial"]["speed"] for tr in plan["trace"] if tr["kind"] == "coast-down"
+                 ) if any(tr["kind"] == "coast-down" for tr in plan["trace"]) else None
+        power.append(t["K"] ** 2 / t["Ra"])  # stall torque per rad/s: the motor's size
+        for tr in plan["trace"]:
+            rates.append(tr["rate"])
+            if "speed_noise" in tr and w0 is None:
+                noise.append(tr["speed_noise"])
+    assert np.log10(max(power) / min(power)) >= 4.0  # four decades of size and more
+    assert min(rates) < 400 and max(rates) > 10_000
+    assert len(noise) > 50
+
+
+def test_same_seed_same_bytes(tmp_path):
+    a, _, _ = fuzz_files(7)
+    b, _, _ = fuzz_files(7)
+    assert a == b
+    fuzz_session(7, out=tmp_path / "x")
+    fuzz_session(7, out=tmp_path / "y")
+    for name in a:
+        assert (tmp_path / "x" / name).read_bytes() == (tmp_path / "y" / name).read_bytes()
+    assert fuzz_files(8)[0] != a
+
+
+@pytest.mark.parametrize("key", NON_IDEALITIES)
+def test_a_non_ideality_keeps_the_draw_and_records_its_truth(key, tmp_path):
+    seed = 3
+    clean = fuzz_session(seed, out=tmp_path / "clean")
+    bad = fuzz_session(seed, misspecified=key, out=tmp_path / "bad")
+    assert {k: bad.truth[k] for k in MOTOR} == {k: clean.truth[k] for k in MOTOR}
+    assert bad.shapes == clean.shapes
+    recorded = {"dead time": "dead_time", "speed lag": "speed_lag", "voltage drop": "Vdrop",
+                "source resistance": "Rs", "current limit": "Imax", "speed gain": "speed_gain",
+                "speed offset": "speed_offset"}
+    if key in recorded:
+        name = recorded[key]
+        assert bad.truth[name] != clean.truth.get(name, 1.0 if "gain" in name else 0.0)
+    elif key == "unknown load":
+        assert any(k.startswith("drag_") and v > 0 for k, v in bad.truth.items())
+    else:  # every driven trace's speed is the encoder's counts differenced
+        plan, _ = fuzz_plan(seed, misspecified=key)
+        assert all(t["encoder"] == {"counts_per_rev": 64, "output": "speed"}
+                   for t in plan["trace"] if t["kind"] != "coast-down")
+    load_session(bad.path)
+    with pytest.raises(ValueError, match="unknown non-ideality"):
+        fuzz_plan(seed, misspecified="gremlins")
+
+
+def spec_rate(spec, name):
+    return next(t for t in spec.traces if t.name == name).rate
+
+
+def test_voltage_column_holds_the_rigs_voltage(tmp_path):
+    """The column switches at the very sample the rig switched at (a sample late would
+    be a one-sample dead time: La off by 7 sd on a staircase at 540 Hz)."""
+    seed = next(s for s in range(60) if any("staircase" in c for c in fuzz_plan(s)[1]["columns"]))
+    plan, extras = fuzz_plan(seed)
+    spec = check_plan(plan)
+    s = load_session(fuzz_session(seed, out=tmp_path / "v").path)
+    for name in extras["columns"]:
+        tr = next(t for t in s.traces if t.name == name)
+        sched = next(t for t in spec.traces if t.name == name).voltage
+        times = np.array([a for a, _ in sched])
+        k = np.rint(times * spec_rate(spec, name)).astype(int)  # switches at samples k
+        want = np.array([b for _, b in sched])[np.searchsorted(k, np.arange(tr.n),
+                                                               side="right") - 1]
+        assert np.array_equal(tr.voltage.at(tr.time), want)
+        assert "voltage = [[" not in (tmp_path / "v" / "session.toml").read_text().split(
+            f'name = "{name}"')[1].split("[[")[0]
+
+
+def test_step_reading_is_the_rigs_time_constant(tmp_path):
+    seed = next(s for s in range(200) if fuzz_plan(s)[1]["step_reading"]
+                and "step reading" in fuzz_session(s).shapes)
+    f = fuzz_session(seed, out=tmp_path / "r")
+    s = load_session(f.path)
+    (r,) = s.step_readings
+    t = f.truth
+    tau = t["J"] * t["Ra"] / (t["K"] ** 2 + t["Ra"] * t["B"])
+    assert abs(r.tau / tau - 1) < 0.05 + 5 * 0.01  # La/Ra < 5 % of tau; 1 % reading error
+    assert json.loads((f.path / "truth.json").read_text())["J"] == t["J"]
