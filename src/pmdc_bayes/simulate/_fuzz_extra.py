@@ -1,6 +1,7 @@
-"""What a plan cannot say, added to a rendered session: a trace's voltage logged as a
-column instead of a schedule, and a step reading (a 63.2 % time and a final speed read
-off a plot of the rig's step response)."""
+"""The fuzzer's ``[rig]`` (one non-ideality, sized so that it matters) and what a plan
+cannot say, added to a rendered session: a trace's voltage logged as a column instead of
+a schedule, and a step reading (a 63.2 % time and a final speed read off a plot of the
+rig's step response)."""
 
 from __future__ import annotations
 
@@ -12,9 +13,47 @@ from .plan import Plan, TraceSpec
 from .rig import rig_steady, rig_trace
 from .session import _csv, _f, _inline
 
-__all__ = ["log_voltage_column", "add_step_reading", "STEP_READING_SD"]
+__all__ = ["NON_IDEALITIES", "rig_table", "log_voltage_column", "add_step_reading",
+           "STEP_READING_SD"]
+
+NON_IDEALITIES = ("dead time", "speed lag", "voltage drop", "source resistance",
+                  "current limit", "unknown load", "encoder speed", "speed gain",
+                  "speed offset")
 
 STEP_READING_SD = 0.01  # relative error of a time and a speed read off a plot
+
+
+def rig_table(rng, key: str | None, truth: dict, v: float, tau_m: float, names, traces) -> dict:
+    """``[rig]`` with the one non-ideality ``key`` (empty for an in-class session)."""
+    if key is None:
+        return {}
+    if key == "dead time":
+        return {"dead_time": float(f"{rng.uniform(0.05, 0.15) * tau_m:.4g}")}
+    if key == "speed lag":
+        return {"speed_lag": float(f"{rng.uniform(0.1, 0.3) * tau_m:.4g}")}
+    if key == "voltage drop":
+        return {"voltage_drop": float(f"{rng.uniform(0.08, 0.15) * v:.4g}")}
+    if key == "source resistance":
+        return {"source_resistance": float(f"{rng.uniform(0.4, 0.8) * truth['Ra']:.4g}")}
+    if key == "current limit":
+        return {"current_limit": float(f"{rng.uniform(0.2, 0.4) * v / truth['Ra']:.4g}")}
+    if key == "unknown load":
+        name = str(rng.choice(names))
+        w = v * truth["K"] / (truth["Ra"] * truth["B"] + truth["K"] ** 2)
+        return {"unknown_load": {name: {"viscous": float(f"{2.0 * truth['B']:.4g}"),
+                                        "constant": float(f"{0.1 * truth['B'] * w:.4g}")}}}
+    if key == "speed gain":
+        return {"speed_gain": float(f"{rng.uniform(1.06, 1.15):.4g}")}
+    if key == "speed offset":
+        w = v * truth["K"] / (truth["Ra"] * truth["B"] + truth["K"] ** 2)
+        return {"speed_offset": float(f"{rng.uniform(0.03, 0.06) * w:.4g}")}
+    if key == "encoder speed":
+        for t in traces:  # every driven trace's speed: encoder counts differenced
+            if t["kind"] != "coast-down":
+                t.pop("speed_noise", None), t.pop("speed_quantum", None)
+                t["encoder"] = {"counts_per_rev": 64, "output": "speed"}
+        return {}
+    raise ValueError(f"unknown non-ideality {key!r}; use one of {NON_IDEALITIES}")
 
 
 def _held(pairs, t: np.ndarray) -> np.ndarray:

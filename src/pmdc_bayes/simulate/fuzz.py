@@ -20,13 +20,14 @@ same seed gives the same bytes.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ._fuzz_extra import add_step_reading, log_voltage_column
+from ._fuzz_extra import NON_IDEALITIES, add_step_reading, log_voltage_column, rig_table
 from ._write import write_session_files
 from .bench import BenchMotor, steady_point
 from .plan import check_plan
@@ -37,11 +38,6 @@ __all__ = ["NON_IDEALITIES", "TRACE_SHAPES", "FuzzedSession", "fuzz_motor", "fuz
 
 TRACE_SHAPES = ("step from rest", "step from steady", "up-down", "staircase",
                 "load change", "coast-down")
-
-#: non-ideality -> the fit parameter names its truth is recorded under
-NON_IDEALITIES = ("dead time", "speed lag", "voltage drop", "source resistance",
-                  "current limit", "unknown load", "encoder speed", "speed gain",
-                  "speed offset")
 
 MAX_SAMPLES = 12_000  # per trace: keeps a fit of a fuzzed session to seconds
 
@@ -170,39 +166,6 @@ def _sensors(rng, t: dict, motor: BenchMotor, v: float, features: set) -> None:
         t["current_noise"] = float(f"{_log_uniform(rng, 1e-3, 5e-2) * i_span:.4g}")
 
 
-def _rig(rng, key: str | None, truth: dict, v: float, tau_m: float, names, traces) -> dict:
-    """``[rig]`` with the one non-ideality ``key`` (empty for an in-class session)."""
-    if key is None:
-        return {}
-    if key == "dead time":
-        return {"dead_time": float(f"{rng.uniform(0.05, 0.15) * tau_m:.4g}")}
-    if key == "speed lag":
-        return {"speed_lag": float(f"{rng.uniform(0.1, 0.3) * tau_m:.4g}")}
-    if key == "voltage drop":
-        return {"voltage_drop": float(f"{rng.uniform(0.08, 0.15) * v:.4g}")}
-    if key == "source resistance":
-        return {"source_resistance": float(f"{rng.uniform(0.4, 0.8) * truth['Ra']:.4g}")}
-    if key == "current limit":
-        return {"current_limit": float(f"{rng.uniform(0.2, 0.4) * v / truth['Ra']:.4g}")}
-    if key == "unknown load":
-        name = str(rng.choice(names))
-        w = v * truth["K"] / (truth["Ra"] * truth["B"] + truth["K"] ** 2)
-        return {"unknown_load": {name: {"viscous": float(f"{2.0 * truth['B']:.4g}"),
-                                        "constant": float(f"{0.1 * truth['B'] * w:.4g}")}}}
-    if key == "speed gain":
-        return {"speed_gain": float(f"{rng.uniform(1.06, 1.15):.4g}")}
-    if key == "speed offset":
-        w = v * truth["K"] / (truth["Ra"] * truth["B"] + truth["K"] ** 2)
-        return {"speed_offset": float(f"{rng.uniform(0.03, 0.06) * w:.4g}")}
-    if key == "encoder speed":
-        for t in traces:  # every driven trace's speed: encoder counts differenced
-            if t["kind"] != "coast-down":
-                t.pop("speed_noise", None), t.pop("speed_quantum", None)
-                t["encoder"] = {"counts_per_rev": 64, "output": "speed"}
-        return {}
-    raise ValueError(f"unknown non-ideality {key!r}; use one of {NON_IDEALITIES}")
-
-
 def fuzz_plan(seed: int, *, misspecified: str | None = None, shapes=None,
               trace_current: bool | None = None, steady: str | None = None
               ) -> tuple[dict, dict]:
@@ -274,7 +237,7 @@ def fuzz_plan(seed: int, *, misspecified: str | None = None, shapes=None,
             "speed_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * w_top:.4g}"),
             "current_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * i_level:.4g}")}]
     step = steady is None and rng.uniform() < 0.15
-    plan["rig"] = _rig(rng, misspecified, truth, v, tau_m, [t["name"] for t in traces
+    plan["rig"] = rig_table(rng, misspecified, truth, v, tau_m, [t["name"] for t in traces
                                                              if t["kind"] != "coast-down"],
                        traces)
     return plan, {"columns": tuple(columns), "step_reading": bool(step),
@@ -298,8 +261,6 @@ def fuzz_session(seed: int, *, misspecified: str | None = None, out=None, shapes
                  ) -> FuzzedSession:
     """Draw the session of ``seed`` (see :func:`fuzz_plan`) and, given ``out``, write it
     there (replacing an earlier fuzzed session) for :func:`~pmdc_bayes.io.loader.load_session`."""
-    import json
-
     files, plan, extras = fuzz_files(seed, misspecified=misspecified, shapes=shapes,
                                      trace_current=trace_current, steady=steady)
     path = None
