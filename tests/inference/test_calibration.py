@@ -136,3 +136,68 @@ def test_intervals_cover_the_truth_with_a_dead_time_and_a_voltage_drop_fitted():
         _record(hits, post, truth)
     assert set(hits) >= {"Vdrop", "dead_time_step_12v", "dead_time_step_6v", "K", "J"}
     assert _assert_covered(hits) == N_RIGS * len(model.names)
+
+
+# -- fuzzed sessions of the kinds that were miscalibrated ---------------------------------
+# Sessions from the fuzzer (the bench simulator, written and loaded) whose traces log no
+# current, the current coming only from a steady table or one operating point; many of
+# them log quantised speeds.  The central 90 % Laplace interval of every motor
+# parameter is checked against the truth, pooled, against the 99 % binomial band; the
+# same z-scores with every interval narrowed to 60 % of its width must fall outside it.
+FUZZ_SEEDS = tuple(range(3000, 3008))
+NARROWED = 0.6
+
+
+@pytest.fixture(scope="module")
+def fuzzed_fits(tmp_path_factory):
+    from pmdc_bayes.inference.adequacy import assess
+    from pmdc_bayes.inference.seed import fit_seed
+    from pmdc_bayes.simulate.fuzz import fuzz_session
+
+    root = tmp_path_factory.mktemp("fuzzed")
+    out = []
+    for seed in FUZZ_SEEDS:
+        f = fuzz_session(seed, out=root / str(seed), trace_current=False,
+                         steady=("table", "point")[seed % 2])
+        session = load_session(f.path)
+        with np.errstate(over="ignore"):  # the seed's onset search may try huge delays
+            cf = fit_seed(session)
+        model = build_model(session, cf)
+        fit = fit_map(model, seed=seed)
+        assert fit.ok, f"fuzzed session {seed}: {fit.message}"
+        out.append((f, model, fit, assess(model, fit, cf)))
+    return out
+
+
+def _laplace_z(model, fit, truth) -> list[float]:
+    names = list(fit.names)
+    t = np.asarray(model.theta({k: v for k, v in truth.items() if k in names}))
+    sd = np.sqrt(np.diag(fit.cov_log))
+    return [float((t[i] - fit.theta[i]) / sd[i]) for i, k in enumerate(names)
+            if k in ("Ra", "La", "K", "B", "J", "Tc") and truth.get(k, 0.0) > 0]
+
+
+def _covered(z, width: float = 1.0) -> tuple[int, int]:
+    half = stats.norm.ppf(0.5 + LEVEL / 2) * width
+    z = np.asarray(z)
+    return int(np.sum(np.abs(z) <= half)), z.size
+
+
+@pytest.mark.slow
+def test_laplace_intervals_cover_the_truth_on_fuzzed_speed_only_sessions(fuzzed_fits):
+    z = [x for f, model, fit, _ in fuzzed_fits for x in _laplace_z(model, fit, f.truth)]
+    covered, n = _covered(z)
+    lo, hi = binomial_band(n)
+    assert lo <= covered <= hi, (f"{covered}/{n} 90 % intervals cover the truth; the 99 % "
+                                 f"band is [{lo}, {hi}]; z = {np.round(z, 2)}")
+    narrowed, _ = _covered(z, NARROWED)  # the negative control: the band would catch it
+    assert not lo <= narrowed <= hi, f"{narrowed}/{n} narrowed intervals still in band"
+
+
+@pytest.mark.slow
+def test_few_false_alarms_on_fuzzed_in_class_sessions(fuzzed_fits):
+    """At most the count that a 5 % session-level false-alarm rate exceeds with
+    probability 1 % (Binomial(8, 0.05): 2 or fewer)."""
+    flagged = [f.seed for f, _, _, a in fuzzed_fits if a.verdict == "inadequate"]
+    allowed = int(stats.binom.ppf(0.99, len(fuzzed_fits), 0.05))
+    assert len(flagged) <= allowed, f"in-class sessions {flagged} called inadequate"
