@@ -334,11 +334,12 @@ def _shapes(tmp: Path, cfg, simulated: Path) -> dict:
 
 def _hard_case(tmp: Path) -> dict:
     """The sampler on a non-Gaussian Coulomb posterior (``hard_posteriors.py``'s
-    small-Coulomb case): a warm whole run with the default 60 s sampling limit."""
+    small-Coulomb case): a warm whole run with a 60 s sampling limit."""
     import hard_posteriors
 
     r = hard_posteriors.case(str(hard_posteriors.small_coulomb(tmp / "small-coulomb")), tmp,
-                             "small-coulomb")
+                             "small-coulomb", extra=("--max-sampling-seconds",
+                                                     str(hard_posteriors.SAMPLING_LIMIT)))
     print(f"  exit {r['exit']}, sampling {r['mcmc_s']:.1f} s, {r['steps']} steps, τ_max "
           f"{r['tau']:.0f} ({r['worst']}), gates {'passed' if r['passed'] else 'failed'}, "
           f"truth in the 94 % HDI: {len(r['covered'])} of {len(r['tried'])}", flush=True)
@@ -536,7 +537,7 @@ def _section(m: dict, r: dict, quick: bool) -> str:
           "traces, 10,204 samples, Coulomb friction, speed and current), the simulated "
           "session above (3 traces × 10,000 samples, viscous), `data/bench` (4 traces of "
           "encoder counts, no current, a shared dead time, a voltage drop, a current "
-          "limit, a brake's drag; its default 60 s sampling limit).", ""]
+          "limit, a brake's drag; a 60 s sampling limit).", ""]
     stage_keys = list(dict.fromkeys(k for runs in r["e2e"].values() for v in runs.values()
                                     for k in v.get("stages", {}) if k != "total"))
     L += ["| session | run | wall (s) | " + " | ".join(f"{k} (s)" for k in stage_keys)
@@ -557,7 +558,7 @@ def _section(m: dict, r: dict, quick: bool) -> str:
         L += ["### The sampler on a non-Gaussian Coulomb posterior", "",
               "`hard_posteriors.py`'s small-Coulomb case (the demo's plan with a tenth of "
               "its Coulomb torque, so that Tc trades against B): a whole warm `pmdc-bayes "
-              f"fit` with the default 60 s sampling limit: exit {h['exit']}, "
+              f"fit` with a 60 s sampling limit: exit {h['exit']}, "
               f"{h['mcmc_s']:.1f} s of sampling (the stage), {h['steps']} steps, τ_max "
               f"{h['tau']:.0f} steps ({h['worst']}), gates "
               f"{'passed' if h['passed'] else 'failed'}, truth in the 94 % HDI for "
