@@ -5,9 +5,8 @@ moves one step at a time, every candidate fitted at its MAP, checked for adequac
 scored by its Laplace evidence (:func:`~.selection.laplace_log_evidence`, compared on
 the Kass–Raftery scale):
 
-- **forward**: the additions the adequacy verdict proposes (its ``proposals``, or the
-  ``--add`` its diagnosis names), or, when the model is rejected and nothing is
-  proposed, every single addition of the registry (:mod:`.terms`) with something in
+- **forward**: the additions the adequacy verdict proposes (its ``proposals``), or,
+  when the model is rejected and nothing is proposed, every single addition of the registry (:mod:`.terms`) with something in
   the session to act on.  The best is taken when its evidence beats the current
   model's by more than :data:`ADD_MARGIN` ("strong"), or when the data reject the
   current model and not it while its evidence is no lower.  A candidate whose added
@@ -30,7 +29,6 @@ are reported beside it: the data do not tell them apart.
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 
@@ -52,7 +50,6 @@ ADD_MARGIN = 3.0  # log Bayes factor an addition must gain over an adequate mode
 REMOVE_MARGIN = 1.0  # a term whose removal costs less is not supported ("a bare mention")
 TIE = 1.0  # adequate candidates this close in log evidence are reported side by side
 MAX_FITS = 16  # the search's bound on MAP fits
-_ADD = re.compile(r"--add ([a-z][a-z-]*)")
 
 
 def _neutral(spec) -> float:
@@ -191,13 +188,7 @@ class _Search:
 
     def proposed(self, cand) -> list[frozenset]:
         """The additions the verdict proposes, in its order."""
-        items = getattr(cand.adequacy, "proposals", ())
-        pairs = [(p.nuisance, getattr(p, "trace", None)) for p in items]
-        if not items:
-            text = " ".join(cand.adequacy.diagnosis)
-            pairs = [(m.replace("-", "_"), None) for m in _ADD.findall(text)]
-            if "--friction coulomb" in text:
-                pairs.append(("coulomb", None))
+        pairs = [(p.nuisance, p.trace) for p in cand.adequacy.proposals]
         moves = []
         for nuisance, trace in pairs:
             if nuisance in NUISANCES or nuisance == "coulomb":
