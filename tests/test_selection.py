@@ -62,6 +62,18 @@ def test_the_run_copy_declares_the_chosen_model_and_reads_back_as_it(tmp_path):
 
 
 @x64
+def test_the_model_is_left_to_the_search_only_when_nothing_declares_it():
+    """A [model], an --add or a --friction is the user's model: a plain fit does not
+    search over it (the demo's viscous fit stays rejected, not patched with loads)."""
+    from pmdc_bayes.pipeline import model_left_open
+
+    demo = load_session(bundled_session_dir("demo"))
+    assert model_left_open(demo, (), None)
+    assert not model_left_open(demo, ("dead_time",), None)
+    assert not model_left_open(demo, (), "viscous")
+    assert not model_left_open(with_terms(demo, {"dead_time"}), (), None)
+
+
 def test_a_nested_start_is_the_parent_with_the_additions_neutral():
     session = case_session(None, seed=2)
     parent = build_model(session, fit_seed(session))

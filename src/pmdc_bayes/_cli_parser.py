@@ -184,7 +184,8 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                     "when the data no longer reject the model and no addition is clearly "
                     "better (Laplace evidence); then run the chosen model and write it as "
                     "[model] into the run's copy of session.toml.  A plain fit of a session "
-                    "without [model] searches too when the ideal model is rejected")
+                    "without [model] (nor --add or --friction) searches too when the ideal "
+                    "model is rejected")
     ft.add_argument("--no-search", action="store_true",
                     help="fit the session's model as it is, even when it declares no [model] "
                     "and the data reject the ideal model")

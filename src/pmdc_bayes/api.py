@@ -12,7 +12,7 @@ from .inference.result import RunResult
 from .io.bundled import session_path
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
-from .pipeline import SAMPLING_SECONDS, fit_session
+from .pipeline import SAMPLING_SECONDS, fit_session, model_left_open, search_session
 
 __all__ = ["fit"]
 
@@ -35,8 +35,8 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
     progress : the sampler's progress bar; by default in a terminal or a notebook.
     search : run the model search of :mod:`.search` (``fit --compare``) and fit the model
         it chooses: True always (from the session's model), False never; by default
-        (None) when the session declares no ``[model]``, nothing is added and the data
-        reject the ideal model.  The search is recorded in
+        (None) when the session declares no ``[model]``, nothing is added, no
+        ``friction`` is given and the data reject the ideal model.  The search is recorded in
         ``summary["model_selection"]``.
     max_sampling_seconds : stop a sampler that has not converged after this long, with
         the reason in ``summary["diagnostics"]`` (its gates then fail); None: no limit.
@@ -68,8 +68,7 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
         raise UsageError(f"friction: {friction!r} is not 'viscous' or 'coulomb'")
     held = tuple([holdout] if isinstance(holdout, str) else holdout)
     selection = None
-    if search or (search is None and not names and not session.nuisances):
-        from .pipeline import search_session
+    if search or (search is None and model_left_open(session, names, friction)):
 
         session, selection = search_session(session, holdout=held, friction=friction,
                                             seed=seed, say=None, compare=bool(search))

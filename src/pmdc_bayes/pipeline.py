@@ -29,8 +29,8 @@ from .io.session import NUISANCES, Session
 from .paper.consistency import consistency_checks
 from .rundir import check_replaceable, copy_session, write_atomically, write_model
 
-__all__ = ["fit_session", "run_fit", "search_session", "write_run", "default_out_dir",
-           "versions"]
+__all__ = ["fit_session", "run_fit", "search_session", "model_left_open", "write_run",
+           "default_out_dir", "versions"]
 
 SAMPLING_SECONDS = None  # no bound on the sampler's wall time by default: it stops
 # by its step budget, so a run's result does not depend on the machine's load
@@ -209,7 +209,7 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     model search of :mod:`.search` from the session's model and then the model it chose,
     recording the search under ``"model_selection"`` and writing the chosen model into
     the run's copy of ``session.toml``; without ``compare`` the search runs when the
-    session declares no ``[model]``, nothing is added and the data reject the ideal model
+    model is left to it (:func:`model_left_open`) and the data reject the ideal model
     (``search=False``: never).  ``pi = (kp, ki, delay)`` records the
     stability margins of that PI speed loop under ``"pi_loop"``.
     """
@@ -230,7 +230,7 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
 
     start()  # the processes that draw the report: they import matplotlib meanwhile
     selection = None
-    if compare or (search and not add and not session_full.nuisances):
+    if compare or (search and model_left_open(session_full, add, friction)):
         session_full, selection = search_session(session_full, holdout=holdout,
                                                  friction=friction, seed=seed, say=say,
                                                  compare=compare)
@@ -246,6 +246,12 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     say(f"writing {out} (summary, posterior, report)")
     write_run(result, out, force=force)
     return out, result.summary
+
+
+def model_left_open(session: Session, add, friction: str | None) -> bool:
+    """Whether the user left the model to the search: the session declares no
+    ``[model]``, and neither a non-ideality nor the friction is asked for."""
+    return not add and not session.nuisances and friction is None
 
 
 def search_session(session_full: Session, *, holdout, friction, seed, say, compare):
