@@ -38,9 +38,9 @@ def _plan():
                        **noise}]}
 
 
-def _fit(root, out):
+def _fit(root, out, *extra):
     return subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(root), "--no-mcmc",
-                           "--out", str(out), "--quiet"], capture_output=True, text=True)
+                           "--out", str(out), "--quiet", *extra], capture_output=True, text=True)
 
 
 def _variant(root, where, edit):
@@ -69,14 +69,14 @@ def test_a_declared_fan_is_carried_and_a_forgotten_one_rejected(tmp_path):
         assert abs(p["map"] - want) < 3 * p["map_sd"], (name, p["map"], p["map_sd"], want)
     # the same data with the fan left out of the session: the model is rejected
     bare = _variant(root, tmp_path / "bare", lambda ln: None if ln.startswith("drag = ") else ln)
-    run = _fit(bare, tmp_path / "run_bare")
+    run = _fit(bare, tmp_path / "run_bare", "--no-search")
     assert run.returncode == 3, run.stdout + run.stderr
     # declared 60 % too strong: rejected, and the diagnosis says the drag is too strong
     strong = _variant(root, tmp_path / "strong", lambda ln: ln.replace(
         "quadratic = 6e-07", "quadratic = 9.6e-07").replace("0.002]", "0.0032]").replace(
         "0.009]", "0.0144]"))
     assert "quadratic = 9.6e-07" in (strong / "session.toml").read_text()
-    run = _fit(strong, tmp_path / "run_strong")
+    run = _fit(strong, tmp_path / "run_strong", "--no-search")
     assert run.returncode == 3, run.stdout + run.stderr
     assert "fan_12v: settles" in run.stderr and "declared too strong" in run.stderr
 

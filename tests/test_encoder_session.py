@@ -87,7 +87,7 @@ def test_an_encoder_edge_session_fits_end_to_end(tmp_path):
 def test_an_encoder_rig_dead_time_is_flagged_then_recovered(tmp_path):
     delay = 2e-3
     root, _ = write_edge_session(tmp_path / "edges", dead_time=delay)
-    proc, _ = _fit(root, tmp_path / "ideal")
+    proc, _ = _fit(root, tmp_path / "ideal", "--no-search")
     assert proc.returncode == 3, proc.stdout + proc.stderr
     assert "dead time" in proc.stdout + proc.stderr
     proc, summary = _fit(root, tmp_path / "delayed", "--add", "dead-time")

@@ -176,7 +176,7 @@ def test_through_the_cli_the_ideal_motor_is_rejected_and_the_rig_recovered(tmp_p
     plan.write_text(PLAN_TOML)
     proc = _cli("simulate", plan, "--out", tmp_path / "s")
     assert proc.returncode == 0, proc.stderr
-    ideal = _cli("fit", tmp_path / "s", "--no-mcmc", "--out", tmp_path / "ideal")
+    ideal = _cli("fit", tmp_path / "s", "--no-mcmc", "--no-search", "--out", tmp_path / "ideal")
     assert ideal.returncode == 3, ideal.stderr
     assert "current-limit" in ideal.stderr
     declared = tmp_path / "declared"
@@ -230,7 +230,7 @@ def test_sensor_calibrations_a_set_limit_and_a_constant_brake_are_recovered(
     plan = tmp_path / "plan.toml"
     plan.write_text(plan_text)
     assert _cli("simulate", plan, "--out", tmp_path / "s").returncode == 0
-    ideal = _cli("fit", tmp_path / "s", "--no-mcmc", "--out", tmp_path / "ideal")
+    ideal = _cli("fit", tmp_path / "s", "--no-mcmc", "--no-search", "--out", tmp_path / "ideal")
     assert ideal.returncode == 3, ideal.stdout + ideal.stderr
     declared = tmp_path / "declared"
     declared.mkdir()
