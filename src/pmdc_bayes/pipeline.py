@@ -263,8 +263,9 @@ def search_session(session_full: Session, *, holdout, friction, seed, say, compa
     fitted = session_full.without_traces(holdout) if holdout else session_full
     with announcing(say):
         selection = search_model(fitted, friction=friction, seed=seed, say=say)
-    if not compare and selection["fits"] == 1 and selection["candidates"][0]["verdict"] \
-            == "adequate":
+    start = selection["candidates"][0]
+    if not compare and selection["fits"] == 1 and (start["verdict"] == "adequate"
+                                                   or not start["converged"]):
         return session_full, None
     return with_terms(session_full, selection["terms"]), selection
 

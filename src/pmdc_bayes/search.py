@@ -265,8 +265,8 @@ def search_model(session: Session, *, friction: str | None = None, seed: int = 0
     start_terms = terms_of(session)
     current = search.start(start_terms)
     current.why = "the session's model" if start_terms else "the ideal motor"
-    stop = ""
-    for _ in range(max_fits):  # each step fits at least one new candidate or stops
+    stop = "" if current.fit.ok else "its MAP fit failed, so there is nothing to build on"
+    for _ in range(max_fits if current.fit.ok else 0):  # each step fits at least one new candidate or stops
         if search.fits_left() <= 0:
             stop = f"the bound of {max_fits} fits was reached"
             break
@@ -315,6 +315,8 @@ def _record(search, chosen, stop, session) -> dict:
     table, friction = model_table(session, chosen.terms)
     if chosen.ok:
         reason = f"the data do not reject it; the search stopped: {stop}"
+    elif not chosen.fit.ok:
+        reason = f"the search stopped at its start: {stop} ({chosen.fit.message})"
     else:
         reason = (f"the data reject every candidate tried; it has the highest evidence "
                   f"reached, and its diagnosis says what is still missing ({stop})")

@@ -24,7 +24,10 @@ def laplace_log_evidence(model, fit) -> float:
     values of candidates of one session compare: their difference is a log Bayes
     factor.  Only as good as the Laplace approximation (one mode, not at a bound)."""
     scale = np.asarray(model.data["prior_scale"], dtype=float)
-    sign, logdet = np.linalg.slogdet(np.asarray(fit.cov_log, dtype=float))
+    cov = np.asarray(fit.cov_log, dtype=float)
+    if not (np.all(np.isfinite(cov)) and math.isfinite(fit.log_posterior)):
+        return float("nan")
+    sign, logdet = np.linalg.slogdet(cov)
     if sign <= 0:
         return float("nan")
     return float(fit.log_posterior - np.sum(np.log(scale)) + 0.5 * logdet)

@@ -80,6 +80,22 @@ def test_onset_shape_tells_a_delay_or_lag_from_a_ramp(kind):
             assert s["dead_time"] == pytest.approx(d, rel=0.25)
 
 
+@pytest.mark.parametrize("seed", range(12))
+def test_onset_shape_stays_finite_and_quiet_on_short_noisy_rises(seed):
+    """Short, coarse, noisy rises whose shape searches wander far past the record: the
+    times found stay between a tenth of a sample and ten records, without a numerical
+    warning (which the suite turns into an error)."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(12, 40))
+    t = np.arange(n) * 1e-3
+    tau = 10 ** rng.uniform(-3.5, -1)
+    y = np.round(50 * (1 - np.exp(-t / tau)) + rng.normal(0, 10 ** rng.uniform(-1, 1), n))
+    s = onset_shape(t, y, 0.0)
+    if s is not None:
+        assert all(np.isfinite(v) for v in s.values())
+        assert 1e-4 <= s["dead_time"] <= 10 * t[-1]
+
+
 def test_only_optima_close_to_the_map_raise_a_search_warning():
     from types import SimpleNamespace
 

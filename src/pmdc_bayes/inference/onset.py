@@ -77,11 +77,17 @@ def onset_shape(t, y, t_step) -> dict | None:
               "lagged": [[np.log(f * t90 / 2.3), np.log((1 - f) * t90 / 2.3)]
                          for f in (0.5, 0.7, 0.9)],
               "ramp": [[np.log(t90), np.log(f * t90)] for f in (0.1, 0.3, 0.6)]}
+    # times between a tenth of a sample and ten records: beyond them every shape is flat
+    # over the record, and a search that wanders there stops at the bound
+    lo, hi = np.log(float(np.median(np.diff(tt))) / 10), np.log(10 * float(tt[-1]))
     out, best = {}, {}
     for name, fn in _shapes(tt).items():
-        fits = [least_squares(lambda q, fn=fn: fn(q) - ss, q0, method="lm") for q0 in starts[name]]
+        # a delay past the record overflows the exponential of the branch np.where drops
+        with np.errstate(over="ignore", invalid="ignore"):
+            fits = [least_squares(lambda q, fn=fn: fn(np.clip(q, lo, hi)) - ss, q0,
+                                  method="lm") for q0 in starts[name]]
         f = min(fits, key=lambda f: f.cost)
-        out[name], best[name] = 2 * f.cost, np.exp(f.x)
+        out[name], best[name] = 2 * f.cost, np.exp(np.clip(f.x, lo, hi))
     base = out["plain"] + floor
     rel = {k: (v + floor) / base for k, v in out.items()}
     return dict(rel, dead_time=float(best["delayed"][0]),
