@@ -232,17 +232,22 @@ delay = 3e-3
 
 
 @pytest.mark.slow
-def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path):
-    """No [model], the ideal model rejected (a 3 ms dead time): a plain fit searches, fits
-    the model it chose, and writes it into the run's copy of session.toml; the report
-    re-read from the run and a refit of the copy (without a search) use that model."""
+def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path, monkeypatch):
+    """No [model], the ideal model rejected (a 3 ms dead time): a plain fit searches, goes
+    on from the fit of the model it chose (not fitting it again), and writes it into the
+    run's copy of session.toml; the report re-read from the run and a refit of the copy
+    (without a search) use that model."""
+    from pmdc_bayes import pipeline
     from pmdc_bayes.inference.result import read_run
     from pmdc_bayes.pipeline import run_fit
     from pmdc_bayes.simulate.session import simulate_session
 
     (tmp_path / "plan.toml").write_text(PLAN)
     session = simulate_session(tmp_path / "plan.toml", tmp_path / "session")
+    refits = []
+    monkeypatch.setattr(pipeline, "fit_map", lambda *a, **k: refits.append(1) or fit_map(*a, **k))
     out, summary = run_fit(session, out=tmp_path / "run", mcmc=False)
+    assert refits == [] and summary["diagnostics"]["wall_s"]["model_search"] > 0
     sel = summary["model_selection"]
     assert sel["candidates"][0]["name"] == "ideal"
     assert sel["candidates"][0]["verdict"] == "inadequate"

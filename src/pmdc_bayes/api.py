@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 
 from ._errors import SessionError, UsageError
+from .inference.cache import StageClock
 from .inference.result import RunResult
 from .io.bundled import session_path
 from .io.loader import load_session
@@ -67,15 +68,17 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
     if friction not in (None, "viscous", "coulomb"):
         raise UsageError(f"friction: {friction!r} is not 'viscous' or 'coulomb'")
     held = tuple([holdout] if isinstance(holdout, str) else holdout)
-    selection = None
+    selection = chosen = None
+    clock = StageClock()
     if search or (search is None and model_left_open(session, names, friction)):
-
-        session, selection = search_session(session, holdout=held, friction=friction,
-                                            seed=seed, say=None, compare=bool(search))
+        session, selection, chosen = search_session(
+            session, holdout=held, friction=friction, seed=seed, say=None,
+            compare=bool(search), clock=clock)
     result = fit_session(session, mcmc=mcmc, friction=friction, seed=seed,
                          holdout=held,
                          progress=progress, allow_inadequate=allow_inadequate,
-                         max_sampling_seconds=max_sampling_seconds)
+                         max_sampling_seconds=max_sampling_seconds, fitted=chosen,
+                         clock=clock)
     if selection is not None:
         result.summary["model_selection"] = selection
     if changed:

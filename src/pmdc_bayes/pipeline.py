@@ -86,9 +86,13 @@ def _closed_form_theta(model, cf):
 def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | None = None,
                 seed: int = 0, holdout=(), compare_friction: bool = False,
                 progress=None, allow_inadequate: bool = False, say=None,
-                max_sampling_seconds: float | None = SAMPLING_SECONDS) -> RunResult:
+                max_sampling_seconds: float | None = SAMPLING_SECONDS,
+                fitted=None, clock: StageClock | None = None) -> RunResult:
     """Every stage of a fit, in memory: closed form → MAP → adequacy → (MCMC); the
     run's result.  ``say``, when given, is called with a line as each stage starts.
+    ``fitted`` (a :class:`~.search.Fitted` of this session's model, as the model search
+    leaves it) stands for the closed form, MAP and adequacy stages; ``clock``, the
+    :class:`~.inference.cache.StageClock` that timed the search, goes on timing.
     The sampler stops by its rule or its step budget (the same on any machine);
     ``max_sampling_seconds``, when given, also bounds its wall time (default None: no
     bound); a posterior stopped by either fails its gates with the reason.
@@ -98,27 +102,27 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     describe the misfit) unless ``allow_inadequate``.
     """
     say = say or (lambda text: None)
-    clock = StageClock()
+    clock = clock or StageClock()
     for name in holdout:
         if name not in {t.name for t in session_full.traces}:
             _no_trace(session_full, name)
     session = session_full.without_traces(holdout) if holdout else session_full
     with clock.stage("closed_form"):
         say("closed form (the paper's method), or a seed from the data")
-        cf = fit_seed(session)
+        cf = fit_seed(session) if fitted is None else fitted.seed
     with clock.stage("map"):
         coulomb = None if friction is None else friction == "coulomb"
-        model = build_model(session, cf, coulomb=coulomb)
+        model = build_model(session, cf, coulomb=coulomb) if fitted is None else fitted.model
         say(f"MAP fit of {len(model.names)} parameters")
         warm = WarmUp(model, mcmc=mcmc)  # the later stages' programs, meanwhile
         with warm.stopped_on_error():
-            fit = fit_map(model, seed=seed)
+            fit = fit_map(model, seed=seed) if fitted is None else fitted.fit
             if not np.all(np.isfinite(fit.cov_log)):
                 raise FitFailed(f"{session.root}: the MAP fit failed: {fit.message}")
             ident = identifiability(model, fit)
     with clock.stage("adequacy"), warm.stopped_on_error():
         say("adequacy checks")
-        adequacy = assess(model, fit, cf)
+        adequacy = assess(model, fit, cf) if fitted is None else fitted.adequacy
     if not adequacy.ok and not allow_inadequate:
         warm.stop()
 
@@ -229,16 +233,18 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     from .report._render import start
 
     start()  # the processes that draw the report: they import matplotlib meanwhile
-    selection = None
+    selection = chosen = None
+    clock = StageClock()
     if compare or (search and model_left_open(session_full, add, friction)):
-        session_full, selection = search_session(session_full, holdout=holdout,
-                                                 friction=friction, seed=seed, say=say,
-                                                 compare=compare)
+        session_full, selection, chosen = search_session(
+            session_full, holdout=holdout, friction=friction, seed=seed, say=say,
+            compare=compare, clock=clock)
     with announcing(say):
         result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
                              holdout=holdout, compare_friction=compare_friction,
                              progress=progress, allow_inadequate=allow_inadequate, say=say,
-                             max_sampling_seconds=max_sampling_seconds)
+                             max_sampling_seconds=max_sampling_seconds, fitted=chosen,
+                             clock=clock)
     if selection is not None:
         result.summary["model_selection"] = selection
     if pi is not None:
@@ -254,20 +260,24 @@ def model_left_open(session: Session, add, friction: str | None) -> bool:
     return not add and not session.nuisances and friction is None
 
 
-def search_session(session_full: Session, *, holdout, friction, seed, say, compare):
-    """The session with the model the search chose, and the search's record (None when,
-    run without ``compare``, the data do not reject the session's model)."""
-    from .search import search_model
+def search_session(session_full: Session, *, holdout, friction, seed, say, compare,
+                   clock: StageClock):
+    """The session with the model the search chose, the search's record (None when, run
+    without ``compare``, the data do not reject the session's model or its fit failed)
+    and the chosen candidate's :class:`~.search.Fitted`, for :func:`fit_session` to go on
+    from; ``clock`` times it as the stage ``model_search``."""
+    from .search import run_search
     from .terms import with_terms
 
     fitted = session_full.without_traces(holdout) if holdout else session_full
-    with announcing(say):
-        selection = search_model(fitted, friction=friction, seed=seed, say=say)
+    with announcing(say), clock.stage("model_search"):
+        searched = run_search(fitted, friction=friction, seed=seed, say=say)
+    selection = searched.record
     start = selection["candidates"][0]
     if not compare and selection["fits"] == 1 and (start["verdict"] == "adequate"
                                                    or not start["converged"]):
-        return session_full, None
-    return with_terms(session_full, selection["terms"]), selection
+        return session_full, None, searched.chosen
+    return with_terms(session_full, selection["terms"]), selection, searched.chosen
 
 
 def write_run(result: RunResult, out: Path, *, force: bool = False) -> Path:

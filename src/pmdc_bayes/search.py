@@ -29,6 +29,7 @@ are reported beside it: the data do not tell them apart.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -44,12 +45,32 @@ from .io.session import NUISANCES, Session
 from .selection import laplace_log_evidence
 from .terms import LOAD, SHARED, label, model_table, nuisance_of, ordered, terms_of, with_terms
 
-__all__ = ["search_model", "nested_start", "ADD_MARGIN", "REMOVE_MARGIN", "TIE", "MAX_FITS"]
+__all__ = ["search_model", "run_search", "Fitted", "Searched", "nested_start", "ADD_MARGIN", "REMOVE_MARGIN", "TIE", "MAX_FITS"]
 
 ADD_MARGIN = 3.0  # log Bayes factor an addition must gain over an adequate model ("strong")
 REMOVE_MARGIN = 1.0  # a term whose removal costs less is not supported ("a bare mention")
 TIE = 1.0  # adequate candidates this close in log evidence are reported side by side
 MAX_FITS = 16  # the search's bound on MAP fits
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """A candidate fitted at its MAP and checked: the seed, model, MAP fit and verdict a
+    run goes on from without fitting them again."""
+
+    session: Session
+    seed: object
+    model: object
+    fit: object
+    adequacy: object
+
+
+@dataclass(frozen=True)
+class Searched:
+    """The search's record (ready for JSON) and the chosen candidate's fit."""
+
+    record: dict
+    chosen: Fitted
 
 
 def _neutral(spec) -> float:
@@ -247,7 +268,6 @@ def _removals(search, current, start_terms, last_move) -> _Candidate:
     return current
 
 
-@x64
 def search_model(session: Session, *, friction: str | None = None, seed: int = 0,
                  max_fits: int = MAX_FITS, say=None) -> dict:
     """The stepwise search on ``session`` (module docstring): every candidate fitted,
@@ -255,6 +275,14 @@ def search_model(session: Session, *, friction: str | None = None, seed: int = 0
     chosen model (its terms, ``[model]`` table and friction) and why; the adequate
     candidates the evidence does not tell from it (a dict ready for JSON).  ``friction``
     given, Coulomb friction is not searched over."""
+    return run_search(session, friction=friction, seed=seed, max_fits=max_fits,
+                      say=say).record
+
+
+@x64
+def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
+               max_fits: int = MAX_FITS, say=None) -> Searched:
+    """:func:`search_model`'s record and the chosen candidate's fit."""
     say = say or (lambda text: None)
     if friction is not None:
         import dataclasses
@@ -288,7 +316,9 @@ def search_model(session: Session, *, friction: str | None = None, seed: int = 0
         best.why = f"{why} ({source})"
         current = _removals(search, best, start_terms, best.terms - best.parent.terms)
     stop = stop or f"the bound of {max_fits} steps was reached"
-    return _record(search, current, stop, session)
+    return Searched(_record(search, current, stop, session),
+                    Fitted(current.session, current.cf, current.model, current.fit,
+                           current.adequacy))
 
 
 def _dropped(current, c, best) -> str:

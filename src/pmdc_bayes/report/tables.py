@@ -123,7 +123,8 @@ def derived_table(ctx) -> Table:
 
 
 # The stages of a run (keys of summary.json's diagnostics.wall_s), as people name them.
-_STAGES = {"closed_form": "closed form", "map": "MAP", "mcmc": "MCMC"}
+_STAGES = {"model_search": "model search", "closed_form": "closed form", "map": "MAP",
+           "mcmc": "MCMC"}
 
 
 def diagnostics_table(ctx) -> Table:
