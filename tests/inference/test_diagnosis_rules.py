@@ -79,6 +79,32 @@ def test_a_no_load_speed_the_session_contradicts_fails_the_plausibility_check():
         session.steady_tables[0].speed[-1], rel=1e-12)
 
 
+def test_a_steady_readings_miss_is_read_against_the_noise_the_readings_show():
+    """The no-load level from a steady table: its miss is judged on the steady readings'
+    fitted noise (Student's t), so a reading 5 % off among readings that scatter 4 %
+    about the model is no alarm, while the same 5 % among readings the model meets to
+    0.3 % is."""
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.checks import plausibility_checks
+    from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.paper.closed_form import closed_form
+
+    session = case_session()
+    model = build_model(session, closed_form(session))
+    preds = [(np.asarray(tr.current), np.asarray(tr.speed)) for tr in session.traces]
+    top = float(session.steady_tables[0].speed[-1])
+    truth = dict(session.truth)
+    # K 5 % high: the model's no-load speed ~5 % below the 12 V row
+    off = dict(truth, K=1.05 * truth["K"])
+    verdicts = {}
+    for scatter in (0.04, 0.003):
+        fit = SimpleNamespace(values=off, noise_sd={"steady: speed": scatter * top})
+        out, found = plausibility_checks(model, fit, preds)
+        verdicts[scatter] = [f.severity for f in found if f.where == "no-load speed"]
+        assert out["no_load_speed"]["logged_speed"] == pytest.approx(top, rel=1e-12)
+    assert verdicts == {0.04: [], 0.003: ["fail"]}
+
 def test_a_driven_trace_whose_speed_never_leaves_its_noise_is_named():
     import dataclasses
     from types import SimpleNamespace

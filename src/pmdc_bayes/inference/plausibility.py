@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.stats import norm
+from scipy.stats import t as student_t
 
 from ..io._position import speed_estimate, speed_window
 from ..physics import motor
@@ -14,6 +15,7 @@ from .adequacy import Finding, _g
 from .calibrate import Test, logged_quantum, replicates, session_rng, tail_p
 from .checks import rise_time, step_time
 from .levels import unloaded_levels
+from .objective import NU0
 
 __all__ = ["plausibility_tests", "rise_eligible"]
 
@@ -146,10 +148,11 @@ def _peak_test(tr, ia, noise_sd, s0, rng) -> list:
 
 def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
     """The model's steady speed at the session's largest settled unloaded voltage
-    against the speed logged there; two-sided, in the level's noise: a steady
-    reading's noise scale, or for a trace's end, its speed's fitted noise over the
-    samples averaged, around the mean the model predicts over them (which a trace that
-    has not quite settled holds short of the steady speed)."""
+    against the speed logged there; two-sided, in the level's noise: the steady
+    readings' noise level at the MAP (Student's t: a handful of readings tell it only
+    roughly), or for a trace's end, its speed's fitted noise over the samples averaged,
+    around the mean the model predicts over them (which a trace that has not quite
+    settled holds short of the steady speed)."""
     rows, names = unloaded_levels(model.session)
     if not rows.size:
         return []
@@ -162,17 +165,26 @@ def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
     w_mod = float(w_mod)
     out["no_load_speed"].update(logged_voltage=float(v), logged_speed=float(w_obs),
                                 model_at_logged_voltage=w_mod)
-    expected, se = w_mod, s0.get("steady: speed", 0.0)
-    if names[j] is not None:
+    if names[j] is None:
+        # a steady reading: its noise is the steady channel's, known only as well as the
+        # few readings' scatter about the model tells it (σ at the MAP over n + ν0
+        # pseudo-readings), so the miss is read on Student's t with that many degrees
+        expected = w_mod
+        se = float(noise_sd.get("steady: speed", s0.get("steady: speed", 0.0)))
+        ch = next((c for c in model.channels if c.name == "steady: speed"), None)
+        dof = (ch.n if ch is not None else 1) + NU0
+    else:
         k = [t.name for t in model.session.traces].index(names[j])
         tr, n = model.session.traces[k], max(3, model.session.traces[k].n // 10)
         name = f"{tr.name}: speed"
         expected = float(np.mean(np.asarray(preds[k][1])[-n:]))
         se = float(noise_sd.get(name, s0.get(name, 0.0))) / np.sqrt(n)
+        dof = None
     if w_obs == 0 or expected * w_obs <= 0:
         pv = 0.0
     else:
-        pv = float(2 * norm.sf(abs(np.log(expected / w_obs)) / max(se / abs(w_obs), 1e-12)))
+        z = abs(np.log(expected / w_obs)) / max(se / abs(w_obs), 1e-12)
+        pv = float(2 * (norm.sf(z) if dof is None else student_t.sf(z, dof)))
     out["no_load_speed"]["p_value"] = pv
     return [Test(Finding("plausibility", "no-load speed", "fail",
                          f"x{w_mod / w_obs:.2g}" if w_obs else "logged 0",
