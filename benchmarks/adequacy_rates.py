@@ -32,11 +32,11 @@ from datetime import UTC, datetime
 import numpy as np
 from _common import REPORT, replace_section
 
+from pmdc_bayes._errors import SessionError
 from pmdc_bayes.inference.adequacy import assess
 from pmdc_bayes.inference.fit import fit_map
 from pmdc_bayes.inference.objective import build_model
 from pmdc_bayes.inference.seed import fit_seed
-from pmdc_bayes._errors import SessionError
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.bench import bench_session
 from pmdc_bayes.simulate.cases import CASES, SPEED_ONLY, case_session, random_motor
@@ -188,7 +188,8 @@ def main(argv=None) -> int:
     when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     lines = ["## Adequacy checks", "",
              f"Measured {when} by `python benchmarks/adequacy_rates.py --seeds {args.seeds} "
-             f"--motors {args.motors} --load-changes {args.load_changes}`.  Each row fits the ideal motor (MAP, global "
+             f"--motors {args.motors} --load-changes {args.load_changes}`.  Each row fits "
+             "the ideal motor (MAP, global "
              "search) and runs every adequacy check; the benches come from "
              "`pmdc_bayes.simulate.cases`.", "",
              "| bench | verdict inadequate | diagnosis names the cause |", "|---|---:|---:|"]
@@ -197,7 +198,8 @@ def main(argv=None) -> int:
                      f"{'' if named is None else f'{named}/{args.seeds}'} |")
     lines += ["", "The verdict's checks are corrected together (Holm) at a family-wise level "
               "of 1 % per session: a correct model should be called inadequate in at most "
-              "1 % of sessions.", "", "A blank diagnosis cell: nothing to name (the ideal bench), or nothing the "
+              "1 % of sessions.", "",
+              "A blank diagnosis cell: nothing to name (the ideal bench), or nothing the "
               "data can show (a supply source resistance on a speed-only bench adds to Ra, "
               "which speed alone does not separate from J: 'adequate' is the right verdict "
               "there).", "", "In-class motors (`random_motor`, the ideal model is right):", "",

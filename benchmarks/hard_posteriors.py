@@ -110,7 +110,8 @@ def main(argv=None) -> int:
     if args.no_report:
         return 0
     intro = ("`python benchmarks/hard_posteriors.py` ({stamp}): a whole `pmdc-bayes fit` "
-             "per case with a limit of 60 s of sampling (`--max-sampling-seconds 60`; but where the case says "
+             "per case with a limit of 60 s of sampling (`--max-sampling-seconds 60`; but "
+             "where the case says "
              "otherwise), measured on a run whose programs are already in the compilation "
              "cache. Goal (issue 14): the posterior passes its gates or stops with a reason "
              "within 60 s of sampling; issue 13: on data/bench the gates pass with the "

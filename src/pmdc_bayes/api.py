@@ -34,11 +34,12 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
     friction : ``"viscous"`` or ``"coulomb"``; by default the session's.
     holdout : names of traces kept out of the fit.
     progress : the sampler's progress bar; by default in a terminal or a notebook.
-    search : run the model search of :mod:`.search` (``fit --compare``) and fit the model
-        it chooses: True always (from the session's model), False never; by default
-        (None) when the session declares no ``[model]``, nothing is added, no
-        ``friction`` is given and the data reject the ideal model.  The search is recorded in
-        ``summary["model_selection"]``.
+    search : run the model search of :mod:`.search` (``fit --compare``) and go on from
+        the fit of the model it chooses: True always (from the session's model), False
+        never; by default (None) when the session declares no ``[model]``, nothing is
+        added and no ``friction`` is given (the search then ends at its start when the
+        data do not reject the ideal model).  A search that went past its start, or any
+        with True, is recorded in ``summary["model_selection"]``.
     max_sampling_seconds : stop a sampler that has not converged after this long, with
         the reason in ``summary["diagnostics"]`` (its gates then fail); None: no limit.
 

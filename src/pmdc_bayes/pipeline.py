@@ -107,22 +107,28 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
         if name not in {t.name for t in session_full.traces}:
             _no_trace(session_full, name)
     session = session_full.without_traces(holdout) if holdout else session_full
-    with clock.stage("closed_form"):
-        say("closed form (the paper's method), or a seed from the data")
-        cf = fit_seed(session) if fitted is None else fitted.seed
-    with clock.stage("map"):
-        coulomb = None if friction is None else friction == "coulomb"
-        model = build_model(session, cf, coulomb=coulomb) if fitted is None else fitted.model
-        say(f"MAP fit of {len(model.names)} parameters")
-        warm = WarmUp(model, mcmc=mcmc)  # the later stages' programs, meanwhile
-        with warm.stopped_on_error():
-            fit = fit_map(model, seed=seed) if fitted is None else fitted.fit
-            if not np.all(np.isfinite(fit.cov_log)):
-                raise FitFailed(f"{session.root}: the MAP fit failed: {fit.message}")
+    if fitted is not None:  # the model search fitted and checked it (its stage's time)
+        cf, model, fit, adequacy = fitted.seed, fitted.model, fitted.fit, fitted.adequacy
+        warm = WarmUp(model, mcmc=mcmc)
+        with clock.stage("identifiability"), warm.stopped_on_error():
+            _fit_failed(session, fit)
             ident = identifiability(model, fit)
-    with clock.stage("adequacy"), warm.stopped_on_error():
-        say("adequacy checks")
-        adequacy = assess(model, fit, cf) if fitted is None else fitted.adequacy
+    else:
+        with clock.stage("closed_form"):
+            say("closed form (the paper's method), or a seed from the data")
+            cf = fit_seed(session)
+        with clock.stage("map"):
+            coulomb = None if friction is None else friction == "coulomb"
+            model = build_model(session, cf, coulomb=coulomb)
+            say(f"MAP fit of {len(model.names)} parameters")
+            warm = WarmUp(model, mcmc=mcmc)  # the later stages' programs, meanwhile
+            with warm.stopped_on_error():
+                fit = fit_map(model, seed=seed)
+                _fit_failed(session, fit)
+                ident = identifiability(model, fit)
+        with clock.stage("adequacy"), warm.stopped_on_error():
+            say("adequacy checks")
+            adequacy = assess(model, fit, cf)
     if not adequacy.ok and not allow_inadequate:
         warm.stop()
 
@@ -188,6 +194,12 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
                      None if post is None else post.idata, adequacy)
 
 
+def _fit_failed(session: Session, fit) -> None:
+    """A MAP without a finite curvature (the model overflows near it) fails the run."""
+    if not np.all(np.isfinite(fit.cov_log)):
+        raise FitFailed(f"{session.root}: the MAP fit failed: {fit.message}")
+
+
 @x64
 def _refuse_inert(session: Session, added) -> None:
     """A non-ideality asked for with nothing in the session to act on is bad input."""
@@ -210,12 +222,12 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     Returns the run directory and the summary.  Raises :class:`UsageError` for an
     existing ``out`` without ``force``.  ``add`` names rig non-idealities to fit on top
     of those the session declares (``io.session.NUISANCES``); ``compare`` first runs the
-    model search of :mod:`.search` from the session's model and then the model it chose,
-    recording the search under ``"model_selection"`` and writing the chosen model into
-    the run's copy of ``session.toml``; without ``compare`` the search runs when the
-    model is left to it (:func:`model_left_open`) and the data reject the ideal model
-    (``search=False``: never).  ``pi = (kp, ki, delay)`` records the
-    stability margins of that PI speed loop under ``"pi_loop"``.
+    model search of :mod:`.search` from the session's model and goes on from the fit of
+    the model it chose, recording the search under ``"model_selection"`` and writing the
+    chosen model into the run's copy of ``session.toml``; without ``compare`` the search
+    runs when the model is left to it (:func:`model_left_open`), and is recorded only
+    when the data reject the ideal model (``search=False``: never).  ``pi = (kp, ki,
+    delay)`` records the stability margins of that PI speed loop under ``"pi_loop"``.
     """
     say = say or (lambda text: None)
     say(f"loading {session_path}")
@@ -273,9 +285,9 @@ def search_session(session_full: Session, *, holdout, friction, seed, say, compa
     with announcing(say), clock.stage("model_search"):
         searched = run_search(fitted, friction=friction, seed=seed, say=say)
     selection = searched.record
-    start = selection["candidates"][0]
-    if not compare and selection["fits"] == 1 and (start["verdict"] == "adequate"
-                                                   or not start["converged"]):
+    failed = not np.all(np.isfinite(searched.chosen.fit.cov_log))
+    if not compare and selection["fits"] == 1 and (
+            selection["candidates"][0]["verdict"] == "adequate" or failed):
         return session_full, None, searched.chosen
     return with_terms(session_full, selection["terms"]), selection, searched.chosen
 

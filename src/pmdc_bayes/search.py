@@ -6,10 +6,11 @@ scored by its Laplace evidence (:func:`~.selection.laplace_log_evidence`, compar
 the Kass–Raftery scale):
 
 - **forward**: the additions the adequacy verdict proposes (its ``proposals``), or,
-  when the model is rejected and nothing is proposed, every single addition of the registry (:mod:`.terms`) with something in
-  the session to act on.  The best is taken when its evidence beats the current
-  model's by more than :data:`ADD_MARGIN` ("strong"), or when the data reject the
-  current model and not it while its evidence is no lower.  A candidate whose added
+  when the model is rejected and nothing is proposed, every single addition of the
+  registry (:mod:`.terms`) with something in the session to act on.  The best is
+  taken when its evidence beats the current model's by more than :data:`ADD_MARGIN`
+  ("strong"), or when the data reject the current model and not it while its evidence
+  is no lower.  A candidate whose added
   parameters the data cannot determine (posterior as wide as the prior) is not taken
   over an adequate model;
 - **backward**: after each addition, every term the search added before it is taken
@@ -45,7 +46,8 @@ from .io.session import NUISANCES, Session
 from .selection import laplace_log_evidence
 from .terms import LOAD, SHARED, label, model_table, nuisance_of, ordered, terms_of, with_terms
 
-__all__ = ["search_model", "run_search", "Fitted", "Searched", "nested_start", "ADD_MARGIN", "REMOVE_MARGIN", "TIE", "MAX_FITS"]
+__all__ = ["search_model", "run_search", "Fitted", "Searched", "nested_start", "ADD_MARGIN",
+           "REMOVE_MARGIN", "TIE", "MAX_FITS"]
 
 ADD_MARGIN = 3.0  # log Bayes factor an addition must gain over an adequate model ("strong")
 REMOVE_MARGIN = 1.0  # a term whose removal costs less is not supported ("a bare mention")
@@ -293,8 +295,9 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
     start_terms = terms_of(session)
     current = search.start(start_terms)
     current.why = "the session's model" if start_terms else "the ideal motor"
-    stop = "" if current.fit.ok else "its MAP fit failed, so there is nothing to build on"
-    for _ in range(max_fits if current.fit.ok else 0):  # each step fits at least one new candidate or stops
+    failed = not np.all(np.isfinite(current.fit.cov_log))  # the model overflows there
+    stop = "its MAP fit failed, so there is nothing to build on" if failed else ""
+    for _ in range(0 if failed else max_fits):  # each step fits a new candidate or stops
         if search.fits_left() <= 0:
             stop = f"the bound of {max_fits} fits was reached"
             break
@@ -345,7 +348,7 @@ def _record(search, chosen, stop, session) -> dict:
     table, friction = model_table(session, chosen.terms)
     if chosen.ok:
         reason = f"the data do not reject it; the search stopped: {stop}"
-    elif not chosen.fit.ok:
+    elif not np.all(np.isfinite(chosen.fit.cov_log)):
         reason = f"the search stopped at its start: {stop} ({chosen.fit.message})"
     else:
         reason = (f"the data reject every candidate tried; it has the highest evidence "

@@ -20,6 +20,7 @@ from pmdc_bayes.inference import objective  # noqa: E402
 from pmdc_bayes.inference.derived import derived_quantities  # noqa: E402
 from pmdc_bayes.inference.fit import fit_map  # noqa: E402
 from pmdc_bayes.inference.idata import _padded_pointwise, lumped  # noqa: E402
+from pmdc_bayes.inference.logprob import LogProb as _LogProb  # noqa: E402
 from pmdc_bayes.inference.moves import SHARE_TRUSTED  # noqa: E402
 from pmdc_bayes.inference.sampling import (  # noqa: E402
     PILOT,
@@ -31,7 +32,6 @@ from pmdc_bayes.inference.sampling import (  # noqa: E402
     sample_posterior,
     summarize,
 )
-from pmdc_bayes.inference.logprob import LogProb as _LogProb  # noqa: E402
 from pmdc_bayes.inference.stopping import stop_message  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.paper.closed_form import ClosedForm, closed_form  # noqa: E402

@@ -9,8 +9,13 @@ import numpy as np
 import pytest
 
 from pmdc_bayes.io.loader import load_session
-from pmdc_bayes.simulate.fuzz import (NON_IDEALITIES, TRACE_SHAPES, fuzz_files, fuzz_plan,
-                                      fuzz_session)
+from pmdc_bayes.simulate.fuzz import (
+    NON_IDEALITIES,
+    TRACE_SHAPES,
+    fuzz_files,
+    fuzz_plan,
+    fuzz_session,
+)
 from pmdc_bayes.simulate.plan import check_plan
 
 MOTOR = ("Ra", "La", "K", "B", "J", "Tc")

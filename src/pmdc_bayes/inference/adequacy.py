@@ -188,9 +188,9 @@ def _judge(tests: list, key: str) -> tuple[list, list]:
 def assess(model, fit, closed_form=None) -> Adequacy:
     """Every adequacy check of ``fit`` (a :class:`~.fit.FitResult` of ``model``)."""
     from .checks import bench_checks, search_checks, step_start_test
-    from .plausibility import plausibility_tests
     from .diagnosis import diagnose
     from .model_checks import bound_checks, drag_checks, solver_checks
+    from .plausibility import plausibility_tests
     from .trace_checks import channel_tests
 
     session = model.session

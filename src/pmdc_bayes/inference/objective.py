@@ -14,8 +14,9 @@ equal readings, so only a share ``α_c`` of its readings carry independent error
 likelihood counts ``α_c·n_c`` of them, ``−(α_c·n_c + NU0)/2 · log(NU0·s0_c² +
 α_c·SS_c)`` (the data pytree holds ``α_c·n_c`` and ``s0_c/√α_c``, equal up to a
 constant), while the fitted noise level stays the readings' own.  Bench Ra and La
-enter as Gaussian priors with their stated uncertainty; K, B, J and Tc have log-normal priors centred on the closed-form seed,
-a factor ``PRIOR_FACTOR`` wide (one standard deviation), which do not bind.
+enter as Gaussian priors with their stated uncertainty; K, B, J and Tc have log-normal
+priors centred on the closed-form seed, a factor ``PRIOR_FACTOR`` wide (one standard
+deviation), which do not bind.
 """
 
 from __future__ import annotations

@@ -77,8 +77,8 @@ def onset_shape(t, y, t_step) -> dict | None:
               "lagged": [[np.log(f * t90 / 2.3), np.log((1 - f) * t90 / 2.3)]
                          for f in (0.5, 0.7, 0.9)],
               "ramp": [[np.log(t90), np.log(f * t90)] for f in (0.1, 0.3, 0.6)]}
-    # times between a tenth of a sample and ten records: beyond them every shape is flat
-    # over the record, and a search that wanders there stops at the bound
+    # times between a tenth of a sample and ten times the rise read: beyond them every
+    # shape is flat over it, and a search that wanders there stops at the bound
     lo, hi = np.log(float(np.median(np.diff(tt))) / 10), np.log(10 * float(tt[-1]))
     out, best = {}, {}
     for name, fn in _shapes(tt).items():

@@ -148,11 +148,11 @@ def _peak_test(tr, ia, noise_sd, s0, rng) -> list:
 
 def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
     """The model's steady speed at the session's largest settled unloaded voltage
-    against the speed logged there; two-sided, in the level's noise: the steady
-    readings' noise level at the MAP (Student's t: a handful of readings tell it only
-    roughly), or for a trace's end, its speed's fitted noise over the samples averaged,
-    around the mean the model predicts over them (which a trace that has not quite
-    settled holds short of the steady speed)."""
+    against the speed logged there; two-sided, in the level's noise: for a steady
+    reading, the other steady readings' scatter about the model at the MAP (Student's
+    t: a handful of readings tell it only roughly), or for a trace's end, its speed's
+    fitted noise over the samples averaged, around the mean the model predicts over
+    them (which a trace that has not quite settled holds short of the steady speed)."""
     rows, names = unloaded_levels(model.session)
     if not rows.size:
         return []
@@ -165,21 +165,25 @@ def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
     w_mod = float(w_mod)
     out["no_load_speed"].update(logged_voltage=float(v), logged_speed=float(w_obs),
                                 model_at_logged_voltage=w_mod)
+    dof = None
     if names[j] is None:
         # a steady reading: its noise is the steady channel's, known only as well as the
-        # few readings' scatter about the model tells it (σ at the MAP over n + ν0
-        # pseudo-readings), so the miss is read on Student's t with that many degrees
-        expected = w_mod
-        se = float(noise_sd.get("steady: speed", s0.get("steady: speed", 0.0)))
+        # readings' scatter about the model tells it.  The level is one of them, so its
+        # miss is read against the scatter of the others (σ at the MAP with its own share
+        # taken out: an externally studentised residual, Student's t)
+        expected, se = w_mod, s0.get("steady: speed", 0.0)
         ch = next((c for c in model.channels if c.name == "steady: speed"), None)
-        dof = (ch.n if ch is not None else 1) + NU0
+        if ch is not None and ch.name in noise_sd:
+            pseudo = ch.n + NU0  # the readings and the noise prior's pseudo-readings
+            rest = pseudo * float(noise_sd[ch.name]) ** 2 - (float(w_obs) - w_mod) ** 2
+            dof = pseudo - 1
+            se = float(np.sqrt(max(rest, NU0 * ch.s0**2) / dof))
     else:
         k = [t.name for t in model.session.traces].index(names[j])
         tr, n = model.session.traces[k], max(3, model.session.traces[k].n // 10)
         name = f"{tr.name}: speed"
         expected = float(np.mean(np.asarray(preds[k][1])[-n:]))
         se = float(noise_sd.get(name, s0.get(name, 0.0))) / np.sqrt(n)
-        dof = None
     if w_obs == 0 or expected * w_obs <= 0:
         pv = 0.0
     else:

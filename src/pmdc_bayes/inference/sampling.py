@@ -37,8 +37,16 @@ from .idata import LL_DRAWS, to_inference_data
 from .logprob import LogProb, initial_walkers
 from .logprob import batch_log_posterior as _log_posterior_batch
 from .moves import LaplaceIndependenceMove, LaplaceMixture, default_moves
-from .stopping import (CHECK, TAU_RTOL, Stop, gate_shortfall, next_gate_check, over_budget,
-                       steps_needed, stop_message)
+from .stopping import (
+    CHECK,
+    TAU_RTOL,
+    Stop,
+    gate_shortfall,
+    next_gate_check,
+    over_budget,
+    steps_needed,
+    stop_message,
+)
 
 __all__ = ["Posterior", "Stop", "sample_posterior", "to_inference_data", "summarize", "gates",
            "compare_laplace", "loo_compare", "format_loo", "default_moves",

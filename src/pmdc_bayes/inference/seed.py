@@ -7,9 +7,9 @@ import numpy as np
 
 from .._errors import NotApplicable, SessionError
 from ..io.session import LA_ASSUMED
+from ..paper.changes import responses
 from ..paper.closed_form import ClosedForm, closed_form, j_from_tau, read_time_constant
 from ..physics.motor import gain
-from ..paper.changes import responses
 from .levels import settled, unloaded_levels, voltage_intercept
 
 __all__ = ["fit_seed", "seed_from_data", "motor_seed", "drop_seed", "FRICTION_SHARE"]
