@@ -37,6 +37,7 @@ import numpy as np
 from _common import REPORT, replace_section
 from scipy import stats
 
+from pmdc_bayes._x64 import x64
 from pmdc_bayes.inference.adequacy import assess
 from pmdc_bayes.inference.fit import fit_map, laplace
 from pmdc_bayes.inference.lm import GaussNewton
@@ -63,6 +64,7 @@ def laplace_z(model, fit, truth: dict) -> dict[str, float]:
     return out
 
 
+@x64
 def per_reading_z(model, fit, truth: dict) -> dict[str, float] | None:
     """The z-scores of the Laplace interval at the same MAP had every quantised reading
     counted as an independent error (the likelihood before ``effective_fraction``);

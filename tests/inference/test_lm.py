@@ -41,6 +41,18 @@ def test_the_kernel_is_the_models_log_posterior_its_gradient_and_curvature(demo_
     assert np.all(np.linalg.eigvalsh(t.H - t.H_noise) >= -1e-9 * np.abs(t.H).max())
 
 
+def test_the_kernel_computes_in_64_bits_for_a_caller_in_32(demo_model):
+    """Called with JAX's 64-bit mode off (the caller's setting, left as it is), the
+    kernel still computes in 64 bits: no truncation warning (an error in this suite) and
+    the same log-posterior as inside the package's 64-bit context."""
+    theta = np.asarray(x64(demo_model.theta_seed)())
+    inside = x64(lm.GaussNewton(demo_model).terms)(theta)
+    with jax.enable_x64(False):  # the suite's own setting is on: a caller's is off
+        t = lm.GaussNewton(demo_model).terms(theta)
+        assert not jax.config.jax_enable_x64
+    assert t.H.dtype == np.float64 and t.lp == inside.lp
+
+
 def _rosenbrock(a: float = 10.0):
     """lp = −½(a²(y − x²)² + (1 − x)²) as residuals r = (a(y − x²), 1 − x): a curved
     valley with its top at (1, 1)."""

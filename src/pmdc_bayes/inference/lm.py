@@ -137,7 +137,10 @@ class GaussNewton:
         self._fn = model.compiled("gauss-newton", lambda: jax.jit(
             lambda t, d: gauss_newton(model, t, data=d)))
 
+    @x64
     def terms(self, theta) -> Terms:
+        """The kernel's log-posterior, gradient, curvatures, sums of squares and weighted
+        Jacobian at ``theta`` (in 64 bits, whoever calls it)."""
         theta = np.asarray(theta, dtype=float)
         out = self._fn(jnp.asarray(theta), self.model.data)
         lp, grad, H, H_noise, ss, G = (np.asarray(x) for x in out)
