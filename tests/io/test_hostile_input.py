@@ -39,6 +39,19 @@ def _toml_bom(d):
     (d / TOML).write_bytes(b"\xef\xbb\xbf" + (d / TOML).read_bytes())
 
 
+def _around(before=(), after_header=(), after=(), sep=None):
+    """Rewrite step.csv as a logger writes it: lines before the header, under it and
+    after the last sample (and columns separated by ``sep``)."""
+
+    def mutate(d):
+        header, *rows = _step_text(d).splitlines()
+        lines = [*before, header, *after_header, *rows, *after]
+        text = "\n".join(lines) + "\n"
+        (d / "step.csv").write_text(text if sep is None else text.replace(",", sep))
+
+    return mutate
+
+
 ACCEPTED = [
     ("semicolon-decimal-comma", _resave(";", ",")),
     ("tab-separated", _resave("\t")),
@@ -46,6 +59,14 @@ ACCEPTED = [
     ("utf-16-excel-unicode-text", _resave("\t", encoding="utf-16")),
     ("utf-8-bom-csv", _resave(encoding="utf-8-sig")),
     ("utf-8-bom-session-toml", _toml_bom),
+    ("space-separated", _around(sep="   ")),
+    ("logger-preamble", _around(before=("Logger v2.1 (serial 1234)", "Date: 2026-01-05",
+                                        "", "rate: 200 Hz"))),
+    ("units-row", _around(after_header=("s,rpm,A",))),
+    ("oscilloscope-export", _around(after_header=("(s),(rpm),(A)", ""))),
+    ("closing-lines", _around(after=("End of log", "", "samples: 301"))),
+    ("preamble-units-and-semicolons", _around(before=("DAQ export;v3",),
+                                              after_header=("s;rpm;A",), sep=";")),
 ]
 
 
@@ -110,8 +131,12 @@ REFUSED = [
      ["step.csv:line 1", "'speed_rpm' more than once"]),
     ("comma-decimals-with-comma-separator", _decimal_comma_with_commas,
      ["step.csv:line 2", "the row has 6 fields but the header has 3", "decimal separator"]),
-    ("space-separated", lambda d: (d / "step.csv").write_text(
-        _step_text(d).replace(",", " ")), ["step.csv:line 1", "no comma, semicolon or tab"]),
+    ("text-between-samples", _edit("step.csv", "0.10,", "paused\n0.10,"),
+     ["step.csv:line 12", "column 't': 'paused' is not a number"]),
+    ("two-rows-of-units", _around(after_header=("s,rpm,A", "sec,rpm,amp")),
+     ["step.csv:line 3", "'sec' is not a number"]),
+    ("no-line-names-the-columns", _edit("step.csv", "t,speed_rpm,ia", "time,speed,current"),
+     ["step.csv:line 1", "no column named 't'"]),
     ("latin-1-session-toml", lambda d: (d / TOML).write_bytes(
         (d / TOML).read_text().replace("Test motor", "Moteur d'essai \xe9").encode("latin-1")),
      [f"{TOML}:line 2", "not UTF-8"]),

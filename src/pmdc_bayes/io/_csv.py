@@ -5,6 +5,12 @@ file, so the header is line 1 and the first data row is usually line 2.  The col
 separator is found from the header (comma, semicolon or tab); with a semicolon or a
 tab, a decimal comma ("1,25") is read as a decimal point, as spreadsheets in many
 locales write it.
+
+Files as loggers and oscilloscopes write them are read as they are: lines of text
+before the header (a logger's name, a date: the header is the first line naming every
+column asked for), a row of units right under the header (``s,rpm,A`` or ``(ms),(V)``:
+no number in any column read) and lines of text after the last sample (``End of log``)
+are passed over; anything else that is not a number is an error naming its line.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from ._text import read_text
 __all__ = ["read_columns"]
 
 _SEPARATORS = {",": "commas", ";": "semicolons", "\t": "tabs"}
+_SPACES = " "  # columns separated by runs of spaces (a logger's plain text table)
 
 
 def _parse_cell(path: Path, line: int, column: str, text: str, decimal_comma: bool) -> float:
@@ -66,10 +73,28 @@ def _lines(text: str):
 
 
 def _separator(header_line: str) -> str:
-    """The separator the header uses: the candidate that splits it most."""
+    """The separator the header uses: the candidate that splits it most; runs of spaces
+    where the header has none of them but several words."""
     counts = {sep: header_line.count(sep) for sep in _SEPARATORS}
     best = max(counts, key=counts.get)
-    return best if counts[best] else ","
+    if counts[best]:
+        return best
+    return _SPACES if len(header_line.split()) > 1 else ","
+
+
+class _SpaceReader:
+    """``csv.reader``'s iteration and ``line_num`` for columns separated by spaces."""
+
+    def __init__(self, lines):
+        self._lines, self.line_num = lines, 0
+
+    def __iter__(self):
+        return self
+
+    def __next__(self) -> list[str]:
+        line = next(self._lines)
+        self.line_num += 1
+        return line.split()
 
 
 def _check_header(path: Path, header: list[str], sep: str, line: int) -> None:
@@ -88,7 +113,8 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str) -> tuple[
 
     Parameters
     ----------
-    path : the CSV file; its first line is a header naming the columns.
+    path : the CSV file: a header naming the columns (after a preamble, perhaps), one
+        row per sample.
     wanted : maps a role (``"time"``, ``"speed"``, ...) to the header name to read.
     asked_by : where the names come from (e.g. ``"session.toml trace['x'].columns"``),
         quoted in the error when a name is not in the header.
@@ -114,14 +140,58 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str) -> tuple[
     if first is None:
         raise SessionError(path, "the file is empty; its first line must be a header "
                            "naming the columns, followed by one row per sample")
+    at, first = _header_line(text, wanted, first)
     sep = _separator(first)
-    reader = csv.reader(_lines(text), delimiter=sep)
+    reader = (_SpaceReader(_lines(text)) if sep == _SPACES
+              else csv.reader(_lines(text), delimiter=sep))
     try:
+        for _ in range(at):  # a preamble before the header
+            next(reader)
         return _read_rows(path, reader, sep, wanted, asked_by)
     except csv.Error as exc:
         raise SessionError(path, f"not readable as CSV ({exc}); check the quoting and that "
                            "each cell is a short number", where=f"line {reader.line_num}") \
             from None
+
+
+PREAMBLE = 100  # lines searched for a header after a first line that is not one
+
+
+def _header_line(text: str, wanted: dict[str, str], first: str) -> tuple[int, str]:
+    """The header: the first non-blank line, or, when that does not name every column
+    wanted, the first of the next :data:`PREAMBLE` lines that does (a logger's preamble
+    above it); the count of lines before it and its text."""
+    def names(line):
+        sep = _separator(line)
+        cells = line.split() if sep == _SPACES else line.rstrip("\r\n").split(sep)
+        return {cell.strip().strip('"') for cell in cells}
+
+    if set(wanted.values()) <= names(first):
+        return _blank_lines_before(text), first
+    for k, line in enumerate(_lines(text)):
+        if k > PREAMBLE:
+            break
+        if line.strip() and set(wanted.values()) <= names(line):
+            return k, line
+    return _blank_lines_before(text), first
+
+
+def _blank_lines_before(text: str) -> int:
+    return next((k for k, ln in enumerate(_lines(text)) if ln.strip()), 0)
+
+
+def _numeric(cell: str, decimal_comma: bool) -> bool:
+    try:
+        float(cell.replace(",", ".") if decimal_comma and "." not in cell else cell)
+    except ValueError:
+        return False
+    return True
+
+
+def _text_only(row, index, decimal_comma: bool) -> bool:
+    """Whether no column read holds a number (a row of units, a closing line)."""
+    cells = [row[k].strip() for k in index.values() if k < len(row)]
+    return not any(_numeric(c, decimal_comma) for c in cells if c)
 
 
 def _read_rows(path, reader, sep, wanted, asked_by):
@@ -139,8 +209,8 @@ def _read_rows(path, reader, sep, wanted, asked_by):
             raise SessionError(
                 path,
                 f"no column named {name!r} (the {role} column named in {asked_by}); the "
-                f"header, separated by {_SEPARATORS[sep]}, has {cols}; fix the name in "
-                "session.toml or in the header",
+                f"header, separated by {_SEPARATORS.get(sep, 'spaces')}, has {cols}; fix "
+                "the name in session.toml or in the header",
                 where=f"line {header_line}",
             )
         index[role] = header.index(name)
@@ -148,11 +218,21 @@ def _read_rows(path, reader, sep, wanted, asked_by):
     values = {role: array("d") for role in wanted}
     lines: list[int] = []
     end = reader.line_num
+    closing = None  # a line of text after the samples, an error if samples follow it
     for row in reader:
         start, end = end + 1, reader.line_num
         if not any(cell.strip() for cell in row):
             continue
         line = reader.line_num if all("\n" not in c for c in row) else start
+        if _text_only(row, index, decimal_comma) and all("\n" not in c for c in row):
+            if not lines and closing is None:
+                closing = "units"  # the units under the header
+                continue
+            if lines:
+                closing = closing if isinstance(closing, tuple) else (row, line)
+                continue
+        if isinstance(closing, tuple):  # text between samples: not a closing line
+            row, line = closing
         if len(row) > len(header) and any(cell.strip() for cell in row[len(header):]):
             hint = (" (is the decimal separator a comma? write decimals with a point, or "
                     "separate the columns with semicolons)" if sep == "," else "")
