@@ -133,6 +133,8 @@ REFUSED = [
      ["step.csv:line 2", "the row has 6 fields but the header has 3", "decimal separator"]),
     ("text-between-samples", _edit("step.csv", "0.10,", "paused\n0.10,"),
      ["step.csv:line 12", "column 't': 'paused' is not a number"]),
+    ("clock-times", _edit("step.csv", "\n0.10,", "\n12:00:00.100,"),
+     ["step.csv:line 12", "'12:00:00.100' is not a number; a clock time?"]),
     ("two-rows-of-units", _around(after_header=("s,rpm,A", "sec,rpm,amp")),
      ["step.csv:line 3", "'sec' is not a number"]),
     ("no-line-names-the-columns", _edit("step.csv", "t,speed_rpm,ia", "time,speed,current"),

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from array import array
 from pathlib import Path
 
@@ -28,6 +29,7 @@ from ._text import read_text
 __all__ = ["read_columns"]
 
 _SEPARATORS = {",": "commas", ";": "semicolons", "\t": "tabs"}
+_CLOCK = re.compile(r"\d{1,2}:\d{2}(:\d{2}([.,]\d*)?)?")  # 12:00:01.250, as loggers stamp
 _SPACES = " "  # columns separated by runs of spaces (a logger's plain text table)
 
 
@@ -43,10 +45,14 @@ def _parse_cell(path: Path, line: int, column: str, text: str, decimal_comma: bo
     try:
         value = float(text.replace(",", ".") if decimal_comma and "." not in text else text)
     except ValueError:
+        clock = _CLOCK.fullmatch(text) is not None
         raise SessionError(
             path,
-            f"column {column!r}: {text!r} is not a number; write a plain decimal number "
-            "(no units, no thousands separators) or remove the row",
+            f"column {column!r}: {text!r} is not a number; "
+            + ("a clock time? write the time as a number (seconds since the trace began, "
+               "in the unit session.toml gives)" if clock else
+               "write a plain decimal number (no units, no thousands separators) or remove "
+               "the row"),
             where=f"line {line}",
         ) from None
     if not math.isfinite(value):
