@@ -79,37 +79,41 @@ def test_a_no_load_speed_the_session_contradicts_fails_the_plausibility_check():
         session.steady_tables[0].speed[-1], rel=1e-12)
 
 
-def test_a_steady_readings_miss_is_read_against_the_scatter_of_the_others():
-    """The no-load level from a steady table: its miss is judged against the other
-    steady readings' scatter about the model (the fitted noise with the level's own share
-    taken out, Student's t), so a top reading 8 % off among readings that scatter 5 %
-    about the model is no alarm, while the same miss among readings the model meets to
-    0.3 % is."""
+def test_a_steady_readings_miss_is_read_on_its_priors_student_t():
+    """The no-load level from a steady table: a reading's noise is not known from the
+    reading, so its miss is read on the steady channel's prior (Student's t with ν0
+    degrees at the scale s0), whatever the fit's noise level says: a miss of 5·s0 (a
+    reading as noisy as the prior allows) is no alarm where a normal at s0 would call it
+    one, a miss of 40·s0 is one."""
     from types import SimpleNamespace
 
+    from scipy.optimize import brentq
+
     from pmdc_bayes.inference.checks import plausibility_checks
-    from pmdc_bayes.inference.objective import NU0, build_model
+    from pmdc_bayes.inference.objective import build_model
     from pmdc_bayes.paper.closed_form import closed_form
+    from pmdc_bayes.physics.motor import steady_state
 
     session = case_session()
     model = build_model(session, closed_form(session))
     preds = [(np.asarray(tr.current), np.asarray(tr.speed)) for tr in session.traces]
-    top = float(session.steady_tables[0].speed[-1])
-    off = dict(session.truth, K=1.1 * session.truth["K"])  # no-load speed ~8 % low
-    out, _ = plausibility_checks(model, SimpleNamespace(values=off), preds)
-    miss = out["no_load_speed"]["logged_speed"] - out["no_load_speed"]["model_at_logged_voltage"]
-    assert out["no_load_speed"]["logged_speed"] == pytest.approx(top, rel=1e-12)
-    assert abs(miss) > 0.07 * top
+    table = session.steady_tables[0]
+    v, top = float(table.voltage[-1]), float(table.speed[-1])
     (ch,) = [c for c in model.channels if c.name == "steady: speed"]
+    truth = dict(session.truth)
+
+    def model_speed(k):
+        return float(steady_state(truth["Ra"], k, truth["B"], v)[1])
+
     verdicts = {}
-    for scatter in (0.05, 0.003):
-        # the fitted noise the readings imply: the top's miss and the others' scatter
-        ss = miss**2 + (ch.n - 1) * (scatter * top) ** 2
-        sigma = np.sqrt((NU0 * ch.s0**2 + ss) / (ch.n + NU0))
-        fit = SimpleNamespace(values=off, noise_sd={ch.name: sigma})
-        _, found = plausibility_checks(model, fit, preds)
-        verdicts[scatter] = [f.severity for f in found if f.where == "no-load speed"]
-    assert verdicts == {0.05: [], 0.003: ["fail"]}
+    for misses in (5.0, 40.0):  # the model's speed below the reading by this many s0
+        k = brentq(lambda k, m=misses: top - model_speed(k) - m * ch.s0,
+                   truth["K"], 3 * truth["K"])
+        fit = SimpleNamespace(values=dict(truth, K=k), noise_sd={ch.name: 50 * ch.s0})
+        out, found = plausibility_checks(model, fit, preds)
+        assert out["no_load_speed"]["logged_speed"] == pytest.approx(top, rel=1e-12)
+        verdicts[misses] = [f.severity for f in found if f.where == "no-load speed"]
+    assert verdicts == {5.0: [], 40.0: ["fail"]}
 
 
 def test_a_driven_trace_whose_speed_never_leaves_its_noise_is_named():

@@ -149,10 +149,10 @@ def _peak_test(tr, ia, noise_sd, s0, rng) -> list:
 def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
     """The model's steady speed at the session's largest settled unloaded voltage
     against the speed logged there; two-sided, in the level's noise: for a steady
-    reading, the other steady readings' scatter about the model at the MAP (Student's
-    t: a handful of readings tell it only roughly), or for a trace's end, its speed's
-    fitted noise over the samples averaged, around the mean the model predicts over
-    them (which a trace that has not quite settled holds short of the steady speed)."""
+    reading, its prior's (Student's t with ν0 degrees at the scale s0: a reading's noise
+    is not known from the reading), or for a trace's end, its speed's fitted noise over
+    the samples averaged, around the mean the model predicts over them (which a trace
+    that has not quite settled holds short of the steady speed)."""
     rows, names = unloaded_levels(model.session)
     if not rows.size:
         return []
@@ -167,17 +167,12 @@ def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
                                 model_at_logged_voltage=w_mod)
     dof = None
     if names[j] is None:
-        # a steady reading: its noise is the steady channel's, known only as well as the
-        # readings' scatter about the model tells it.  The level is one of them, so its
-        # miss is read against the scatter of the others (σ at the MAP with its own share
-        # taken out: an externally studentised residual, Student's t)
+        # a steady reading: its noise level is unknown, the steady channel's prior on it
+        # is ν0 pseudo-readings at s0, so marginally its miss is Student's t with ν0
+        # degrees at scale s0; the other readings' scatter about the model is not the
+        # reference (a model that misses every reading would raise its own yardstick)
         expected, se = w_mod, s0.get("steady: speed", 0.0)
-        ch = next((c for c in model.channels if c.name == "steady: speed"), None)
-        if ch is not None and ch.name in noise_sd:
-            pseudo = ch.n + NU0  # the readings and the noise prior's pseudo-readings
-            rest = pseudo * float(noise_sd[ch.name]) ** 2 - (float(w_obs) - w_mod) ** 2
-            dof = pseudo - 1
-            se = float(np.sqrt(max(rest, NU0 * ch.s0**2) / dof))
+        dof = NU0
     else:
         k = [t.name for t in model.session.traces].index(names[j])
         tr, n = model.session.traces[k], max(3, model.session.traces[k].n // 10)
