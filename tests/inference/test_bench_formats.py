@@ -210,11 +210,39 @@ def test_a_staircase_logged_as_a_step_trace_is_read_by_the_closed_form(tmp_path)
 
 
 def test_a_trace_that_never_settles_is_refused_in_one_line(tmp_path):
-    """Negative control: a staircase held a third of τ per step has no steady level."""
+    """Negative control: a staircase held a third of τ per step, logged with noise: no
+    steady level, and no change the logged column shows for a rise to head anywhere."""
     short = [_trace("stair", STAIRCASE, 0.005, 2000.0)]
     with pytest.raises(SessionError, match="no steady speed to start the fit from") as exc:
         fit_seed(load_session(_bench_session(tmp_path / "s", short, table=False)))
     assert "\n" not in str(exc.value) and "session.toml" in str(exc.value)
+
+
+def test_a_rise_cut_short_seeds_from_where_it_heads(tmp_path):
+    """Up for three quarters of τ and back to 0 V (the speed never settles), no table:
+    the seed fits a first-order rise to the step's response and starts from the level it
+    heads for and its time constant, and says so."""
+    v, end = _logged((12.0, 0.0), 0.012, 4000.0, noise=0.0, ripple=0.0, sag=0.0)
+    trace = {"name": "updown", "kind": "free-form", "duration": end, "rate": 4000.0,
+             "voltage": v, "record_current": False, "speed_noise": SPEED_SD}
+    cf = fit_seed(load_session(_bench_session(tmp_path / "s", [trace], table=False)))
+    assert "does not settle" in cf.used["tau"] and "extrapolated" in cf.used["K"]
+    assert cf.G == pytest.approx(G_TRUE, rel=0.25)
+    assert cf.tau == pytest.approx(_crossing_time(), rel=0.5)
+
+
+def test_a_clean_logged_column_shows_its_every_change(tmp_path):
+    """A voltage logged as the controller commands it (no noise, ripple or sag), up
+    and back down: each change is one, not a jitter the column stands within."""
+    from pmdc_bayes.paper.changes import plateaus
+
+    v, end = _logged((12.0, 0.0), 0.12, 1000.0, noise=0.0, ripple=0.0, sag=0.0)
+    trace = {"name": "updown", "kind": "free-form", "duration": end, "rate": 1000.0,
+             "voltage": v, "record_current": False, "speed_noise": SPEED_SD}
+    session = load_session(_bench_session(tmp_path / "s", [trace], table=False))
+    assert [round(p.level, 6) for p in plateaus(session.traces[0])] == [0.0, 12.0, 0.0]
+    cf = fit_seed(session)
+    assert cf.G == pytest.approx(G_TRUE, rel=0.1)
 
 
 # --- the whole fit -------------------------------------------------------------------

@@ -75,6 +75,41 @@ def _time_constant(session, toml) -> tuple[float, str]:
                        where="trace")
 
 
+def _extrapolated(session) -> tuple[float, float, str] | None:
+    """The steady gain and τ of the largest voltage change of a driven trace with a
+    logged speed, from a first-order rise fitted to its response (the level it heads for
+    and its time constant), for a session in which no level settles; None without one
+    that rises at all."""
+    for tr, r in _changes(session):
+        if r.after == r.before or r.stop - r.start < 8:
+            continue
+        t, y = tr.time[r.start:r.stop], tr.speed[r.start:r.stop]
+        pre, post = t < r.time, t >= r.time
+        y0 = float(np.mean(y[pre])) if pre.any() else float(y[0])
+        tt, yy = t[post] - r.time, y[post] - y0
+        if tt.size < 8 or tt[-1] <= 0:
+            continue
+        # y = level + c·exp(−t/τ) past the first tenth (the current's own rise, which
+        # a first-order curve does not follow, is over by then): level and c by least
+        # squares at each τ of a grid
+        keep = tt >= 0.1 * tt[-1]
+        tk, yk = tt[keep], yy[keep]
+        best = None
+        for tau in np.geomspace(tt[-1] / 200, tt[-1] * 20, 160):
+            basis = np.column_stack([np.ones_like(tk), np.exp(-tk / tau)])
+            coef, *_ = np.linalg.lstsq(basis, yk, rcond=None)
+            cost = float(np.sum((yk - basis @ coef) ** 2))
+            if best is None or cost < best[0]:
+                best = (cost, float(coef[0]), float(tau))
+        _, delta, tau = best
+        if delta * (r.after - r.before) <= 0:
+            continue
+        return (delta / (r.after - r.before), tau,
+                f"a first-order rise fitted to trace {tr.name!r} after its change at "
+                f"{r.time:g} s (it does not settle)")
+    return None
+
+
 def _turning(rows: np.ndarray) -> np.ndarray:
     """The steady levels at which the motor turns: a voltage and a speed both above
     :data:`AT_REST` of the largest (a held 0 V, or a logged one's noise, is not a
@@ -108,10 +143,17 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
     rows = _turning(unloaded_levels(session, held=True)[0])
     if not rows.size:  # only traces with a declared drag settle: a rougher start from them
         rows = _turning(unloaded_levels(session, with_drag=True, held=True)[0])
-    if not rows.size:
-        raise SessionError(toml, "no steady speed to start the fit from: log a step until "
-                           "the speed settles, or add a [[steady_table]]", where="trace")
-    G = float(np.sum(rows[:, 0] * rows[:, 1]) / np.sum(rows[:, 0] ** 2))
+    extrapolated = None
+    if not rows.size:  # no level settles: where the largest step's rise is heading
+        extrapolated = _extrapolated(session)
+        if extrapolated is None:
+            raise SessionError(toml, "no steady speed to start the fit from: log a step "
+                               "until the speed settles, or add a [[steady_table]]",
+                               where="trace")
+        G, tau_x, where_x = extrapolated
+        rows = np.empty((0, 3))
+    else:
+        G = float(np.sum(rows[:, 0] * rows[:, 1]) / np.sum(rows[:, 0] ** 2))
     cur = rows[np.isfinite(rows[:, 2])]
     if cur.size:
         K = float(np.mean((cur[:, 0] - cur[:, 2] * Ra) / cur[:, 1]))
@@ -124,7 +166,11 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
         used["K"] = (f"steady gain {G:.4g} rad/s/V of the unloaded levels, viscous friction "
                      f"assumed {100 * FRICTION_SHARE:.0f} % of the damping (no current)")
         used["B"] = "the same assumption"
-    tau, used["tau"] = _time_constant(session, toml)
+    if extrapolated is not None:
+        tau, used["tau"] = tau_x, where_x
+        used["K"] += "; the gain extrapolated from the same rise (no level settles)"
+    else:
+        tau, used["tau"] = _time_constant(session, toml)
     if used["tau"].startswith("63.2 % decay"):  # a run-down: J/B, the circuit open
         J = B * tau
         used["J"] = "B × the coast-down's time constant"
