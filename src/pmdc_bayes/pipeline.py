@@ -196,7 +196,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
 
 def _fit_failed(session: Session, fit) -> None:
     """A MAP without a finite curvature (the model overflows near it) fails the run."""
-    if not np.all(np.isfinite(fit.cov_log)):
+    if fit.overflows:
         raise FitFailed(f"{session.root}: the MAP fit failed: {fit.message}")
 
 
@@ -285,7 +285,7 @@ def search_session(session_full: Session, *, holdout, friction, seed, say, compa
     with announcing(say), clock.stage("model_search"):
         searched = run_search(fitted, friction=friction, seed=seed, say=say)
     selection = searched.record
-    failed = not np.all(np.isfinite(searched.chosen.fit.cov_log))
+    failed = searched.chosen.fit.overflows
     if not compare and selection["fits"] == 1 and (
             selection["candidates"][0]["verdict"] == "adequate" or failed):
         return session_full, None, searched.chosen

@@ -295,7 +295,7 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
     start_terms = terms_of(session)
     current = search.start(start_terms)
     current.why = "the session's model" if start_terms else "the ideal motor"
-    failed = not np.all(np.isfinite(current.fit.cov_log))  # the model overflows there
+    failed = current.fit.overflows
     stop = "its MAP fit failed, so there is nothing to build on" if failed else ""
     for _ in range(0 if failed else max_fits):  # each step fits a new candidate or stops
         if search.fits_left() <= 0:
@@ -348,7 +348,7 @@ def _record(search, chosen, stop, session) -> dict:
     table, friction = model_table(session, chosen.terms)
     if chosen.ok:
         reason = f"the data do not reject it; the search stopped: {stop}"
-    elif not np.all(np.isfinite(chosen.fit.cov_log)):
+    elif chosen.fit.overflows:
         reason = f"the search stopped at its start: {stop} ({chosen.fit.message})"
     else:
         reason = (f"the data reject every candidate tried; it has the highest evidence "

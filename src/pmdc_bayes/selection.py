@@ -25,7 +25,7 @@ def laplace_log_evidence(model, fit) -> float:
     factor.  Only as good as the Laplace approximation (one mode, not at a bound)."""
     scale = np.asarray(model.data["prior_scale"], dtype=float)
     cov = np.asarray(fit.cov_log, dtype=float)
-    if not (np.all(np.isfinite(cov)) and math.isfinite(fit.log_posterior)):
+    if fit.overflows or not math.isfinite(fit.log_posterior):
         return float("nan")
     sign, logdet = np.linalg.slogdet(cov)
     if sign <= 0:

@@ -73,6 +73,12 @@ class FitResult:
     def ok(self) -> bool:
         return self.status == "converged"
 
+    @property
+    def overflows(self) -> bool:
+        """The Laplace covariance is not finite: the model's predictions overflow near
+        the MAP, so neither its curvature nor any evidence from it can be read."""
+        return not np.all(np.isfinite(self.cov_log))
+
 
 def _starts(model: SessionModel, theta0, n: int, rng: np.random.Generator, alternatives=()):
     """``(starts, origins)``: ``theta0``; the ``alternatives`` (other seeds); then half of
