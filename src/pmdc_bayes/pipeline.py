@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import posterior_stage as _stage
 from ._errors import FitFailed, UsageError
 from ._x64 import x64
 from .inference.adequacy import assess
@@ -174,15 +175,15 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     if mcmc:
         with clock.stage("mcmc"), warm.stopped_on_error():
             say("sampling the posterior (emcee)")
-            post, stats = _posterior_stage(model, fit, seed=seed, progress=progress,
-                                           max_seconds=max_sampling_seconds)
+            post, stats = _stage.posterior_stage(model, fit, seed=seed, progress=progress,
+                                                  max_seconds=max_sampling_seconds)
             for name in model.names:
                 params[name].update(stats["summary"][name])
             summary["derived"] = stats["derived"]
             summary["laplace_check"] = stats["laplace_check"]
             summary["diagnostics"].update(stats["diagnostics"])
             if compare_friction:
-                summary["model_comparison"] = _compare_friction(
+                summary["model_comparison"] = _stage.compare_friction(
                     session, cf, model, post, seed=seed, progress=progress,
                     max_seconds=max_sampling_seconds)
     clock.wall["report"] = clock.compile["report"] = 0.0
@@ -311,55 +312,6 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> Path:
 
     write_atomically(Path(out), fill, force=force)
     return Path(out)
-
-
-def _reference_voltage(session) -> float:
-    """The voltage at which derived no-load figures are stated: the highest the session
-    applies (step, operating point or table)."""
-    volts = [float(np.max(tr.voltage.values)) for tr in session.traces]
-    volts += [op.voltage for op in session.operating_points]
-    volts += [float(np.max(t.voltage)) for t in session.steady_tables]
-    volts += [sr.voltage for sr in session.step_readings]
-    return max(volts) if volts else 12.0
-
-
-def _posterior_stage(model, fit, *, seed, progress, max_seconds=None):
-    from .inference.derived import derived_quantities
-    from .inference.diagnostics import widest_direction
-    from .inference.sampling import compare_laplace, gates, sample_posterior, summarize
-
-    post = sample_posterior(model, fit, seed=seed, progress=progress, max_seconds=max_seconds)
-    summ = summarize(post)
-    passed, failures = gates(summ, posterior=post)
-    voltage = _reference_voltage(model.session)
-    stats = {
-        "summary": summ,
-        "derived": {"voltage": voltage,
-                    "quantities": derived_quantities(post.draws_si(), voltage=voltage)},
-        "laplace_check": compare_laplace(fit, summ),
-        "diagnostics": {
-            "gates_passed": bool(passed), "failures": failures,
-            "autocorrelation_time": {k: float(v) for k, v in post.tau.items()},
-            "acceptance_fraction": float(np.mean(post.acceptance)),
-            "n_walkers": int(post.draws.shape[0]), "n_steps": int(post.n_steps),
-            "burn_in": int(post.burn_in), "capped": bool(post.capped),
-            "sampler_message": post.message,
-            "widest_direction": widest_direction(fit, post.draws_log),
-        },
-    }
-    return post, stats
-
-
-def _compare_friction(session, cf, model, post, *, seed, progress, max_seconds=None):
-    """LOO of the viscous and viscous + Coulomb models on the same session."""
-    from .inference.sampling import loo_compare, sample_posterior
-
-    other = build_model(session, cf, coulomb=not model.coulomb)
-    other_post = sample_posterior(other, fit_map(other, seed=seed), seed=seed,
-                                  progress=progress, max_seconds=max_seconds)
-    by_name = {("coulomb" if model.coulomb else "viscous"): post.idata,
-               ("coulomb" if other.coulomb else "viscous"): other_post.idata}
-    return loo_compare(by_name)
 
 
 def _no_trace(session, name):

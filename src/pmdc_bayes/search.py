@@ -30,20 +30,14 @@ are reported beside it: the data do not tell them apart.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-
-import numpy as np
 
 from ._x64 import x64
-from .inference.adequacy import assess
-from .inference.fit import fit_map
-from .inference.identifiability import PRIOR_DOMINATED
+from .candidate import Candidate, Fitted, Searched, nested_start
 from .inference.levels import level_outliers
 from .inference.objective import build_model
 from .inference.seed import fit_seed
 from .inference.warmup import WarmUp
 from .io.session import NUISANCES, Session
-from .selection import laplace_log_evidence
 from .terms import LOAD, SHARED, label, model_table, nuisance_of, ordered, terms_of, with_terms
 
 __all__ = ["search_model", "run_search", "Fitted", "Searched", "nested_start", "ADD_MARGIN",
@@ -55,101 +49,19 @@ TIE = 1.0  # adequate candidates this close in log evidence are reported side by
 MAX_FITS = 16  # the search's bound on MAP fits
 
 
-@dataclass(frozen=True)
-class Fitted:
-    """A candidate fitted at its MAP and checked: the seed, model, MAP fit and verdict a
-    run goes on from without fitting them again."""
-
-    session: Session
-    seed: object
-    model: object
-    fit: object
-    adequacy: object
-
-
-@dataclass(frozen=True)
-class Searched:
-    """The search's record (ready for JSON) and the chosen candidate's fit."""
-
-    record: dict
-    chosen: Fitted
-
-
-def _neutral(spec) -> float:
-    """A parameter's value that leaves the prediction as without it (SI): a drop, dead
-    time or offset of zero, a gain of one, a current limit far above its prior's centre,
-    a lag, load or Coulomb friction far below it."""
-    if spec.transform == "identity":
-        return float(spec.prior.centre)
-    if spec.unit == "1":
-        return 1.0
-    width = 2.0 * spec.prior.width_in_log()
-    return float(spec.prior.centre * math.exp(width if spec.name == "Imax" else -width))
-
-
-def nested_start(model, fit) -> np.ndarray:
-    """θ of ``model`` (its registry's order) at ``fit``'s MAP, every parameter ``fit`` lacks
-    at its neutral value: a start at which the larger model predicts what the smaller did."""
-    values = {s.name: fit.values[s.name] if s.name in fit.values else _neutral(s)
-              for s in model.registry.specs}
-    return np.asarray(model.theta(values), dtype=float)
-
-
-class _Candidate:
-    """One fitted candidate and its row of the search's record."""
-
-    def __init__(self, terms, session, cf, model, parent, move):
-        self.terms, self.session, self.cf, self.model = terms, session, cf, model
-        self.parent, self.move = parent, move
-        self.fit = self.adequacy = None
-        self.log_evidence = math.nan
-        self.undetermined = ()
-        self.why = ""
-
-    @property
-    def ok(self) -> bool:
-        return self.adequacy.ok and self.fit.status == "converged" \
-            and math.isfinite(self.log_evidence)
-
-    def run(self, seed: int) -> None:
-        starts = [] if self.parent is None else [nested_start(self.model, self.parent.fit)]
-        self.fit = fit_map(self.model, seed=seed, alternatives=starts)
-        self.adequacy = assess(self.model, self.fit, self.cf)
-        self.log_evidence = laplace_log_evidence(self.model, self.fit)
-        own = set(self.parent.model.names) if self.parent is not None else set(self.model.names)
-        ratio = np.sqrt(np.clip(np.diag(self.fit.cov_log), 0, None)) / self.model.prior_sd
-        self.undetermined = tuple(n for n, r in zip(self.model.names, ratio, strict=True)
-                                  if n not in own and r > PRIOR_DOMINATED)
-
-    def row(self) -> dict:
-        fit = self.fit
-        parent = self.parent
-        return {"name": label(self.terms), "terms": ordered(self.terms),
-                "n_params": len(self.model.names), "move": self.move,
-                "parent": None if parent is None else label(parent.terms),
-                "verdict": self.adequacy.verdict, "converged": fit.status == "converged",
-                "log_posterior": float(fit.log_posterior), "log_evidence": self.log_evidence,
-                "delta_log_evidence": None if parent is None
-                else self.log_evidence - parent.log_evidence,
-                "undetermined": list(self.undetermined),
-                "failures": [f"{f.where}: {f.check}" for f in self.adequacy.failures()],
-                "values": {n: [fit.values[n], fit.sd[n]] for n in self.model.names},
-                "loo": None, "decision": "dropped", "why": ""}
-
-
 class _Search:
     def __init__(self, session: Session, *, free_friction: bool, seed: int, max_fits: int,
                  say):
         self.session, self.seed, self.max_fits, self.say = session, seed, max_fits, say
         self.free_friction = free_friction
-        self.done: dict[frozenset, _Candidate] = {}
-        self.order: list[_Candidate] = []
+        self.done: dict[frozenset, Candidate] = {}
+        self.order: list[Candidate] = []
         self.suspects = _suspect_traces(session)
 
     def fits_left(self) -> int:
         return self.max_fits - len(self.order)
 
-    def evaluate(self, moves, parent, kind) -> list[_Candidate]:
+    def evaluate(self, moves, parent, kind) -> list[Candidate]:
         """The candidates ``parent.terms`` changed by each move (terms to add, or to take
         out when ``kind`` is ``"remove"``), fitted in order within the bound; one fitted
         before is not fitted again.  The next candidates' programs are made meanwhile."""
@@ -163,7 +75,7 @@ class _Search:
                 break
             s = with_terms(self.session, terms)
             cf = fit_seed(s)
-            cand = _Candidate(terms, s, cf, build_model(s, cf), parent,
+            cand = Candidate(terms, s, cf, build_model(s, cf), parent,
                               f"{'−' if kind == 'remove' else '+'} {label(move)}")
             self.done[terms] = cand
             new.append(cand)
@@ -178,10 +90,10 @@ class _Search:
         ahead.stop()
         return out
 
-    def start(self, terms) -> _Candidate:
+    def start(self, terms) -> Candidate:
         s = with_terms(self.session, terms)
         cf = fit_seed(s)
-        cand = _Candidate(terms, s, cf, build_model(s, cf), None, "start")
+        cand = Candidate(terms, s, cf, build_model(s, cf), None, "start")
         self.done[terms] = cand
         cand.run(self.seed)
         self.order.append(cand)
@@ -231,7 +143,7 @@ def _suspect_traces(session: Session) -> tuple[str, ...]:
     return tuple(off) if off else tuple(t.name for t in session.traces)
 
 
-def _better(current, cands) -> tuple[_Candidate | None, str]:
+def _better(current, cands) -> tuple[Candidate | None, str]:
     """The candidate an addition step takes, and why (None: none)."""
     best, why = None, ""
     for c in sorted(cands, key=lambda c: (-c.ok, -c.log_evidence if
@@ -251,7 +163,7 @@ def _better(current, cands) -> tuple[_Candidate | None, str]:
     return best, why
 
 
-def _removals(search, current, start_terms, last_move) -> _Candidate:
+def _removals(search, current, start_terms, last_move) -> Candidate:
     """Every term the search added before ``last_move`` taken out while the evidence does
     not support it."""
     changed = True

@@ -1,0 +1,101 @@
+"""A candidate model of the search (:mod:`.search`): fitted at its MAP from the usual
+starts and from its parent's MAP, checked for adequacy and scored by its Laplace
+evidence; and the typed results the search hands on."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .inference.adequacy import assess
+from .inference.fit import fit_map
+from .inference.identifiability import PRIOR_DOMINATED
+from .io.session import Session
+from .selection import laplace_log_evidence
+from .terms import label, ordered
+
+__all__ = ["Candidate", "Fitted", "Searched", "nested_start"]
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """A candidate fitted at its MAP and checked: the seed, model, MAP fit and verdict a
+    run goes on from without fitting them again."""
+
+    session: Session
+    seed: object
+    model: object
+    fit: object
+    adequacy: object
+
+
+@dataclass(frozen=True)
+class Searched:
+    """The search's record (ready for JSON) and the chosen candidate's fit."""
+
+    record: dict
+    chosen: Fitted
+
+
+def _neutral(spec) -> float:
+    """A parameter's value that leaves the prediction as without it (SI): a drop, dead
+    time or offset of zero, a gain of one, a current limit far above its prior's centre,
+    a lag, load or Coulomb friction far below it."""
+    if spec.transform == "identity":
+        return float(spec.prior.centre)
+    if spec.unit == "1":
+        return 1.0
+    width = 2.0 * spec.prior.width_in_log()
+    return float(spec.prior.centre * math.exp(width if spec.name == "Imax" else -width))
+
+
+def nested_start(model, fit) -> np.ndarray:
+    """θ of ``model`` (its registry's order) at ``fit``'s MAP, every parameter ``fit`` lacks
+    at its neutral value: a start at which the larger model predicts what the smaller did."""
+    values = {s.name: fit.values[s.name] if s.name in fit.values else _neutral(s)
+              for s in model.registry.specs}
+    return np.asarray(model.theta(values), dtype=float)
+
+
+class Candidate:
+    """One fitted candidate and its row of the search's record."""
+
+    def __init__(self, terms, session, cf, model, parent, move):
+        self.terms, self.session, self.cf, self.model = terms, session, cf, model
+        self.parent, self.move = parent, move
+        self.fit = self.adequacy = None
+        self.log_evidence = math.nan
+        self.undetermined = ()
+        self.why = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.adequacy.ok and self.fit.status == "converged" \
+            and math.isfinite(self.log_evidence)
+
+    def run(self, seed: int) -> None:
+        starts = [] if self.parent is None else [nested_start(self.model, self.parent.fit)]
+        self.fit = fit_map(self.model, seed=seed, alternatives=starts)
+        self.adequacy = assess(self.model, self.fit, self.cf)
+        self.log_evidence = laplace_log_evidence(self.model, self.fit)
+        own = set(self.parent.model.names) if self.parent is not None else set(self.model.names)
+        ratio = np.sqrt(np.clip(np.diag(self.fit.cov_log), 0, None)) / self.model.prior_sd
+        self.undetermined = tuple(n for n, r in zip(self.model.names, ratio, strict=True)
+                                  if n not in own and r > PRIOR_DOMINATED)
+
+    def row(self) -> dict:
+        fit = self.fit
+        parent = self.parent
+        return {"name": label(self.terms), "terms": ordered(self.terms),
+                "n_params": len(self.model.names), "move": self.move,
+                "parent": None if parent is None else label(parent.terms),
+                "verdict": self.adequacy.verdict, "converged": fit.status == "converged",
+                "log_posterior": float(fit.log_posterior), "log_evidence": self.log_evidence,
+                "delta_log_evidence": None if parent is None
+                else self.log_evidence - parent.log_evidence,
+                "undetermined": list(self.undetermined),
+                "failures": [f"{f.where}: {f.check}" for f in self.adequacy.failures()],
+                "values": {n: [fit.values[n], fit.sd[n]] for n in self.model.names},
+                "loo": None, "decision": "dropped", "why": ""}
