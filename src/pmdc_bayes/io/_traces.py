@@ -20,11 +20,15 @@ __all__ = ["read_traces"]
 
 _TRACE_KINDS = {"time": "time", "speed": "speed", "current": "current", "voltage": "voltage",
                 "load_torque": "torque", "position": "angle"}
+_UNIT_KINDS = dict(_TRACE_KINDS, supply_voltage="voltage")  # the keys of a trace's units
+_DUTY_UNITS = {"1": 1.0, "%": 100.0}  # a voltage logged as a duty: its full scale
 _COLUMNS = dict(_TRACE_KINDS, direction="")  # the roles a column may have
 
 
-def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray) -> Schedule:
-    """A ``[[time, value], ...]`` schedule in the trace's units, checked against the samples."""
+def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray,
+              duty=None) -> Schedule:
+    """A ``[[time, value], ...]`` schedule in the trace's units, checked against the samples
+    (a voltage logged as a duty of ``duty``'s supply when given)."""
     pairs = t.data[key]
     example = f"{key} = [[0.0, 0.0], [1.0, 12.0]]"
     if not isinstance(pairs, list) or not pairs:
@@ -56,7 +60,46 @@ def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray) -> Sch
         t.fail(key, f"the {key} changes at {later[0]:g} {tu}, after the last sample at "
                f"{t_raw[-1]:g} {tu}, and is constant over the samples; check the schedule's "
                "times (they are in the trace's time unit)")
-    return Schedule(to_si(np.array(times), "time", tu), to_si(np.array(values), kind, u[key]))
+    values = (_duty_to_volts(t, key, np.array(values), duty) if duty is not None
+              else to_si(np.array(values), kind, u[key]))
+    return Schedule(to_si(np.array(times), "time", tu), values)
+
+
+def _duty_scale(t: _Table, u: dict) -> tuple[float, float] | None:
+    """``(supply voltage, full scale)`` when the trace's voltage is logged as a duty (a
+    fraction, a percentage, or PWM counts of ``pwm_full_scale``) of ``supply_voltage``;
+    None when it is a voltage."""
+    duty_unit = u["voltage"] in (*_DUTY_UNITS, "pwm")
+    if "supply_voltage" not in t.data:
+        if duty_unit:
+            t.fail("supply_voltage", f"the voltage is logged as a duty (units.voltage = "
+                   f"\"{u['voltage']}\") but no supply_voltage is given; add the driver's "
+                   "supply, e.g. supply_voltage = 12.0")
+        if "pwm_full_scale" in t.data:
+            t.fail("pwm_full_scale", "is only read with a voltage logged as PWM counts; set "
+                   "units.voltage = \"pwm\" and supply_voltage, or remove it")
+        return None
+    if not duty_unit:
+        t.fail("supply_voltage", "is only read with a voltage logged as a duty; set "
+               "units.voltage = \"%\", \"1\" (a fraction) or \"pwm\" (with pwm_full_scale), "
+               "or remove supply_voltage")
+    supply = t.number("supply_voltage", "voltage", u["supply_voltage"], positive=True)
+    if u["voltage"] == "pwm":
+        return supply, t.number("pwm_full_scale", positive=True)
+    if "pwm_full_scale" in t.data:
+        t.fail("pwm_full_scale", "is only read with units.voltage = \"pwm\"; remove it or "
+               "set that unit")
+    return supply, _DUTY_UNITS[u["voltage"]]
+
+
+def _duty_to_volts(t: _Table, where: str, duty: np.ndarray, scale) -> np.ndarray:
+    """A duty (in its unit, signed for a reversing bridge) as the mean armature voltage."""
+    supply, full = scale
+    worst = float(np.max(np.abs(duty))) if duty.size else 0.0
+    if worst > full * (1 + 1e-9):
+        t.fail(where, f"a duty of {worst:g} is beyond full scale ({full:g}); check "
+               "units.voltage (\"1\" for a fraction, \"%\", or \"pwm\" with pwm_full_scale)")
+    return duty / full * supply
 
 
 def _initial(t: _Table, u: dict):
@@ -166,10 +209,13 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
 
 def _trace(t: _Table, root: Path) -> Trace:
     t.check_keys(("name", "kind", "file", "columns", "units", "voltage", "load_torque",
-                  "initial", "counts_per_rev", "time_wrap", "edges", "drag"))
+                  "initial", "counts_per_rev", "time_wrap", "edges", "drag",
+                  "supply_voltage", "pwm_full_scale"))
     # an angle in counts is 2π/counts_per_rev each, known per trace (_position.angle_si)
     name, kind = t.string("name"), t.string("kind")
-    u = t.units(_TRACE_KINDS, extra={"position": ("counts",)})
+    u = t.units(_UNIT_KINDS, extra={"position": ("counts",),
+                                    "voltage": (*_DUTY_UNITS, "pwm")})
+    duty = _duty_scale(t, u)
     cols = t.columns(_COLUMNS, ("time",))
     edges = edges_flag(t)
     _motion_columns(t, cols, edges)
@@ -182,13 +228,16 @@ def _trace(t: _Table, root: Path) -> Trace:
                "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
     path, raw, t_raw, time = _read_trace_file(t, root, cols, u)
     si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw
-          if role in ("current", "voltage", "load_torque")}
+          if role in ("current", "load_torque") or (role == "voltage" and duty is None)}
+    if "voltage" in raw and duty is not None:
+        si["voltage"] = _duty_to_volts(t, "columns.voltage", raw["voltage"], duty)
     inputs = {}
     for inp in ("voltage", "load_torque"):
         if inp in si:
             inputs[inp] = Schedule(time, si[inp])
         elif inp in t.data:
-            inputs[inp] = _schedule(t, inp, u, _TRACE_KINDS[inp], t_raw)
+            inputs[inp] = _schedule(t, inp, u, _TRACE_KINDS[inp], t_raw,
+                                    duty if inp == "voltage" else None)
         else:
             inputs[inp] = Schedule(time[:1].copy(), np.zeros(1))
     initial = _initial(t, u)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import SessionError
+from . import gear
 from ._csv import read_columns
 from ._text import read_text
 from ._toml import Table as _Table
@@ -255,8 +256,9 @@ def load_session(path) -> Session:
     top = _Table(toml, _read_toml(toml), "")
     top.check_keys(_TOP_KEYS)
     motor = top.table("motor")
-    motor.check_keys(("name", "friction"))
+    motor.check_keys(("name", "friction", "gear_ratio"))
     friction = motor.string("friction", default="viscous")
+    ratio = motor.number("gear_ratio", default=1.0, positive=True)
     if friction not in FRICTION_MODELS:
         motor.fail("friction", f"unknown friction model {friction!r}; use one of: "
                    f"{', '.join(FRICTION_MODELS)}")
@@ -281,6 +283,8 @@ def load_session(path) -> Session:
     mt = top.table("model", required=False)
     traces, coast_downs = read_traces(top, root)
     _unique(traces + coast_downs, "trace", toml)
+    traces = tuple(gear.motor_shaft_trace(t, ratio) for t in traces)
+    coast_downs = tuple(gear.motor_shaft_trace(t, ratio) for t in coast_downs)
     if mt is not None:
         mt.check_keys(NUISANCES)
         loaded, kinds = _loaded_traces(mt, traces)
@@ -306,12 +310,14 @@ def load_session(path) -> Session:
         Ra=measured["Ra"],
         La=measured["La"],
         friction=friction,
-        operating_points=_unique([_operating_point(t) for t in top.tables("operating_point")],
+        operating_points=_unique([gear.motor_shaft_point(_operating_point(t), ratio)
+                                  for t in top.tables("operating_point")],
                                  "operating_point", toml),
-        steady_tables=_unique([_steady_table(t, root) for t in top.tables("steady_table")],
-                              "steady_table", toml),
-        step_readings=_unique([_step_reading(t) for t in top.tables("step_reading")],
-                              "step_reading", toml),
+        steady_tables=_unique([gear.motor_shaft_table(_steady_table(t, root), ratio)
+                               for t in top.tables("steady_table")], "steady_table", toml),
+        step_readings=_unique([gear.motor_shaft_reading(_step_reading(t), ratio)
+                               for t in top.tables("step_reading")], "step_reading", toml),
+        gear_ratio=ratio,
         traces=traces,
         coast_downs=coast_downs,
         closed_form_options=options,

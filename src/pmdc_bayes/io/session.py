@@ -201,6 +201,9 @@ class Session:
     current limit ``"current_limit"``, centred on ``current_limit_setting`` (A) when the
     user gave the driver's setting); ``shared_dead_time``: one dead time for every
     driven trace (one driver, one logger) instead of one per trace.
+    ``gear_ratio``: motor turns per output turn when the session was measured at a
+    gearbox's output (every speed, angle and torque here is already the motor shaft's,
+    :mod:`.gear`); 1 otherwise.
     ``bench`` holds the further bench measurements given (of ``"K"``, ``"J"``,
     ``"B"``), each a prior of the fit.  ``coast_downs`` are traces of kind
     ``"coast-down"``: the rotor running down with the armature open (speed only, no
@@ -226,6 +229,7 @@ class Session:
     current_limit_setting: float | None = None
     load_kinds: tuple[tuple[str, str], ...] = ()
     shared_dead_time: bool = False
+    gear_ratio: float = 1.0
 
     def __repr__(self) -> str:
         parts = [f"{self.name!r}", f"motor={self.motor!r}", f"friction={self.friction!r}",
