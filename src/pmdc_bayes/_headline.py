@@ -136,6 +136,13 @@ def spread_text(diag: dict) -> str:
             "to sample, whose Laplace sd is too small")
 
 
+def _shaft(session: dict) -> str:
+    """Where the values hold, for a gearmotor measured at its output."""
+    ratio = session.get("gear_ratio", 1.0)
+    return "" if ratio == 1.0 else (f"; at the motor shaft of a {ratio:g}:1 gearmotor, J, B "
+                                    "and friction with the gearbox and load reflected to it")
+
+
 def headline_text(summary: dict) -> str:
     rows = headline_rows(summary)
     session = summary.get("session", {})
@@ -147,7 +154,7 @@ def headline_text(summary: dict) -> str:
     for r in rows:
         lines.append(f"{r['name']:<{w}}{r['estimate']:>12}{r['sd']:>10}  {r['unit']:<18}"
                      f"{r['closed_form']:>12}  {r['off']}")
-    lines.append(f"(values: {rows[0]['source'] if rows else '—'})")
+    lines.append(f"(values: {rows[0]['source'] if rows else '—'}{_shaft(session)})")
     fits = fit_lines(summary)
     if fits:
         lines += ["Fit % per trace (closed form → MAP):", *fits]

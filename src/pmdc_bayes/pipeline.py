@@ -7,8 +7,6 @@ replaces a good one.
 
 from __future__ import annotations
 
-from datetime import datetime
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -28,32 +26,19 @@ from .io._jsonio import dumps
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
 from .paper.consistency import consistency_checks
-from .rundir import check_replaceable, copy_session, write_atomically, write_model
+from .rundir import (
+    check_replaceable,
+    copy_session,
+    default_out_dir,
+    versions,
+    write_atomically,
+    write_model,
+)
 
-__all__ = ["fit_session", "run_fit", "search_session", "model_left_open", "write_run",
-           "default_out_dir", "versions"]
+__all__ = ["fit_session", "run_fit", "search_session", "model_left_open", "write_run"]
 
 SAMPLING_SECONDS = None  # no bound on the sampler's wall time by default: it stops
 # by its step budget, so a run's result does not depend on the machine's load
-_LIBRARIES = ("pmdc-bayes", "jax", "jaxlib", "diffrax", "optimistix", "emcee", "arviz", "numpy")
-
-
-def versions() -> dict:
-    out = {}
-    for lib in _LIBRARIES:
-        try:
-            out[lib] = metadata.version(lib)
-        except metadata.PackageNotFoundError:
-            out[lib] = None
-    return out
-
-
-def default_out_dir(session_name: str, root: Path | None = None) -> Path:
-    """``reports/<session>-<timestamp>`` under the current directory (or ``root``)."""
-    stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
-    return (root or Path.cwd() / "reports") / f"{session_name}-{stamp}"
-
-
 def _rms(x) -> float:
     x = np.asarray(x)
     x = x[np.isfinite(x)]
@@ -149,7 +134,8 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
                     "holdout": list(holdout), "nuisances": list(session.nuisances),
                     "loaded_traces": list(session.unknown_load_traces()),
                     "load_kinds": dict(session.load_kinds),
-                    "dead_time": "shared" if session.shared_dead_time else "per_trace"},
+                    "dead_time": "shared" if session.shared_dead_time else "per_trace",
+                    "gear_ratio": session.gear_ratio},
         "adequacy": adequacy.as_json(),
         "seed": seed,
         "parameters": params,

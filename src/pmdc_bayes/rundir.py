@@ -12,12 +12,15 @@ import json
 import os
 import shutil
 import tempfile
+from datetime import datetime
+from importlib import metadata
 from pathlib import Path
 
 from . import _signals
 from ._errors import UsageError
 
-__all__ = ["RUN_MARKER", "SESSION_COPY", "is_run_dir", "check_replaceable", "write_atomically",
+__all__ = ["versions", "default_out_dir", "RUN_MARKER", "SESSION_COPY", "is_run_dir",
+           "check_replaceable", "write_atomically",
            "default_mode", "copy_session", "changed_files", "check_writable", "write_model"]
 
 
@@ -212,3 +215,22 @@ def write_atomically(out: Path, fill, *, force: bool):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+_LIBRARIES = ("pmdc-bayes", "jax", "jaxlib", "diffrax", "optimistix", "emcee", "arviz", "numpy")
+
+
+def versions() -> dict:
+    out = {}
+    for lib in _LIBRARIES:
+        try:
+            out[lib] = metadata.version(lib)
+        except metadata.PackageNotFoundError:
+            out[lib] = None
+    return out
+
+
+def default_out_dir(session_name: str, root: Path | None = None) -> Path:
+    """``reports/<session>-<timestamp>`` under the current directory (or ``root``)."""
+    stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+    return (root or Path.cwd() / "reports") / f"{session_name}-{stamp}"
