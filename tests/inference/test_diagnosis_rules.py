@@ -116,6 +116,36 @@ def test_a_steady_readings_miss_is_read_on_its_priors_student_t():
     assert verdicts == {5.0: [], 40.0: ["fail"]}
 
 
+@pytest.mark.parametrize("volts", [0.0, 0.04])
+def test_a_rotor_at_rest_where_the_model_holds_it_is_no_contradiction(volts):
+    """A level at rest (a trace back at 0 V, or a voltage too low to break Coulomb
+    friction away) is no evidence against a model that holds the rotor there too: no
+    no-load speed is judged at 0 V, and a model at rest where the rotor is does not fail."""
+    import dataclasses
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.checks import plausibility_checks
+    from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.io.session import SteadyTable
+    from pmdc_bayes.paper.closed_form import closed_form
+
+    tc = 2e-3
+    motor = dict(MOTOR, Tc=tc)
+    assert volts < tc * motor["Ra"] / motor["K"]  # below breakaway: the rotor stays put
+    short = [s.__class__(s.name, s.voltage, 0.01, s.dt) for s in STEPS]  # never settles
+    session = bench_session(BenchMotor(**motor), short, steady_voltages=(4.0, 8.0))
+    rest = SteadyTable("rest", Path("rest.csv"), np.array([volts]), np.array([0.0]), None,
+                       np.zeros(1))
+    session = dataclasses.replace(session, steady_tables=(rest,), friction="coulomb")
+    model = build_model(session, closed_form(session), coulomb=True)
+    preds = [(np.asarray(tr.current), np.asarray(tr.speed)) for tr in session.traces]
+    out, found = plausibility_checks(model, SimpleNamespace(values=dict(session.truth)), preds)
+    assert not [f for f in found if f.where == "no-load speed"]
+    if volts:
+        assert out["no_load_speed"]["model_at_logged_voltage"] == 0.0
+
+
 def test_a_driven_trace_whose_speed_never_leaves_its_noise_is_named():
     import dataclasses
     from types import SimpleNamespace

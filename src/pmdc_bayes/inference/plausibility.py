@@ -154,9 +154,10 @@ def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
     the samples averaged, around the mean the model predicts over them (which a trace
     that has not quite settled holds short of the steady speed)."""
     rows, names = unloaded_levels(model.session)
-    if not rows.size:
+    driven = np.abs(rows[:, 0]) > 0  # a rotor at rest at 0 V says nothing of the no-load speed
+    if not driven.any():
         return []
-    j = int(np.argmax(np.abs(rows[:, 0])))
+    j = int(np.argmax(np.where(driven, np.abs(rows[:, 0]), -1.0)))
     v, w_obs, _ = rows[j]
     # a steady point sees V − Vdrop·sign(V) through Ra + Rs
     v_seen = float(v) - float(p.get("Vdrop", 0.0)) * float(np.sign(v))
@@ -179,11 +180,11 @@ def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
         name = f"{tr.name}: speed"
         expected = float(np.mean(np.asarray(preds[k][1])[-n:]))
         se = float(noise_sd.get(name, s0.get(name, 0.0))) / np.sqrt(n)
-    if w_obs == 0 or expected * w_obs <= 0:
-        pv = 0.0
-    else:
+    if expected * w_obs > 0:  # both turning the same way: the ratio, on a log scale
         z = abs(np.log(expected / w_obs)) / max(se / abs(w_obs), 1e-12)
-        pv = float(2 * (norm.sf(z) if dof is None else student_t.sf(z, dof)))
+    else:  # one at rest (friction holds the rotor) or the two turning opposite ways
+        z = abs(expected - w_obs) / se if se > 0 else (0.0 if expected == w_obs else np.inf)
+    pv = float(2 * (norm.sf(z) if dof is None else student_t.sf(z, dof)))
     out["no_load_speed"]["p_value"] = pv
     return [Test(Finding("plausibility", "no-load speed", "fail",
                          f"x{w_mod / w_obs:.2g}" if w_obs else "logged 0",
