@@ -146,6 +146,45 @@ def test_a_rotor_at_rest_where_the_model_holds_it_is_no_contradiction(volts):
         assert out["no_load_speed"]["model_at_logged_voltage"] == 0.0
 
 
+def test_a_level_read_off_an_angle_is_judged_on_the_angles_noise():
+    """A trace logging only its angle (an encoder) ends on a level whose speed is the
+    angle's change over the window: the true motor is no contradiction there (it was
+    judged on a speed noise of zero, p = 0), a motor 10 % faster is one."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.checks import plausibility_checks
+    from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.io._position import speed_estimate
+    from pmdc_bayes.paper.closed_form import closed_form
+    from pmdc_bayes.physics.motor import steady_state
+
+    rng = np.random.default_rng(3)
+    session = bench_session(BenchMotor(**MOTOR), STEPS)
+    traces, preds = [], []
+    for tr in session.traces:
+        true_w = np.asarray(tr.speed)
+        preds.append((np.asarray(tr.current), true_w))
+        angle = np.concatenate([[0.0], np.cumsum(0.5 * (true_w[1:] + true_w[:-1])
+                                                 * np.diff(tr.time))])
+        angle = angle + 1e-3 * rng.standard_normal(angle.size)
+        traces.append(dataclasses.replace(tr, position=angle, speed_logged=False,
+                                          speed=speed_estimate(tr.time, angle)))
+    session = dataclasses.replace(session, traces=tuple(traces), steady_tables=(),
+                                  operating_points=())
+    model = build_model(session, closed_form(session))
+    truth = dict(session.truth)
+    out, found = plausibility_checks(model, SimpleNamespace(values=truth), preds)
+    assert out["no_load_speed"]["logged_voltage"] != 0
+    assert not [f for f in found if f.where == "no-load speed"]
+    v = out["no_load_speed"]["logged_voltage"]
+    k = truth["K"] / 1.1  # about 10 % faster at no load
+    fast = [(i, w * steady_state(truth["Ra"], k, truth["B"], v)[1]
+             / steady_state(truth["Ra"], truth["K"], truth["B"], v)[1]) for i, w in preds]
+    out, found = plausibility_checks(model, SimpleNamespace(values=dict(truth, K=k)), fast)
+    assert [f.severity for f in found if f.where == "no-load speed"] == ["fail"]
+
+
 def test_a_driven_trace_whose_speed_never_leaves_its_noise_is_named():
     import dataclasses
     from types import SimpleNamespace

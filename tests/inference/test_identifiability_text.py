@@ -7,6 +7,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from pmdc_bayes.inference.identifiability import identifiability
 
@@ -19,7 +20,7 @@ def _spec(transform):
 
 def test_a_weak_direction_names_a_dead_time_without_a_log():
     corr = np.eye(6)
-    corr[4, 5] = corr[5, 4] = 0.99995  # J and the dead time: one barely constrained sum
+    corr[4, 5] = corr[5, 4] = 0.99995  # J and the dead time: their difference is tied
     fit = SimpleNamespace(names=NAMES, corr=corr, cov_log=np.diag([1e-4] * 6),
                           values={"La": 1e-3, "Ra": 2.0})
     model = SimpleNamespace(
@@ -27,6 +28,35 @@ def test_a_weak_direction_names_a_dead_time_without_a_log():
         registry={n: _spec("identity" if n == "dead_time_step" else "log") for n in NAMES},
         session=SimpleNamespace(traces=[SimpleNamespace(current=np.zeros(3), dt=1e-4)],
                                 coast_downs=(), nuisances=()))
-    (finding,) = [f for f in identifiability(model, fit)["findings"] if "barely" in f]
+    (finding,) = [f for f in identifiability(model, fit)["findings"] if "fix the combination" in f]
     assert "·log J" in finding and "·dead_time_step" in finding
     assert "log dead_time_step" not in finding
+
+
+def test_a_tied_combination_is_the_one_the_data_fix_not_one_they_leave_open():
+    """Strongly anti-correlated log B and log Tc: the data fix their sum (the
+    correlation matrix's near-zero eigenvalue), while each alone trades against the
+    other; the pair's correlation is reported with its sign."""
+    names = ("Ra", "La", "K", "B", "J", "Tc")
+    corr = np.eye(6)
+    corr[3, 5] = corr[5, 3] = -0.999
+    fit = SimpleNamespace(names=names, corr=corr, cov_log=np.diag([1e-4] * 6),
+                          values={"La": 1e-3, "Ra": 2.0})
+    model = SimpleNamespace(
+        prior_sd=np.ones(6), registry={n: _spec("log") for n in names},
+        session=SimpleNamespace(traces=[SimpleNamespace(
+            current=np.zeros(3), dt=1e-4, kind="step",
+            load_torque=SimpleNamespace(values=np.zeros(1)))],
+                                coast_downs=(), nuisances=(), La=SimpleNamespace(source="")),
+        coulomb=True)
+    out = identifiability(model, fit)
+    (tied,) = out["tied_combinations"]
+    d = tied["direction"]
+    assert d["B"] * d["Tc"] > 0 and abs(abs(d["B"]) - abs(d["Tc"])) < 1e-9  # the sum
+    # the sum's variance, in standard units, is what the eigenvalue measures: tiny
+    v = np.array([d[n] for n in names])
+    assert v @ corr @ v / (v @ v) == pytest.approx(tied["eigenvalue"], rel=1e-9)
+    assert tied["eigenvalue"] < 0.01
+    (text,) = [f for f in out["findings"] if "fix the combination" in f]
+    assert "+1.00·log B +1.00·log Tc" in text or "+1.00·log Tc +1.00·log B" in text
+    assert any("B and Tc are correlated -1.00" in f for f in out["findings"])

@@ -1,7 +1,9 @@
 """What the data can and cannot determine, read off the Laplace approximation.
 
 Findings are plain sentences backed by numbers: the condition number of the
-correlation matrix, the directions in parameter space the data barely constrain,
+correlation matrix, the combinations of parameters the data fix far more tightly
+than their parts (near-zero eigenvalues of the correlation matrix: the parts trade off
+against one another along the rest),
 parameters whose posterior is as wide as their prior, strongly correlated pairs, and
 whether any trace samples the current fast enough to see La.
 """
@@ -23,24 +25,26 @@ WEAK_EIGENVALUE = 1e-3
 
 
 def identifiability(model: SessionModel, fit: FitResult) -> dict:
-    """Condition number, weak directions and findings (a dict ready for JSON)."""
+    """Condition number, tied combinations and findings (a dict ready for JSON)."""
     names = list(fit.names)
     corr = np.asarray(fit.corr)
     sd_log = np.sqrt(np.clip(np.diag(fit.cov_log), 0.0, None))
     eig, vec = np.linalg.eigh(corr)
     cond = float(eig.max() / max(eig.min(), 1e-300))
     findings = []
-    weak = []
+    tied = []
     for k in np.argsort(eig):
         if eig[k] >= WEAK_EIGENVALUE * eig.max():
             break
-        v = vec[:, k] / np.abs(vec[:, k]).max()
+        v = vec[:, k] / vec[np.argmax(np.abs(vec[:, k])), k]  # its largest part +1
         terms = [f"{v[j]:+.2f}·{_coordinate(model, names[j])}" for j in np.argsort(-np.abs(v))
                  if abs(v[j]) > 0.1]
-        weak.append({"eigenvalue": float(eig[k]),
+        tied.append({"eigenvalue": float(eig[k]),
                      "direction": dict(zip(names, map(float, v), strict=True))})
-        findings.append(f"The data barely constrain the combination {' '.join(terms)} "
-                        f"(correlation-matrix eigenvalue {eig[k]:.1e}).")
+        findings.append(f"The data fix the combination {' '.join(terms)} far more tightly "
+                        f"than its parts (correlation-matrix eigenvalue {eig[k]:.1e}): they "
+                        "trade off against one another while it stays fixed, so each is "
+                        "known only to its own sd.")
     ratio = sd_log / np.asarray(model.prior_sd)
     prior_bound = [names[j] for j in range(len(names)) if ratio[j] > PRIOR_DOMINATED]
     for j, name in enumerate(names):
@@ -58,9 +62,9 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
             i, j = names.index(mech[a]), names.index(mech[b])
             if abs(corr[i, j]) >= STRONG_CORRELATION:
                 findings.append(
-                    f"{mech[a]} and {mech[b]} are {abs(corr[i, j]):.2f} correlated: "
+                    f"{mech[a]} and {mech[b]} are correlated {corr[i, j]:+.2f}: "
                     f"{_separate_hint(model, mech[a], mech[b])}")
-    return {"condition_number": cond, "weak_directions": weak,
+    return {"condition_number": cond, "tied_combinations": tied,
             "prior_dominated": prior_bound,
             "posterior_to_prior_width": dict(zip(names, map(float, ratio), strict=True)),
             "findings": findings}

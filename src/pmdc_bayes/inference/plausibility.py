@@ -146,6 +146,19 @@ def _peak_test(tr, ia, noise_sd, s0, rng) -> list:
                          f"never passes {_g(obs)} A"), pv, peak > obs)]
 
 
+def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict) -> float:
+    """The standard error of a trace's mean speed over its last ``n`` samples: its
+    logged speed's noise over ``√n``, or, for a speed estimated from the angle, the
+    angle's noise at both ends of the window over the window's length."""
+    if tr.speed_logged:
+        name = f"{tr.name}: speed"
+        return float(noise_sd.get(name, s0.get(name, 0.0))) / np.sqrt(n)
+    name = f"{tr.name}: position"
+    span = float(tr.time[-1] - tr.time[-n])
+    sd = float(noise_sd.get(name, s0.get(name, 0.0)))
+    return np.sqrt(2.0) * sd / span if span > 0 else 0.0
+
+
 def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
     """The model's steady speed at the session's largest settled unloaded voltage
     against the speed logged there; two-sided, in the level's noise: for a steady
@@ -177,13 +190,14 @@ def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
     else:
         k = [t.name for t in model.session.traces].index(names[j])
         tr, n = model.session.traces[k], max(3, model.session.traces[k].n // 10)
-        name = f"{tr.name}: speed"
         expected = float(np.mean(np.asarray(preds[k][1])[-n:]))
-        se = float(noise_sd.get(name, s0.get(name, 0.0))) / np.sqrt(n)
+        se = _end_speed_se(tr, n, noise_sd, s0)
+    if not se > 0:  # no noise level to read the miss on: no test
+        return []
     if expected * w_obs > 0:  # both turning the same way: the ratio, on a log scale
         z = abs(np.log(expected / w_obs)) / max(se / abs(w_obs), 1e-12)
     else:  # one at rest (friction holds the rotor) or the two turning opposite ways
-        z = abs(expected - w_obs) / se if se > 0 else (0.0 if expected == w_obs else np.inf)
+        z = abs(expected - w_obs) / se
     pv = float(2 * (norm.sf(z) if dof is None else student_t.sf(z, dof)))
     out["no_load_speed"]["p_value"] = pv
     return [Test(Finding("plausibility", "no-load speed", "fail",
