@@ -204,3 +204,24 @@ def test_a_driven_trace_whose_speed_never_leaves_its_noise_is_named():
     assert _still(model, on) == []  # it turns
     (sentence,) = _still(model, blocked)
     assert sentence.startswith("on: the speed never leaves its noise although 12 V")
+
+
+def test_a_resistance_above_the_bench_proposes_a_source_resistance_and_a_drop():
+    """A fitted Ra above the bench's is what a source resistance and a constant drop at
+    the brushes or switches both leave at a steady current: both are proposed, and the
+    evidence chooses (a drop was explained as a source resistance, with K 36 sd off)."""
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.diagnosis import diagnose
+    from pmdc_bayes.inference.model_checks import Finding
+    from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.paper.closed_form import closed_form
+
+    session = case_session()
+    model = build_model(session, closed_form(session))
+    truth = dict(session.truth)
+    preds = [(np.asarray(tr.current), np.asarray(tr.speed)) for tr in session.traces]
+    fit = SimpleNamespace(values=dict(truth, Ra=1.3 * truth["Ra"]))
+    conflict = Finding("bench conflict", "Ra", "fail", "+5 sd", "Ra is 5 sd above the bench")
+    _, proposals = diagnose(model, fit, preds, [conflict])
+    assert {p.nuisance for p in proposals} >= {"source_resistance", "voltage_drop"}

@@ -162,10 +162,12 @@ def _finding_rules(model, fit, findings, already=()):
         if f.where == "Ra" and f.check in ("bench conflict", "plausibility"):
             if fit.values["Ra"] > model.registry["Ra"].prior.centre:
                 out.append(said("the fitted resistance exceeds the bench Ra: a supply source "
-                           "resistance, leads or a driver in the loop; log the terminal "
-                           "voltage, or fit the source resistance: --add "
-                           "source-resistance, or source_resistance = true under [model]",
-                                Proposal("source_resistance")))
+                           "resistance, leads or a driver in the loop, or a constant drop "
+                           "at the brushes or the driver's switches (at a steady current "
+                           "the two look alike); log the terminal voltage, or fit them: "
+                           "--add source-resistance or --add voltage-drop (or "
+                           "source_resistance, voltage_drop = true under [model])",
+                                Proposal("source_resistance"), Proposal("voltage_drop")))
             else:
                 out.append("the fitted resistance is far below the bench Ra: the ideal motor "
                            "is absorbing something it lacks (a current limit, a voltage "
