@@ -126,6 +126,45 @@ def test_an_addition_is_taken_only_when_the_evidence_or_the_verdict_calls_for_it
     assert _better(rejected, [_cand("speed_lag", False, 104.0)])[0].terms == {"speed_lag"}
 
 
+def test_each_term_of_a_move_of_several_is_taken_out_where_the_evidence_allows():
+    """An unknown load tried on every suspect trace at once, then taken out of each trace
+    whose data do not support it (it stayed on an unloaded trace, B undetermined)."""
+    from pmdc_bayes.search import REMOVE_MARGIN, _removals
+
+    both = frozenset({"unknown_load:braked", "unknown_load:free"})
+    evidence = {both: 50.0, frozenset({"unknown_load:braked"}): 50.0 - REMOVE_MARGIN / 4,
+                frozenset({"unknown_load:free"}): 20.0, frozenset(): 10.0}
+
+    def cand(terms):
+        return SimpleNamespace(terms=terms, ok=True, log_evidence=evidence[terms], why="",
+                               fit=SimpleNamespace(status="converged"), move="")
+
+    class Search:
+        done = {both: cand(both)}
+        fits = 10
+
+        def fits_left(self):
+            return self.fits
+
+        def evaluate(self, moves, parent, kind):
+            assert kind == "remove"
+            out = []
+            for move in moves:
+                c = cand(parent.terms - move)
+                c.move = f"− {sorted(move)[0]}"
+                self.done[c.terms] = c
+                self.fits -= 1
+                out.append(c)
+            return out
+
+    search = Search()
+    chosen = _removals(search, search.done[both], frozenset(), both)
+    assert chosen.terms == {"unknown_load:braked"}
+    # a single term just added is not taken out again
+    one = frozenset({"unknown_load:braked"})
+    assert _removals(search, cand(one), frozenset(), one).terms == one
+
+
 def test_the_path_on_screen_names_every_candidate_and_the_side_by_side_values():
     row = {"name": "ideal", "n_params": 5, "verdict": "inadequate", "log_evidence": 1.0,
            "delta_log_evidence": None, "failures": ["step: whiteness"], "why": "the ideal motor",

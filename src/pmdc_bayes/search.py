@@ -164,12 +164,14 @@ def _better(current, cands) -> tuple[Candidate | None, str]:
 
 
 def _removals(search, current, start_terms, last_move) -> Candidate:
-    """Every term the search added before ``last_move`` taken out while the evidence does
-    not support it."""
+    """Every term the search added before ``last_move``, and each of the terms of a move
+    of several (an unknown load on every suspect trace), taken out while the evidence
+    does not support it."""
+    kept = last_move if len(last_move) == 1 else frozenset()
     changed = True
     while changed and search.fits_left() > 0:
         changed = False
-        drop = [frozenset({t}) for t in ordered(current.terms - start_terms - last_move)]
+        drop = [frozenset({t}) for t in ordered(current.terms - start_terms - kept)]
         for smaller in search.evaluate(drop, current, "remove"):
             loss = current.log_evidence - smaller.log_evidence
             if smaller.fit.status == "converged" and loss < REMOVE_MARGIN \
