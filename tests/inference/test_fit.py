@@ -203,3 +203,47 @@ def test_speed_only_steps_flag_the_j_b_k_degeneracy():
     assert sum(p in text for p in pairs) >= 2, text
     assert "load step or a coast-down" in text
     assert "La is determined by the bench prior alone: no trace logs the current" in text
+
+
+def test_optima_of_nearly_equal_density_span_the_uncertainty():
+    """Two distinct optima as probable as each other, a unit apart in θ: the covariance
+    is their mixture's (each one's curvature plus the spread between them), not the
+    MAP's curvature alone; one far less probable is left out."""
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference import fit as fitmod
+
+    local = np.diag([1e-4, 1e-4])
+    states = [SimpleNamespace(theta=np.array([0.0, 0.0]), terms=None),
+              SimpleNamespace(theta=np.array([1.0, 0.0]), terms=None)]
+    logp = np.array([10.0, 10.0])
+    orig = fitmod.laplace
+    fitmod.laplace = lambda model, theta, terms: (local, None)
+    try:
+        mix = fitmod._mixture(None, states, [0, 1], logp, 0, local)
+        far = fitmod._mixture(None, states, [0, 1], np.array([10.0, -30.0]), 0, local)
+    finally:
+        fitmod.laplace = orig
+    assert mix[0, 0] == pytest.approx(1e-4 + 0.25) and mix[1, 1] == pytest.approx(1e-4)
+    assert far[0, 0] == pytest.approx(1e-4, rel=1e-9)
+
+
+@pytest.mark.slow
+def test_a_thin_curved_ridge_is_not_reported_as_a_point(tmp_path):
+    """A speed-only encoder-edge step with no current anywhere (a fuzzed session of the
+    independent bench simulator): the edges fix a combination of K, B and J to a part
+    in a million along a curved ridge on which the starts stop at optima of equal
+    density far apart.  The MAP's curvature alone put K 200 sd from the truth; the
+    interval spanning the optima covers it."""
+    from pmdc_bayes.inference.seed import fit_seed
+    from pmdc_bayes.simulate.fuzz import fuzz_session
+
+    fz = fuzz_session(61, out=tmp_path / "s61")
+    session = load_session(fz.path)
+    model = build_model(session, fit_seed(session))
+    fit = fit_map(model)
+    assert fit.n_modes > 1
+    for name in ("K", "B", "J"):
+        i = list(fit.names).index(name)
+        z = (np.log(fz.truth[name]) - fit.theta[i]) / np.sqrt(fit.cov_log[i, i])
+        assert abs(z) < 1.645, (name, z)

@@ -28,6 +28,7 @@ ABANDON_AFTER = 20  # steps after which a start far below the best stops
 RELEVANT = 10.0
 SAME_DISTANCE = 1.0  # Laplace sds (Mahalanobis) within which two finals are one optimum
 DIP = 1.0  # log-posterior units: a smaller dip between two finals is no valley
+MODE_SHARE = 0.01  # a distinct optimum this dense relative to the MAP joins its spread
 WIDE_SPREAD = 1.0  # least log spread of the starts over the prior's range
 
 
@@ -194,6 +195,25 @@ def _modes(thetas, logp, ok, cov, evaluate) -> tuple[list[int], list[int]]:
     return modes, label
 
 
+def _mixture(model, states, spanned, logp, best, cov) -> np.ndarray:
+    """The covariance of the mixture of the Laplace approximations at the distinct optima
+    ``spanned`` (each weighted by its density relative to the MAP's): the starts found
+    optima of nearly equal density that the MAP's curvature alone (``cov``) does not
+    reach, so the posterior spreads over all of them (a ridge the data do not resolve,
+    or several modes).  An optimum whose own curvature is not finite is left out."""
+    parts = []
+    for i in spanned:
+        c = cov if i == best else laplace(model, states[i].theta, states[i].terms)[0]
+        if np.all(np.isfinite(c)):
+            parts.append((float(np.exp(logp[i] - logp[best])), states[i].theta, c))
+    if len(parts) < 2:
+        return cov
+    w = np.array([p[0] for p in parts]) / sum(p[0] for p in parts)
+    mean = sum(wk * np.asarray(th) for wk, (_, th, _) in zip(w, parts, strict=True))
+    return sum(wk * (c + np.outer(th - mean, th - mean))
+               for wk, (_, th, c) in zip(w, parts, strict=True))
+
+
 def _precision(cov) -> np.ndarray:
     if not np.all(np.isfinite(cov)):
         return np.zeros_like(cov)
@@ -210,6 +230,9 @@ def _finish(model, states, origins, evaluate) -> FitResult:
     terms = states[best].terms
     cov, _ = laplace(model, theta, terms)
     modes, label = _modes(thetas, logp, ok, cov, evaluate)
+    spanned = [i for i in modes if logp[best] - logp[i] <= -np.log(MODE_SHARE)]
+    if len(spanned) > 1 and best in spanned:
+        cov = _mixture(model, states, spanned, logp, best, cov)
     agree = np.array([lab == best for lab in label]) | (np.arange(len(states)) == best)
     starts = [{"start": i, "origin": origins[i], "log_posterior": float(logp[i]),
                "agrees": bool(agree[i]), "solver_ok": bool(ok[i]), "steps": st.steps,
@@ -242,6 +265,10 @@ def _finish(model, states, origins, evaluate) -> FitResult:
     n_wide = sum(o == "over the prior's range" for o in origins)
     found = (f"{len(modes)} distinct optimum" if len(modes) == 1
              else f"{len(modes)} distinct optima, the best chosen")
+    if len(spanned) > 1 and best in spanned:
+        found += (f"; the uncertainty spans the {len(spanned)} of nearly equal density (within "
+                  f"{-np.log(MODE_SHARE):.1f} log-posterior units: a ridge or modes the data "
+                  "do not resolve)")
     message = "; ".join(reasons) if reasons else (
         f"converged in {states[best].steps} Levenberg–Marquardt steps; {n_agree} of "
         f"{len(logp)} starts agree ({n_wide} started over the prior's range; {found})")
