@@ -225,3 +225,24 @@ def test_a_resistance_above_the_bench_proposes_a_source_resistance_and_a_drop():
     conflict = Finding("bench conflict", "Ra", "fail", "+5 sd", "Ra is 5 sd above the bench")
     _, proposals = diagnose(model, fit, preds, [conflict])
     assert {p.nuisance for p in proposals} >= {"source_resistance", "voltage_drop"}
+
+
+def test_a_quantised_levels_mean_is_read_with_the_quantisers_bias():
+    """A settled speed read through a quantiser whose noise does not dither it: the mean
+    of 500 readings sits off the true speed by the quantiser's bias, which depends on
+    where the speed lies in the lattice and does not average away; the level's standard
+    error carries it, so the miss stays within the two-sided 1 % band about as often as
+    it should (it was judged on the noise over √n alone and rejected a fitting model)."""
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.plausibility import _end_speed_se
+
+    rng = np.random.default_rng(7)
+    q, n, misses, trials = 4.73, 500, 0, 300
+    for _ in range(trials):
+        true = 500.0 + rng.uniform(0, q)
+        readings = q * np.round((true + 0.25 * q * rng.standard_normal(n)) / q)
+        tr = SimpleNamespace(name="t", speed=readings, speed_logged=True)
+        se = _end_speed_se(tr, n, {"t: speed": float(np.std(readings))}, {})
+        misses += abs(np.mean(readings) - true) / se > 2.576
+    assert misses / trials < 0.03

@@ -15,6 +15,7 @@ from .adequacy import Finding, _g
 from .calibrate import Test, logged_quantum, replicates, session_rng, tail_p
 from .checks import rise_time, step_time
 from .levels import unloaded_levels
+from .noise import effective_fraction, quantum
 from .objective import NU0
 
 __all__ = ["plausibility_tests", "rise_eligible"]
@@ -90,7 +91,7 @@ def plausibility_tests(model, fit, preds, rng=None) -> tuple[dict, list, list]:
         i_nl, w_nl = motor.steady_state(p["Ra"], p["K"], p["B"], v_max, 0.0,
                                         p.get("Tc") if model.coulomb else None)
         out["no_load_speed"] = {"voltage": v_max, "value": float(w_nl)}
-        tests += _no_load_test(model, p, out, s0, preds, noise_sd)
+        tests += _no_load_test(model, fit, out, s0, preds, noise_sd)
     rises = {}
     for k, (tr, (ia, w)) in enumerate(zip(session.traces, preds, strict=True)):
         ia, w = np.asarray(ia, float), np.asarray(w, float)
@@ -146,20 +147,68 @@ def _peak_test(tr, ia, noise_sd, s0, rng) -> list:
                          f"never passes {_g(obs)} A"), pv, peak > obs)]
 
 
+def _no_load_speed(model, p: dict, v: float) -> float:
+    """The model's steady speed at ``v`` unloaded (a steady point sees V − Vdrop·sign(V)
+    through Ra + Rs)."""
+    v_seen = v - float(p.get("Vdrop", 0.0)) * float(np.sign(v))
+    _, w = motor.steady_state(p["Ra"] + p.get("Rs", 0.0), p["K"], p["B"], v_seen, 0.0,
+                              p.get("Tc") if model.coulomb else None)
+    return float(w)
+
+
+def _no_load_speed_sd(model, fit, v: float) -> float:
+    """The Laplace sd of :func:`_no_load_speed` at ``v`` (central differences in θ);
+    0 without a finite covariance."""
+    cov, theta = getattr(fit, "cov_log", None), getattr(fit, "theta", None)
+    if cov is None or theta is None or not np.all(np.isfinite(cov)):
+        return 0.0
+    theta = np.asarray(theta, dtype=float)
+    names, h = list(model.names), 1e-6
+
+    def at(th):
+        return _no_load_speed(model, dict(zip(names, model.registry.to_values(th),
+                                              strict=True)), v)
+
+    g = np.array([(at(theta + h * e) - at(theta - h * e)) / (2 * h)
+                  for e in np.eye(theta.size)])
+    return float(np.sqrt(max(g @ np.asarray(cov) @ g, 0.0)))
+
+
+def _quantiser_bias_sd(y, sd: float) -> float:
+    """The spread of the bias a quantiser (step q) leaves in a mean of readings however
+    many: with analogue noise σa below about q/2 the mean reading follows the lattice,
+    off the signal's mean by up to (q/π)·exp(−2π²σa²/q²) (the first harmonic of the
+    quantisation error's mean, Widrow), by the signal's place in the lattice; its sd over
+    that place is the amplitude over √2.  σa is read from the readings' noise ``sd``
+    less the most a quantiser adds to it without dithering (q/2, a reading alternating
+    between two steps), so that a quantiser is never taken for dithered when it is not;
+    0 for a channel that is not quantised."""
+    q = quantum(np.asarray(y, dtype=float))
+    if q == 0.0:
+        return 0.0
+    analogue2 = max(sd * sd - q * q / 4.0, 0.0)
+    return min(q / 2.0, q / np.pi * float(np.exp(-2.0 * np.pi**2 * analogue2 / q**2))) \
+        / np.sqrt(2.0)
+
+
 def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict) -> float:
     """The standard error of a trace's mean speed over its last ``n`` samples: its
-    logged speed's noise over ``√n``, or, for a speed estimated from the angle, the
-    angle's noise at both ends of the window over the window's length."""
+    logged speed's noise over the root of the number of independent errors among them
+    (a quantised speed that its noise does not dither repeats one error over a run of
+    equal readings, :func:`.noise.effective_fraction`), or, for a speed estimated from
+    the angle, the angle's noise at both ends of the window over the window's length."""
     if tr.speed_logged:
         name = f"{tr.name}: speed"
-        return float(noise_sd.get(name, s0.get(name, 0.0))) / np.sqrt(n)
+        sd = float(noise_sd.get(name, s0.get(name, 0.0)))
+        independent = max(1.0, n * effective_fraction(np.asarray(tr.speed)[-n:]))
+        return float(np.hypot(sd / np.sqrt(independent), _quantiser_bias_sd(tr.speed, sd)))
     name = f"{tr.name}: position"
     span = float(tr.time[-1] - tr.time[-n])
     sd = float(noise_sd.get(name, s0.get(name, 0.0)))
     return np.sqrt(2.0) * sd / span if span > 0 else 0.0
 
 
-def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
+def _no_load_test(model, fit, out, s0, preds, noise_sd) -> list:
     """The model's steady speed at the session's largest settled unloaded voltage
     against the speed logged there; two-sided, in the level's noise: for a steady
     reading, its prior's (Student's t with ν0 degrees at the scale s0: a reading's noise
@@ -172,11 +221,8 @@ def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
         return []
     j = int(np.argmax(np.where(driven, np.abs(rows[:, 0]), -1.0)))
     v, w_obs, _ = rows[j]
-    # a steady point sees V − Vdrop·sign(V) through Ra + Rs
-    v_seen = float(v) - float(p.get("Vdrop", 0.0)) * float(np.sign(v))
-    _, w_mod = motor.steady_state(p["Ra"] + p.get("Rs", 0.0), p["K"], p["B"], v_seen, 0.0,
-                                  p.get("Tc") if model.coulomb else None)
-    w_mod = float(w_mod)
+    p = fit.values
+    w_mod = _no_load_speed(model, p, float(v))
     out["no_load_speed"].update(logged_voltage=float(v), logged_speed=float(w_obs),
                                 model_at_logged_voltage=w_mod)
     dof = None
@@ -191,7 +237,10 @@ def _no_load_test(model, p, out, s0, preds, noise_sd) -> list:
         k = [t.name for t in model.session.traces].index(names[j])
         tr, n = model.session.traces[k], max(3, model.session.traces[k].n // 10)
         expected = float(np.mean(np.asarray(preds[k][1])[-n:]))
-        se = _end_speed_se(tr, n, noise_sd, s0)
+        # the level is the same trace's the model was fitted to: its mean is read against
+        # the model's, whose own uncertainty (the fit's) is of the same order
+        se = float(np.hypot(_end_speed_se(tr, n, noise_sd, s0),
+                            _no_load_speed_sd(model, fit, float(v))))
     if not se > 0:  # no noise level to read the miss on: no test
         return []
     if expected * w_obs > 0:  # both turning the same way: the ratio, on a log scale
