@@ -82,9 +82,11 @@ def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: f
     if not prior_bound:
         if with_current:
             dt = min(tr.dt for tr in with_current)
+            if dt < tau_e:
+                return None
             prior = ("its assumed prior" if model.session.La.source == LA_ASSUMED
                      else "the bench prior")
-            return None if dt < tau_e else (
+            return (
                 f"La is informed by the traces (posterior width {100 * ratio:.0f} % of "
                 f"{prior}) although the fastest current sampling ({dt * 1e3:.3g} ms) is "
                 f"slower than τe = {tau_e * 1e3:.3g} ms.")
