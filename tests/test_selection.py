@@ -163,6 +163,11 @@ def test_each_term_of_a_move_of_several_is_taken_out_where_the_evidence_allows()
     # a single term just added is not taken out again
     one = frozenset({"unknown_load:braked"})
     assert _removals(search, cand(one), frozenset(), one).terms == one
+    # nor the last of a move of several, however little each costs: the move's gain
+    evidence.update({frozenset(): 49.9, frozenset({"unknown_load:free"}): 49.95})
+    search.done = {both: cand(both)}
+    assert _removals(Search(), cand(both), frozenset(), both).terms in (
+        {"unknown_load:braked"}, {"unknown_load:free"})
 
 
 def test_the_path_on_screen_names_every_candidate_and_the_side_by_side_values():

@@ -165,12 +165,13 @@ def _better(current, cands) -> tuple[Candidate | None, str]:
 
 def _removals(search, current, start_terms, last_move) -> Candidate:
     """Every term the search added before ``last_move``, and each of the terms of a move
-    of several (an unknown load on every suspect trace), taken out while the evidence
-    does not support it."""
-    kept = last_move if len(last_move) == 1 else frozenset()
+    of several (an unknown load on every suspect trace) but its last, taken out while
+    the evidence does not support it."""
     changed = True
     while changed and search.fits_left() > 0:
         changed = False
+        left = current.terms & last_move  # the move's last term stays: it was the gain
+        kept = left if len(left) == 1 else frozenset()
         drop = [frozenset({t}) for t in ordered(current.terms - start_terms - kept)]
         for smaller in search.evaluate(drop, current, "remove"):
             loss = current.log_evidence - smaller.log_evidence

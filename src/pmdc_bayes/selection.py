@@ -22,15 +22,19 @@ def laplace_log_evidence(model, fit) -> float:
     in the fit's coordinates.  The constants the log-posterior leaves out are the
     channels' (the same data for every candidate) and the priors' (added here), so the
     values of candidates of one session compare: their difference is a log Bayes
-    factor.  Only as good as the Laplace approximation (one mode, not at a bound)."""
+    factor.  Only as good as the Laplace approximation (not at a bound); where the fit
+    spans several optima of nearly equal density, the MAP's own Laplace mass plus the
+    others' (``fit.log_mass``), not the width of their mixture."""
     scale = np.asarray(model.data["prior_scale"], dtype=float)
-    cov = np.asarray(fit.cov_log, dtype=float)
+    own = getattr(fit, "cov_map", None)
+    cov = np.asarray(fit.cov_log if own is None else own, dtype=float)
     if fit.overflows or not math.isfinite(fit.log_posterior):
         return float("nan")
     sign, logdet = np.linalg.slogdet(cov)
     if sign <= 0:
         return float("nan")
-    return float(fit.log_posterior - np.sum(np.log(scale)) + 0.5 * logdet)
+    return float(fit.log_posterior - np.sum(np.log(scale)) + 0.5 * logdet
+                 + getattr(fit, "log_mass", 0.0))
 
 
 def _num(x, fmt=".1f") -> str:

@@ -60,3 +60,26 @@ def test_a_tied_combination_is_the_one_the_data_fix_not_one_they_leave_open():
     (text,) = [f for f in out["findings"] if "fix the combination" in f]
     assert "+1.00·log B +1.00·log Tc" in text or "+1.00·log Tc +1.00·log B" in text
     assert any("B and Tc are correlated -1.00" in f for f in out["findings"])
+
+
+def test_a_tied_combination_is_written_in_the_fits_coordinates():
+    """The correlation matrix weighs θ_j/sd_j: with log B known to 0.01 and log Tc to 0.1,
+    anti-correlated, the combination fixed is log B + 0.1·log Tc (its variance tiny),
+    not log B + log Tc."""
+    names = ("Ra", "La", "K", "B", "J", "Tc")
+    sd = np.array([0.01, 0.01, 0.01, 0.01, 0.01, 0.1])
+    corr = np.eye(6)
+    corr[3, 5] = corr[5, 3] = -0.999
+    cov = corr * np.outer(sd, sd)
+    fit = SimpleNamespace(names=names, corr=corr, cov_log=cov, values={"La": 1e-3, "Ra": 2.0})
+    model = SimpleNamespace(
+        prior_sd=np.ones(6), registry={n: _spec("log") for n in names},
+        session=SimpleNamespace(traces=[SimpleNamespace(
+            current=np.zeros(3), dt=1e-4, kind="step",
+            load_torque=SimpleNamespace(values=np.zeros(1)))],
+            coast_downs=(), nuisances=(), La=SimpleNamespace(source="")),
+        coulomb=True)
+    (tied,) = identifiability(model, fit)["tied_combinations"]
+    c = np.array([tied["direction"][n] for n in names])
+    assert c[3] == pytest.approx(1.0) and c[5] == pytest.approx(0.1, rel=1e-6)
+    assert c @ cov @ c < 0.01 * cov[3, 3]  # fixed far more tightly than log B alone

@@ -147,3 +147,43 @@ def test_a_gear_ratio_that_is_not_positive_is_refused(demo):
                  "gear_ratio = -5")
     r = _closed_form(demo)
     assert r.returncode == 2 and "gear_ratio" in r.stderr and "positive" in r.stderr
+
+
+def test_every_quantity_at_the_output_shaft_is_moved_to_the_motor_shaft():
+    """Speeds and angles times the ratio, torques divided by it, a drag T(ω_out) as
+    T(ω/n)/n at the motor shaft (its viscous part over n², quadratic over n³)."""
+    import dataclasses
+
+    from pmdc_bayes.io import gear
+    from pmdc_bayes.io.drag import Drag
+    from pmdc_bayes.io.session import Schedule, SteadyTable, StepReading, Trace
+
+    n = 12.5
+    drag = Drag(constant=0.02, viscous=1e-3, quadratic=2e-5, curve=((0.0, 0.0), (10.0, 0.05)))
+    moved = gear.motor_shaft_drag(drag, n)
+    for w_out in (0.5, 3.0, 9.0):  # the same power at either shaft: T_m·ω_m = T_out·ω_out
+        t_out = drag.constant + drag.viscous * w_out + drag.quadratic * w_out**2
+        t_m = moved.constant + moved.viscous * n * w_out + moved.quadratic * (n * w_out) ** 2
+        assert t_m * n * w_out == pytest.approx(t_out * w_out, rel=1e-12)
+    assert moved.curve == ((0.0, 0.0), (10.0 * n, 0.05 / n))
+    tr = Trace(name="t", kind="step", file=Path("t.csv"), time=np.arange(3.0),
+               speed=np.array([0.0, 1.0, 2.0]), current=None,
+               voltage=Schedule(np.zeros(1), np.ones(1)),
+               load_torque=Schedule(np.zeros(1), np.array([0.3])), initial=(0.1, 2.0),
+               position=np.array([0.0, 0.5, 1.5]), encoder_step=0.01, drag=drag)
+    m = gear.motor_shaft_trace(tr, n)
+    np.testing.assert_allclose(m.speed, tr.speed * n)
+    np.testing.assert_allclose(m.position, tr.position * n)
+    assert m.encoder_step == pytest.approx(0.01 * n)
+    assert m.initial == (0.1, pytest.approx(2.0 * n))  # (current, speed)
+    assert m.load_torque.values[0] == pytest.approx(0.3 / n)
+    assert m.drag == moved
+    coast = dataclasses.replace(tr, kind="coast-down", position=None, drag=Drag())
+    assert gear.motor_shaft_trace(coast, n).position is None
+    tab = SteadyTable("s", Path("s.csv"), np.ones(2), np.array([10.0, 20.0]), None,
+                      np.array([0.0, 0.4]))
+    mt = gear.motor_shaft_table(tab, n)
+    np.testing.assert_allclose(mt.speed, tab.speed * n)
+    np.testing.assert_allclose(mt.load_torque, tab.load_torque / n)
+    sr = gear.motor_shaft_reading(StepReading("r", 6.0, 30.0, 0.2, 5.0), n)
+    assert (sr.final_speed, sr.initial_speed, sr.tau) == (30.0 * n, 5.0 * n, 0.2)

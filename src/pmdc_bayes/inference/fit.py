@@ -48,6 +48,9 @@ class FitResult:
         ``mode_gaps`` how far below the MAP's log-posterior each of the others is.
     weights : per-channel 1/σ² at the MAP; ``noise_sd`` the matching σ.
     iterations : Levenberg–Marquardt steps (evaluations) of the best start.
+    cov_map : the Laplace covariance of the MAP's own curvature, when ``cov_log`` spans
+        several optima of nearly equal density (their mixture's); None otherwise.
+    log_mass : the log of those optima's Laplace mass relative to the MAP's (0 for one).
     outcome : how the best start ended (:class:`~pmdc_bayes.inference.lm.Outcome`); at
         its step limit (``Outcome.MAX_STEPS``) the fit has ``status`` ``"failed"`` and
         its ``message`` says so first.
@@ -69,6 +72,8 @@ class FitResult:
     n_modes: int = 1
     mode_gaps: tuple = ()
     outcome: Outcome = Outcome.CONVERGED
+    cov_map: np.ndarray | None = None
+    log_mass: float = 0.0
 
     @property
     def ok(self) -> bool:
@@ -195,23 +200,32 @@ def _modes(thetas, logp, ok, cov, evaluate) -> tuple[list[int], list[int]]:
     return modes, label
 
 
-def _mixture(model, states, spanned, logp, best, cov) -> np.ndarray:
+def _mixture(model, states, spanned, logp, best, cov) -> tuple[np.ndarray, float]:
     """The covariance of the mixture of the Laplace approximations at the distinct optima
-    ``spanned`` (each weighted by its density relative to the MAP's): the starts found
-    optima of nearly equal density that the MAP's curvature alone (``cov``) does not
-    reach, so the posterior spreads over all of them (a ridge the data do not resolve,
-    or several modes).  An optimum whose own curvature is not finite is left out."""
+    ``spanned``, each weighted by its Laplace mass ``exp(Δ log p)·√(det Σ_k / det Σ_MAP)``,
+    and the log of their total mass relative to the MAP's: the starts found optima of
+    nearly equal density that the MAP's curvature alone (``cov``) does not reach, so the
+    posterior spreads over all of them (a ridge the data do not resolve, or several
+    modes).  An optimum whose own curvature is not finite is left out."""
+    sign, logdet_map = np.linalg.slogdet(cov)
+    if sign <= 0:
+        return cov, 0.0
     parts = []
     for i in spanned:
         c = cov if i == best else laplace(model, states[i].theta, states[i].terms)[0]
-        if np.all(np.isfinite(c)):
-            parts.append((float(np.exp(logp[i] - logp[best])), states[i].theta, c))
+        sign, logdet = np.linalg.slogdet(c) if np.all(np.isfinite(c)) else (0.0, 0.0)
+        if sign > 0:
+            parts.append((logp[i] - logp[best] + 0.5 * (logdet - logdet_map),
+                          np.asarray(states[i].theta), c))
     if len(parts) < 2:
-        return cov
-    w = np.array([p[0] for p in parts]) / sum(p[0] for p in parts)
-    mean = sum(wk * np.asarray(th) for wk, (_, th, _) in zip(w, parts, strict=True))
-    return sum(wk * (c + np.outer(th - mean, th - mean))
-               for wk, (_, th, c) in zip(w, parts, strict=True))
+        return cov, 0.0
+    log_w = np.array([p[0] for p in parts])
+    log_mass = float(np.logaddexp.reduce(log_w))
+    w = np.exp(log_w - log_mass)
+    mean = sum(wk * th for wk, (_, th, _) in zip(w, parts, strict=True))
+    mix = sum(wk * (c + np.outer(th - mean, th - mean))
+              for wk, (_, th, c) in zip(w, parts, strict=True))
+    return mix, log_mass
 
 
 def _precision(cov) -> np.ndarray:
@@ -231,8 +245,10 @@ def _finish(model, states, origins, evaluate) -> FitResult:
     cov, _ = laplace(model, theta, terms)
     modes, label = _modes(thetas, logp, ok, cov, evaluate)
     spanned = [i for i in modes if logp[best] - logp[i] <= -np.log(MODE_SHARE)]
+    cov_map, log_mass = None, 0.0
     if len(spanned) > 1 and best in spanned:
-        cov = _mixture(model, states, spanned, logp, best, cov)
+        cov_map = cov
+        cov, log_mass = _mixture(model, states, spanned, logp, best, cov)
     agree = np.array([lab == best for lab in label]) | (np.arange(len(states)) == best)
     starts = [{"start": i, "origin": origins[i], "log_posterior": float(logp[i]),
                "agrees": bool(agree[i]), "solver_ok": bool(ok[i]), "steps": st.steps,
@@ -275,7 +291,7 @@ def _finish(model, states, origins, evaluate) -> FitResult:
     return FitResult(tuple(model.names), theta, values, sd, cov, corr, float(logp[best]),
                      status, message, starts, w, noise, states[best].steps, len(modes),
                      tuple(float(logp[best] - logp[i]) for i in modes[1:]),
-                     states[best].outcome)
+                     states[best].outcome, cov_map, log_mass)
 
 
 def _at_step_limit(start) -> str:

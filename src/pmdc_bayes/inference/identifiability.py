@@ -21,7 +21,7 @@ __all__ = ["identifiability"]
 
 PRIOR_DOMINATED = 0.8
 STRONG_CORRELATION = 0.95
-WEAK_EIGENVALUE = 1e-3
+TIED_EIGENVALUE = 1e-3  # of the largest: a combination tied far more than its parts
 
 
 def identifiability(model: SessionModel, fit: FitResult) -> dict:
@@ -34,9 +34,11 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
     findings = []
     tied = []
     for k in np.argsort(eig):
-        if eig[k] >= WEAK_EIGENVALUE * eig.max():
+        if eig[k] >= TIED_EIGENVALUE * eig.max():
             break
-        v = vec[:, k] / vec[np.argmax(np.abs(vec[:, k])), k]  # its largest part +1
+        # the eigenvector weighs the standardised θ_j/sd_j: the combination of θ is v/sd
+        c = np.divide(vec[:, k], sd_log, out=np.zeros_like(sd_log), where=sd_log > 0)
+        v = c / c[np.argmax(np.abs(c))]  # its largest part +1
         terms = [f"{v[j]:+.2f}·{_coordinate(model, names[j])}" for j in np.argsort(-np.abs(v))
                  if abs(v[j]) > 0.1]
         tied.append({"eigenvalue": float(eig[k]),
@@ -76,6 +78,11 @@ def _coordinate(model: SessionModel, name: str) -> str:
     return f"log {name}" if model.registry[name].transform == "log" else name
 
 
+def _la_prior(model: SessionModel) -> str:
+    return ("its assumed prior" if model.session.La.source == LA_ASSUMED
+            else "the bench prior")
+
+
 def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: float):
     tau_e = fit.values["La"] / fit.values["Ra"]
     with_current = [tr for tr in model.session.traces if tr.current is not None]
@@ -84,8 +91,7 @@ def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: f
             dt = min(tr.dt for tr in with_current)
             if dt < tau_e:
                 return None
-            prior = ("its assumed prior" if model.session.La.source == LA_ASSUMED
-                     else "the bench prior")
+            prior = _la_prior(model)
             return (
                 f"La is informed by the traces (posterior width {100 * ratio:.0f} % of "
                 f"{prior}) although the fastest current sampling ({dt * 1e3:.3g} ms) is "
@@ -106,10 +112,10 @@ def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: f
                 f"bound on the armature inductance; a logged current or a measured La "
                 f"separates them.")
     if not with_current:
-        return (f"La is determined by the bench prior alone: no trace logs the current "
+        return (f"La is determined by {_la_prior(model)} alone: no trace logs the current "
                 f"(τe = {tau_e * 1e3:.2g} ms).")
     dt = min(tr.dt for tr in with_current)
-    return (f"La is determined by the bench prior alone: no trace samples the current fast "
+    return (f"La is determined by {_la_prior(model)} alone: no trace samples the current fast "
             f"enough (τe = {tau_e * 1e3:.2g} ms, sampling {dt * 1e3:.3g} ms).")
 
 

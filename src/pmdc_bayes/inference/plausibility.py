@@ -181,14 +181,14 @@ def _quantiser_bias_sd(y, sd: float) -> float:
     quantisation error's mean, Widrow), by the signal's place in the lattice; its sd over
     that place is the amplitude over √2.  σa is read from the readings' noise ``sd``
     less the most a quantiser adds to it without dithering (q/2, a reading alternating
-    between two steps), so that a quantiser is never taken for dithered when it is not;
-    0 for a channel that is not quantised."""
+    between two steps), so that a quantiser is never taken for dithered when it is not
+    (a bound: below q/2 of readings' noise it is the largest bias, q/(π√2)); 0 for a
+    channel that is not quantised."""
     q = quantum(np.asarray(y, dtype=float))
     if q == 0.0:
         return 0.0
     analogue2 = max(sd * sd - q * q / 4.0, 0.0)
-    return min(q / 2.0, q / np.pi * float(np.exp(-2.0 * np.pi**2 * analogue2 / q**2))) \
-        / np.sqrt(2.0)
+    return q / np.pi * float(np.exp(-2.0 * np.pi**2 * analogue2 / q**2)) / np.sqrt(2.0)
 
 
 def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict) -> float:
