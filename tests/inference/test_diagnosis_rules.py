@@ -248,3 +248,27 @@ def test_a_quantised_levels_mean_is_read_with_the_quantisers_bias():
         ses.append(se)
     assert misses / trials < 0.03
     assert max(ses) < q / 4  # the bias bound q/(π√2) and the noise over √n, not a blanket
+
+
+def test_the_models_no_load_speed_carries_the_fits_uncertainty():
+    """The Laplace sd of the model's no-load speed (central differences in θ) is the
+    spread of the no-load speed over draws from the Laplace approximation."""
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.inference.plausibility import _no_load_speed, _no_load_speed_sd
+    from pmdc_bayes.paper.closed_form import closed_form
+
+    session = case_session()
+    model = build_model(session, closed_form(session))
+    theta = np.asarray(model.theta(dict(session.truth)))
+    sd = np.full(theta.size, 0.01)
+    cov = np.diag(sd**2)
+    cov[2, 3] = cov[3, 2] = 0.5 * 1e-4  # K and B partly correlated
+    fit = SimpleNamespace(theta=theta, cov_log=cov)
+    draws = np.random.default_rng(1).multivariate_normal(theta, cov, 4000)
+    names = list(model.names)
+    w = [_no_load_speed(model, dict(zip(names, model.registry.to_values(d), strict=True)),
+                        12.0) for d in draws]
+    assert _no_load_speed_sd(model, fit, 12.0) == pytest.approx(np.std(w), rel=0.05)
+    assert _no_load_speed_sd(model, SimpleNamespace(values={}), 12.0) == 0.0
