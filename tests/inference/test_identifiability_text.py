@@ -33,6 +33,18 @@ def test_a_weak_direction_names_a_dead_time_without_a_log():
     assert "log dead_time_step" not in finding
 
 
+def _log_model(names):
+    """A Coulomb model of log-transformed parameters with one step trace logging the
+    current fast."""
+    trace = SimpleNamespace(current=np.zeros(3), dt=1e-4, kind="step",
+                            load_torque=SimpleNamespace(values=np.zeros(1)))
+    session = SimpleNamespace(traces=[trace], coast_downs=(), nuisances=(),
+                              La=SimpleNamespace(source=""))
+    return SimpleNamespace(prior_sd=np.ones(len(names)),
+                           registry={n: _spec("log") for n in names}, session=session,
+                           coulomb=True)
+
+
 def test_a_tied_combination_is_the_one_the_data_fix_not_one_they_leave_open():
     """Strongly anti-correlated log B and log Tc: the data fix their sum (the
     correlation matrix's near-zero eigenvalue), while each alone trades against the
@@ -42,13 +54,7 @@ def test_a_tied_combination_is_the_one_the_data_fix_not_one_they_leave_open():
     corr[3, 5] = corr[5, 3] = -0.999
     fit = SimpleNamespace(names=names, corr=corr, cov_log=np.diag([1e-4] * 6),
                           values={"La": 1e-3, "Ra": 2.0})
-    model = SimpleNamespace(
-        prior_sd=np.ones(6), registry={n: _spec("log") for n in names},
-        session=SimpleNamespace(traces=[SimpleNamespace(
-            current=np.zeros(3), dt=1e-4, kind="step",
-            load_torque=SimpleNamespace(values=np.zeros(1)))],
-                                coast_downs=(), nuisances=(), La=SimpleNamespace(source="")),
-        coulomb=True)
+    model = _log_model(names)
     out = identifiability(model, fit)
     (tied,) = out["tied_combinations"]
     d = tied["direction"]
@@ -72,13 +78,7 @@ def test_a_tied_combination_is_written_in_the_fits_coordinates():
     corr[3, 5] = corr[5, 3] = -0.999
     cov = corr * np.outer(sd, sd)
     fit = SimpleNamespace(names=names, corr=corr, cov_log=cov, values={"La": 1e-3, "Ra": 2.0})
-    model = SimpleNamespace(
-        prior_sd=np.ones(6), registry={n: _spec("log") for n in names},
-        session=SimpleNamespace(traces=[SimpleNamespace(
-            current=np.zeros(3), dt=1e-4, kind="step",
-            load_torque=SimpleNamespace(values=np.zeros(1)))],
-            coast_downs=(), nuisances=(), La=SimpleNamespace(source="")),
-        coulomb=True)
+    model = _log_model(names)
     (tied,) = identifiability(model, fit)["tied_combinations"]
     c = np.array([tied["direction"][n] for n in names])
     assert c[3] == pytest.approx(1.0) and c[5] == pytest.approx(0.1, rel=1e-6)
