@@ -40,8 +40,8 @@ from scipy import stats
 from pmdc_bayes._x64 import x64
 from pmdc_bayes.inference.adequacy import assess
 from pmdc_bayes.inference.fit import fit_map, laplace
-from pmdc_bayes.inference.lm import GaussNewton
 from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.inference.optimiser import Stepper
 from pmdc_bayes.inference.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import NON_IDEALITIES, fuzz_session
@@ -73,10 +73,9 @@ def per_reading_z(model, fit, truth: dict) -> dict[str, float] | None:
     if np.all(alpha == 1.0):
         return None
     data = dict(model.data, n_obs=jnp.asarray(model.n_obs), s0=jnp.asarray(model.s0))
-    kernel = GaussNewton(model)
     saved, model.data = model.data, data
     try:
-        terms = kernel.terms(fit.theta)
+        terms = Stepper.of(model).terms(fit.theta)
     finally:
         model.data = saved
     cov, _ = laplace(model, fit.theta, terms)

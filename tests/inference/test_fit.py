@@ -146,7 +146,7 @@ def test_fit_compiles_once_per_session_structure(demo_fit):
     model2 = build_model(other, closed_form(other))
     assert model2.structure_key() == model.structure_key()
     kernels = [fn for key, fn in _cache._IN_MEMORY.items()
-               if key[0] == "gauss-newton" and key[1:] == model.structure_key()]
+               if key[0] == "optimistix-step" and key[1:] == model.structure_key()]
     assert kernels
     before = dict(_cache._IN_MEMORY)
     assert all(_traced(k) == [1] * len(_traced(k)) for k in kernels)  # traced once...

@@ -70,6 +70,6 @@ def test_fits_makes_each_models_fitting_programs_which_the_fits_then_use(session
     warm = WarmUp.fits(models)
     warm.join()
     for model in models:
-        assert {n: c for n, c in _made(model).items()} == {"gauss-newton": 1, "predict": 1}
+        assert {n: c for n, c in _made(model).items()} == {"optimistix-step": 1, "predict": 1}
         fit_map(model, seed=0)
-        assert _made(model)["gauss-newton"] == 1  # the fit called the program made ahead
+        assert _made(model)["optimistix-step"] == 1  # the fit called the program made ahead

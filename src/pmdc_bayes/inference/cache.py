@@ -32,7 +32,7 @@ _LAPACK = ("lapack_dormqr_ffi", "lapack_dgeqrf_ffi", "lapack_dorgqr_ffi", "lapac
 export.register_namedtuple_serialization(Experiment, serialized_name="pmdc_bayes.Experiment")
 
 
-_WORDS = {"gauss-newton": "MAP's (Gauss–Newton)", "predict": "prediction",
+_WORDS = {"optimistix-step": "MAP's (optimistix step)", "predict": "prediction",
           "log_posterior_batch": "sampler's log-posterior",
           "pointwise-residuals": "pointwise log-likelihood"}  # names in the progress lines
 _TRACED_PACKAGES = ("physics", "inference")

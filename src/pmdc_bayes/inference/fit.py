@@ -1,9 +1,10 @@
-"""Joint MAP fit of a session (Levenberg–Marquardt), with Laplace uncertainty.
+"""Joint MAP fit of a session (optimistix's Levenberg–Marquardt), with Laplace
+uncertainty.
 
 The MAP maximises :meth:`SessionModel.log_posterior`.  With each channel's noise
 integrated out, its stationary point is a weighted least-squares problem whose
 weights ``(n_c + ν0)/(ν0·s0_c² + SS_c)`` depend on the residuals themselves; every
-Levenberg–Marquardt step of :mod:`.lm` takes the weights at its own point and is
+step of :mod:`.optimiser` takes the curvature with the weights at its own point and is
 accepted only when the exact log-posterior rises, so the fixed point is the exact
 MAP.  Several starts (the seed, other seeds, copies near it and copies over the
 prior's range) are moved side by side, so a poor seed cannot leave the fit in a local
@@ -17,8 +18,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._x64 import x64
-from .lm import MAX_STEPS, WINDOW, GaussNewton, Outcome, Terms, levenberg_marquardt
+from .curvature import Terms
+from .multistart import MAX_STEPS, WINDOW, Outcome, maximise
 from .objective import SessionModel, noise_weights
+from .optimiser import Stepper
 
 __all__ = ["FitResult", "fit_map", "laplace"]
 
@@ -47,11 +50,11 @@ class FitResult:
     n_modes : how many distinct optima the starts reached (the best is the MAP);
         ``mode_gaps`` how far below the MAP's log-posterior each of the others is.
     weights : per-channel 1/σ² at the MAP; ``noise_sd`` the matching σ.
-    iterations : Levenberg–Marquardt steps (evaluations) of the best start.
+    iterations : optimistix steps (evaluations) of the best start.
     cov_map : the Laplace covariance of the MAP's own curvature, when ``cov_log`` spans
         several optima of nearly equal density (their mixture's); None otherwise.
     log_mass : the log of those optima's Laplace mass relative to the MAP's (0 for one).
-    outcome : how the best start ended (:class:`~pmdc_bayes.inference.lm.Outcome`); at
+    outcome : how the best start ended (:class:`~pmdc_bayes.inference.multistart.Outcome`); at
         its step limit (``Outcome.MAX_STEPS``) the fit has ``status`` ``"failed"`` and
         its ``message`` says so first.
     """
@@ -135,7 +138,7 @@ def laplace(model: SessionModel, theta, terms: Terms | None = None):
     noise level, which matters for channels with few observations.
     """
     if terms is None:
-        terms = GaussNewton(model).terms(theta)
+        terms = Stepper.of(model).terms(theta)
     H = np.asarray(terms.H_noise)
     if not np.all(np.isfinite(H)):  # the model overflows near θ: no curvature to invert
         return np.full(H.shape, np.nan), H
@@ -162,9 +165,9 @@ def fit_map(model: SessionModel, *, theta0=None, n_starts: int = N_STARTS, seed:
     theta0 = np.asarray(model.theta_seed() if theta0 is None else theta0, dtype=float)
     rng = np.random.default_rng(seed)
     starts, origins = _starts(model, theta0, n_starts, rng, alternatives)
-    kernel = GaussNewton(model)
-    states = levenberg_marquardt(kernel.terms, starts, abandon=_far_below)
-    return _finish(model, states, origins, kernel.terms)
+    stepper = Stepper.of(model)
+    states = maximise(stepper, starts, abandon=_far_below)
+    return _finish(model, states, origins, stepper.terms)
 
 
 def _modes(thetas, logp, ok, cov, evaluate) -> tuple[list[int], list[int]]:

@@ -109,9 +109,9 @@ class WarmUp:
 
     @staticmethod
     def _kernel(model, theta) -> None:
-        from .lm import GaussNewton
+        from .optimiser import Stepper
 
-        GaussNewton(model).terms(theta)
+        Stepper.of(model).terms(theta)
 
     @staticmethod
     def _predict(model, theta) -> None:

@@ -1,6 +1,7 @@
-"""The Levenberg–Marquardt engine of the MAP fit: its compiled Gauss–Newton kernel
-against the model's own log-posterior and JAX's gradient, and the host loop on
-problems with a known optimum (a curved valley, a start where the model is not finite)."""
+"""The MAP fit's optimiser: the curvature its compiled optimistix step reads, against
+the model's own log-posterior and JAX's gradient, and the starts moved from the host
+on problems with a known optimum (a curved valley, a start where the model is not
+finite)."""
 
 import jax
 import jax.numpy as jnp
@@ -8,9 +9,10 @@ import numpy as np
 import pytest
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference import lm
+from pmdc_bayes.inference import multistart as ms
 from pmdc_bayes.inference.fit import fit_map
 from pmdc_bayes.inference.objective import NU0, build_model
+from pmdc_bayes.inference.optimiser import Stepper
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.paper.closed_form import closed_form
 
@@ -25,7 +27,7 @@ def demo_model():
 def test_the_kernel_is_the_models_log_posterior_its_gradient_and_curvature(demo_model):
     model = demo_model
     theta = np.asarray(model.theta_seed()) + 0.01 * np.arange(len(model.names))
-    t = lm.GaussNewton(model).terms(theta)
+    t = Stepper.of(model).terms(theta)
     lp = float(model.log_posterior(jnp.asarray(theta)))
     grad = np.asarray(jax.grad(lambda x: model.log_posterior(x))(jnp.asarray(theta)))
     assert t.lp == pytest.approx(lp, rel=1e-12)
@@ -46,54 +48,68 @@ def test_the_kernel_computes_in_64_bits_for_a_caller_in_32(demo_model):
     kernel still computes in 64 bits: no truncation warning (an error in this suite) and
     the same log-posterior as inside the package's 64-bit context."""
     theta = np.asarray(x64(demo_model.theta_seed)())
-    inside = x64(lm.GaussNewton(demo_model).terms)(theta)
+    inside = x64(Stepper.of(demo_model).terms)(theta)
     with jax.enable_x64(False):  # the suite's own setting is on: a caller's is off
-        t = lm.GaussNewton(demo_model).terms(theta)
+        t = Stepper.of(demo_model).terms(theta)
         assert not jax.config.jax_enable_x64
     assert t.H.dtype == np.float64 and t.lp == inside.lp
 
 
-def _rosenbrock(a: float = 10.0):
+def _rosenbrock(a: float = 10.0, finite_from: float = -np.inf) -> Stepper:
     """lp = −½(a²(y − x²)² + (1 − x)²) as residuals r = (a(y − x²), 1 − x): a curved
-    valley with its top at (1, 1)."""
+    valley with its top at (1, 1); not finite where x < ``finite_from``.  ``a`` and the
+    bound are data: every valley runs the same compiled step."""
 
-    def evaluate(theta):
-        x, y = theta
-        r = np.array([a * (y - x * x), 1.0 - x])
-        jac = np.array([[-2.0 * a * x, a], [-1.0, 0.0]])
-        H = jac.T @ jac
-        return lm.Terms(np.asarray(theta, float), float(-0.5 * r @ r), -jac.T @ r, H, H,
-                        np.array([r @ r]), np.zeros((1, 2)))
+    with jax.enable_x64(True):
+        data = {"a": jnp.asarray(a), "finite_from": jnp.asarray(finite_from)}
+    return Stepper(lambda t, d: _valley_terms(t, d)[0], _valley_terms, data, 2, 1,
+                   _once)
 
-    return evaluate
+
+def _valley(theta, d):
+    x, y = theta[0], theta[1]
+    r = jnp.stack([d["a"] * (y - x * x), 1.0 - x])
+    return jnp.where(x >= d["finite_from"], -0.5 * r @ r, -jnp.inf), r
+
+
+def _valley_terms(theta, d):
+    """The valley's ``(lp, grad, H, H_noise, ss, G)``, as :func:`gauss_newton`'s."""
+    lp, r = _valley(theta, d)
+    jac = jax.jacfwd(lambda t: _valley(t, d)[1])(theta)
+    H = jac.T @ jac
+    return lp, -jac.T @ r, H, H, jnp.stack([r @ r]), jnp.zeros((1, 2))
+
+
+_ROSENBROCK: dict = {}
+
+
+def _once(name, build):
+    """One compiled step for every valley."""
+    if name not in _ROSENBROCK:
+        _ROSENBROCK[name] = build()
+    return _ROSENBROCK[name]
 
 
 def test_the_host_loop_climbs_a_curved_valley_to_its_top():
-    (s,) = lm.levenberg_marquardt(_rosenbrock(), [np.array([-1.2, 1.0])])
+    (s,) = ms.maximise(_rosenbrock(), [np.array([-1.2, 1.0])])
     assert s.converged and s.stopped == "converged"
     # converged means a Newton step would gain under DECREMENT_TOL: at the top (lp 0) to
     # within that, and so within sqrt(2·tol/λ_min) ≈ 3e-4 of (1, 1)
-    assert -lm.DECREMENT_TOL <= s.lp <= 0.0
+    assert -ms.DECREMENT_TOL <= s.lp <= 0.0
     np.testing.assert_allclose(s.theta, [1.0, 1.0], atol=1e-3)
-    assert s.steps < lm.MAX_STEPS
+    assert s.steps < ms.MAX_STEPS
 
 
 def test_a_start_where_the_model_is_not_finite_stops_without_a_step():
-    good = _rosenbrock()
-
-    def evaluate(theta):
-        t = good(theta)
-        return t if theta[0] > -5 else lm.Terms(t.theta, -np.inf, t.grad, t.H, t.H, t.ss, t.G)
-
-    a, b = lm.levenberg_marquardt(evaluate, [np.array([-9.0, 0.0]), np.array([0.0, 0.0])])
+    a, b = ms.maximise(_rosenbrock(finite_from=-5.0),
+                       [np.array([-9.0, 0.0]), np.array([0.0, 0.0])])
     assert not a.converged and a.steps == 0 and "not finite" in a.stopped
     assert b.converged
 
 
 def test_a_start_far_below_the_best_is_abandoned():
-    evaluate = _rosenbrock(a=100.0)
-    states = lm.levenberg_marquardt(
-        evaluate, [np.array([1.0, 1.0]), np.array([-3.0, 0.0])],
+    states = ms.maximise(
+        _rosenbrock(a=100.0), [np.array([1.0, 1.0]), np.array([-3.0, 0.0])],
         abandon=lambda s, best: s.steps >= 1 and s.lp < best - 10.0)
     assert states[0].converged
     assert states[1].stopped == "far below the best" and not states[1].converged
@@ -112,10 +128,10 @@ def test_the_map_is_where_the_log_posterior_gradient_vanishes(demo_model):
 def test_a_crawl_along_a_narrow_curved_valley_stops_within_the_resolution():
     """Rosenbrock's banana (a = 100): however the start ends, converged or stopped as a
     slow crawl, it is within RESOLUTION per parameter of the top in log-posterior."""
-    (s,) = lm.levenberg_marquardt(_rosenbrock(a=100.0), [np.array([-1.2, 1.0])])
+    (s,) = ms.maximise(_rosenbrock(a=100.0), [np.array([-1.2, 1.0])])
     assert s.converged, s.stopped
-    assert s.lp >= -lm.RESOLUTION * 2
-    assert s.steps < lm.MAX_STEPS
+    assert s.lp >= -ms.RESOLUTION * 2
+    assert s.steps < ms.MAX_STEPS
 
 
 def test_two_finals_are_one_optimum_unless_a_valley_separates_them():
@@ -149,22 +165,22 @@ def test_two_finals_are_one_optimum_unless_a_valley_separates_them():
 def test_a_start_at_its_step_limit_ends_with_that_outcome_not_as_converged():
     """A badly scaled banana (a = 10⁴) from far up its valley needs over a thousand
     steps: held to 200, the start ends with the outcome MAX_STEPS, far below the top."""
-    (s,) = lm.levenberg_marquardt(_rosenbrock(a=1e4), [np.array([-5.0, 25.0])],
-                                  best_max_steps=lm.MAX_STEPS)
-    assert s.outcome is lm.Outcome.MAX_STEPS and not s.converged
-    assert s.stopped == "step limit" and s.steps == lm.MAX_STEPS and s.improving
+    (s,) = ms.maximise(_rosenbrock(a=1e4), [np.array([-5.0, 25.0])],
+                                  best_max_steps=ms.MAX_STEPS)
+    assert s.outcome is ms.Outcome.MAX_STEPS and not s.converged
+    assert s.stopped == "step limit" and s.steps == ms.MAX_STEPS and s.improving
     assert s.lp < -1.0
 
 
 def test_the_best_start_still_improving_is_continued_and_the_others_are_not():
     """Both starts reach the 200-step limit; the better one, still rising, is given more
     steps and ends within the resolution of the top, the other ends at the limit."""
-    best, other = lm.levenberg_marquardt(
+    best, other = ms.maximise(
         _rosenbrock(a=1e4), [np.array([-1.2, 1.0]), np.array([-5.0, 25.0])])
     assert best.converged, best.stopped
-    assert lm.MAX_STEPS < best.steps <= lm.BEST_MAX_STEPS and best.limit > lm.MAX_STEPS
-    assert best.lp >= -lm.RESOLUTION * 2
-    assert other.outcome is lm.Outcome.MAX_STEPS and other.steps == lm.MAX_STEPS
+    assert ms.MAX_STEPS < best.steps <= ms.BEST_MAX_STEPS and best.limit > ms.MAX_STEPS
+    assert best.lp >= -ms.RESOLUTION * 2
+    assert other.outcome is ms.Outcome.MAX_STEPS and other.steps == ms.MAX_STEPS
 
 
 def test_a_map_whose_start_ends_at_its_step_limit_fails_and_says_so_first(demo_model,
@@ -176,15 +192,15 @@ def test_a_map_whose_start_ends_at_its_step_limit_fails_and_says_so_first(demo_m
 
     from pmdc_bayes.inference import fit as fit_module
 
-    low = functools.partial(lm.levenberg_marquardt, max_steps=3, best_max_steps=3)
-    monkeypatch.setattr(fit_module, "levenberg_marquardt", low)
+    low = functools.partial(ms.maximise, max_steps=3, best_max_steps=3)
+    monkeypatch.setattr(fit_module, "maximise", low)
     fit = fit_map(demo_model)
-    assert fit.status == "failed" and fit.outcome is lm.Outcome.MAX_STEPS
+    assert fit.status == "failed" and fit.outcome is ms.Outcome.MAX_STEPS
     assert fit.message.startswith("the MAP is not an optimum: its Levenberg–Marquardt "
                                   "start stopped at its step limit (3 steps)"), fit.message
     assert {s["outcome"] for s in fit.starts} <= {"MAX_STEPS", "NONFINITE"}
-    continued = functools.partial(lm.levenberg_marquardt, max_steps=3)
-    monkeypatch.setattr(fit_module, "levenberg_marquardt", continued)
+    continued = functools.partial(ms.maximise, max_steps=3)
+    monkeypatch.setattr(fit_module, "maximise", continued)
     fit = fit_map(demo_model)
     assert fit.ok and fit.outcome.converged, fit.message
     assert fit.iterations > 3
@@ -197,12 +213,75 @@ def test_the_starts_end_alike_whether_one_thread_or_many_steps_them(monkeypatch)
     starts = [np.array(x) for x in ([-1.2, 1.0], [-5.0, 25.0], [2.0, 0.0], [0.5, 3.0])]
 
     def run(threads):
-        monkeypatch.setattr(lm, "usable_cores", lambda: threads)
-        return lm.levenberg_marquardt(_rosenbrock(a=1e3), starts,
+        monkeypatch.setattr(ms, "usable_cores", lambda: threads)
+        return ms.maximise(_rosenbrock(a=1e3), starts,
                                       abandon=lambda s, best: s.steps >= 20 and s.lp < best - 5)
 
     one, many = run(1), run(4)
-    assert {s.outcome for s in one} >= {lm.Outcome.ABANDONED}
+    assert {s.outcome for s in one} >= {ms.Outcome.ABANDONED}
     for a, b in zip(one, many, strict=True):
         np.testing.assert_array_equal(a.theta, b.theta)
         assert (a.steps, a.outcome, a.history) == (b.steps, b.outcome, b.history)
+
+
+# optimistix: the solver, its own driver, its results in words
+
+
+def test_the_solver_is_an_optimistix_minimiser_that_its_own_driver_runs_to_the_top():
+    """``ExactCurvature`` given to ``optimistix.minimise`` (optimistix's own loop, not the
+    host's) climbs the valley to the same top as the starts stepped from the host."""
+    import optimistix as optx
+
+    from pmdc_bayes.inference import optimiser
+
+    stepper = _rosenbrock()
+    (hosted,) = ms.maximise(stepper, [np.array([-1.2, 1.0])])
+    with jax.enable_x64(True):
+        zero, one = jnp.zeros(2), jnp.ones(2)
+
+        def curvature(y):
+            out = _valley_terms(y, stepper.data)
+            return -out[1], out[3], out
+
+        extras0 = optimiser._initial(2, 1)[0]
+        solver = optimiser.ExactCurvature(curvature, extras0, atol=1e-12)
+        sol = optx.minimise(optimiser._objective(lambda t, d: _valley_terms(t, d)[0]),
+                            solver, jnp.array([-1.2, 1.0]), args=(zero, one, stepper.data),
+                            has_aux=True, max_steps=500)
+    assert sol.result == optx.RESULTS.successful
+    np.testing.assert_allclose(np.asarray(sol.value), [1.0, 1.0], atol=1e-6)
+    # the host stops once a Newton step would gain under DECREMENT_TOL (≈ 3e-4 from it)
+    np.testing.assert_allclose(hosted.theta, np.asarray(sol.value), atol=1e-3)
+
+
+def test_every_accepted_step_raises_the_exact_log_posterior(demo_model):
+    theta = np.asarray(x64(demo_model.theta_seed)()) + 0.3
+    (s,) = ms.maximise(Stepper.of(demo_model), [theta])
+    assert s.converged, s.stopped
+    assert len(s.history) > 3 and np.all(np.diff(s.history) > 0)
+    assert s.lp == pytest.approx(float(x64(demo_model.log_posterior)(jnp.asarray(s.theta))),
+                                 rel=1e-12)
+
+
+def test_a_start_the_solver_stops_with_an_error_ends_in_optimistix_words(monkeypatch):
+    """A result other than success from optimistix ends the start with the outcome
+    SOLVER and optimistix's own message, not as converged."""
+    import dataclasses
+
+    import optimistix as optx
+
+    from pmdc_bayes.inference import optimiser
+
+    code = int(np.asarray(optx.RESULTS.nonlinear_divergence._value))
+    words = optx.RESULTS[optx.RESULTS.nonlinear_divergence]
+    assert optimiser._words(code) == words
+    stepper = _rosenbrock()
+    real = stepper.step
+
+    def diverging(at, theta0, scale):
+        return dataclasses.replace(real(at, theta0, scale), result=words)
+
+    monkeypatch.setattr(stepper, "step", diverging)
+    (s,) = ms.maximise(stepper, [np.array([-1.2, 1.0])])
+    assert s.outcome is ms.Outcome.SOLVER and not s.converged and s.steps == 1
+    assert s.stopped == f"{ms.Outcome.SOLVER.value}: {words}"
