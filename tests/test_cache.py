@@ -163,7 +163,7 @@ def test_fit_says_when_it_compiles_for_a_new_session_shape(disk_cache, tmp_path,
     second run of the same session shape."""
     cli.main(["fit", "paper", "--no-mcmc", "--no-search", "--out", str(tmp_path / "a"), "-v"])
     first = capsys.readouterr().err
-    assert "compiling the MAP's (Gauss–Newton) program (first use of this session shape" \
+    assert "compiling the MAP's (optimistix step) program (first use of this session shape" \
         in first
     cache._IN_MEMORY.clear()  # a new process: programs come from the disk cache
     cli.main(["fit", "paper", "--no-mcmc", "--no-search", "--out", str(tmp_path / "b"), "-v"])

@@ -237,16 +237,14 @@ def test_the_solver_is_an_optimistix_minimiser_that_its_own_driver_runs_to_the_t
     stepper = _rosenbrock()
     (hosted,) = ms.maximise(stepper, [np.array([-1.2, 1.0])])
     with jax.enable_x64(True):
-        zero, one = jnp.zeros(2), jnp.ones(2)
-
-        def curvature(y):
+        def curvature(y):  # the origin θ0 = 0: y is θ
             out = _valley_terms(y, stepper.data)
             return -out[1], out[3], out
 
-        extras0 = optimiser._initial(2, 1)[0]
-        solver = optimiser.ExactCurvature(curvature, extras0, atol=1e-12)
+        solver = optimiser.ExactCurvature(curvature, optimiser._initial(2, 1)[0], atol=1e-12)
         sol = optx.minimise(optimiser._objective(lambda t, d: _valley_terms(t, d)[0]),
-                            solver, jnp.array([-1.2, 1.0]), args=(zero, one, stepper.data),
+                            solver, jnp.array([-1.2, 1.0]),
+                            args=(jnp.zeros(2), stepper.data),
                             has_aux=True, max_steps=500)
     assert sol.result == optx.RESULTS.successful
     np.testing.assert_allclose(np.asarray(sol.value), [1.0, 1.0], atol=1e-6)
@@ -278,8 +276,8 @@ def test_a_start_the_solver_stops_with_an_error_ends_in_optimistix_words(monkeyp
     stepper = _rosenbrock()
     real = stepper.step
 
-    def diverging(at, theta0, scale):
-        return dataclasses.replace(real(at, theta0, scale), result=words)
+    def diverging(at):
+        return dataclasses.replace(real(at), result=words)
 
     monkeypatch.setattr(stepper, "step", diverging)
     (s,) = ms.maximise(stepper, [np.array([-1.2, 1.0])])

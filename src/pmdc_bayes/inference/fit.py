@@ -27,7 +27,7 @@ __all__ = ["FitResult", "fit_map", "laplace"]
 
 N_STARTS = 8
 START_SPREAD = 0.3
-ABANDON_AFTER = 20  # steps after which a start far below the best stops
+ABANDON_AFTER = 20  # accepted steps after which a start far below the best stops
 RELEVANT = 10.0
 SAME_DISTANCE = 1.0  # Laplace sds (Mahalanobis) within which two finals are one optimum
 DIP = 1.0  # log-posterior units: a smaller dip between two finals is no valley
@@ -117,10 +117,12 @@ def _starts(model: SessionModel, theta0, n: int, rng: np.random.Generator, alter
 
 
 def _far_below(start, best: float) -> bool:
-    """A start that, after :data:`ABANDON_AFTER` steps, lies far below the best (more
-    than :data:`RELEVANT` log-posterior units and 1 % of its size): a poor local optimum
-    or a slow crawl, not worth finishing."""
-    return start.steps >= ABANDON_AFTER and np.isfinite(best) and (
+    """A start that, after :data:`ABANDON_AFTER` accepted steps, lies far below the best
+    (more than :data:`RELEVANT` log-posterior units and 1 % of its size): a poor local
+    optimum or a slow crawl, not worth finishing.  Accepted steps, not evaluations: a
+    rejected trial costs one forward pass of the model, and a start whose trust region
+    shrinks and grows again is not slower for it."""
+    return len(start.history) >= ABANDON_AFTER and np.isfinite(best) and (
         start.lp < best - max(RELEVANT, 1e-2 * abs(best)))
 
 

@@ -54,14 +54,12 @@ class Outcome(enum.Enum):
 
 @dataclass
 class Start:
-    """One start's progress: where it began (``theta0``) and its scaling, optimistix's
-    ``step`` there (the :class:`Terms` at its last accepted point), its steps (every
-    evaluation counts), its step ``limit`` and how it ended (``outcome``, with the
-    solver's own words in ``detail`` when it stopped with an error); ``accepted_at`` the
-    step of its last accepted step, ``history`` the log-posterior after each."""
+    """One start's progress: optimistix's ``step`` where it is (the :class:`Terms` at
+    its last accepted point), its steps (every evaluation counts), its step ``limit``
+    and how it ended (``outcome``, with the solver's own words in ``detail`` when it
+    stopped with an error); ``accepted_at`` the step of its last accepted step,
+    ``history`` the log-posterior after each."""
 
-    theta0: np.ndarray
-    scale: np.ndarray
     at: Step
     steps: int = 0
     limit: int = MAX_STEPS
@@ -115,13 +113,6 @@ def _resolved(s: Start, gain: float) -> bool:
     return len(h) > WINDOW and h[-1] - h[-1 - WINDOW] < tol and gain < tol
 
 
-def scaling(t: Terms) -> np.ndarray:
-    """Marquardt's scaling at a start: ``√H_ii``, floored at 10⁻⁶ of the largest."""
-    d = np.sqrt(np.clip(np.diag(t.H), 0.0, None))
-    top = float(np.max(d)) if d.size and np.all(np.isfinite(d)) else 1.0
-    return np.maximum(d, 1e-6 * max(top, 1e-150))
-
-
 def _advance(s: Start, stepper: Stepper) -> None:
     """One step of ``s`` (one evaluation), or its end: converged, on a crawl within the
     resolution, stalled, at its step limit or stopped by the solver."""
@@ -136,7 +127,7 @@ def _advance(s: Start, stepper: Stepper) -> None:
         s.outcome = Outcome.MAX_STEPS
         return
     before = s.at
-    s.at = stepper.step(before, s.theta0, s.scale)
+    s.at = stepper.step(before)
     s.steps += 1
     if not np.array_equal(s.at.y, before.y):
         s.history.append(s.lp)
@@ -161,12 +152,10 @@ def maximise(stepper: Stepper, starts, *, abandon=None, max_steps: int = MAX_STE
     """
 
     def begin(theta) -> Start:
-        theta = np.asarray(theta, dtype=float)
         first = stepper.start(theta)
         if not first.terms.finite:
-            return Start(theta, np.ones_like(theta), first, outcome=Outcome.NONFINITE)
-        scale = scaling(first.terms)
-        return Start(theta, scale, stepper.start(theta, scale), limit=max_steps)
+            return Start(first, outcome=Outcome.NONFINITE)
+        return Start(first, limit=max_steps)
 
     with ThreadPoolExecutor(min(len(starts), usable_cores()) or 1) as pool:
         states = list(pool.map(x64(begin), starts))

@@ -3,21 +3,24 @@ compiled step driven from the host.
 
 :class:`ExactCurvature` is an optimistix quasi-Newton minimiser whose Hessian is not
 built up from gradients (as BFGS's is) but is the model's own Gauss–Newton curvature at
-each accepted point (:func:`.curvature.gauss_newton`, with the noise levels' term
-where the result stays positive definite).  With optimistix's damped Newton descent and
-classical trust region that is Levenberg–Marquardt on the negative log-posterior itself,
-each channel's noise integrated out: a step is accepted only when the exact
+each accepted point (:func:`.curvature.gauss_newton`, with the noise levels' term where
+the result stays positive definite).  With a damped Newton descent and optimistix's
+classical trust region that is Levenberg–Marquardt on the negative log-posterior
+itself, each channel's noise integrated out: a step is accepted only when the exact
 log-posterior rises, so the fixed point is the exact MAP.  A trial point costs one
 forward pass of the model; the gradient and curvature are computed at accepted points
-only.
+only.  The descent (:class:`MarquardtDescent`) is optimistix's damped Newton step with
+Marquardt's scaling, the damping proportional to each parameter's own curvature where
+optimistix's ``DampedNewtonDescent`` adds ``λ·I``: with ``λ·I`` the fits took up to
+twice the steps and stopped short on curved ridges (``reports/benchmarks.md``, "The MAP
+on optimistix").
 
-:class:`Stepper` compiles optimistix's ``step`` (its interactive stepping: ``init`` once,
-then ``step`` and ``terminate`` from the host) once per session structure, as a function
-of arrays (the solver's state flattened), which :mod:`.cache` keeps in memory and on
-disk; every start of a fit, and every fit of a session of the same shapes, runs the
-same program.  A start runs in coordinates ``y = (θ − θ_0)·s`` scaled by the curvature
-at its start (``s_i = √H_ii``, Marquardt's scaling held for the start), so that the
-trust region's damping weighs every parameter alike.
+:class:`Stepper` compiles optimistix's ``step`` and ``terminate`` (its interactive
+stepping: ``init`` once, then ``step`` and ``terminate`` from the host) once per session
+structure, as a function of arrays (the solver's state flattened), which :mod:`.cache`
+keeps in memory and on disk: every start of a fit, and every fit of a session of the
+same shapes, runs the same program.  A start steps ``y = θ − θ_0`` from its own
+``θ_0``, so that one initial state (``y = 0``) serves them all.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import lineax as lx
@@ -35,36 +39,68 @@ import optimistix as optx
 from .._x64 import x64
 from .curvature import Terms, gauss_newton
 
-__all__ = ["ExactCurvature", "Stepper", "Step"]
+__all__ = ["ExactCurvature", "MarquardtDescent", "Stepper", "Step"]
 
-RTOL = 0.0
-ATOL = 1e-9  # converged: an accepted step under 1e-9 scaled units changing f by less
+# The trust region grows after a step that gains this share of its prediction: the
+# textbook 3/4 (optimistix's default, 0.99, seldom let the damping fall from where it
+# started).
+EXPAND = 0.75
+DAMPING0 = 1e-3  # the first damping, relative to each curvature (Marquardt's and Nielsen's)
+ATOL = 1e-9  # optimistix's own test: an accepted step moving θ and f by less has converged
+
+
+class _DescentState(eqx.Module):
+    f_info: optx.FunctionInfo.EvalGradHessian
+
+
+class MarquardtDescent(optx.AbstractDescent):
+    """The damped Newton descent with Marquardt's scaling: a step of size ``t`` solves
+    ``(H + (μ0/t)·diag H) δ = −g``, so that the damping weighs each parameter by its
+    own curvature at the current point (``diag H`` floored at 10⁻¹² of its largest)."""
+
+    def init(self, y, f_info_struct):
+        return _DescentState(jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype),
+                                                    f_info_struct))
+
+    def query(self, y, f_info, state):
+        return _DescentState(f_info)
+
+    def step(self, step_size, state):
+        H = state.f_info.hessian.as_matrix()
+        d = jnp.diag(H)
+        d = jnp.maximum(d, 1e-12 * jnp.max(d))
+        tiny = step_size <= jnp.finfo(step_size.dtype).eps
+        lam = jnp.where(tiny, jnp.finfo(step_size.dtype).max, 1.0 / jnp.where(tiny, 1.0,
+                                                                              step_size))
+        operator = lx.MatrixLinearOperator(H + jnp.diag(lam * DAMPING0 * d),
+                                           lx.positive_semidefinite_tag)
+        sol = lx.linear_solve(operator, state.f_info.grad, lx.Cholesky(), throw=False)
+        return -sol.value, optx.RESULTS.promote(sol.result)
 
 
 class ExactCurvature(optx.AbstractQuasiNewton):
-    """Levenberg–Marquardt (optimistix's damped Newton descent and classical trust
+    """Levenberg–Marquardt (:class:`MarquardtDescent` in optimistix's classical trust
     region) on a scalar objective whose Hessian at each accepted point is given.
 
     ``curvature(y)`` returns ``(grad, hessian, extras)``: the gradient and Hessian of the
-    objective ``fn`` at ``y`` and any arrays to keep with the accepted point (the state's
+    objective at ``y`` and any arrays to keep with the accepted point (the state's
     ``hessian_update_state``); ``extras0`` is a pytree of zeros of their shapes."""
 
     rtol: float
     atol: float
     norm: Callable
     use_inverse: bool
-    descent: optx.DampedNewtonDescent
+    descent: MarquardtDescent
     search: optx.ClassicalTrustRegion
     verbose: Callable
     curvature: Callable
     extras0: object
 
-    def __init__(self, curvature: Callable, extras0, *, rtol: float = RTOL,
-                 atol: float = ATOL):
-        self.rtol, self.atol, self.norm = rtol, atol, optx.max_norm
+    def __init__(self, curvature: Callable, extras0, *, atol: float = ATOL):
+        self.rtol, self.atol, self.norm = 0.0, atol, optx.max_norm
         self.use_inverse = False
-        self.descent = optx.DampedNewtonDescent()
-        self.search = optx.ClassicalTrustRegion()
+        self.descent = MarquardtDescent()
+        self.search = optx.ClassicalTrustRegion(high_cutoff=EXPAND)
         self.verbose = _quiet
         self.curvature, self.extras0 = curvature, extras0
 
@@ -86,10 +122,12 @@ def _quiet(**_) -> None:
 
 @dataclass(frozen=True)
 class Step:
-    """Where a start is after a step: ``y`` (the last accepted point, scaled), the
-    solver's ``state`` (its arrays), the :class:`Terms` at ``y``, whether the solver
-    ``terminated`` and its ``result`` in optimistix's words ("" when successful)."""
+    """Where a start is after a step: its origin ``theta0`` and ``y`` (the last accepted
+    point less ``theta0``), the solver's ``state`` (its arrays), the :class:`Terms`
+    there, whether the solver ``terminated`` and its ``result`` in optimistix's words
+    ("" when successful)."""
 
+    theta0: np.ndarray
     y: np.ndarray
     state: list
     terms: Terms | None
@@ -122,26 +160,24 @@ class Stepper:
                    lambda t, d: gauss_newton(model, t, data=d), model.data,
                    len(model.names), len(model.channels), model.compiled)
 
-    @x64
-    def start(self, theta0, scale=None) -> Step:
-        """The first step from ``θ0`` (scaled by ``scale``, default 1): it evaluates the
-        objective and its curvature there, and moves nowhere."""
-        theta0 = np.asarray(theta0, dtype=float)
-        scale = np.ones_like(theta0) if scale is None else np.asarray(scale, dtype=float)
-        return self.step(Step(np.zeros_like(theta0), self._state0, None), theta0, scale)
+    def start(self, theta) -> Step:
+        """The first step from ``θ``: it evaluates the objective and its curvature there,
+        and moves nowhere."""
+        theta = np.asarray(theta, dtype=float)
+        return self.step(Step(theta, np.zeros_like(theta), self._state0, None))
 
     @x64
-    def step(self, at: Step, theta0, scale) -> Step:
+    def step(self, at: Step) -> Step:
         """One optimistix step of the start at ``at`` (one evaluation of the objective)."""
-        y, leaves, done, result = self._step(jnp.asarray(at.y), at.state, jnp.asarray(theta0),
-                                             jnp.asarray(scale), self.data)
+        y, leaves, done, result = self._step(jnp.asarray(at.y), at.state,
+                                             jnp.asarray(at.theta0), self.data)
         state = jax.tree_util.tree_unflatten(self._treedef, leaves)
         lp, grad, H, H_noise, ss, G = (np.asarray(x) for x in state.hessian_update_state)
         y = np.asarray(y)
         lp = float(lp) if np.isfinite(lp) else -np.inf
-        terms = Terms(np.asarray(theta0) + y / np.asarray(scale), lp, grad, H, H_noise, ss, G)
         code = int(result)
-        return Step(y, leaves, terms, bool(done), "" if code == 0 else _words(code))
+        terms = Terms(at.theta0 + y, lp, grad, H, H_noise, ss, G)
+        return Step(at.theta0, y, leaves, terms, bool(done), "" if code == 0 else _words(code))
 
     def terms(self, theta) -> Terms:
         """The log-posterior, gradient, curvatures and per-channel sums of squares at
@@ -151,19 +187,19 @@ class Stepper:
 
 def _step_program(value, terms, extras0, treedef):
     """optimistix's ``step`` and ``terminate`` as one function of arrays: ``(y, state's
-    leaves, θ0, s, data) → (y, state's leaves, terminated, result code)``."""
+    leaves, θ0, data) → (y, state's leaves, terminated, result code)``."""
 
-    def step(y, leaves, theta0, scale, data):
+    def step(y, leaves, theta0, data):
         def curvature(y_eval):
-            out = terms(theta0 + y_eval / scale, data)
+            out = terms(theta0 + y_eval, data)
             _, grad, H, H_noise, _, _ = out
             positive = jnp.all(jnp.isfinite(jnp.linalg.cholesky(H_noise)))
-            hessian = jnp.where(positive, H_noise, H) / jnp.outer(scale, scale)
-            return -grad / scale, hessian, out
+            return -grad, jnp.where(positive, H_noise, H), out
 
         solver = ExactCurvature(curvature, extras0)
-        fn, args = _objective(value), (theta0, scale, data)
+        fn = _objective(value)
         state = jax.tree_util.tree_unflatten(treedef, leaves)
+        args = (theta0, data)
         y, state, _ = solver.step(fn, y, args, {}, state, frozenset())
         done, result = solver.terminate(fn, y, args, {}, state, frozenset())
         return y, jax.tree_util.tree_leaves(state), done, result._value
@@ -188,14 +224,14 @@ def _initial(n_params: int, n_channels: int):
 
 
 def _objective(value):
-    """optimistix's ``fn(y, (θ0, s, data))``: the negative log-posterior at ``θ0 + y/s``
-    (+∞ where it is not finite).  Its own derivative is never taken: the gradient comes
-    with the curvature, so ``y`` enters through ``stop_gradient`` and a trial costs one
+    """optimistix's ``fn(y, (θ0, data))``: the negative log-posterior at ``θ0 + y`` (+∞
+    where it is not finite).  Its own derivative is never taken: the gradient comes with
+    the curvature, so ``y`` enters through ``stop_gradient`` and a trial costs one
     forward pass."""
 
     def fn(y, args):
-        theta0, scale, data = args
-        lp = value(theta0 + jax.lax.stop_gradient(y) / scale, data)
+        theta0, data = args
+        lp = value(theta0 + jax.lax.stop_gradient(y), data)
         return jnp.where(jnp.isfinite(lp), -lp, jnp.inf), None
 
     return fn
