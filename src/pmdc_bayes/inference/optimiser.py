@@ -219,7 +219,9 @@ def _initial(n_params: int, n_channels: int):
             _objective(None), jnp.zeros(n_params, jnp.float64), None, {},
             jax.ShapeDtypeStruct((), jnp.float64), None, frozenset())
         leaves, treedef = jax.tree_util.tree_flatten(state)
-        leaves = [jnp.asarray(x) for x in leaves]  # as the step returns them: one signature
+        # as the step returns them (on its device, none weakly typed): one trace
+        device = jax.devices()[0]
+        leaves = [jax.device_put(np.asarray(x), device) for x in leaves]
     return extras0, leaves, treedef
 
 
