@@ -59,7 +59,7 @@ def _simulated(tmp: Path) -> str:
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import run
 
-    return str(run._simulate(tmp, run.FULL["duration"]))
+    return str(run.simulate_viscous(tmp, run.FULL["duration"]))
 
 
 def measure(out: Path) -> None:

@@ -129,7 +129,8 @@ initial = "steady"
 {trace}"""
 
 
-def _simulate(tmp: Path, duration: float) -> Path:
+def simulate_viscous(tmp: Path, duration: float) -> Path:
+    """The viscous benchmark session (:func:`_plan_toml`) simulated into ``tmp/session``."""
     plan = tmp / "plan.toml"
     plan.write_text(_plan_toml(duration), encoding="utf-8")
     out = tmp / "session"
@@ -705,7 +706,7 @@ def main(argv=None) -> int:
     bl = load_baseline()
     with tempfile.TemporaryDirectory(prefix="pmdc-bench-") as tmpdir:
         tmp = Path(tmpdir)
-        simulated = _simulate(tmp, cfg["duration"])
+        simulated = simulate_viscous(tmp, cfg["duration"])
         session = load_session(simulated)
         cf = closed_form(session)
         model = build_model(session, cf)

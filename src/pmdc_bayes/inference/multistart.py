@@ -21,7 +21,6 @@ import numpy as np
 
 from .._cores import usable_cores
 from .._x64 import x64
-from .curvature import Terms
 from .optimiser import Step, Stepper
 
 __all__ = ["maximise", "Start", "Outcome", "MAX_STEPS", "BEST_MAX_STEPS", "WINDOW"]
@@ -82,26 +81,6 @@ class Start:
         return f"{self.outcome.value}: {self.detail}" if self.detail else self.outcome.value
 
 
-def _hessian(t: Terms) -> np.ndarray:
-    """The curvature the optimiser steps with: ``H_noise`` where it is positive definite,
-    else the Gauss–Newton ``H``."""
-    try:
-        np.linalg.cholesky(t.H_noise)
-        return t.H_noise
-    except np.linalg.LinAlgError:
-        return t.H
-
-
-def decrement(t: Terms) -> float:
-    """½·gᵀH⁻¹g: how much a full Newton step would still gain."""
-    H = _hessian(t)
-    try:
-        x = np.linalg.solve(H, t.grad)
-    except np.linalg.LinAlgError:
-        x = np.linalg.lstsq(H, t.grad, rcond=None)[0]
-    return 0.5 * float(t.grad @ x)
-
-
 def _resolved(s: Start, gain: float) -> bool:
     """Whether ``s`` crawls along a curved ridge close enough to its top to stop: its last
     :data:`WINDOW` accepted steps gained, and a full Newton step would still gain
@@ -116,7 +95,7 @@ def _resolved(s: Start, gain: float) -> bool:
 def _advance(s: Start, stepper: Stepper) -> None:
     """One step of ``s`` (one evaluation), or its end: converged, on a crawl within the
     resolution, stalled, at its step limit or stopped by the solver."""
-    gain = decrement(s.terms)
+    gain = s.at.decrement
     if gain < DECREMENT_TOL:
         s.outcome = Outcome.CONVERGED
         return
@@ -135,7 +114,7 @@ def _advance(s: Start, stepper: Stepper) -> None:
     if s.at.result:
         s.outcome, s.detail = Outcome.SOLVER, s.at.result
     elif s.at.terminated or s.steps - s.accepted_at >= REJECTIONS:
-        s.outcome = Outcome.CONVERGED if decrement(s.terms) < STALL_TOL else Outcome.STALLED
+        s.outcome = Outcome.CONVERGED if s.at.decrement < STALL_TOL else Outcome.STALLED
 
 
 def maximise(stepper: Stepper, starts, *, abandon=None, max_steps: int = MAX_STEPS,

@@ -124,15 +124,28 @@ def _quiet(**_) -> None:
 class Step:
     """Where a start is after a step: its origin ``theta0`` and ``y`` (the last accepted
     point less ``theta0``), the solver's ``state`` (its arrays), the :class:`Terms`
-    there, whether the solver ``terminated`` and its ``result`` in optimistix's words
-    ("" when successful)."""
+    there and the ``curvature`` the solver steps with from there (the Hessian of its
+    objective), whether the solver ``terminated`` and its ``result`` in optimistix's
+    words ("" when successful)."""
 
     theta0: np.ndarray
     y: np.ndarray
     state: list
     terms: Terms | None
+    curvature: np.ndarray | None = None
     terminated: bool = False
     result: str = ""
+
+    @property
+    def decrement(self) -> float:
+        """½·gᵀH⁻¹g at the accepted point: how much a full Newton step would still
+        gain, with the solver's own curvature ``H``."""
+        g, H = self.terms.grad, self.curvature
+        try:
+            x = np.linalg.solve(H, g)
+        except np.linalg.LinAlgError:
+            x = np.linalg.lstsq(H, g, rcond=None)[0]
+        return 0.5 * float(g @ x)
 
 
 class Stepper:
@@ -177,7 +190,9 @@ class Stepper:
         lp = float(lp) if np.isfinite(lp) else -np.inf
         code = int(result)
         terms = Terms(at.theta0 + y, lp, grad, H, H_noise, ss, G)
-        return Step(at.theta0, y, leaves, terms, bool(done), "" if code == 0 else _words(code))
+        curvature = np.asarray(state.f_info.hessian.as_matrix())
+        return Step(at.theta0, y, leaves, terms, curvature, bool(done),
+                    "" if code == 0 else _words(code))
 
     def terms(self, theta) -> Terms:
         """The log-posterior, gradient, curvatures and per-channel sums of squares at
