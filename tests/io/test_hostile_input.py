@@ -10,8 +10,9 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
-from conftest import replace_once
+from conftest import replace_once, set_csv_cell
 
 TOML = "session.toml"
 
@@ -133,7 +134,10 @@ REFUSED = [
      ["step.csv:line 2", "the row has 6 fields but the header has 3", "decimal separator"]),
     ("text-between-samples", _edit("step.csv", "0.10,", "paused\n0.10,"),
      ["step.csv:line 12", "column 't': 'paused' is not a number"]),
-    ("clock-times", _edit("step.csv", "\n0.10,", "\n12:00:00.100,"),
+    ("time-stamps-among-numbers", _edit("step.csv", "\n0.10,", "\n12:00:00.100,"),
+     ["step.csv:line 12", "'12:00:00.100' is written unlike the rows before it"]),
+    ("clock-time-for-a-speed",
+     lambda d: set_csv_cell(d / "step.csv", 12, "speed_rpm", "12:00:00.100"),
      ["step.csv:line 12", "'12:00:00.100' is not a number; a clock time?"]),
     ("two-rows-of-units", _around(after_header=("s,rpm,A", "sec,rpm,amp")),
      ["step.csv:line 3", "'sec' is not a number"]),
@@ -330,3 +334,59 @@ def test_a_dead_time_may_be_shared_by_every_trace(session_dir):
     assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
     assert ("model.dead_time: expected true, false, \"per_trace\" or \"shared\", got the "
             "string 'sometimes'") in proc.stderr, proc.stderr
+
+
+def _stamped(stamp, sep=",", decimal="."):
+    """Rewrite step.csv's time column as a logger's time stamps, ``stamp(t)``."""
+
+    def mutate(d):
+        header, *rows = _step_text(d).splitlines()
+        out = [header.replace(",", sep)]
+        for row in rows:
+            t, *rest = row.split(",")
+            out.append(sep.join([stamp(float(t)), *(c.replace(".", decimal) for c in rest)]))
+        (d / "step.csv").write_text("\n".join(out) + "\n")
+
+    return mutate
+
+
+def _clock(start: float, date: str = "", zone: str = "", comma: bool = False):
+    def stamp(t):
+        s = (start + t) % 86400.0
+        text = f"{int(s // 3600):02d}:{int(s % 3600 // 60):02d}:{s % 60:06.3f}{zone}"
+        return date + (text.replace(".", ",") if comma else text)
+
+    return stamp
+
+
+@pytest.mark.parametrize("mutate", [
+    _stamped(_clock(86399.5)),  # h:mm:ss.f, through midnight
+    _stamped(_clock(43200.0, date="2026-11-26T", zone="Z")),  # ISO 8601, in UTC
+    _stamped(_clock(43200.0, date="26.11.2026 "), sep=";", decimal=","),  # a German logger
+    _stamped(lambda t: f"{int(t // 60)}:{t % 60:06.3f}"),  # m:ss.f, an oscilloscope's
+], ids=["clock-through-midnight", "iso-date-time", "date-decimal-comma", "minutes-seconds"])
+def test_a_loggers_time_stamps_read_as_the_time_since_the_first_row(session_dir, mutate):
+    from pmdc_bayes.io.loader import load_session
+
+    before = load_session(session_dir).traces[0]
+    mutate(session_dir)
+    after = load_session(session_dir).traces[0]
+    np.testing.assert_allclose(after.time, before.time, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(after.speed, before.speed)
+    proc = _run(session_dir, "--json")
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_time_stamps_in_milliseconds_keep_the_schedule_in_the_traces_unit(session_dir):
+    """A trace whose unit of time is the millisecond: its stamps are read in it, so the
+    voltage schedule written in milliseconds stays on the same clock."""
+    from pmdc_bayes.io.loader import load_session
+
+    before = load_session(session_dir).traces[0]
+    replace_once(session_dir / TOML, 'units = { time = "s"', 'units = { time = "ms"')
+    replace_once(session_dir / TOML, "voltage = [[0.0, 0.0], [0.1, 6.0]]",
+                 "voltage = [[0.0, 0.0], [100.0, 6.0]]")
+    _stamped(_clock(3600.0))(session_dir)
+    after = load_session(session_dir).traces[0]
+    np.testing.assert_allclose(after.time, before.time, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(after.voltage.times, before.voltage.times, rtol=0, atol=1e-12)

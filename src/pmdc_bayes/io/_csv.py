@@ -30,6 +30,11 @@ __all__ = ["read_columns"]
 
 _SEPARATORS = {",": "commas", ";": "semicolons", "\t": "tabs"}
 _CLOCK = re.compile(r"\d{1,2}:\d{2}(:\d{2}([.,]\d*)?)?")  # 12:00:01.250, as loggers stamp
+# A logger's time stamp: a clock time h:mm:ss[.f] (a date and a zone around it allowed,
+# both passed over) or m:ss.f; the day's turn is found from the clock going back.
+_STAMP = re.compile(r"(?:\d{1,4}[-/.]\d{1,2}[-/.]\d{1,4}(?:T|\s+))?(?:(\d{1,2}):)?(\d{1,2}):"
+                    r"(\d{2}(?:[.,]\d*)?)\s*(?:Z|UTC|[+-]\d{2}:?\d{2})?", re.IGNORECASE)
+_DAY = 86400.0
 _SPACES = " "  # columns separated by runs of spaces (a logger's plain text table)
 
 
@@ -63,6 +68,27 @@ def _parse_cell(path: Path, line: int, column: str, text: str, decimal_comma: bo
             where=f"line {line}",
         )
     return value
+
+
+def _stamp_seconds(text: str) -> float | None:
+    """The seconds since midnight of a logger's time stamp (:data:`_STAMP`), or None
+    when ``text`` is none (a stamp m:ss needs a fraction of a second, as ``12:00``
+    could be hours or minutes)."""
+    m = _STAMP.fullmatch(text.strip())
+    if m is None:
+        return None
+    hours, minutes, seconds = m.group(1), m.group(2), m.group(3).replace(",", ".")
+    if hours is None and "." not in seconds:
+        return None
+    return 3600.0 * int(hours or 0) + 60.0 * int(minutes) + float(seconds)
+
+
+def _elapsed(stamps: np.ndarray, seconds_per_unit: float) -> np.ndarray:
+    """Time stamps (seconds since midnight) as the time since the first, in the
+    column's unit: a stamp earlier than the one before by more than half a day is on
+    the next day."""
+    turn = np.concatenate([[0.0], np.cumsum(np.diff(stamps) < -0.5 * _DAY)])
+    return (stamps + _DAY * turn - stamps[0]) / seconds_per_unit
 
 
 def _lines(text: str):
@@ -114,7 +140,8 @@ def _check_header(path: Path, header: list[str], sep: str, line: int) -> None:
                            "separate the columns with commas", where=f"line {line}")
 
 
-def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str) -> tuple[dict, list]:
+def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str,
+                 stamps: tuple[str, float] | None = None) -> tuple[dict, list]:
     """Read the columns ``wanted`` (role -> header name) of a CSV file as float arrays.
 
     Parameters
@@ -124,6 +151,9 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str) -> tuple[
     wanted : maps a role (``"time"``, ``"speed"``, ...) to the header name to read.
     asked_by : where the names come from (e.g. ``"session.toml trace['x'].columns"``),
         quoted in the error when a name is not in the header.
+    stamps : ``(role, seconds per unit)``: a column that may hold a logger's time
+        stamps (``12:00:01.250``, ``2026-11-26 12:00:01,250``, ``01:02.5``) instead of
+        numbers, read as the time since its first row, in its unit.
 
     Returns
     -------
@@ -153,7 +183,7 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str) -> tuple[
     try:
         for _ in range(at):  # a preamble before the header
             next(reader)
-        return _read_rows(path, reader, sep, wanted, asked_by)
+        return _read_rows(path, reader, sep, wanted, asked_by, stamps)
     except csv.Error as exc:
         raise SessionError(path, f"not readable as CSV ({exc}); check the quoting and that "
                            "each cell is a short number", where=f"line {reader.line_num}") \
@@ -200,7 +230,7 @@ def _text_only(row, index, decimal_comma: bool) -> bool:
     return not any(_numeric(c, decimal_comma) for c in cells if c)
 
 
-def _read_rows(path, reader, sep, wanted, asked_by):
+def _read_rows(path, reader, sep, wanted, asked_by, stamps=None):
     header = None
     for row in reader:
         if any(cell.strip() for cell in row):
@@ -222,6 +252,8 @@ def _read_rows(path, reader, sep, wanted, asked_by):
         index[role] = header.index(name)
     decimal_comma = sep != ","
     values = {role: array("d") for role in wanted}
+    stamped = stamps[0] if stamps is not None and stamps[0] in wanted else None
+    kinds: set[bool] = set()  # whether the stamped column's cells were time stamps
     lines: list[int] = []
     end = reader.line_num
     closing = None  # a line of text after the samples, an error if samples follow it
@@ -253,7 +285,19 @@ def _read_rows(path, reader, sep, wanted, asked_by):
                     f"field {k + 1}; fill in the missing fields",
                     where=f"line {line}",
                 )
-            values[role].append(_parse_cell(path, line, wanted[role], row[k].strip(),
-                                            decimal_comma))
+            cell = row[k].strip()
+            stamp = _stamp_seconds(cell) if role == stamped else None
+            if role == stamped:
+                kinds.add(stamp is not None)
+                if len(kinds) > 1:
+                    raise SessionError(path, f"column {wanted[role]!r}: {cell!r} is written "
+                                       "unlike the rows before it (time stamps and plain "
+                                       "numbers mixed); write every time the same way",
+                                       where=f"line {line}")
+            values[role].append(stamp if stamp is not None
+                                else _parse_cell(path, line, wanted[role], cell, decimal_comma))
         lines.append(line)
-    return {role: np.frombuffer(v, dtype=float).copy() for role, v in values.items()}, lines
+    out = {role: np.frombuffer(v, dtype=float).copy() for role, v in values.items()}
+    if True in kinds and out[stamped].size:
+        out[stamped] = _elapsed(out[stamped], stamps[1])
+    return out, lines

@@ -119,7 +119,9 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
     """A trace's CSV file: its path, the raw columns, the raw and SI time axes (at
     least 3 samples, strictly increasing)."""
     path = root / t.string("file")
-    raw, lines = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}")
+    second = float(to_si(np.array([1.0]), "time", u["time"])[0])
+    raw, lines = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}",
+                              stamps=("time", second))
     t_raw = unwrap_time(t, path, raw["time"])
     if t_raw.size < 3:
         raise SessionError(path, f"only {t_raw.size} samples; a trace needs at least 3 "
