@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import SessionError
+from . import _sensors as sensors
 from ._csv import read_columns
 from ._position import angle_si, edge_angles, edges_flag, speed_estimate, unwrap_time
 from ._toml import Table as _Table
@@ -20,7 +21,8 @@ __all__ = ["read_traces"]
 
 _TRACE_KINDS = {"time": "time", "speed": "speed", "current": "current", "voltage": "voltage",
                 "load_torque": "torque", "position": "angle"}
-_UNIT_KINDS = dict(_TRACE_KINDS, supply_voltage="voltage")  # the keys of a trace's units
+_UNIT_KINDS = dict(_TRACE_KINDS, supply_voltage="voltage",
+                   **sensors.UNIT_KINDS)  # the keys of a trace's units
 _DUTY_UNITS = {"1": 1.0, "%": 100.0}  # a voltage logged as a duty: its full scale
 _COLUMNS = dict(_TRACE_KINDS, direction="")  # the roles a column may have
 
@@ -186,7 +188,7 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
             out["position"], out["encoder_step"] = angle_si(t, raw["position"], u["position"])
         out["speed"] = raw.get("speed")
         if out["speed"] is not None:
-            out["speed"] = to_si(out["speed"], "speed", u["speed"])
+            out["speed"] = sensors.speed_si(t, out["speed"], u)
         else:
             out["speed"] = speed_estimate(time, out["position"])
         return out
@@ -212,13 +214,14 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
 def _trace(t: _Table, root: Path) -> Trace:
     t.check_keys(("name", "kind", "file", "columns", "units", "voltage", "load_torque",
                   "initial", "counts_per_rev", "time_wrap", "edges", "drag",
-                  "supply_voltage", "pwm_full_scale"))
+                  "supply_voltage", "pwm_full_scale", *sensors.KEYS))
     # an angle in counts is 2π/counts_per_rev each, known per trace (_position.angle_si)
     name, kind = t.string("name"), t.string("kind")
-    u = t.units(_UNIT_KINDS, extra={"position": ("counts",),
-                                    "voltage": (*_DUTY_UNITS, "pwm")})
+    u = t.units(_UNIT_KINDS, extra={"position": ("counts",), "voltage": (*_DUTY_UNITS, "pwm"),
+                                    "speed": sensors.VOLTS, "current": sensors.VOLTS})
     duty = _duty_scale(t, u)
     cols = t.columns(_COLUMNS, ("time",))
+    sensors.check_unused(t, u, cols)
     edges = edges_flag(t)
     _motion_columns(t, cols, edges)
     for inp in ("voltage", "load_torque"):
@@ -230,7 +233,9 @@ def _trace(t: _Table, root: Path) -> Trace:
                "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
     path, raw, t_raw, time = _read_trace_file(t, root, cols, u)
     si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw
-          if role in ("current", "load_torque") or (role == "voltage" and duty is None)}
+          if role == "load_torque" or (role == "voltage" and duty is None)}
+    if "current" in raw:
+        si["current"] = sensors.current_si(t, raw["current"], u)
     if "voltage" in raw and duty is not None:
         si["voltage"] = _duty_to_volts(t, "columns.voltage", raw["voltage"], duty)
     inputs = {}
@@ -242,10 +247,10 @@ def _trace(t: _Table, root: Path) -> Trace:
                                     duty if inp == "voltage" else None)
         else:
             inputs[inp] = Schedule(time[:1].copy(), np.zeros(1))
-    initial = _initial(t, u)
-    drag = read_drag(t, u)
+    initial = _initial(t, sensors.physical(u))
+    drag = read_drag(t, sensors.physical(u))
     m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial)
-    check_curve_reach(t, drag, m["speed"], u)
+    check_curve_reach(t, drag, m["speed"], sensors.physical(u))
     return Trace(name=name, kind=kind, file=path, time=m["time"], speed=m["speed"],
                  current=si.get("current"), voltage=inputs["voltage"],
                  load_torque=inputs["load_torque"], voltage_logged="voltage" in si,
@@ -256,15 +261,16 @@ def _trace(t: _Table, root: Path) -> Trace:
 
 def _coast_down(t: _Table, root: Path) -> Trace:
     """A trace of kind ``"coast-down"``: time and speed only, the armature open."""
-    t.check_keys(("name", "kind", "file", "columns", "units"))
+    t.check_keys(("name", "kind", "file", "columns", "units", "tacho_constant"))
     name = t.string("name")
     kinds = {"time": "time", "speed": "speed"}
-    u = t.units(kinds)
+    u = t.units(dict(kinds, tacho_constant="motor_constant"), extra={"speed": sensors.VOLTS})
     cols = t.columns(kinds, ("time", "speed"))
+    sensors.check_unused(t, u, cols)
     path, raw, _, time = _read_trace_file(t, root, cols, u)
     none = Schedule(time[:1].copy(), np.zeros(1))
     return Trace(name=name, kind=COAST_DOWN, file=path, time=time,
-                 speed=to_si(raw["speed"], "speed", u["speed"]), current=None, voltage=none,
+                 speed=sensors.speed_si(t, raw["speed"], u), current=None, voltage=none,
                  load_torque=none)
 
 
