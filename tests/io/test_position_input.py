@@ -175,3 +175,32 @@ def test_add_of_a_sensor_nuisance_with_no_such_sensor_is_bad_input(tmp_path):
     assert proc.returncode == 2, proc.stderr
     assert "--add speed-lag: no trace logs a speed" in proc.stderr
     assert proc.stderr.count("\n") == 1 and not (tmp_path / "run").exists()
+
+
+def _wrapping(tmp_path, counts, extra=""):
+    csv = "t,n\n" + "".join(f"{k * 0.01:.2f},{c}\n" for k, c in enumerate(counts))
+    return _write(tmp_path / "s", 'name = "p"\nkind = "step"\nfile = "t.csv"\n'
+                  'columns = { time = "t", position = "n" }\nunits = { position = "counts" }\n'
+                  'counts_per_rev = 400\nvoltage = [[0.0, 6.0]]\ninitial = "steady"\n' + extra,
+                  csv)
+
+
+@pytest.mark.parametrize("offset,signed", [(65000, False), (32500, True), (-400, True)])
+def test_a_16_bit_position_counter_that_wraps_reads_as_the_angle_it_counted(tmp_path, offset,
+                                                                            signed):
+    """A timer counting encoder edges in 16 bits, unsigned (0 ... 65535) or signed
+    (-32768 ... 32767), wrapping forward, or backward through zero."""
+    true = [offset + 90 * k for k in range(40)]
+    low, span = (-32768, 65536) if signed else (0, 65536)
+    logged = [(c - low) % span + low for c in true]
+    assert logged != true or offset < 0
+    tr = load_session(_wrapping(tmp_path, logged, "position_wrap = 65536\n")).traces[0]
+    np.testing.assert_allclose(tr.position, (np.array(true) - true[0] + logged[0])
+                               * 2 * math.pi / 400)
+
+
+def test_a_position_counter_that_wraps_unstated_names_the_fix(tmp_path):
+    logged = [(65000 + 90 * k) % 65536 for k in range(40)]
+    with pytest.raises(SessionError, match=r"about 2\^16: a counter that wraps; add "
+                                           r"position_wrap = 65536"):
+        load_session(_wrapping(tmp_path, logged))

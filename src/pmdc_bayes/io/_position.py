@@ -20,8 +20,8 @@ from ._toml import Table
 from ._toml import describe as _describe
 from .units import to_si
 
-__all__ = ["unwrap_time", "angle_si", "edge_angles", "speed_estimate", "speed_window",
-           "counts_step",
+__all__ = ["unwrap_time", "unwrap_position", "angle_si", "edge_angles", "speed_estimate",
+           "speed_window", "counts_step",
            "SPEED_WINDOW", "edges_flag"]
 
 SPEED_WINDOW = 0.005  # half-width of the speed estimate's difference, as a share of the samples
@@ -49,6 +49,31 @@ def unwrap_time(t: Table, path: Path, t_raw: np.ndarray) -> np.ndarray:
                            "time_wrap and the time column's unit")
     back = np.concatenate([[0.0], np.cumsum(np.diff(t_raw) < 0)])
     return t_raw + back * wrap
+
+
+def unwrap_position(t: Table, path: Path, raw: np.ndarray, unit: str) -> np.ndarray:
+    """A position counter that wraps at ``position_wrap`` (in the position's unit, e.g.
+    65536 for a 16-bit timer counting encoder edges, signed or not) made continuous: a
+    step between rows of more than half the modulus is a wrap.  In counts, a step of
+    about 2^k counts where every other step is small is a counter that wraps unstated:
+    refused with the fix."""
+    if "position_wrap" in t.data:
+        wrap = t.number("position_wrap", positive=True)
+        steps = np.diff(raw)
+        turns = np.where(np.abs(steps) > 0.5 * wrap, np.sign(steps), 0.0)
+        return raw - wrap * np.concatenate([[0.0], np.cumsum(turns)])
+    if unit == "counts" and raw.size > 2:
+        steps = np.abs(np.diff(raw))
+        k = int(np.argmax(steps))
+        rest = np.delete(steps, k)
+        for bits in (8, 12, 16, 24, 32):
+            wrap = 2.0**bits
+            if abs(steps[k] - wrap) < 0.1 * wrap and float(np.max(rest)) < 0.01 * wrap:
+                raise SessionError(path, f"the position jumps by {steps[k]:.0f} counts between "
+                                   f"rows {k + 1} and {k + 2} (of the data), about 2^{bits}: "
+                                   f"a counter that wraps; add position_wrap = {wrap:.0f} to "
+                                   "the trace")
+    return raw
 
 
 def angle_si(t: Table, raw: np.ndarray, unit: str) -> tuple[np.ndarray, float]:

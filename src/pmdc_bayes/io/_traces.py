@@ -10,7 +10,14 @@ import numpy as np
 from .._errors import SessionError
 from . import _sensors as sensors
 from ._csv import read_columns
-from ._position import angle_si, edge_angles, edges_flag, speed_estimate, unwrap_time
+from ._position import (
+    angle_si,
+    edge_angles,
+    edges_flag,
+    speed_estimate,
+    unwrap_position,
+    unwrap_time,
+)
 from ._toml import Table as _Table
 from ._toml import describe as _describe
 from .drag import check_curve_reach, read_drag
@@ -185,7 +192,8 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
     if not edges:
         out = {"time": time, "position": None, "encoder_step": 0.0}
         if "position" in raw:
-            out["position"], out["encoder_step"] = angle_si(t, raw["position"], u["position"])
+            counts = unwrap_position(t, path, raw["position"], u["position"])
+            out["position"], out["encoder_step"] = angle_si(t, counts, u["position"])
         out["speed"] = raw.get("speed")
         if out["speed"] is not None:
             out["speed"] = sensors.speed_si(t, out["speed"], u)
@@ -214,7 +222,7 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
 def _trace(t: _Table, root: Path) -> Trace:
     t.check_keys(("name", "kind", "file", "columns", "units", "voltage", "load_torque",
                   "initial", "counts_per_rev", "time_wrap", "edges", "drag",
-                  "supply_voltage", "pwm_full_scale", *sensors.KEYS))
+                  "supply_voltage", "pwm_full_scale", "position_wrap", *sensors.KEYS))
     # an angle in counts is 2π/counts_per_rev each, known per trace (_position.angle_si)
     name, kind = t.string("name"), t.string("kind")
     u = t.units(_UNIT_KINDS, extra={"position": ("counts",), "voltage": (*_DUTY_UNITS, "pwm"),
