@@ -390,3 +390,47 @@ def test_time_stamps_in_milliseconds_keep_the_schedule_in_the_traces_unit(sessio
     after = load_session(session_dir).traces[0]
     np.testing.assert_allclose(after.time, before.time, rtol=0, atol=1e-9)
     np.testing.assert_allclose(after.voltage.times, before.voltage.times, rtol=0, atol=1e-12)
+
+
+def _without_time(d):
+    """step.csv without its time column, the trace at a stated sample_rate."""
+    header, *rows = _step_text(d).splitlines()
+    (d / "step.csv").write_text("\n".join(",".join(r.split(",")[1:]) for r in [header, *rows])
+                                + "\n")
+    replace_once(d / TOML, 'columns = { time = "t", ', "sample_rate = 100.0\ncolumns = { ")
+
+
+def test_rows_at_a_stated_sample_rate_need_no_time_column(session_dir):
+    from pmdc_bayes.io.loader import load_session
+
+    before = load_session(session_dir).traces[0]
+    expected = _run(session_dir, "--json")
+    _without_time(session_dir)
+    after = load_session(session_dir).traces[0]
+    np.testing.assert_allclose(after.time, before.time, rtol=0, atol=1e-12)
+    proc = _run(session_dir, "--json")
+    assert proc.returncode == 0, proc.stderr
+    got, want = json.loads(proc.stdout), json.loads(expected.stdout)
+    for key in ("Ra", "K", "B", "J"):
+        assert got[key] == pytest.approx(want[key], rel=1e-9), key
+
+
+@pytest.mark.parametrize("edit,expected", [
+    (lambda d: replace_once(d / TOML, 'columns = { time = "t", ',
+                            'sample_rate = 100.0\ncolumns = { time = "t", '),
+     "sample_rate: is given with a time column"),
+    (lambda d: replace_once(d / TOML, 'columns = { time = "t", ', "columns = { "),
+     "columns.time: no time column"),
+    (lambda d: (_without_time(d), replace_once(d / TOML, "sample_rate = 100.0",
+                                               "sample_rate = 100.0\ntime_wrap = 65536")),
+     "time_wrap: reads a time column"),
+    (lambda d: (_without_time(d), replace_once(d / TOML, "sample_rate = 100.0",
+                                               "sample_rate = 0.0")),
+     "sample_rate: must be positive"),
+])
+def test_a_sample_rate_with_a_time_column_or_neither_is_one_line(session_dir, edit, expected):
+    edit(session_dir)
+    proc = _run(session_dir)
+    assert proc.returncode == 2, proc.stderr
+    (line,) = proc.stderr.splitlines()
+    assert expected in line, line

@@ -96,7 +96,7 @@ CASES = [
      [f"{TOML}:motor.name", "missing required key"]),
     ("missing-bench-unit", _sub('unit = "mH"\n', ""), [f"{TOML}:bench.La.unit", "missing"]),
     ("missing-trace-time-column", _sub('time = "t", ', ""),
-     [f"{TOML}:trace['step'].columns.time", "missing required key"]),
+     [f"{TOML}:trace['step'].columns.time", "no time column; add columns.time"]),
     ("missing-op-speed", _sub("speed = 100.0\n", ""),
      [f"{TOML}:operating_point['op'].speed", "missing required key"]),
     ("missing-table-file", _sub('file = "sweep.csv"\n', ""),

@@ -28,7 +28,7 @@ __all__ = ["read_traces"]
 
 _TRACE_KINDS = {"time": "time", "speed": "speed", "current": "current", "voltage": "voltage",
                 "load_torque": "torque", "position": "angle"}
-_UNIT_KINDS = dict(_TRACE_KINDS, supply_voltage="voltage",
+_UNIT_KINDS = dict(_TRACE_KINDS, supply_voltage="voltage", sample_rate="frequency",
                    **sensors.UNIT_KINDS)  # the keys of a trace's units
 _DUTY_UNITS = {"1": 1.0, "%": 100.0}  # a voltage logged as a duty: its full scale
 _COLUMNS = dict(_TRACE_KINDS, direction="")  # the roles a column may have
@@ -124,6 +124,22 @@ def _initial(t: _Table, u: dict):
            f"{_describe(value)}; use one of those")
 
 
+def _columns(t: _Table, kinds: dict, required=()) -> dict:
+    """The trace's columns: a time column, or rows at a stated ``sample_rate``."""
+    cols = t.columns(kinds, required)
+    if "sample_rate" in t.data and "time" in cols:
+        t.fail("sample_rate", "is given with a time column; give one of them (a time column "
+               "for samples at their own times, sample_rate for rows at a steady rate)")
+    for key in ("time_wrap", "edges"):
+        if "sample_rate" in t.data and t.data.get(key, False) is not False:
+            t.fail(key, "reads a time column, which a trace at a sample_rate has not; add "
+                   "the time column and remove sample_rate, or remove " + key)
+    if "sample_rate" not in t.data and "time" not in cols:
+        t.fail("columns.time", 'no time column; add columns.time = "<header name>", or '
+               "sample_rate = <Hz> when the rows are samples at a steady rate")
+    return cols
+
+
 def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
     """A trace's CSV file: its path, the raw columns, the raw and SI time axes (at
     least 3 samples, strictly increasing)."""
@@ -131,7 +147,11 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
     second = float(to_si(np.array([1.0]), "time", u["time"])[0])
     raw, lines = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}",
                               stamps=("time", second))
-    t_raw = unwrap_time(t, path, raw["time"])
+    if "time" in cols:
+        t_raw = unwrap_time(t, path, raw["time"])
+    else:  # rows at a stated rate, in the trace's unit of time from the first row
+        rate = t.number("sample_rate", "frequency", u["sample_rate"], positive=True)
+        t_raw = np.arange(len(lines)) / rate / second
     if t_raw.size < 3:
         raise SessionError(path, f"only {t_raw.size} samples; a trace needs at least 3 "
                            "samples (log a longer record)")
@@ -222,13 +242,14 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
 def _trace(t: _Table, root: Path) -> Trace:
     t.check_keys(("name", "kind", "file", "columns", "units", "voltage", "load_torque",
                   "initial", "counts_per_rev", "time_wrap", "edges", "drag",
-                  "supply_voltage", "pwm_full_scale", "position_wrap", *sensors.KEYS))
+                  "supply_voltage", "pwm_full_scale", "position_wrap", "sample_rate",
+                  *sensors.KEYS))
     # an angle in counts is 2π/counts_per_rev each, known per trace (_position.angle_si)
     name, kind = t.string("name"), t.string("kind")
     u = t.units(_UNIT_KINDS, extra={"position": ("counts",), "voltage": (*_DUTY_UNITS, "pwm"),
                                     "speed": sensors.VOLTS, "current": sensors.VOLTS})
     duty = _duty_scale(t, u)
-    cols = t.columns(_COLUMNS, ("time",))
+    cols = _columns(t, _COLUMNS)
     sensors.check_unused(t, u, cols)
     edges = edges_flag(t)
     _motion_columns(t, cols, edges)
@@ -269,11 +290,13 @@ def _trace(t: _Table, root: Path) -> Trace:
 
 def _coast_down(t: _Table, root: Path) -> Trace:
     """A trace of kind ``"coast-down"``: time and speed only, the armature open."""
-    t.check_keys(("name", "kind", "file", "columns", "units", "tacho_constant"))
+    t.check_keys(("name", "kind", "file", "columns", "units", "tacho_constant",
+                  "sample_rate"))
     name = t.string("name")
     kinds = {"time": "time", "speed": "speed"}
-    u = t.units(dict(kinds, tacho_constant="motor_constant"), extra={"speed": sensors.VOLTS})
-    cols = t.columns(kinds, ("time", "speed"))
+    u = t.units(dict(kinds, tacho_constant="motor_constant", sample_rate="frequency"),
+                extra={"speed": sensors.VOLTS})
+    cols = _columns(t, kinds, ("speed",))
     sensors.check_unused(t, u, cols)
     path, raw, _, time = _read_trace_file(t, root, cols, u)
     none = Schedule(time[:1].copy(), np.zeros(1))

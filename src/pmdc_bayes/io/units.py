@@ -32,12 +32,13 @@ KINDS: dict[str, dict[str, float]] = {
                        "mV/rpm": 60.0 / (2.0 * math.pi * 1000.0), "V/rpm": 60.0 / (2.0 * math.pi)},
     "duty": {"1": 1.0, "": 1.0, "%": 0.01},
     "angle": {"rad": 1.0, "deg": math.pi / 180.0, "rev": 2.0 * math.pi},
+    "frequency": {"Hz": 1.0, "kHz": 1e3},
 }
 
 SI_UNIT: dict[str, str] = {
     "time": "s", "speed": "rad/s", "current": "A", "voltage": "V", "torque": "N*m",
     "inductance": "H", "resistance": "ohm", "inertia": "kg*m^2", "damping": "N*m*s/rad",
-    "motor_constant": "V*s/rad", "duty": "1", "angle": "rad",
+    "motor_constant": "V*s/rad", "duty": "1", "angle": "rad", "frequency": "Hz",
 }
 
 # How each SI unit name (as written in summary.json) is shown to people: the one table
