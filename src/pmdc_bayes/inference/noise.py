@@ -6,7 +6,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Channel", "noise_scale", "typical_level", "quantum", "effective_fraction"]
+__all__ = ["Channel", "noise_scale", "typical_level", "quantum", "effective_fraction",
+           "quanta_passed"]
+
+
+DEAD_BAND = 2.0  # quanta: noise below q/2 scatters readings over three levels at most
 
 
 def noise_scale(y: np.ndarray) -> float:
@@ -42,11 +46,13 @@ def effective_fraction(y: np.ndarray) -> float:
     """The share of a channel's readings that carry independent errors.
 
     A quantised signal (step ``q``) whose analogue noise is below ``q/2`` is not
-    dithered: between two changes of the reading its error is where the signal sits
-    within one quantum, one error repeated, not fresh noise (Widrow's quantisation
-    theorem needs noise of about ``q/2`` for independent, uniform errors).  Such a
-    channel has about one independent error per run of equal readings: the fraction is
-    ``runs / n``.  Any other channel: 1.
+    dithered (Widrow's quantisation theorem needs noise of about ``q/2`` for
+    independent, uniform errors): its error is where the signal sits within a quantum,
+    the same error until the signal has moved on by a quantum, whatever the noise makes
+    the reading flicker between two neighbouring levels meanwhile.  Such a channel
+    carries about one independent error per quantum the signal passes through
+    (:func:`quanta_passed`) and one more for where it started: the fraction is that count
+    over the readings.  Any other channel: 1.
     """
     y = np.asarray(y, dtype=float)
     q = quantum(y)
@@ -56,8 +62,25 @@ def effective_fraction(y: np.ndarray) -> float:
     analogue = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
     if analogue >= 0.5 * q:
         return 1.0
-    runs = 1 + int(np.count_nonzero(np.diff(y)))
-    return float(min(1.0, runs / y.size))
+    return float(min(1.0, (1 + quanta_passed(y, q)) / y.size))
+
+
+def quanta_passed(y: np.ndarray, q: float) -> int:
+    """How many quanta a quantised signal ``y`` (step ``q``) passes through, counted
+    with a dead band of two quanta: readings that noise scatters over three neighbouring
+    levels count nothing until they leave all three."""
+    levels = np.rint(np.asarray(y, dtype=float) / q)
+    runs = levels[np.concatenate([[True], np.diff(levels) != 0])]
+    lo = hi = runs[0]
+    passed = 0.0
+    for v in runs[1:]:
+        if v > hi:
+            passed += max(0.0, v - lo - DEAD_BAND)
+            lo, hi = max(lo, v - DEAD_BAND), v
+        elif v < lo:
+            passed += max(0.0, hi - v - DEAD_BAND)
+            lo, hi = v, min(hi, v + DEAD_BAND)
+    return int(passed)
 
 
 @dataclass(frozen=True)

@@ -9,8 +9,9 @@ differences for traces; 1 % of the typical reading for steady points).  σ_c is
 integrated out analytically, so a channel contributes
 ``−(n_c + NU0)/2 · log(NU0·s0_c² + SS_c(θ))`` to the log-posterior, where SS_c is its
 sum of squared residuals.  A quantised channel that its noise does not dither
-(:func:`.noise.effective_fraction`) repeats one quantisation error over each run of
-equal readings, so only a share ``α_c`` of its readings carry independent errors; its
+(:func:`.noise.effective_fraction`) repeats one quantisation error until the signal
+has moved on by a quantum, so only a share ``α_c`` of its readings carry independent
+errors; its
 likelihood counts ``α_c·n_c`` of them, ``−(α_c·n_c + NU0)/2 · log(NU0·s0_c² +
 α_c·SS_c)`` (the data pytree holds ``α_c·n_c`` and ``s0_c/√α_c``, equal up to a
 constant), while the fitted noise level stays the readings' own.  Bench Ra and La

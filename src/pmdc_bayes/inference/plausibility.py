@@ -194,8 +194,9 @@ def _quantiser_bias_sd(y, sd: float) -> float:
 def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict) -> float:
     """The standard error of a trace's mean speed over its last ``n`` samples: its
     logged speed's noise over the root of the number of independent errors among them
-    (a quantised speed that its noise does not dither repeats one error over a run of
-    equal readings, :func:`.noise.effective_fraction`), or, for a speed estimated from
+    (a quantised speed that its noise does not dither repeats one error until the
+    signal moves on by a quantum, :func:`.noise.effective_fraction`), or, for a speed
+    estimated from
     the angle, the angle's noise at both ends of the window over the window's length."""
     if tr.speed_logged:
         name = f"{tr.name}: speed"
