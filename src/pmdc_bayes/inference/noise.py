@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Channel", "noise_scale", "typical_level", "quantum", "effective_fraction",
-           "quanta_passed"]
+           "quanta_passed", "run_fraction"]
 
 
 DEAD_BAND = 2.0  # quanta: noise below q/2 scatters readings over three levels at most
@@ -42,27 +42,43 @@ def quantum(y: np.ndarray) -> float:
     return q if np.all(np.abs(d / q - np.rint(d / q)) < 1e-6) else 0.0
 
 
-def effective_fraction(y: np.ndarray) -> float:
-    """The share of a channel's readings that carry independent errors.
+def _undithered(y: np.ndarray) -> float:
+    """The quantum of a quantised signal whose analogue noise is below half of it (so
+    does not dither it: Widrow's quantisation theorem needs noise of about ``q/2`` for
+    independent, uniform errors), else 0."""
+    q = quantum(y)
+    if q == 0.0 or y.size < 3:
+        return 0.0
+    d2 = np.diff(y, 2)
+    analogue = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
+    return q if analogue < 0.5 * q else 0.0
 
-    A quantised signal (step ``q``) whose analogue noise is below ``q/2`` is not
-    dithered (Widrow's quantisation theorem needs noise of about ``q/2`` for
-    independent, uniform errors): its error is where the signal sits within a quantum,
+
+def effective_fraction(y: np.ndarray) -> float:
+    """The share of a channel's readings that carry independent errors, for its
+    likelihood.
+
+    An undithered quantised signal's error is where the signal sits within a quantum:
     the same error until the signal has moved on by a quantum, whatever the noise makes
-    the reading flicker between two neighbouring levels meanwhile.  Such a channel
-    carries about one independent error per quantum the signal passes through
+    the reading flicker between neighbouring levels meanwhile.  Such a channel carries
+    about one independent error per quantum the signal passes through
     (:func:`quanta_passed`) and one more for where it started: the fraction is that count
     over the readings.  Any other channel: 1.
     """
     y = np.asarray(y, dtype=float)
-    q = quantum(y)
-    if q == 0.0 or y.size < 3:
+    q = _undithered(y)
+    return 1.0 if q == 0.0 else float(min(1.0, (1 + quanta_passed(y, q)) / y.size))
+
+
+def run_fraction(y: np.ndarray) -> float:
+    """The share of a settled level's readings whose noise is independent: one per run
+    of equal readings when the quantiser is undithered (what the noise adds to the
+    level's mean beside the quantiser's bias, which does not average away and is
+    reckoned apart), else 1."""
+    y = np.asarray(y, dtype=float)
+    if _undithered(y) == 0.0:
         return 1.0
-    d2 = np.diff(y, 2)
-    analogue = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
-    if analogue >= 0.5 * q:
-        return 1.0
-    return float(min(1.0, (1 + quanta_passed(y, q)) / y.size))
+    return float(min(1.0, (1 + int(np.count_nonzero(np.diff(y)))) / y.size))
 
 
 def quanta_passed(y: np.ndarray, q: float) -> int:

@@ -15,7 +15,7 @@ from .adequacy import Finding, _g
 from .calibrate import Test, logged_quantum, replicates, session_rng, tail_p
 from .checks import rise_time, step_time
 from .levels import unloaded_levels
-from .noise import effective_fraction, quantum
+from .noise import quantum, run_fraction
 from .objective import NU0
 
 __all__ = ["plausibility_tests", "rise_eligible"]
@@ -194,14 +194,14 @@ def _quantiser_bias_sd(y, sd: float) -> float:
 def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict) -> float:
     """The standard error of a trace's mean speed over its last ``n`` samples: its
     logged speed's noise over the root of the number of independent errors among them
-    (a quantised speed that its noise does not dither repeats one error until the
-    signal moves on by a quantum, :func:`.noise.effective_fraction`), or, for a speed
-    estimated from
-    the angle, the angle's noise at both ends of the window over the window's length."""
+    (a quantised speed that its noise does not dither: one per run of equal readings,
+    :func:`.noise.run_fraction`, beside the quantiser's bias), or, for a speed
+    estimated from the angle, the angle's noise at both ends of the window over the
+    window's length."""
     if tr.speed_logged:
         name = f"{tr.name}: speed"
         sd = float(noise_sd.get(name, s0.get(name, 0.0)))
-        independent = max(1.0, n * effective_fraction(np.asarray(tr.speed)[-n:]))
+        independent = max(1.0, n * run_fraction(np.asarray(tr.speed)[-n:]))
         return float(np.hypot(sd / np.sqrt(independent), _quantiser_bias_sd(tr.speed, sd)))
     name = f"{tr.name}: position"
     span = float(tr.time[-1] - tr.time[-n])
