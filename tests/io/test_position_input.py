@@ -204,3 +204,11 @@ def test_a_position_counter_that_wraps_unstated_names_the_fix(tmp_path):
     with pytest.raises(SessionError, match=r"about 2\^16: a counter that wraps; add "
                                            r"position_wrap = 65536"):
         load_session(_wrapping(tmp_path, logged))
+
+
+def test_a_position_wrap_without_a_position_column_is_one_line(tmp_path):
+    csv = "t,w\n" + "".join(f"{k * 0.01:.2f},{10.0 + k}\n" for k in range(10))
+    with pytest.raises(SessionError, match="position_wrap: is only read with a position column"):
+        load_session(_write(tmp_path / "s", 'name = "p"\nkind = "step"\nfile = "t.csv"\n'
+                            'columns = { time = "t", speed = "w" }\nposition_wrap = 65536\n'
+                            'voltage = [[0.0, 6.0]]\ninitial = "steady"\n', csv))

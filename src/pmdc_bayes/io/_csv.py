@@ -10,7 +10,8 @@ Files as loggers and oscilloscopes write them are read as they are: lines of tex
 before the header (a logger's name, a date: the header is the first line naming every
 column asked for), a row of units right under the header (``s,rpm,A`` or ``(ms),(V)``:
 no number in any column read) and lines of text after the last sample (``End of log``)
-are passed over; anything else that is not a number is an error naming its line.
+are passed over; a time column may hold a logger's time stamps (``12:00:01.250``);
+anything else that is not a number is an error naming its line.
 """
 
 from __future__ import annotations

@@ -200,6 +200,9 @@ def _motion_columns(t: _Table, cols: dict, edges: bool) -> None:
     elif "speed" not in cols and "position" not in cols:
         t.fail("columns", 'no speed or position column; add columns.speed = "<header>" or '
                'columns.position = "<header>", or set edges = true for one row per encoder edge')
+    if "position_wrap" in t.data and "position" not in cols:
+        t.fail("position_wrap", "is only read with a position column (columns.position); "
+               "remove it")
     if "direction" in cols and not edges:
         t.fail("columns.direction", "a direction column belongs to an encoder-edge trace; set "
                "edges = true, or remove it")
