@@ -209,9 +209,9 @@ def report(records, args) -> str:
     quant = [r for r in fitted if r.get("z_per_reading")]
     if quant:
         lines += ["", f"Sessions with a quantised channel that its noise does not dither "
-                  f"({len(quant)}): as fitted (each run of equal readings one independent "
-                  "error), then at the same MAP with every reading counted as one (the "
-                  "likelihood before):", "",
+                  f"({len(quant)}, an encoder's counts among them): as fitted (one "
+                  "independent error per quantum the signal passes), then at the same MAP "
+                  "with every reading counted as one:", "",
                   "| parameter | 50 % | 90 % | 94 % | z rms |", "|---|---|---|---|---:|"]
         lines += coverage_rows(quant)
         lines += ["", "| before: parameter | 50 % | 90 % | 94 % | z rms |",
