@@ -105,10 +105,11 @@ class Ensembles:
     def get_autocorr_time(self, discard: int = 0) -> np.ndarray:
         """Per parameter, the largest integrated autocorrelation time of the ensembles
         over the steps after ``discard`` (steps; the chain's length where it cannot be
-        estimated)."""
+        estimated, as for a walker that has not moved)."""
         taus = []
         for s in self.samplers:
-            tau = np.asarray(s.get_autocorr_time(discard=discard, tol=0), dtype=float)
+            with np.errstate(invalid="ignore", divide="ignore"):  # a walker that never moved
+                tau = np.asarray(s.get_autocorr_time(discard=discard, tol=0), dtype=float)
             taus.append(np.where(np.isfinite(tau), tau, float(s.iteration - discard)))
         return np.max(taus, axis=0)
 

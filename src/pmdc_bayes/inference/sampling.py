@@ -2,13 +2,14 @@
 
 :func:`sample_posterior` runs ensemble samplers (independence proposals from the
 Laplace approximation and differential-evolution moves by default) as independent
-ensembles (:mod:`.ensembles`) started around the MAP, in chunks, until the chain is many
-integrated autocorrelation times long, the autocorrelation estimate has settled and the
-draws pass the gates, or until the steps this rule projects from the chain's own state
-exceed a step budget (:mod:`.stopping`): a stop that depends on the seed and the data,
-not on the machine's load.  The result, :class:`Posterior`, carries its status in words;
-:func:`summarize` and :func:`gates` (in :mod:`pmdc_bayes.inference.diagnostics`) say whether it
-can be trusted.
+ensembles (:mod:`.ensembles`) started around the MAP, moving in the coordinates of
+:mod:`.coordinates` (a well-determined positive quantity in value, not in log), in
+chunks, until the chain is many integrated autocorrelation times long, the
+autocorrelation estimate has settled and the draws pass the gates, or until the steps
+this rule projects from the chain's own state exceed a step budget (:mod:`.stopping`):
+a stop that depends on the seed and the data, not on the machine's load.  The result,
+:class:`Posterior`, carries its status in words; :func:`summarize` and :func:`gates`
+(in :mod:`pmdc_bayes.inference.diagnostics`) say whether it can be trusted.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from tqdm.auto import tqdm
 
 from .. import _signals
 from .._x64 import x64
+from .coordinates import Coordinates
 from .diagnostics import (
     az,
     compare_laplace,
@@ -190,9 +192,13 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     batch_fn = _log_posterior_batch(model)
     log_prob = LogProb(batch_fn, batch)
     rng = np.random.default_rng(seed)
-    p0, lp0 = initial_walkers(fit, log_prob, n_walkers, rng)
-    sampler = Ensembles(k, n_walkers, ndim, log_prob, p0, lp0, seed=seed,
-                        moves=lambda j: default_moves(fit) if moves is None else moves)
+    theta0, lp0 = initial_walkers(fit, log_prob, n_walkers, rng)
+    # the walkers move in φ (:mod:`.coordinates`); the draws are mapped back to θ
+    xy = Coordinates.for_fit(model.registry, fit)
+    sampler = Ensembles(k, n_walkers, ndim, xy.log_prob(log_prob), xy.from_theta(theta0),
+                        lp0 + xy.log_jacobian(theta0), seed=seed,
+                        moves=lambda j: default_moves(xy.laplace(fit)) if moves is None
+                        else moves)
 
     names = tuple(model.names)
     budget = max_steps if budget is None else budget
@@ -236,7 +242,7 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                     # first on every (τ_min/4)-th step: the gates' cost grows with the chain
                     burn = _burn_in(tau, steps, adapted)
                     thin = max(1, int(tau.min() / 4))
-                    si = model.registry.to_values
+                    si = lambda c: model.registry.to_values(xy.to_theta(c))  # noqa: E731
                     short = gate_shortfall(sampler, burn, k, thin=thin, values=si)
                     if thin > 1 and short <= THINNED_NEAR:  # near: the exact check decides
                         short = gate_shortfall(sampler, burn, k, values=si)
@@ -266,8 +272,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                            if stop is Stop.OVER_BUDGET else {"max_steps": max_steps}))
     converged = stop is Stop.CONVERGED
     burn = _burn_in(tau, steps, adapted)
-    chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)  # (walkers, draws, P)
-    lp = np.swapaxes(sampler.get_log_prob(discard=burn), 0, 1)
+    chain = xy.to_theta(np.swapaxes(sampler.get_chain(discard=burn), 0, 1))  # (walkers, draws, P)
+    lp = np.swapaxes(sampler.get_log_prob(discard=burn), 0, 1) - xy.log_jacobian(chain)
     acc = np.asarray(sampler.acceptance_fraction, dtype=float)
     idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws, seed=seed)
     idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged),
