@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pmdc_bayes.inference.coordinates import LINEAR_BELOW, Coordinates
+from pmdc_bayes.inference.coordinates import Coordinates
 from pmdc_bayes.inference.moves import default_moves
 from pmdc_bayes.inference.params import ParamSpec, Prior, Registry
 
@@ -31,15 +31,30 @@ def _spec(name, transform="log", seed=1.0):
                      transform=transform)
 
 
-def test_only_positive_quantities_known_within_a_factor_e_move_in_value():
+def test_the_coordinates_are_those_the_posterior_is_gaussian_in():
+    """A posterior Gaussian in log (a product's ridge) is sampled in log; one Gaussian in
+    value (a sum's ridge) in value; an identity-transformed parameter stays as it is."""
     registry = Registry([_spec("K"), _spec("B"), _spec("offset", "identity", 0.0)])
+    centre, rel = np.array([1.0, 0.01]), np.array([0.3, 0.4])
     fit = type("Fit", (), {"theta": np.array([0.0, np.log(0.01), 0.3]),
-                           "cov_log": np.diag([0.05**2, (2 * LINEAR_BELOW)**2, 0.01])})()
-    xy = Coordinates.for_fit(registry, fit)
-    assert xy.linear.tolist() == [True, False, False]
+                           "cov_log": np.diag([*rel**2, 0.01])})()
+
+    def gaussian_in_log(th):
+        return (stats.norm.logpdf(th[:, :2], np.log(centre), rel).sum(1)
+                + stats.norm.logpdf(th[:, 2], 0.3, 0.1))
+
+    def gaussian_in_value(th):  # the density of θ: the value's density times e^θ
+        v = np.exp(th[:, :2])
+        return (stats.norm.logpdf(v, centre, rel * centre).sum(1) + th[:, :2].sum(1)
+                + stats.norm.logpdf(th[:, 2], 0.3, 0.1))
+
+    assert Coordinates.for_fit(registry, fit, gaussian_in_log).linear.tolist() == \
+        [False, False, False]
+    xy = Coordinates.for_fit(registry, fit, gaussian_in_value)
+    assert xy.linear.tolist() == [True, True, False]
     laplace = xy.laplace(fit)
-    np.testing.assert_allclose(laplace.theta, [1.0, np.log(0.01), 0.3])
-    np.testing.assert_allclose(np.diag(laplace.cov_log), [0.05**2, 4 * LINEAR_BELOW**2, 0.01])
+    np.testing.assert_allclose(laplace.theta, [1.0, 0.01, 0.3])
+    np.testing.assert_allclose(np.diag(laplace.cov_log), [*(rel * centre)**2, 0.01])
 
 
 def _ridge(theta):

@@ -1,16 +1,15 @@
 """The coordinates the posterior sampler moves in.
 
 The fit works in θ, where a positive quantity is its logarithm.  The sampler moves in
-φ: the value itself for a positive quantity the fit already knows to better than a
-factor e (its Laplace sd in log space below :data:`LINEAR_BELOW`), θ otherwise.  The
-model is linear in the motor's parameters where they enter its equations (the
-armature's ``Ra·i + La·di/dt``, the shaft's ``J·dω/dt + B·ω + Tc``), so where the data
-trade two of them (viscous against Coulomb friction on a speed-only session) the
-posterior's ridge is straight in value and curved in log: in log, with the lognormal
-priors' tail towards zero at one end, the ensemble's moves cross it slowly (on a fuzzed
-session with a weakly identified Coulomb torque, an autocorrelation time of 230 steps
-in log against 9 in value).  A quantity known only within decades keeps its log, where
-its posterior is closer to Gaussian.
+φ: either θ itself, or every positive quantity in value, whichever the posterior is
+closer to Gaussian in around the MAP (:meth:`Coordinates.for_fit`).  Which one depends
+on the ridge the data leave: where they trade two parameters' sum (viscous against
+Coulomb friction: ``B·ω + Tc``) the ridge is straight in value
+and curved in log, and in log the lognormal priors' tail towards zero adds a long arm
+to it; where they trade a product (a current limit against the torque constant:
+``K·Imax``) it is straight in log.  On a fuzzed session of the first kind the
+autocorrelation time was 230 steps in log and 9 in value; on ``data/bench``, of the
+second kind, 20 in log and 140 in value.
 
 The density in φ is the posterior in θ times ``|dθ/dφ| = 1/φ`` for each coordinate in
 value, so the draws, mapped back, are draws of the same posterior.
@@ -22,9 +21,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["LINEAR_BELOW", "Coordinates", "Laplace"]
+__all__ = ["PROBE", "CLEARLY", "Coordinates", "Laplace"]
 
-LINEAR_BELOW = 1.0  # a positive quantity's Laplace sd in log below which φ is its value
+PROBE = 2.0  # the Laplace sds either side of the MAP at which the coordinates are compared
+CLEARLY = 1.0  # value's summed misprediction must be this much smaller (log-density units)
 
 
 class Laplace(NamedTuple):
@@ -42,12 +42,33 @@ class Coordinates:
         self.linear = np.asarray(linear, dtype=bool)
 
     @classmethod
-    def for_fit(cls, registry, fit) -> Coordinates:
-        """Value coordinates for the log-transformed parameters of ``registry`` whose
-        Laplace sd in ``fit`` is below :data:`LINEAR_BELOW`."""
-        sd = np.sqrt(np.clip(np.diag(np.asarray(fit.cov_log, dtype=float)), 0.0, None))
+    def for_fit(cls, registry, fit, log_prob) -> Coordinates:
+        """θ, or every log-transformed parameter of ``registry`` in value: whichever
+        ``fit``'s Laplace approximation (carried to them) predicts the log-posterior
+        ``log_prob`` (of θ, vectorised) better along each positive parameter's
+        regression line (the parameters moved by their Laplace regression on it, to
+        :data:`PROBE` sds either side of the MAP, where a Gaussian falls by PROBE²/2):
+        the summed misprediction is compared; θ unless value's is smaller by
+        :data:`CLEARLY`."""
         logs = np.array([s.transform == "log" for s in registry.specs])
-        return cls(logs & (sd < LINEAR_BELOW))
+        if not logs.any():
+            return cls(logs)
+        theta, value = cls(np.zeros_like(logs)), cls(logs)
+        better = value._misfit(fit, log_prob, logs) + CLEARLY < \
+            theta._misfit(fit, log_prob, logs)
+        return value if better else theta
+
+    def _misfit(self, fit, log_prob, along) -> float:
+        """Σ |log-density − its Laplace prediction| in these coordinates at ±PROBE sd
+        along the regression line of each parameter in ``along`` (∞ where a point
+        leaves the parameters' range)."""
+        centre, cov = self.laplace(fit)
+        sd = np.sqrt(np.diag(cov))
+        lines = [cov[:, i] / cov[i, i] * sd[i] * PROBE * side
+                 for i in np.flatnonzero(along) for side in (-1.0, 1.0)]
+        density = self.log_prob(log_prob)
+        drop = density(centre[None] + np.array(lines)) - density(centre[None])[0]
+        return float(np.sum(np.abs(drop + 0.5 * PROBE**2)))
 
     def to_theta(self, phi) -> np.ndarray:
         """θ of ``phi`` ``(..., P)``; NaN where a value coordinate is not positive."""

@@ -3,11 +3,12 @@
 :func:`sample_posterior` runs ensemble samplers (independence proposals from the
 Laplace approximation and differential-evolution moves by default) as independent
 ensembles (:mod:`.ensembles`) started around the MAP, moving in the coordinates of
-:mod:`.coordinates` (a well-determined positive quantity in value, not in log), in
-chunks, until the chain is many integrated autocorrelation times long, the
-autocorrelation estimate has settled and the draws pass the gates, or until the steps
-this rule projects from the chain's own state exceed a step budget (:mod:`.stopping`):
-a stop that depends on the seed and the data, not on the machine's load.  The result,
+:mod:`.coordinates` (the positive quantities in log or in value, whichever the
+posterior is closer to Gaussian in around the MAP), in chunks, until the chain is many
+integrated autocorrelation times long, the autocorrelation estimate has settled and
+the draws pass the gates, or until the steps this rule projects from the chain's own
+state exceed a step budget (:mod:`.stopping`): a stop that depends on the seed and the
+data, not on the machine's load.  The result,
 :class:`Posterior`, carries its status in words; :func:`summarize` and :func:`gates`
 (in :mod:`pmdc_bayes.inference.diagnostics`) say whether it can be trusted.
 """
@@ -194,7 +195,7 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     rng = np.random.default_rng(seed)
     theta0, lp0 = initial_walkers(fit, log_prob, n_walkers, rng)
     # the walkers move in φ (:mod:`.coordinates`); the draws are mapped back to θ
-    xy = Coordinates.for_fit(model.registry, fit)
+    xy = Coordinates.for_fit(model.registry, fit, log_prob)
     sampler = Ensembles(k, n_walkers, ndim, xy.log_prob(log_prob), xy.from_theta(theta0),
                         lp0 + xy.log_jacobian(theta0), seed=seed,
                         moves=lambda j: default_moves(xy.laplace(fit)) if moves is None
