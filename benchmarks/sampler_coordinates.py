@@ -4,7 +4,8 @@ For each seed, a fuzzed in-class session (:func:`pmdc_bayes.simulate.fuzz.fuzz_s
 the bench simulator) is fitted (``fit_seed``, ``build_model``, ``fit_map``) and its
 posterior sampled twice with the default stopping rule and step budget: with every
 parameter moving in θ (log for a positive quantity: ``coordinates.CLEARLY = inf``) and
-with the coordinates :mod:`pmdc_bayes.inference.coordinates` chooses.  Per run:
+with the coordinates :mod:`pmdc_bayes.inference.coordinates` chooses (the same run, not
+repeated, where it chooses log).  Per run:
 how the sampler stopped, its steps, the largest autocorrelation time and its parameter,
 whether the gates passed, the sampling's wall time and the largest |z| of a motor
 parameter's truth among the draws (its normal score).  Prints the table and replaces
@@ -26,8 +27,10 @@ import numpy as np
 from _common import write_table_section
 from scipy import stats
 
+from pmdc_bayes._x64 import x64
 from pmdc_bayes.inference import coordinates
 from pmdc_bayes.inference.fit import fit_map
+from pmdc_bayes.inference.logprob import LogProb, batch_log_posterior
 from pmdc_bayes.inference.objective import build_model
 from pmdc_bayes.inference.sampling import gates, sample_posterior, summarize
 from pmdc_bayes.inference.seed import fit_seed
@@ -71,7 +74,13 @@ def main(argv=None) -> int:
             session = load_session(fz.path)
             model = build_model(session, fit_seed(session))
             fit = fit_map(model, seed=seed)
+            logp = LogProb(batch_log_posterior(model), 16)
+            chosen = x64(coordinates.Coordinates.for_fit)(model.registry, fit, logp)
             for label, clearly in (("log", np.inf), ("chosen", coordinates.CLEARLY)):
+                if label == "chosen" and not chosen.linear.any():
+                    rows.append([*rows[-1][:2], "chosen: log (as above)", *rows[-1][3:]])
+                    print(" | ".join(rows[-1]), flush=True)
+                    continue
                 r = one(model, fit, fz.truth, seed, clearly)
                 rows.append([str(seed), ", ".join(fz.shapes), label, r["stop"], str(r["steps"]),
                              f"{r['tau']:.0f} ({r['slowest']})", "passed" if r["gates"]
