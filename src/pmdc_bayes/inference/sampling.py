@@ -8,9 +8,9 @@ posterior is closer to Gaussian in around the MAP), in chunks, until the chain i
 integrated autocorrelation times long, the autocorrelation estimate has settled and
 the draws pass the gates, or until the steps this rule projects from the chain's own
 state exceed a step budget (:mod:`.stopping`): a stop that depends on the seed and the
-data, not on the machine's load.  The result,
-:class:`Posterior`, carries its status in words; :func:`summarize` and :func:`gates`
-(in :mod:`pmdc_bayes.inference.diagnostics`) say whether it can be trusted.
+data, not on the machine's load.  The result, :class:`Posterior`, carries its status in
+words; :func:`summarize` and :func:`gates` (in :mod:`pmdc_bayes.inference.diagnostics`)
+say whether it can be trusted.
 """
 
 from __future__ import annotations
@@ -196,6 +196,10 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     theta0, lp0 = initial_walkers(fit, log_prob, n_walkers, rng)
     # the walkers move in φ (:mod:`.coordinates`); the draws are mapped back to θ
     xy = Coordinates.for_fit(model.registry, fit, log_prob)
+
+    def si(phi):  # the SI values of draws in φ, on which the gates are judged
+        return model.registry.to_values(xy.to_theta(phi))
+
     sampler = Ensembles(k, n_walkers, ndim, xy.log_prob(log_prob), xy.from_theta(theta0),
                         lp0 + xy.log_jacobian(theta0), seed=seed,
                         moves=lambda j: default_moves(xy.laplace(fit)) if moves is None
@@ -243,7 +247,6 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                     # first on every (τ_min/4)-th step: the gates' cost grows with the chain
                     burn = _burn_in(tau, steps, adapted)
                     thin = max(1, int(tau.min() / 4))
-                    si = lambda c: model.registry.to_values(xy.to_theta(c))  # noqa: E731
                     short = gate_shortfall(sampler, burn, k, thin=thin, values=si)
                     if thin > 1 and short <= THINNED_NEAR:  # near: the exact check decides
                         short = gate_shortfall(sampler, burn, k, values=si)
