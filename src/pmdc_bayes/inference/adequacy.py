@@ -294,7 +294,8 @@ def _steady_pairs(model, fit):
     st = model.steady
     theta = np.asarray(fit.theta)
     p = type(model.params(theta))(*(float(x) for x in model.circuit(theta)))  # on the host
-    w, i = model.steady_prediction(p, st["v"], st["tl"], float(model.drop(theta)))
+    v = np.asarray(model.driven(theta, st["v"]), dtype=float)
+    w, i = model.steady_prediction(p, v, st["tl"], float(model.drop(theta)))
     out = []
     for name, obs, pred, mask in (("steady: speed", st["w"], w, st["w_mask"]),
                                   ("steady: current", st["i"], i, st["i_mask"])):

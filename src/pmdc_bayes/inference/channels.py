@@ -187,8 +187,8 @@ class SteadyBlock(Block):
 
     @staticmethod
     def residuals(model, theta, d, fast: bool = False) -> list:
-        w, i = model.steady_prediction(model.circuit(theta), d["v"], d["tl"],
-                                       model.drop(theta))
+        w, i = model.steady_prediction(model.circuit(theta), model.driven(theta, d["v"]),
+                                       d["tl"], model.drop(theta))
         return [d["w"] - w, d["i"] - i]
 
 

@@ -1,13 +1,19 @@
 """The diagnosis's rules on the steady levels (model-free, :mod:`.levels`): a trace off
 the line the other levels draw, a declared drag that misses its trace's level, unit
-slips, a speed-voltage line that crosses zero speed above 0 V, a current left at zero
-speed."""
+slips, a speed-voltage line that crosses zero speed above 0 V (or at a different voltage
+each way), a current left at zero speed."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .levels import LEVEL_MISS, friction_offset, level_outliers, voltage_intercept
+from .levels import (
+    LEVEL_MISS,
+    direction_intercepts,
+    friction_offset,
+    level_outliers,
+    voltage_intercept,
+)
 from .proposals import COULOMB, Proposal, said
 
 __all__ = ["level_rules", "UNIT_RATIOS"]
@@ -17,6 +23,8 @@ UNIT_RATIOS = {"rpm given as rad/s": 60 / (2 * np.pi), "rad/s given as rpm": 2 *
                "mA given as A": 1000.0, "A given as mA": 1e-3,
                "a reversed sign (the speed counts the other way)": -1.0}
 SLIP_TOLERANCE = 0.03
+ASYMMETRY_Z = 4.0  # the two directions' zero-speed voltages apart by this many sd ...
+ASYMMETRY_SHARE = 0.01  # ... and by this share of the largest voltage
 
 
 def _unit_slips(ratios, outliers) -> dict[str, str]:
@@ -116,4 +124,26 @@ def level_rules(model, fit, preds, findings):
                         f"{icpt['voltage']:.3g} V, not 0 V: a voltage drop at the brushes or "
                         f"driver (--add voltage-drop){why}", Proposal("voltage_drop"),
                         *(() if why == "" else (Proposal(COULOMB),))))
+    if "dead_zone" not in session.nuisances:
+        out += _asymmetry_rule(session)
     return out
+
+
+def _asymmetry_rule(session) -> list[str]:
+    """The speed-voltage lines of the two directions cross zero speed at voltages
+    :data:`ASYMMETRY_Z` standard errors and :data:`ASYMMETRY_SHARE` of the largest
+    voltage apart: a driver that loses more of its command one way than the other (a
+    dead zone), which a drop (the same both ways) cannot explain."""
+    icpt = direction_intercepts(session)
+    if len(icpt) < 2:
+        return []
+    fwd, rev = icpt[1], icpt[-1]
+    gap, se = fwd["voltage"] - rev["voltage"], float(np.hypot(fwd["se"], rev["se"]))
+    top = max([abs(float(v)) for tr in session.traces for v in tr.voltage.values] + [1e-300])
+    if abs(gap) <= ASYMMETRY_Z * se or abs(gap) <= ASYMMETRY_SHARE * top:
+        return []
+    return [said(f"the steady speed reaches zero at {fwd['voltage']:.3g} V forward but at "
+                 f"{-rev['voltage']:.3g} V in reverse: the driver loses more of its "
+                 "command one way than the other (a dead zone), which a drop at the "
+                 "brushes cannot explain; fit it: --add dead-zone (dead_zone = true under "
+                 "[model])", Proposal("dead_zone"))]

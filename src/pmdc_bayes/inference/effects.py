@@ -1,5 +1,6 @@
 """The rig's non-idealities in the prediction: the experiment as the motor sees it
-(:meth:`RigEffects.inputs`: dead times, unknown drags), the circuit the logged voltage
+(:meth:`RigEffects.inputs`: dead times, a driver's dead zone (:meth:`RigEffects.driven`),
+unknown drags), the circuit the logged voltage
 drives (:meth:`RigEffects.circuit`: a source resistance; :meth:`RigEffects.armature_drop`:
 the voltage drop, which opposes the current), the driver's limit, the sensors'
 lags (:meth:`RigEffects.lags`, states of the exact solution) and their gains and offsets
@@ -9,7 +10,8 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .nuisances import NO_LIMIT, dead_time_name, load_names
+from ..physics.motor import driver_output
+from .nuisances import DEAD_ZONE_NAMES, NO_LIMIT, dead_time_name, load_names
 
 __all__ = ["RigEffects"]
 
@@ -43,12 +45,24 @@ class RigEffects:
         the current; None when the model has none."""
         return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else None
 
+    def driven(self, theta, va):
+        """The voltage the driver puts out at θ for the commands ``va`` (V): through its
+        fitted dead zone when the model has one, else ``va``."""
+        if "dead_zone" not in self.session.nuisances:
+            return va
+        v = self.registry.values(theta)
+        fwd, rev = (v.get(DEAD_ZONE_NAMES[sign][0], 0.0) for sign in (1, -1))
+        return driver_output(va, fwd, rev)
+
     def inputs(self, theta, exp):
         """The experiment as the motor sees it at θ: each
         trace's response its fitted dead time later than its inputs (each sample
         evaluated in the segment its time less the dead time lies in: exact;
         before the trace's first segment, its starting state), and each trace's fitted
-        unknown drag per segment, added to its known one (set in the experiment)."""
+        unknown drag per segment, added to its known one (set in the experiment); each
+        segment's voltage as the driver puts it out (:meth:`driven`)."""
+        if "dead_zone" in self.session.nuisances:
+            exp = exp._replace(seg_va=self.driven(theta, exp.seg_va))
         if "dead_time" in self.session.nuisances:
             v = self.registry.values(theta)
             shared = self.session.shared_dead_time

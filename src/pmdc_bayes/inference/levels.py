@@ -8,7 +8,8 @@ import numpy as np
 
 from ..paper.changes import AT_REST, plateaus
 
-__all__ = ["settled", "unloaded_levels", "voltage_intercept", "friction_offset", "level_outliers"]
+__all__ = ["settled", "unloaded_levels", "voltage_intercept", "direction_intercepts",
+           "friction_offset", "level_outliers"]
 
 LEVEL_MISS = 0.03  # a level off the others' line by more than this fraction of itself
 LINE_FIT = 0.01  # the others must sit on their line within this fraction (rms)
@@ -69,10 +70,13 @@ def _end_level(tr) -> list[tuple]:
     return [(v, float(np.mean(tr.speed[-n:])), i)]
 
 
-def _held_levels(tr) -> list[tuple]:
+def _held_levels(tr, with_se: bool = False) -> list[tuple]:
     """The settled, unloaded end of every plateau a trace's voltage is held on, except
     a plateau at rest (0 V, or a logged 0 V's noise: below :data:`AT_REST` of the
-    trace's largest voltage), which has no gain to read."""
+    trace's largest voltage), which has no gain to read: ``(voltage, speed, current)``,
+    or with ``with_se`` ``(voltage, speed, the speed's standard error)``."""
+    from .noise import noise_scale
+
     held = plateaus(tr)
     top = max(abs(p.level) for p in held)
     cuts = sorted({p.start for p in held}
@@ -87,6 +91,8 @@ def _held_levels(tr) -> list[tuple]:
         if not settled(tr.speed[a:b]):
             continue
         i = np.nan if tr.current is None else float(np.mean(tr.current[b - n:b]))
+        if with_se:
+            i = noise_scale(tr.speed[a:b]) / np.sqrt(n)
         out.append((float(np.mean(tr.voltage.at(tr.time[b - n:b]))),
                     float(np.mean(tr.speed[b - n:b])), i))
     return out
@@ -105,6 +111,45 @@ def voltage_intercept(session) -> dict | None:
     g = np.array([icpt / slope**2, -1 / slope])
     return {"voltage": float(-icpt / slope), "se": float(np.sqrt(max(g @ cov @ g, 0.0))),
             "largest_voltage": float(np.max(np.abs(rows[:, 0])))}
+
+
+def direction_intercepts(session) -> dict[int, dict]:
+    """For each sign of the voltage with levels at two or more distinct voltages (every
+    settled plateau of every trace, the tables' and operating points'), where the line of
+    steady speed against voltage in magnitude crosses zero speed, with its standard error:
+    sign -> ``{"voltage", "se"}``.  Each level's speed is weighted by its own noise over
+    the root of its readings (a level of a table or operating point by 1 % of itself)."""
+    rows, errs = [], []
+    for tab in session.steady_tables:
+        for v, w, tl in zip(tab.voltage, tab.speed, tab.load_torque, strict=True):
+            if tl == 0:
+                rows.append((v, w))
+                errs.append(0.01 * abs(w))
+    for op in session.operating_points:
+        if op.load_torque == 0:
+            rows.append((op.voltage, op.speed))
+            errs.append(0.01 * abs(op.speed))
+    for tr in session.traces:
+        if not tr.drag.nonzero:
+            for v, w, se in _held_levels(tr, with_se=True):
+                rows.append((v, w))
+                errs.append(se)
+    out = {}
+    for sign in (1, -1):
+        pick = [k for k, (v, w) in enumerate(rows) if np.sign(v) == sign and w * sign > 0]
+        v = np.array([abs(rows[k][0]) for k in pick])
+        w = np.array([abs(rows[k][1]) for k in pick])
+        if np.unique(np.round(v, 9)).size < 2:
+            continue
+        se = np.maximum(np.array([errs[k] for k in pick]), 1e-12 * max(w.max(), 1e-300))
+        x = np.stack([v, np.ones_like(v)], axis=1) / se[:, None]
+        cov = np.linalg.inv(x.T @ x)
+        slope, icpt = cov @ (x.T @ (w / se))
+        if slope <= 0:
+            continue
+        g = np.array([icpt / slope**2, -1 / slope])
+        out[sign] = {"voltage": float(-icpt / slope), "se": float(np.sqrt(max(g @ cov @ g, 0.0)))}
+    return out
 
 
 def friction_offset(session) -> dict | None:

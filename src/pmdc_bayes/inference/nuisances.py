@@ -19,7 +19,7 @@ from .params import ParamSpec, Prior
 __all__ = ["nuisance_specs", "coast_down_specs", "dead_time_name",
            "initial_speed_name", "load_names", "position_specs", "position_offset_name",
            "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES", "LAG_PRIOR_FACTOR",
-           "NO_LIMIT"]
+           "NO_LIMIT", "DEAD_ZONE_NAMES"]
 
 DEAD_TIME_PRIOR = 0.05  # sd of a trace's dead time, as a share of the trace's length
 DROP_PRIOR = 0.1  # sd of the voltage drop, as a share of the session's largest voltage
@@ -115,6 +115,9 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     * ``current_limit`` — ``Imax`` (A), the driver's current limit (see
       :func:`_limit_specs`).
 
+    * ``dead_zone`` — ``Vdz_fwd`` and ``Vdz_rev`` (V), the widths of a driver's dead zone
+      for positive and for negative commands (see :func:`_dead_zone_specs`).
+
     The drop and the dead times are untransformed (they may be zero or of either sign).
     The source resistance, the lags, the drags and the current limit are positive.
     """
@@ -142,7 +145,31 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
                                    description=f"first-order lag of the {words}"))
     if "dead_time" in session.nuisances:
         specs += _dead_time_specs(session)
-    return specs + _load_specs(session, b_seed) + _calibration_specs(session)
+    return (specs + _dead_zone_specs(session) + _load_specs(session, b_seed)
+            + _calibration_specs(session))
+
+
+DEAD_ZONE_NAMES = {1: ("Vdz_fwd", "positive"), -1: ("Vdz_rev", "negative")}
+
+
+def _dead_zone_specs(session: Session) -> list[ParamSpec]:
+    """``Vdz_fwd``, ``Vdz_rev`` (V): how much of a positive (negative) command the driver
+    does not put out (:func:`~pmdc_bayes.physics.motor.driver_output`), one for each sign
+    the session commands.  Prior normal, centre 0, sd :data:`DROP_PRIOR` × the largest
+    voltage, as the voltage drop's (a negative width is a driver that adds to its
+    command)."""
+    if "dead_zone" not in session.nuisances:
+        return []
+    volts = np.array([float(v) for tr in session.traces for v in tr.voltage.values]
+                     + [float(v) for tab in session.steady_tables for v in tab.voltage]
+                     + [op.voltage for op in session.operating_points]
+                     + [r.voltage for r in session.step_readings])
+    sd = DROP_PRIOR * _largest_voltage(session)
+    return [ParamSpec(name, "V", "driver", Prior("normal", 0.0, sd, "nuisance"), 0.0,
+                      transform="identity",
+                      description=f"dead zone of the driver for {words} commands")
+            for sign, (name, words) in DEAD_ZONE_NAMES.items()
+            if np.any(np.sign(volts) == sign)]
 
 
 def _dead_time_specs(session: Session) -> list[ParamSpec]:

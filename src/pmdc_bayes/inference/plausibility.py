@@ -16,6 +16,7 @@ from .calibrate import Test, logged_quantum, replicates, session_rng, tail_p
 from .checks import rise_time, step_time
 from .levels import unloaded_levels
 from .noise import quantum, run_fraction
+from .nuisances import DEAD_ZONE_NAMES
 from .objective import NU0
 
 __all__ = ["plausibility_tests", "rise_eligible"]
@@ -148,8 +149,9 @@ def _peak_test(tr, ia, noise_sd, s0, rng) -> list:
 
 
 def _no_load_speed(model, p: dict, v: float) -> float:
-    """The model's steady speed at ``v`` unloaded (a steady point sees V − Vdrop·sign(V)
-    through Ra + Rs)."""
+    """The model's steady speed at the command ``v`` unloaded (a steady point sees the
+    driver's output less Vdrop·sign(V) through Ra + Rs)."""
+    v = float(motor.driver_output(v, *(p.get(DEAD_ZONE_NAMES[s][0], 0.0) for s in (1, -1))))
     v_seen = v - float(p.get("Vdrop", 0.0)) * float(np.sign(v))
     _, w = motor.steady_state(p["Ra"] + p.get("Rs", 0.0), p["K"], p["B"], v_seen, 0.0,
                               p.get("Tc") if model.coulomb else None)

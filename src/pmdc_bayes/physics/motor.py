@@ -28,6 +28,7 @@ __all__ = [
     "OUTPUT",
     "derivatives",
     "steady_with_drop",
+    "driver_output",
     "angle_increment",
     "steady_state",
     "time_constant",
@@ -122,6 +123,16 @@ def steady_with_drop(Ra, K, B, va, tl=0.0, tc=None, drop=0.0):
     pos, neg = i_pos > 0, i_neg < 0
     return (xp.where(pos, i_pos, xp.where(neg, i_neg, 0.0)),
             xp.where(pos, w_pos, xp.where(neg, w_neg, w_open)))
+
+
+def driver_output(va, forward=0.0, reverse=0.0):
+    """The voltage a driver with a dead zone puts out for the command ``va`` (V): a
+    positive command less ``forward``, a negative one less ``reverse`` in magnitude, and
+    nothing while the command is within the zone (``va − forward`` held at 0 from above,
+    ``va + reverse`` from below; a zero command gives 0)."""
+    xp = _xp(va, forward, reverse)
+    return xp.where(va > 0, xp.maximum(va - forward, 0.0),
+                    xp.where(va < 0, xp.minimum(va + reverse, 0.0), 0.0 * va))
 
 
 def coast_down(B, J, w0, t, tc=0.0):

@@ -9,6 +9,8 @@ the plan's traces and steady readings by the independent bench simulator
     voltage_drop = 0.8         # V at brushes and driver, opposing the current
     source_resistance = 0.3    # ohm between the logged (supply) voltage and the terminals
     current_limit = 2.0        # A: the driver holds |ia| at it
+    dead_zone_forward = 0.5    # V of a positive command the driver does not put out
+    dead_zone_reverse = 0.7    # V of a negative command, likewise
     speed_lag = 0.005          # s: a first-order lag of the speed sensor (a tachometer)
     current_lag = 0.0          # s: the same of the current sensor
     speed_gain = 1.0           # the traces' speed sensor reads gain × speed + offset
@@ -24,6 +26,7 @@ sample interval).  The session written declares only
 what a user would know (the commanded voltage, the declared load); ``truth.json`` holds
 the rig's true values under the names the fit reports (``Vdrop``, ``Imax``,
 ``dead_time`` and ``dead_time_<trace>``, ``Rs``, ``speed_lag``, ``current_lag``,
+``Vdz_fwd``, ``Vdz_rev``,
 ``speed_gain``, ``speed_offset``, ``current_gain``, ``current_offset``, ``drag_<trace>``,
 ``load_<trace>``).  The gains and offsets are the traces' sensors'; the steady readings
 are taken by other instruments, without them.
@@ -44,7 +47,7 @@ __all__ = ["RigSpec", "check_rig", "check_encoder", "rig_truth", "rig_steady", "
 
 _KEYS = ("dead_time", "voltage_drop", "source_resistance", "current_limit", "speed_lag",
          "current_lag", "speed_gain", "speed_offset", "current_gain", "current_offset",
-         "unknown_load")
+         "unknown_load", "dead_zone_forward", "dead_zone_reverse")
 
 
 @dataclass(frozen=True)
@@ -63,6 +66,15 @@ class RigSpec:
     current_gain: float = 1.0
     current_offset: float = 0.0
     unknown_load: tuple[tuple[str, float, float], ...] = ()
+    dead_zone_forward: float = 0.0
+    dead_zone_reverse: float = 0.0
+
+    def driver(self, va: float) -> float:
+        """The driver's output (V) for the command ``va``: less its dead zone, and 0
+        within it."""
+        if va > 0:
+            return max(va - self.dead_zone_forward, 0.0)
+        return min(va + self.dead_zone_reverse, 0.0) if va < 0 else 0.0
 
 
 def check_rig(t: Table, trace_names) -> RigSpec:
@@ -90,7 +102,9 @@ def check_rig(t: Table, trace_names) -> RigSpec:
                    speed_offset=t.number("speed_offset", default=0.0),
                    current_gain=t.number("current_gain", default=1.0, positive=True),
                    current_offset=t.number("current_offset", default=0.0),
-                   unknown_load=tuple(loads))
+                   unknown_load=tuple(loads),
+                   dead_zone_forward=t.number("dead_zone_forward", default=0.0, low=0.0),
+                   dead_zone_reverse=t.number("dead_zone_reverse", default=0.0, low=0.0))
 
 
 def check_encoder(t: Table) -> tuple[int, str] | None:
@@ -126,7 +140,8 @@ def rig_truth(rig: RigSpec, trace_names) -> dict[str, float]:
            "speed_lag": rig.speed_lag, "current_lag": rig.current_lag,
            "speed_gain": rig.speed_gain, "speed_offset": rig.speed_offset,
            "current_gain": rig.current_gain, "current_offset": rig.current_offset,
-           "dead_time": rig.dead_time}
+           "dead_time": rig.dead_time, "Vdz_fwd": rig.dead_zone_forward,
+           "Vdz_rev": rig.dead_zone_reverse}
     if rig.current_limit is not None:
         out["Imax"] = rig.current_limit
     for name in trace_names:
@@ -138,11 +153,11 @@ def rig_truth(rig: RigSpec, trace_names) -> dict[str, float]:
 
 
 def rig_steady(truth: dict, rig: RigSpec, va, tl) -> tuple[np.ndarray, np.ndarray]:
-    """True steady ``(ia, ω)`` at voltages ``va`` and loads ``tl`` on the rig (its drop,
-    source resistance and current limit; read by other instruments than the traces'
-    sensors, so without their gains and offsets)."""
+    """True steady ``(ia, ω)`` at commanded voltages ``va`` and loads ``tl`` on the rig
+    (its driver's dead zone, drop, source resistance and current limit; read by other
+    instruments than the traces' sensors, so without their gains and offsets)."""
     m = _motor(truth, rig)
-    w, ia = np.array([steady_point(m, float(v), float(x))
+    w, ia = np.array([steady_point(m, rig.driver(float(v)), float(x))
                       for v, x in zip(np.atleast_1d(va), np.atleast_1d(tl), strict=True)]).T
     return ia, w
 
@@ -156,9 +171,10 @@ def _held(pairs, at: float) -> float:
     return float(value)
 
 
-def _segments(spec, dead_time: float, end: float):
-    """``(start, end, va, tl)`` pieces of constant input as the motor sees them."""
-    volts = tuple((time + dead_time, v) for time, v in spec.voltage)
+def _segments(spec, rig: RigSpec, end: float):
+    """``(start, end, va, tl)`` pieces of constant input as the motor sees them (the
+    commands through the driver, its dead time later)."""
+    volts = tuple((time + rig.dead_time, rig.driver(v)) for time, v in spec.voltage)
     loads = spec.load_torque or ((0.0, 0.0),)
     cuts = sorted({0.0, end} | {x for x, _ in volts + loads if 0.0 < x < end})
     return [(a, b, _held(volts, a), _held(loads, a))
@@ -179,7 +195,7 @@ def rig_trace(truth: dict, rig: RigSpec, spec) -> dict[str, np.ndarray]:
             constant=c + d.constant, viscous=v + d.viscous)})
     t = spec.time
     end = float(t[-1])
-    segs = _segments(spec, rig.dead_time, end)
+    segs = _segments(spec, rig, end)
     v_ref = max(max(abs(v) for _, v in spec.voltage), 1e-9)
     w_eps = 1e-3 * m.K * v_ref / (m.Ra * m.B + m.K**2)
     # the drop's sign smoothed over a band far below any logged current: wider, the
