@@ -173,19 +173,20 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                     "current-offset (a calibration error of the traces' sensor), "
                     "source-resistance (the logged voltage is the supply's), "
                     "current-limit (the driver's, fitted; current_limit = A in [model] "
-                    "gives its setting); same as [model] in session.toml")
+                    "gives its setting), dead-zone (the driver's, a width each way); same as "
+                    "[model] in session.toml")
     ft.add_argument("--compare", action="store_true",
-                    help="search for the rig's model from the session's own: add, one at a "
-                    "time, the non-idealities the adequacy verdict proposes (or, when the "
-                    "model is rejected, any of + dead-time, + voltage-drop, + speed-lag, "
-                    "+ current-lag, + unknown-load, + speed-gain, + speed-offset, "
-                    "+ current-gain, + current-offset, + source-resistance, + current-limit, "
-                    "+ Coulomb friction), remove what the evidence does not support, stop "
-                    "when the data no longer reject the model and no addition is clearly "
-                    "better (Laplace evidence); then run the chosen model and write it as "
-                    "[model] into the run's copy of session.toml.  A plain fit of a session "
-                    "without [model] (nor --add or --friction) searches too when the ideal "
-                    "model is rejected")
+                    help="search for the rig's model from the session's own: add, one at a time,"
+                    " the non-idealities the adequacy verdict proposes (or, when the model "
+                    "is rejected, any of + dead-time, + voltage-drop, + speed-lag, + "
+                    "current-lag, + unknown-load, + speed-gain, + speed-offset, + "
+                    "current-gain, + current-offset, + source-resistance, + current-limit, "
+                    "+ dead-zone, + Coulomb friction), remove what the evidence does not "
+                    "support, stop when the data no longer reject the model and no addition"
+                    " is clearly better (Laplace evidence); then run the chosen model and "
+                    "write it as [model] into the run's copy of session.toml.  A plain fit "
+                    "of a session without [model] (nor --add or --friction) searches too "
+                    "when the ideal model is rejected")
     ft.add_argument("--no-search", action="store_true",
                     help="fit the session's model as it is, even when it declares no [model] "
                     "and the data reject the ideal model")

@@ -15,7 +15,7 @@ from ._format import off_by, row_format, spread_format
 from .io.units import display_unit
 
 __all__ = ["headline_rows", "fit_table", "fit_lines", "determinability", "pi_loop_text",
-           "spread_text", "headline_text", "headline_html"]
+           "spread_text", "headline_text", "headline_html", "left_out_lines"]
 
 SPREAD_WORTH_SAYING = 2.0  # posterior sd over Laplace sd along the widest direction
 
@@ -143,6 +143,16 @@ def _shaft(session: dict) -> str:
                                     "and friction with the gearbox and load reflected to it")
 
 
+def left_out_lines(summary: dict) -> list[str]:
+    """A sentence per trace whose CSV had rows left out for a missing reading."""
+    out = []
+    for name, lines in (summary.get("session", {}).get("rows_left_out") or {}).items():
+        shown = ", ".join(str(x) for x in lines[:5]) + (", ..." if len(lines) > 5 else "")
+        out.append(f"{name}: {len(lines)} row{'s' if len(lines) > 1 else ''} with a missing "
+                   f"reading left out (file line{'s' if len(lines) > 1 else ''} {shown})")
+    return out
+
+
 def headline_text(summary: dict) -> str:
     rows = headline_rows(summary)
     session = summary.get("session", {})
@@ -158,7 +168,7 @@ def headline_text(summary: dict) -> str:
     fits = fit_lines(summary)
     if fits:
         lines += ["Fit % per trace (closed form → MAP):", *fits]
-    lines += [f"- {x}" for x in determinability(summary)]
+    lines += [f"- {x}" for x in determinability(summary) + left_out_lines(summary)]
     return "\n".join(lines)
 
 
@@ -176,7 +186,8 @@ def headline_html(summary: dict) -> str:
                 + "".join(f"<th>{e(h)}</th>" for h in header) + "</tr></thead><tbody>"
                 + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>"
                           for r in fits) + "</tbody></table>") if fits else ""
-    notes = "".join(f"<li>{e(x)}</li>" for x in determinability(summary))
+    notes = "".join(f"<li>{e(x)}</li>"
+                    for x in determinability(summary) + left_out_lines(summary))
     return (f"<div><p><b>pmdc-bayes fit of {e(str(session.get('name', '?')))}</b> "
             f"({e(str(session.get('friction', '?')))} friction): {e(_verdict(summary))}</p>"
             "<table><thead><tr><th>parameter</th><th>value</th><th>sd</th><th>unit</th>"

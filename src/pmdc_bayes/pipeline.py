@@ -135,7 +135,10 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
                     "loaded_traces": list(session.unknown_load_traces()),
                     "load_kinds": dict(session.load_kinds),
                     "dead_time": "shared" if session.shared_dead_time else "per_trace",
-                    "gear_ratio": session.gear_ratio},
+                    "gear_ratio": session.gear_ratio,
+                    "rows_left_out": {tr.name: list(tr.rows_left_out)
+                                      for tr in session.traces + session.coast_downs
+                                      if tr.rows_left_out}},
         "adequacy": adequacy.as_json(),
         "seed": seed,
         "parameters": params,

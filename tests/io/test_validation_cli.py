@@ -53,6 +53,13 @@ def _append_trace(d):
     (d / TOML).write_text(text + STEP_COLUMNS + "\n" + SCHEDULE + "\n")
 
 
+def _sparse_current(d):
+    """The current logged at every other row only (a slower channel in the same file)."""
+    lines = (d / "step.csv").read_text().splitlines()
+    lines[2::2] = [",".join(x.split(",")[:2] + [""]) for x in lines[2::2]]
+    (d / "step.csv").write_text("\n".join(lines) + "\n")
+
+
 def _flat_step(d):
     rows = "".join(f"{k * 0.01:.2f},500.0,0.2\n" for k in range(50))
     (d / "step.csv").write_text("t,speed_rpm,ia\n" + rows)
@@ -119,11 +126,15 @@ CASES = [
      ["sweep.csv:line 1", "no column named 'V'", "'Va', 'w'"]),
     ("non-numeric-cell", _cell(5, "speed_rpm", "abc"),
      ["step.csv:line 5", "column 'speed_rpm'", "'abc' is not a number"]),
-    ("empty-cell", _cell(7, "ia", ""), ["step.csv:line 7", "column 'ia' is empty"]),
+    ("empty-cell", _cell(7, "t", ""), ["step.csv:line 7", "column 't' is empty"]),
+    ("empty-table-cell", _cell(3, "w", "", file="sweep.csv"),
+     ["sweep.csv:line 3", "column 'w' is empty"]),
+    ("sparse-channel", _sparse_current,
+     ["step.csv:line 3", "column 'ia' has no reading in", "75 of 151 rows", "own"]),
     ("unit-in-cell", _cell(3, "Va", "4 V", file="sweep.csv"),
      ["sweep.csv:line 3", "column 'Va'", "'4 V' is not a number"]),
-    ("nan-cell", _cell(9, "speed_rpm", "nan"),
-     ["step.csv:line 9", "column 'speed_rpm'", "'nan' is not a finite number"]),
+    ("nan-cell", _cell(3, "w", "nan", file="sweep.csv"),
+     ["sweep.csv:line 3", "column 'w'", "'nan' is not a finite number"]),
     ("inf-cell", _cell(4, "w", "inf", file="sweep.csv"),
      ["sweep.csv:line 4", "column 'w'", "'inf' is not a finite number"]),
     ("time-not-increasing", _cell(10, "t", "0.07"),

@@ -10,8 +10,10 @@ Files as loggers and oscilloscopes write them are read as they are: lines of tex
 before the header (a logger's name, a date: the header is the first line naming every
 column asked for), a row of units right under the header (``s,rpm,A`` or ``(ms),(V)``:
 no number in any column read) and lines of text after the last sample (``End of log``)
-are passed over; a time column may hold a logger's time stamps (``12:00:01.250``);
-anything else that is not a number is an error naming its line.
+are passed over; a time column may hold a logger's time stamps (``12:00:01.250``); a
+reading a logger missed (an empty cell, ``NaN``, ``NA``, ``N/A``, ``#N/A``, ``null``, ``-``)
+is NaN in the columns the caller allows it in; anything else that is not a number is an
+error naming its line.
 """
 
 from __future__ import annotations
@@ -27,7 +29,9 @@ import numpy as np
 from .._errors import SessionError
 from ._text import read_text
 
-__all__ = ["read_columns"]
+__all__ = ["read_columns", "MISSING"]
+
+MISSING = frozenset({"", "nan", "na", "n/a", "#n/a", "null", "none", "-", "--"})  # lower case
 
 _SEPARATORS = {",": "commas", ";": "semicolons", "\t": "tabs"}
 _CLOCK = re.compile(r"\d{1,2}:\d{2}(:\d{2}([.,]\d*)?)?")  # 12:00:01.250, as loggers stamp
@@ -39,8 +43,12 @@ _DAY = 86400.0
 _SPACES = " "  # columns separated by runs of spaces (a logger's plain text table)
 
 
-def _parse_cell(path: Path, line: int, column: str, text: str, decimal_comma: bool) -> float:
-    """One cell as a finite float, or a SessionError naming the line, column and text."""
+def _parse_cell(path: Path, line: int, column: str, text: str, decimal_comma: bool,
+                missing: bool = False) -> float:
+    """One cell as a finite float (NaN for a missed reading, :data:`MISSING`, where
+    ``missing``), or a SessionError naming the line, column and text."""
+    if missing and text.lower() in MISSING:
+        return math.nan
     if not text:
         raise SessionError(path, f"column {column!r} is empty; fill in the value or remove "
                            "the row", where=f"line {line}")
@@ -142,7 +150,8 @@ def _check_header(path: Path, header: list[str], sep: str, line: int) -> None:
 
 
 def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str,
-                 stamps: tuple[str, float] | None = None) -> tuple[dict, list]:
+                 stamps: tuple[str, float] | None = None,
+                 missing: frozenset = frozenset()) -> tuple[dict, list]:
     """Read the columns ``wanted`` (role -> header name) of a CSV file as float arrays.
 
     Parameters
@@ -155,6 +164,8 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str,
     stamps : ``(role, seconds per unit)``: a column that may hold a logger's time
         stamps (``12:00:01.250``, ``2026-11-26 12:00:01,250``, ``01:02.5``) instead of
         numbers, read as the time since its first row, in its unit.
+    missing : the roles whose cells may be a missed reading (:data:`MISSING`), read as
+        NaN.
 
     Returns
     -------
@@ -184,7 +195,7 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str,
     try:
         for _ in range(at):  # a preamble before the header
             next(reader)
-        return _read_rows(path, reader, sep, wanted, asked_by, stamps)
+        return _read_rows(path, reader, sep, wanted, asked_by, stamps, missing)
     except csv.Error as exc:
         raise SessionError(path, f"not readable as CSV ({exc}); check the quoting and that "
                            "each cell is a short number", where=f"line {reader.line_num}") \
@@ -231,7 +242,7 @@ def _text_only(row, index, decimal_comma: bool) -> bool:
     return not any(_numeric(c, decimal_comma) for c in cells if c)
 
 
-def _read_rows(path, reader, sep, wanted, asked_by, stamps=None):
+def _read_rows(path, reader, sep, wanted, asked_by, stamps=None, missing=frozenset()):
     header = None
     for row in reader:
         if any(cell.strip() for cell in row):
@@ -296,7 +307,8 @@ def _read_rows(path, reader, sep, wanted, asked_by, stamps=None):
                                        "numbers mixed); write every time the same way",
                                        where=f"line {line}")
             values[role].append(stamp if stamp is not None
-                                else _parse_cell(path, line, wanted[role], cell, decimal_comma))
+                                else _parse_cell(path, line, wanted[role], cell, decimal_comma,
+                                                 role in missing))
         lines.append(line)
     out = {role: np.frombuffer(v, dtype=float).copy() for role, v in values.items()}
     if True in kinds and out[stamped].size:

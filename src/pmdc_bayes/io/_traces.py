@@ -10,6 +10,7 @@ import numpy as np
 from .._errors import SessionError
 from . import _sensors as sensors
 from ._csv import read_columns
+from ._missing import MISSABLE, without_missing
 from ._position import (
     angle_si,
     edge_angles,
@@ -142,16 +143,18 @@ def _columns(t: _Table, kinds: dict, required=()) -> dict:
 
 def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
     """A trace's CSV file: its path, the raw columns, the raw and SI time axes (at
-    least 3 samples, strictly increasing)."""
+    least 3 samples, strictly increasing) and the file lines of the rows left out for a
+    missing reading (:func:`._missing.without_missing`)."""
     path = root / t.string("file")
     second = float(to_si(np.array([1.0]), "time", u["time"])[0])
     raw, lines = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}",
-                              stamps=("time", second))
+                              stamps=("time", second), missing=MISSABLE)
     if "time" in cols:
         t_raw = unwrap_time(t, path, raw["time"])
     else:  # rows at a stated rate, in the trace's unit of time from the first row
         rate = t.number("sample_rate", "frequency", u["sample_rate"], positive=True)
         t_raw = np.arange(len(lines)) / rate / second
+    raw, t_raw, lines, left_out = without_missing(path, raw, t_raw, lines, cols)
     if t_raw.size < 3:
         raise SessionError(path, f"only {t_raw.size} samples; a trace needs at least 3 "
                            "samples (log a longer record)")
@@ -173,7 +176,7 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
                                f"row: the motor did not turn, or the column is not the {role}; "
                                "remove the trace or log one in which the motor turns")
     time = to_si(t_raw, "time", u["time"])
-    return path, raw, t_raw, time
+    return path, raw, t_raw, time, left_out
 
 
 def _counter_wrap(before: float, after: float) -> int | None:
@@ -263,7 +266,7 @@ def _trace(t: _Table, root: Path) -> Trace:
     if "voltage" not in cols and "voltage" not in t.data:
         t.fail("voltage", "no armature voltage given; add a column (columns.voltage = "
                "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
-    path, raw, t_raw, time = _read_trace_file(t, root, cols, u)
+    path, raw, t_raw, time, left_out = _read_trace_file(t, root, cols, u)
     si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw
           if role == "load_torque" or (role == "voltage" and duty is None)}
     if "current" in raw:
@@ -288,7 +291,7 @@ def _trace(t: _Table, root: Path) -> Trace:
                  load_torque=inputs["load_torque"], voltage_logged="voltage" in si,
                  load_logged="load_torque" in si, initial=initial,
                  position=m["position"], speed_logged="speed" in raw,
-                 encoder_step=m["encoder_step"], drag=drag)
+                 encoder_step=m["encoder_step"], drag=drag, rows_left_out=left_out)
 
 
 def _coast_down(t: _Table, root: Path) -> Trace:
@@ -301,11 +304,11 @@ def _coast_down(t: _Table, root: Path) -> Trace:
                 extra={"speed": sensors.VOLTS})
     cols = _columns(t, kinds, ("speed",))
     sensors.check_unused(t, u, cols)
-    path, raw, _, time = _read_trace_file(t, root, cols, u)
+    path, raw, _, time, left_out = _read_trace_file(t, root, cols, u)
     none = Schedule(time[:1].copy(), np.zeros(1))
     return Trace(name=name, kind=COAST_DOWN, file=path, time=time,
                  speed=sensors.speed_si(t, raw["speed"], u), current=None, voltage=none,
-                 load_torque=none)
+                 load_torque=none, rows_left_out=left_out)
 
 
 def read_traces(top: _Table, root: Path) -> tuple[tuple, tuple]:

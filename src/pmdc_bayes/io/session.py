@@ -149,6 +149,8 @@ class Trace:
     drag : a known load that depends on the speed (:class:`Drag`): a torque
         ``constant·sign(ω) + viscous·ω`` plus a curved part opposing the motion (a fan,
         a brake, a generator into a known resistor), on top of ``load_torque``.
+    rows_left_out : the file lines of the CSV's rows left out for a reading the logger
+        missed (an empty or ``NaN`` cell in a channel).
     """
 
     name: str
@@ -166,6 +168,7 @@ class Trace:
     speed_logged: bool = True
     encoder_step: float = 0.0
     drag: Drag = NO_DRAG
+    rows_left_out: tuple[int, ...] = ()
 
     def __repr__(self) -> str:
         logged = [c for c, y in (("speed", self.speed if self.speed_logged else None),
@@ -298,8 +301,9 @@ class Session:
         """The first of ``names`` (default: the session's nuisances) with nothing in the
         session to act on, and why: a speed sensor's lag, gain or offset without a
         logged speed (an angle an encoder counts is not read through them), a current
-        sensor's without a logged current, a dead time without a driven trace.  A
-        coast-down's speed is read by the speed sensor too."""
+        sensor's without a logged current, a dead time without a driven trace, a dead
+        zone without a commanded voltage.  A coast-down's speed is read by the speed
+        sensor too."""
         speed = (any(tr.speed is not None and tr.speed_logged for tr in self.traces)
                  or bool(self.coast_downs))
         current = any(tr.current is not None for tr in self.traces)
@@ -312,6 +316,9 @@ class Session:
                 return name, "no driven trace logs a current"
             if name == "dead_time" and not self.traces:
                 return name, "the session has no driven trace"
+            if name == "dead_zone" and not (self.traces or self.steady_tables
+                                            or self.operating_points):
+                return name, "the session commands no voltage (a driver's dead zone acts on it)"
         return None
 
     def trace(self, name: str) -> Trace:

@@ -1,0 +1,42 @@
+"""Readings a logger missed: the rows of a trace's CSV with an empty or ``NaN`` cell in a
+channel (:data:`._csv.MISSING`) are left out, the others kept at their own times, as long
+as they are a few; the trace records the file lines it left out."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .._errors import SessionError
+
+__all__ = ["MISSABLE", "MISSING_SHARE", "without_missing"]
+
+MISSABLE = frozenset({"speed", "current", "voltage", "load_torque", "position"})
+MISSING_SHARE = 0.1  # at most this share of a trace's rows may be left out
+
+
+def without_missing(path: Path, raw: dict, t_raw: np.ndarray, lines: list, cols: dict):
+    """``raw``, ``t_raw`` and ``lines`` without the rows where a channel's reading is
+    missing (NaN), and the file lines of those rows.  More than :data:`MISSING_SHARE` of
+    the rows missing is an error naming the column that misses most (a channel logged at
+    a lower rate than the trace, whose gaps would take the other channels' readings
+    with them)."""
+    gaps = {role: ~np.isfinite(raw[role]) for role in MISSABLE & raw.keys()}
+    bad = np.zeros(t_raw.size, bool)
+    for g in gaps.values():
+        bad |= g
+    if not bad.any():
+        return raw, t_raw, lines, ()
+    if bad.sum() > MISSING_SHARE * bad.size:
+        role = max(gaps, key=lambda r: int(gaps[r].sum()))
+        raise SessionError(path, f"column {cols[role]!r} has no reading in "
+                           f"{int(gaps[role].sum())} of {bad.size} rows (at most "
+                           f"{MISSING_SHARE:.0%} of a trace's rows may miss one, and are "
+                           "left out); log it at the trace's rate, fill in the readings, "
+                           "or give it a trace (CSV) of its own",
+                           where=f"line {lines[int(np.argmax(gaps[role]))]}")
+    keep = ~bad
+    out = {role: v[keep] for role, v in raw.items()}
+    dropped = tuple(int(x) for x, b in zip(lines, bad, strict=True) if b)
+    return out, t_raw[keep], [x for x, k in zip(lines, keep, strict=True) if k], dropped
