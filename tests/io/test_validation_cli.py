@@ -60,6 +60,14 @@ def _sparse_current(d):
     (d / "step.csv").write_text("\n".join(lines) + "\n")
 
 
+def _coarse_clock(d):
+    """Time stamps at 20 ms for samples every 10 ms (a logger's coarse clock)."""
+    lines = (d / "step.csv").read_text().splitlines()
+    rows = [x.split(",") for x in lines[1:]]
+    (d / "step.csv").write_text(lines[0] + "\n" + "".join(
+        f"{int(round(float(r[0]) * 100)) // 2 / 50:.2f},{r[1]},{r[2]}\n" for r in rows))
+
+
 def _flat_step(d):
     rows = "".join(f"{k * 0.01:.2f},500.0,0.2\n" for k in range(50))
     (d / "step.csv").write_text("t,speed_rpm,ia\n" + rows)
@@ -140,6 +148,9 @@ CASES = [
     ("time-not-increasing", _cell(10, "t", "0.07"),
      ["step.csv:line 10", "not strictly increasing", "(line 9)"]),
     ("time-decreasing", _cell(20, "t", "0.01"), ["step.csv:line 20", "not strictly increasing"]),
+    ("time-coarse-clock", _coarse_clock,
+     ["step.csv:line 3", "not strictly increasing", "coarser than the sampling",
+      "sample_rate = 100 "]),
     ("fewer-than-3-samples", _two_samples, ["step.csv", "only 2 samples", "at least 3"]),
     # schedules
     ("schedule-no-overlap", _sub(SCHEDULE, "voltage = [[5.0, 6.0]]"),

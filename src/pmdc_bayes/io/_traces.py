@@ -166,6 +166,13 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
         if wrap is not None and "time_wrap" not in t.data:
             fix = (f"the time jumps back near 2^{wrap.bit_length() - 1}: a timer that wraps; "
                    f"add time_wrap = {wrap} to the trace (in its time unit)")
+        elif np.all(np.diff(t_raw) >= 0) and t_raw[-1] > t_raw[0]:
+            rows = t_raw.size + len(left_out)
+            rate = (rows - 1) / float(t_raw[-1] - t_raw[0]) / second
+            fix = ("the time repeats, never going back: a clock coarser than the sampling "
+                   "(a logger's millisecond stamps); if the rows are samples at a steady "
+                   f"rate, remove columns.time and give sample_rate = {rate:.4g} (Hz, the "
+                   "rows over the record's span), or log a finer time")
         raise SessionError(path, f"time column {cols['time']!r} is not strictly increasing: "
                            f"{t_raw[k]:.12g} follows {t_raw[k - 1]:.12g} (line "
                            f"{lines[k - 1]}); {fix}", where=f"line {lines[k]}")
