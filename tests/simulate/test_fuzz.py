@@ -120,7 +120,7 @@ def test_a_non_ideality_keeps_the_draw_and_records_its_truth(key, tmp_path):
     assert bad.shapes == clean.shapes
     recorded = {"dead time": "dead_time", "speed lag": "speed_lag", "voltage drop": "Vdrop",
                 "source resistance": "Rs", "current limit": "Imax", "speed gain": "speed_gain",
-                "speed offset": "speed_offset"}
+                "speed offset": "speed_offset", "dead zone": "Vdz_fwd"}
     if key in recorded:
         name = recorded[key]
         assert bad.truth[name] != clean.truth.get(name, 1.0 if "gain" in name else 0.0)
