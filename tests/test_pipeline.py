@@ -42,6 +42,7 @@ def test_summary_contract(demo_run):
 def test_demo_hdi_contains_truth_and_gates_pass(demo_run):
     out, summary = demo_run
     assert summary["diagnostics"]["gates_passed"], summary["diagnostics"]["failures"]
+    assert summary["diagnostics"]["sampled_in_value"] == []  # its posterior is Gaussian in log
     for name, row in summary["parameters"].items():
         truth = summary["truth"][name]
         assert row["hdi_3%"] <= truth <= row["hdi_97%"], name

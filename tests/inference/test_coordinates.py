@@ -121,6 +121,8 @@ def test_a_weakly_identified_coulomb_torque_is_sampled_to_the_gates(tmp_path):
     fit = fit_map(model, seed=12)
     post = sample_posterior(model, fit, seed=12, progress=False)
     assert post.stop is Stop.CONVERGED, post.message
+    in_value = post.idata.posterior.attrs["sampled_in_value"].split(",")
+    assert in_value == [s.name for s in model.registry.specs if s.transform == "log"]
     ok, failures = gates(summarize(post), posterior=post)
     assert ok, failures
     draws = post.draws_si()

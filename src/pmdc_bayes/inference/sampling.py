@@ -80,7 +80,9 @@ class Posterior:
     n_steps, burn_in : steps run and steps discarded: those before the independence
         proposals' last refit (``idata.posterior.attrs['adapted']``, 0 without one;
         ``attrs['independence_share']`` the share of steps they then took) and
-        ``ceil(2·max τ)`` after it.
+        ``ceil(2·max τ)`` after it.  ``attrs['sampled_in_value']`` names, comma-separated,
+        the positive parameters the walkers moved in value rather than in log
+        (:class:`~.coordinates.Coordinates`; empty: all in θ).
     capped : the run stopped before the stopping rule was met; ``stop`` says how
         (:class:`~pmdc_bayes.inference.stopping.Stop`), ``message`` why in words.
     wall_time : seconds spent sampling (including the log-likelihood for ``idata``).
@@ -281,7 +283,9 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     acc = np.asarray(sampler.acceptance_fraction, dtype=float)
     idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws, seed=seed)
     idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged),
-                                 ensembles=k, adapted=adapted, stop=stop.name)
+                                 ensembles=k, adapted=adapted, stop=stop.name,
+                                 sampled_in_value=",".join(
+                                     n for n, v in zip(names, xy.linear, strict=True) if v))
     shares = [m.share for ms in sampler.moves for m, _ in ms
               if isinstance(m, LaplaceMixture)] if moves is None else []
     if shares:  # the independence proposals' share of the steps the kept draws took
