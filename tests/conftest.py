@@ -129,10 +129,6 @@ def _release_compiled_programs():
     """Drop the compiled programs of a test module after it: hundreds of them kept in one
     process exhaust the compiler's memory on a 2-core CI machine."""
     yield
-    import gc
-
     from pmdc_bayes.inference import cache
 
-    cache._IN_MEMORY.clear()
-    jax.clear_caches()
-    gc.collect()
+    cache.release()

@@ -3,6 +3,7 @@ unwritable entries, bounded, and cleared without touching anything else."""
 
 import os
 import sys
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -250,3 +251,21 @@ def test_a_stage_line_is_one_write_so_threads_cannot_split_it(monkeypatch):
     assert len(writes) == 8
     assert all(w.startswith("pmdc-bayes: [") and w.endswith("\n") and w.count("\n") == 1
                for w in writes)
+
+
+@pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="no /proc memory maps here")
+def test_programs_are_let_go_when_the_process_nears_its_memory_map_limit(monkeypatch):
+    """Each compiled program keeps memory maps; a process making hundreds would reach the
+    system's limit and fail in the compiler, so past MAP_SHARE of it those kept are let
+    go before the next is made (and made again when next asked for)."""
+    cache.compiled(("map-test-a",), lambda: jax.jit(lambda x: x + 1))
+    assert ("map-test-a",) in cache._IN_MEMORY
+    monkeypatch.setattr(cache, "MAP_SHARE", 1.0)
+    assert not cache._map_pressure()
+    cache.compiled(("map-test-b",), lambda: jax.jit(lambda x: x + 2))
+    assert ("map-test-a",) in cache._IN_MEMORY  # far from the limit: kept
+    monkeypatch.setattr(cache, "MAP_SHARE", 0.0)
+    assert cache._map_pressure()
+    fn = cache.compiled(("map-test-c",), lambda: jax.jit(lambda x: 2 * x))
+    assert set(cache._IN_MEMORY) == {("map-test-c",)}
+    assert float(fn(3.0)) == 6.0

@@ -42,6 +42,7 @@ def posterior_stage(model, fit, *, seed, progress, max_seconds=None):
             "n_walkers": int(post.draws.shape[0]), "n_steps": int(post.n_steps),
             "burn_in": int(post.burn_in), "capped": bool(post.capped),
             "sampler_message": post.message,
+            "coordinates": post.idata.posterior.attrs.get("coordinates", "theta"),
             "sampled_in_value": [n for n in post.idata.posterior.attrs.get(
                 "sampled_in_value", "").split(",") if n],
             "widest_direction": widest_direction(fit, post.draws_log),

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pmdc_bayes.inference.coordinates import Coordinates
+from pmdc_bayes.inference.coordinates import Coordinates, MotorConstants
 from pmdc_bayes.inference.moves import default_moves
 from pmdc_bayes.inference.params import ParamSpec, Prior, Registry
 
@@ -127,5 +127,111 @@ def test_a_weakly_identified_coulomb_torque_is_sampled_to_the_gates(tmp_path):
     assert ok, failures
     draws = post.draws_si()
     for name in ("Ra", "La", "K", "B", "J", "Tc"):
+        lo, hi = np.quantile(draws[name], [0.005, 0.995])
+        assert lo < fz.truth[name] < hi, (name, lo, fz.truth[name], hi)
+
+
+MOTOR = dict(Ra=2.0, K=0.05, B=2e-4, J=2e-5)  # S = Ra·B + K² = 2.9e-3
+
+
+def _motor_registry():
+    return Registry([ParamSpec(n, "1", "motor", Prior("lognormal", v, 1.0), v)
+                     for n, v in MOTOR.items()])
+
+
+def _gain_and_time_constant(theta):
+    """A speed-only step's posterior: Ra from the bench (1 %), the gain K/S and the time
+    constant J·Ra/S within 0.5 %, K, B and J otherwise only by their priors (a factor e
+    at one sd): K, B and J on a curve in log."""
+    ra, k, b, j = (np.exp(theta[:, i]) for i in range(4))
+    s = ra * b + k * k
+    want = {n: np.log(v) for n, v in MOTOR.items()}
+    s0 = MOTOR["Ra"] * MOTOR["B"] + MOTOR["K"] ** 2
+    return (stats.norm.logpdf(np.log(ra), want["Ra"], 0.01)
+            + stats.norm.logpdf(np.log(k / s), np.log(MOTOR["K"] / s0), 0.005)
+            + stats.norm.logpdf(np.log(j * ra / s), np.log(MOTOR["J"] * MOTOR["Ra"] / s0), 0.005)
+            + sum(stats.norm.logpdf(theta[:, i], want[n], 1.0)
+                  for i, n in enumerate(MOTOR) if n != "Ra"))
+
+
+def _laplace_of(log_prob, theta):
+    h, n = 1e-4, theta.size
+    e = np.eye(n) * h
+    hess = np.array([[(log_prob((theta + e[i] + e[j])[None]) - log_prob((theta + e[i] - e[j])[None])
+                       - log_prob((theta - e[i] + e[j])[None])
+                       + log_prob((theta - e[i] - e[j])[None]))[0] / (4 * h * h)
+                      for j in range(n)] for i in range(n)])
+    return type("Fit", (), {"theta": theta, "cov_log": np.linalg.inv(-hess)})()
+
+
+def test_the_motor_constants_map_back_and_keep_the_volume():
+    """θ → φ → θ is the identity, |dφ/dθ| = 1 (so the density in φ is θ's), and every φ
+    is a motor: the friction's share u far either way still gives finite K, B, J."""
+    xy = MotorConstants(_motor_registry())
+    theta = np.log(np.array([[2.0, 0.05, 2e-4, 2e-5], [0.5, 0.3, 1e-2, 1e-3]]))
+    np.testing.assert_allclose(xy.to_theta(xy.from_theta(theta)), theta, atol=1e-12)
+    for t in theta:
+        np.testing.assert_allclose(abs(np.linalg.det(xy.jacobian(t))), 1.0, rtol=1e-7)
+    assert np.all(xy.log_jacobian(theta) == 0.0)
+    phi = np.repeat(xy.from_theta(theta[:1]), 2, axis=0)
+    phi[:, 2] = [-40.0, 40.0]  # u: B negligible against K², or K² against B
+    back = xy.to_theta(phi)
+    assert np.all(np.isfinite(back))
+    np.testing.assert_allclose(xy.from_theta(back), phi, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_speed_step_curve_is_sampled_in_the_motor_constants(seed):
+    """On the curve a speed-only step leaves, the chooser takes the motor's constants;
+    the draws mapped back keep the gain and time constant the data fix, follow K's
+    prior-bound spread, and mix several times faster than in θ."""
+    theta0 = np.log(np.array(list(MOTOR.values())))
+    fit = _laplace_of(_gain_and_time_constant, theta0)
+    xy = Coordinates.for_fit(_motor_registry(), fit, _gain_and_time_constant)
+    assert isinstance(xy, MotorConstants)
+    taus, chains = {}, {}
+    for name, coords in (("constants", xy), ("theta", Coordinates([False] * 4))):
+        rng = np.random.default_rng(seed)
+        start = rng.multivariate_normal(fit.theta, fit.cov_log, size=32)
+        s = emcee.EnsembleSampler(32, 4, coords.log_prob(_gain_and_time_constant),
+                                  vectorize=True, moves=default_moves(coords.laplace(fit)))
+        s.random_state = np.random.RandomState(seed).get_state()
+        s.run_mcmc(coords.from_theta(start), 3000, progress=False)
+        taus[name] = float(np.max(s.get_autocorr_time(discard=600, quiet=True)))
+        chains[name] = coords.to_theta(s.get_chain(discard=600, flat=True))
+    th = chains["constants"]
+    ra, k, b, j = (np.exp(th[:, i]) for i in range(4))
+    s0 = MOTOR["Ra"] * MOTOR["B"] + MOTOR["K"] ** 2
+    assert np.std(np.log(k / (ra * b + k * k))) < 0.01
+    assert abs(np.mean(np.log(j * ra / (ra * b + k * k))) - np.log(MOTOR["J"] * 2.0 / s0)) < 0.01
+    assert np.std(th[:, 1]) > 0.1  # K spreads along the curve
+    assert taus["theta"] > 3 * taus["constants"], taus
+
+
+@pytest.mark.slow
+def test_a_speed_only_step_from_steady_is_sampled_to_the_gates(tmp_path):
+    """Fuzzed session 23 (bench simulator; one step from steady, speed only, 1,201
+    samples): the data fix the gain and the time constant and leave K, B and J on a curve
+    over two decades of B.  In θ the ensemble gave up (τ about 400 steps, the gates
+    projected at 20,700 steps); in the motor's constants τ is about 11 and the gates
+    pass, the truths of Ra and of the curve's K, B and J inside their 99 % intervals
+    (La is set by its bench reading, which the fuzzer drew 2.7 sd off its truth)."""
+    from pmdc_bayes.inference.fit import fit_map
+    from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.inference.sampling import Stop, gates, sample_posterior, summarize
+    from pmdc_bayes.inference.seed import fit_seed
+    from pmdc_bayes.io.loader import load_session
+    from pmdc_bayes.simulate.fuzz import fuzz_session
+
+    fz = fuzz_session(23, out=tmp_path / "s23")
+    session = load_session(fz.path)
+    model = build_model(session, fit_seed(session))
+    post = sample_posterior(model, fit_map(model, seed=23), seed=23, progress=False)
+    assert post.idata.posterior.attrs["coordinates"] == "motor constants"
+    assert post.stop is Stop.CONVERGED, post.message
+    ok, failures = gates(summarize(post), posterior=post)
+    assert ok, failures
+    draws = post.draws_si()
+    for name in ("Ra", "K", "B", "J"):
         lo, hi = np.quantile(draws[name], [0.005, 0.995])
         assert lo < fz.truth[name] < hi, (name, lo, fz.truth[name], hi)

@@ -23,7 +23,8 @@ from jax import export
 
 from ..physics.solution import Experiment
 
-__all__ = ["enable", "compiled", "cache_dir", "announcing", "compile_seconds", "StageClock"]
+__all__ = ["enable", "compiled", "release", "cache_dir", "announcing", "compile_seconds",
+           "StageClock", "MAP_SHARE"]
 
 _IN_MEMORY: dict = {}
 _STATE = {"dir": None, "announce": None}
@@ -148,13 +149,45 @@ class _Compiled:
 _BUILDING = threading.Lock()
 
 
+MAP_SHARE = 0.5  # of the system's limit on a process's memory maps: then programs are let go
+
+
+def _map_pressure() -> bool:
+    """Whether this process holds more than :data:`MAP_SHARE` of the memory maps the
+    system allows one (Linux's ``vm.max_map_count``): every compiled program keeps its
+    own, and a process that makes hundreds (a lot of motors of many shapes, a long model
+    search) would otherwise fail in the compiler when the limit is reached.  False
+    where the system does not say."""
+    try:
+        limit = int(Path("/proc/sys/vm/max_map_count").read_text())
+        with open("/proc/self/maps", "rb") as maps:
+            held = sum(1 for _ in maps)
+    except (OSError, ValueError):
+        return False
+    return held > MAP_SHARE * limit
+
+
+def release() -> None:
+    """Let go of every compiled program this process keeps (made again, or loaded from
+    the disk cache, when next asked for)."""
+    import gc
+
+    _IN_MEMORY.clear()
+    jax.clear_caches()
+    gc.collect()
+
+
 def compiled(key: tuple, build):
     """The function ``build()`` returns (a ``jax.jit``-ed function of arrays), built once
-    per ``key``; exported to and loaded from disk when :func:`enable` was called."""
+    per ``key``; exported to and loaded from disk when :func:`enable` was called.  When
+    the process nears its limit of memory maps (:func:`_map_pressure`), the programs
+    kept so far are let go first (:func:`release`)."""
     fn = _IN_MEMORY.get(key)
     if fn is None:
         with _BUILDING:
             fn = _IN_MEMORY.get(key)
+            if fn is None and _map_pressure():
+                release()
             if fn is None:
                 digest = hashlib.sha256(repr(key).encode()).hexdigest()[:24]
                 stem = None if _STATE["dir"] is None else _STATE["dir"] / f"{key[0]}-{digest}"

@@ -1,18 +1,21 @@
 """The coordinates the posterior sampler moves in.
 
 The fit works in θ, where a positive quantity is its logarithm.  The sampler moves in
-φ: either θ itself, or every positive quantity in value, whichever the posterior is
-closer to Gaussian in around the MAP (:meth:`Coordinates.for_fit`).  Which one depends
-on the ridge the data leave: where they trade two parameters' sum (viscous against
-Coulomb friction: ``B·ω + Tc``) the ridge is straight in value
-and curved in log, and in log the lognormal priors' tail towards zero adds a long arm
-to it; where they trade a product (a current limit against the torque constant:
-``K·Imax``) it is straight in log.  On a fuzzed session of the first kind the
-autocorrelation time was 230 steps in log and 9 in value; on ``data/bench``, of the
-second kind, 20 in log and 140 in value.
+φ: θ itself, every positive quantity in value, or θ with the viscous friction and the
+inertia replaced by the motor's steady gain and mechanical time constant
+(:class:`MotorConstants`), whichever the posterior is closest to Gaussian in around the
+MAP (:meth:`Coordinates.for_fit`).  Which one depends on the ridge the data leave:
+where they trade two parameters' sum (viscous against Coulomb friction: ``B·ω + Tc``)
+the ridge is straight in value and curved in log, and in log the lognormal priors'
+tail towards zero adds a long arm to it; where they trade a product (a current limit
+against the torque constant: ``K·Imax``) it is straight in log; where a speed-only step
+fixes only the gain ``K/(Ra·B + K²)`` and the time constant ``J·Ra/(Ra·B + K²)``, K, B
+and J lie on a curve in either, and straight in the motor's constants.  On a fuzzed
+session of the first kind the autocorrelation time was 230 steps in log and 9 in
+value; on ``data/bench``, of the second kind, 20 in log and 140 in value.
 
-The density in φ is the posterior in θ times ``|dθ/dφ| = 1/φ`` for each coordinate in
-value, so the draws, mapped back, are draws of the same posterior.
+The density in φ is the posterior in θ times ``|dθ/dφ|`` (``1/φ`` for each coordinate
+in value), so the draws, mapped back, are draws of the same posterior.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["PROBE", "CLEARLY", "Coordinates", "Laplace"]
+__all__ = ["PROBE", "CLEARLY", "Coordinates", "MotorConstants", "Laplace", "exact_laplace"]
 
 PROBE = 2.0  # the Laplace sds either side of the MAP at which the coordinates are compared
 CLEARLY = 1.0  # value's summed misprediction must be this much smaller (log-density units)
@@ -35,28 +38,76 @@ class Laplace(NamedTuple):
     cov_log: np.ndarray
 
 
-class Coordinates:
-    """The map between θ and the sampler's φ: ``linear[i]`` where φ_i = exp(θ_i)."""
+def exact_laplace(fit, log_prob) -> Laplace:
+    """The Laplace approximation at ``fit``'s MAP from the log-posterior's own curvature
+    (central differences of ``log_prob``, of θ and vectorised, in steps of a thousandth
+    of each Laplace sd): the fit's is Gauss–Newton's, which leaves out the residuals'
+    curvature and so, along a curved ridge the data leave, can be several times too wide.
+    The fit's own where the differences do not give a maximum (a Hessian not negative
+    definite)."""
+    theta = np.asarray(fit.theta, dtype=float)
+    cov = np.asarray(fit.cov_log, dtype=float)
+    n = theta.size
+    h = 1e-3 * np.minimum(np.sqrt(np.abs(np.diag(cov))), 1.0)
+    pairs = [(i, j) for i in range(n) for j in range(i, n)]
+    signs = ((1, 1), (1, -1), (-1, 1), (-1, -1))
+    points = np.repeat(theta[None], 4 * len(pairs), axis=0)
+    for p, (i, j) in enumerate(pairs):
+        for q, (a, b) in enumerate(signs):
+            points[4 * p + q, i] += a * h[i]
+            points[4 * p + q, j] += b * h[j]
+    v = np.asarray(log_prob(points), dtype=float).reshape(len(pairs), 4)
+    hess = np.zeros((n, n))
+    for p, (i, j) in enumerate(pairs):
+        hess[i, j] = hess[j, i] = (v[p, 0] - v[p, 1] - v[p, 2] + v[p, 3]) / (4 * h[i] * h[j])
+    if not np.all(np.isfinite(hess)):
+        return Laplace(theta, cov)
+    eig = np.linalg.eigvalsh(-hess)
+    if eig[0] <= 0:
+        return Laplace(theta, cov)
+    return Laplace(theta, np.linalg.inv(-hess))
 
-    def __init__(self, linear):
-        self.linear = np.asarray(linear, dtype=bool)
 
-    @classmethod
-    def for_fit(cls, registry, fit, log_prob) -> Coordinates:
-        """θ, or every log-transformed parameter of ``registry`` in value: whichever
-        ``fit``'s Laplace approximation (carried to them) predicts the log-posterior
-        ``log_prob`` (of θ, vectorised) better along each positive parameter's
-        regression line (the parameters moved by their Laplace regression on it, to
-        :data:`PROBE` sds either side of the MAP, where a Gaussian falls by PROBE²/2):
-        the summed misprediction is compared; θ unless value's is smaller by
-        :data:`CLEARLY`."""
-        logs = np.array([s.transform == "log" for s in registry.specs])
-        if not logs.any():
-            return cls(logs)
-        theta, value = cls(np.zeros_like(logs)), cls(logs)
-        better = value._misfit(fit, log_prob, logs) + CLEARLY < \
-            theta._misfit(fit, log_prob, logs)
-        return value if better else theta
+class _Map:
+    """What every system of coordinates shares: the Laplace approximation carried to φ,
+    the density in φ and how close to Gaussian it is around the MAP."""
+
+    kind = "theta"
+
+    def to_theta(self, phi) -> np.ndarray:
+        raise NotImplementedError
+
+    def from_theta(self, theta) -> np.ndarray:
+        raise NotImplementedError
+
+    def log_jacobian(self, theta) -> np.ndarray:
+        raise NotImplementedError
+
+    def jacobian(self, theta) -> np.ndarray:
+        """``dφ/dθ`` at ``theta`` (central differences)."""
+        theta = np.asarray(theta, dtype=float)
+        h = 1e-6 * np.maximum(1.0, np.abs(theta))
+        cols = [(self.from_theta(theta + h[i] * e) - self.from_theta(theta - h[i] * e))
+                / (2 * h[i]) for i, e in enumerate(np.eye(theta.size))]
+        return np.stack(cols, axis=1)
+
+    def laplace(self, fit) -> Laplace:
+        """``fit``'s Laplace approximation carried to φ (to first order)."""
+        theta = np.asarray(fit.theta, dtype=float)
+        jac = self.jacobian(theta)
+        return Laplace(self.from_theta(theta), jac @ np.asarray(fit.cov_log) @ jac.T)
+
+    def log_prob(self, log_prob):
+        """``log_prob`` (of θ, vectorised) as the density of φ; -inf where φ maps to no
+        θ (a value coordinate that is not positive)."""
+        def in_phi(phi):
+            theta = self.to_theta(np.atleast_2d(phi))
+            ok = np.all(np.isfinite(theta), axis=1)
+            out = np.full(theta.shape[0], -np.inf)
+            if ok.any():
+                out[ok] = log_prob(theta[ok]) + self.log_jacobian(theta[ok])
+            return out
+        return in_phi
 
     def _misfit(self, fit, log_prob, along) -> float:
         """Σ |log-density − its Laplace prediction| in these coordinates at ±PROBE sd
@@ -69,6 +120,38 @@ class Coordinates:
         density = self.log_prob(log_prob)
         drop = density(centre[None] + np.array(lines)) - density(centre[None])[0]
         return float(np.sum(np.abs(drop + 0.5 * PROBE**2)))
+
+    def in_value(self, names) -> list[str]:
+        """The parameters moved in value rather than in log."""
+        return []
+
+
+class Coordinates(_Map):
+    """The map between θ and the sampler's φ: ``linear[i]`` where φ_i = exp(θ_i)."""
+
+    def __init__(self, linear):
+        self.linear = np.asarray(linear, dtype=bool)
+        self.kind = "value" if self.linear.any() else "theta"
+
+    @classmethod
+    def for_fit(cls, registry, fit, log_prob) -> _Map:
+        """θ, every log-transformed parameter of ``registry`` in value, or (when it has
+        Ra, K, B and J) the motor's constants (:class:`MotorConstants`): whichever
+        ``fit``'s Laplace approximation (carried to them) predicts the log-posterior
+        ``log_prob`` (of θ, vectorised) best along each positive parameter's
+        regression line (the parameters moved by their Laplace regression on it, to
+        :data:`PROBE` sds either side of the MAP, where a Gaussian falls by PROBE²/2):
+        the summed misprediction is compared; θ unless another's is smaller by
+        :data:`CLEARLY`."""
+        logs = np.array([s.transform == "log" for s in registry.specs])
+        theta = cls(np.zeros_like(logs))
+        if not logs.any():
+            return theta
+        others = [cls(logs)] + ([MotorConstants(registry)] if MotorConstants.fits(registry)
+                                else [])
+        misfit = {c: c._misfit(fit, log_prob, logs) for c in [theta, *others]}
+        best = min(others, key=misfit.get)
+        return best if misfit[best] + CLEARLY < misfit[theta] else theta
 
     def to_theta(self, phi) -> np.ndarray:
         """θ of ``phi`` ``(..., P)``; NaN where a value coordinate is not positive."""
@@ -87,20 +170,53 @@ class Coordinates:
         plus this."""
         return -np.sum(np.asarray(theta)[..., self.linear], axis=-1)
 
-    def laplace(self, fit) -> Laplace:
-        """``fit``'s Laplace approximation carried to φ (to first order)."""
-        theta = np.asarray(fit.theta, dtype=float)
-        d = np.where(self.linear, np.exp(theta), 1.0)
-        return Laplace(self.from_theta(theta), np.asarray(fit.cov_log) * np.outer(d, d))
+    def jacobian(self, theta) -> np.ndarray:
+        return np.diag(np.where(self.linear, np.exp(np.asarray(theta, dtype=float)), 1.0))
 
-    def log_prob(self, log_prob):
-        """``log_prob`` (of θ, vectorised) as the density of φ; -inf where a value
-        coordinate is not positive."""
-        def in_phi(phi):
-            theta = self.to_theta(np.atleast_2d(phi))
-            ok = np.all(np.isfinite(theta), axis=1)
-            out = np.full(theta.shape[0], -np.inf)
-            if ok.any():
-                out[ok] = log_prob(theta[ok]) + self.log_jacobian(theta[ok])
-            return out
-        return in_phi
+    def in_value(self, names) -> list[str]:
+        return [n for n, v in zip(names, self.linear, strict=True) if v]
+
+
+class MotorConstants(_Map):
+    """θ with ``log K``, ``log B`` and ``log J`` replaced by the logarithms of the motor's
+    steady gain ``G = K/S`` and mechanical time constant ``τ = J·Ra/S``, ``S = Ra·B + K²``
+    (equations (8)–(9)), what a step of the speed fixes, and ``u = log(Ra·B/K²)``, how
+    the friction and the back-emf share S, which the data may leave to the priors.  Back
+    from φ: ``K = 1/(G·(1 + eᵘ))``, ``B = eᵘ·K²/Ra``, ``J = τ·S/Ra``: every φ is a
+    motor, and ``|dφ/dθ| = 1``."""
+
+    kind = "motor constants"
+    NAMES = ("Ra", "K", "B", "J")
+
+    def __init__(self, registry):
+        self.ra, self.k, self.b, self.j = (registry.names.index(n) for n in self.NAMES)
+
+    @classmethod
+    def fits(cls, registry) -> bool:
+        """Whether ``registry`` has Ra, K, B and J, each in log."""
+        names = list(registry.names)
+        return all(n in names and registry.specs[names.index(n)].transform == "log"
+                   for n in cls.NAMES)
+
+    def from_theta(self, theta) -> np.ndarray:
+        theta = np.asarray(theta, dtype=float)
+        ra, k, b, j = (theta[..., i] for i in (self.ra, self.k, self.b, self.j))
+        log_s = np.logaddexp(ra + b, 2 * k)
+        phi = theta.copy()
+        phi[..., self.k] = k - log_s
+        phi[..., self.b] = ra + b - 2 * k
+        phi[..., self.j] = j + ra - log_s
+        return phi
+
+    def to_theta(self, phi) -> np.ndarray:
+        phi = np.asarray(phi, dtype=float)
+        ra, g, u, tau = (phi[..., i] for i in (self.ra, self.k, self.b, self.j))
+        k = -g - np.logaddexp(0.0, u)
+        theta = phi.copy()
+        theta[..., self.k] = k
+        theta[..., self.b] = u + 2 * k - ra
+        theta[..., self.j] = tau + k - g - ra
+        return theta
+
+    def log_jacobian(self, theta) -> np.ndarray:
+        return np.zeros(np.shape(theta)[:-1])

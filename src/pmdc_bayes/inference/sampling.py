@@ -26,7 +26,7 @@ from tqdm.auto import tqdm
 
 from .. import _signals
 from .._x64 import x64
-from .coordinates import Coordinates
+from .coordinates import Coordinates, exact_laplace
 from .diagnostics import (
     az,
     compare_laplace,
@@ -82,7 +82,8 @@ class Posterior:
         ``attrs['independence_share']`` the share of steps they then took) and
         ``ceil(2·max τ)`` after it.  ``attrs['sampled_in_value']`` names, comma-separated,
         the positive parameters the walkers moved in value rather than in log
-        (:class:`~.coordinates.Coordinates`; empty: all in θ).
+        (:class:`~.coordinates.Coordinates`; empty: all in θ), ``attrs['coordinates']``
+        which coordinates it moved in (``"theta"``, ``"value"``, ``"motor constants"``).
     capped : the run stopped before the stopping rule was met; ``stop`` says how
         (:class:`~pmdc_bayes.inference.stopping.Stop`), ``message`` why in words.
     wall_time : seconds spent sampling (including the log-likelihood for ``idata``).
@@ -197,14 +198,15 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     rng = np.random.default_rng(seed)
     theta0, lp0 = initial_walkers(fit, log_prob, n_walkers, rng)
     # the walkers move in φ (:mod:`.coordinates`); the draws are mapped back to θ
-    xy = Coordinates.for_fit(model.registry, fit, log_prob)
+    local = exact_laplace(fit, log_prob)  # the posterior's own curvature at the MAP
+    xy = Coordinates.for_fit(model.registry, local, log_prob)
 
     def si(phi):  # the SI values of draws in φ, on which the gates are judged
         return model.registry.to_values(xy.to_theta(phi))
 
     sampler = Ensembles(k, n_walkers, ndim, xy.log_prob(log_prob), xy.from_theta(theta0),
                         lp0 + xy.log_jacobian(theta0), seed=seed,
-                        moves=lambda j: default_moves(xy.laplace(fit)) if moves is None
+                        moves=lambda j: default_moves(xy.laplace(local)) if moves is None
                         else moves)
 
     names = tuple(model.names)
@@ -284,8 +286,8 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws, seed=seed)
     idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged),
                                  ensembles=k, adapted=adapted, stop=stop.name,
-                                 sampled_in_value=",".join(
-                                     n for n, v in zip(names, xy.linear, strict=True) if v))
+                                 coordinates=xy.kind,
+                                 sampled_in_value=",".join(xy.in_value(names)))
     shares = [m.share for ms in sampler.moves for m, _ in ms
               if isinstance(m, LaplaceMixture)] if moves is None else []
     if shares:  # the independence proposals' share of the steps the kept draws took
