@@ -1,11 +1,12 @@
-"""The sampler's coordinates on fuzzed sessions: log against value.
+"""The sampler's coordinates on fuzzed sessions: θ against those the sampler chooses.
 
 For each seed, a fuzzed in-class session (:func:`pmdc_bayes.simulate.fuzz.fuzz_session`,
 the bench simulator) is fitted (``fit_seed``, ``build_model``, ``fit_map``) and its
 posterior sampled twice with the default stopping rule and step budget: with every
 parameter moving in θ (log for a positive quantity: ``coordinates.CLEARLY = inf``) and
-with the coordinates :mod:`pmdc_bayes.inference.coordinates` chooses (the same run, not
-repeated, where it chooses log).  Per run:
+with the coordinates :mod:`pmdc_bayes.inference.coordinates` chooses by the
+log-posterior's own curvature at the MAP (``exact_laplace``): θ, value or the motor's
+constants (the same run, not repeated, where it chooses θ).  Per run:
 how the sampler stopped, its steps, the largest autocorrelation time and its parameter,
 whether the gates passed, the sampling's wall time and the largest |z| of a motor
 parameter's truth among the draws (its normal score).  Prints the table and replaces
@@ -75,9 +76,11 @@ def main(argv=None) -> int:
             model = build_model(session, fit_seed(session))
             fit = fit_map(model, seed=seed)
             logp = LogProb(batch_log_posterior(model), 16)
-            chosen = x64(coordinates.Coordinates.for_fit)(model.registry, fit, logp)
-            for label, clearly in (("log", np.inf), ("chosen", coordinates.CLEARLY)):
-                if label == "chosen" and not chosen.linear.any():
+            local = x64(coordinates.exact_laplace)(fit, logp)
+            chosen = x64(coordinates.Coordinates.for_fit)(model.registry, local, logp)
+            for label, clearly in (("log", np.inf), (f"chosen: {chosen.kind}",
+                                                     coordinates.CLEARLY)):
+                if chosen.kind == "theta" and clearly != np.inf:
                     rows.append([*rows[-1][:2], "chosen: log (as above)", *rows[-1][3:]])
                     print(" | ".join(rows[-1]), flush=True)
                     continue
@@ -90,8 +93,10 @@ def main(argv=None) -> int:
               "gates", "sampling (s)", "largest motor |z|"]
     intro = ("`python benchmarks/sampler_coordinates.py` ({stamp}): fuzzed in-class "
              "sessions sampled with every positive quantity in log "
-             "and in the coordinates the sampler chooses (log or value, whichever the "
-             "posterior is closer to Gaussian in around the MAP), each with the default "
+             "and in the coordinates the sampler chooses (log, value, or K, B and J as "
+             "the motor's gain, time constant and friction share, whichever the "
+             "posterior is closest to Gaussian in around the MAP by its own curvature "
+             "there), each with the default "
              "stopping rule and step budget (20,000 steps).  The largest |z| is the "
              "normal score of a motor parameter's truth among the draws (a gave-up "
              "chain's draws are not a posterior sample; shown for where they went).")
