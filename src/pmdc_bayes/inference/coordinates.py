@@ -69,19 +69,12 @@ def exact_laplace(fit, log_prob) -> Laplace:
 
 
 class _Map:
-    """What every system of coordinates shares: the Laplace approximation carried to φ,
-    the density in φ and how close to Gaussian it is around the MAP."""
+    """What every system of coordinates shares, given its ``to_theta(phi)``,
+    ``from_theta(theta)`` and ``log_jacobian(theta)`` (``log|dθ/dφ|``): the Laplace
+    approximation carried to φ, the density in φ and how close to Gaussian it is around
+    the MAP."""
 
     kind = "theta"
-
-    def to_theta(self, phi) -> np.ndarray:
-        raise NotImplementedError
-
-    def from_theta(self, theta) -> np.ndarray:
-        raise NotImplementedError
-
-    def log_jacobian(self, theta) -> np.ndarray:
-        raise NotImplementedError
 
     def jacobian(self, theta) -> np.ndarray:
         """``dφ/dθ`` at ``theta`` (central differences)."""
