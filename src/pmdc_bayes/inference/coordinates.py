@@ -27,7 +27,7 @@ import numpy as np
 __all__ = ["PROBE", "CLEARLY", "Coordinates", "MotorConstants", "Laplace", "exact_laplace"]
 
 PROBE = 2.0  # the Laplace sds either side of the MAP at which the coordinates are compared
-CLEARLY = 1.0  # value's summed misprediction must be this much smaller (log-density units)
+CLEARLY = 1.0  # another's summed misprediction must be this much smaller than θ's (log-density)
 
 
 class Laplace(NamedTuple):
