@@ -1,5 +1,6 @@
 """A candidate model of the search (:mod:`.search`): fitted at its MAP from the usual
-starts and from its parent's MAP, checked for adequacy and scored by its Laplace
+starts and from its parent's MAP (in a superset model's compiled programs where one
+covers it, :mod:`.supersets`), checked for adequacy and scored by its Laplace
 evidence; and the typed results the search hands on."""
 
 from __future__ import annotations
@@ -75,9 +76,14 @@ class Candidate:
         return self.adequacy.ok and self.fit.status == "converged" \
             and math.isfinite(self.log_evidence)
 
-    def run(self, seed: int) -> None:
+    def run(self, seed: int, superset=None) -> None:
+        """Fit, check and score the candidate; in ``superset``'s compiled programs (a
+        :class:`~.inference.superset.Superset` that covers it) when given."""
         starts = [] if self.parent is None else [nested_start(self.model, self.parent.fit)]
-        self.fit = fit_map(self.model, seed=seed, alternatives=starts)
+        if superset is None:
+            self.fit = fit_map(self.model, seed=seed, alternatives=starts)
+        else:
+            self.fit = superset.fit(self.model, seed=seed, alternatives=starts)
         self.adequacy = assess(self.model, self.fit, self.cf)
         self.log_evidence = laplace_log_evidence(self.model, self.fit)
         own = set(self.parent.model.names) if self.parent is not None else set(self.model.names)

@@ -20,11 +20,14 @@ the Kass–Raftery scale):
 - it stops when the data do not reject the model and no proposed addition is clearly
   better, when no step helps, or after :data:`MAX_FITS` fits.
 
-A candidate is fitted from the usual starts and from its parent's MAP with the added
-parameters at their neutral values (no dead time, no drop, a negligible lag or load, a
-limit far above the currents), so a larger model never ends below the maximum of one it
-contains.  Adequate candidates whose evidence lies within :data:`TIE` of the chosen one
-are reported beside it: the data do not tell them apart.
+Every candidate is fitted in the compiled programs of a superset model of the session
+(:mod:`.supersets`), the non-idealities it lacks switched off as data, so that trying
+one costs a fit, not a compile.  A candidate is fitted from the usual starts and from
+its parent's MAP with the added parameters at their neutral values (no dead time, no
+drop, a negligible lag or load, a limit far above the currents), so a larger model
+never ends below the maximum of one it contains.  Adequate candidates whose evidence
+lies within :data:`TIE` of the chosen one are reported beside it: the data do not tell
+them apart.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from .inference.objective import build_model
 from .inference.seed import fit_seed
 from .inference.warmup import WarmUp
 from .io.session import NUISANCES, Session
+from .supersets import Supersets
 from .terms import LOAD, SHARED, label, model_table, nuisance_of, ordered, terms_of, with_terms
 
 __all__ = ["search_model", "run_search", "Fitted", "Searched", "nested_start", "ADD_MARGIN",
@@ -57,6 +61,7 @@ class _Search:
         self.done: dict[frozenset, Candidate] = {}
         self.order: list[Candidate] = []
         self.suspects = _suspect_traces(session)
+        self.supersets = Supersets(session, terms_of(session), free_friction=free_friction)
 
     def fits_left(self) -> int:
         return self.max_fits - len(self.order)
@@ -80,10 +85,12 @@ class _Search:
             self.done[terms] = cand
             new.append(cand)
             out.append(cand)
-        ahead = WarmUp.fits([c.model for c in new[1:]])
+        programs = [self.supersets.for_model(c.terms, c.model) for c in new]
+        ahead = WarmUp.fits([c.model for c in new[1:]],
+                            kernels=[p is None for p in programs[1:]])
         with ahead.stopped_on_error():
-            for cand in new:
-                cand.run(self.seed)
+            for cand, superset in zip(new, programs, strict=True):
+                cand.run(self.seed, superset)
                 self.order.append(cand)
                 self.say(f"model search: {label(cand.terms)}: {cand.adequacy.verdict}, "
                          f"log Z {cand.log_evidence:.1f}")
@@ -95,7 +102,7 @@ class _Search:
         cf = fit_seed(s)
         cand = Candidate(terms, s, cf, build_model(s, cf), None, "start")
         self.done[terms] = cand
-        cand.run(self.seed)
+        cand.run(self.seed, self.supersets.for_model(terms, cand.model))
         self.order.append(cand)
         self.say(f"model search: {label(terms)}: {cand.adequacy.verdict}, "
                  f"log Z {cand.log_evidence:.1f}")

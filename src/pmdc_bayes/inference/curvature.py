@@ -61,7 +61,7 @@ def gauss_newton(model, theta, *, data=None):
     jw = jac * sw[:, None]
 
     def prior_residuals(t):
-        return model.registry.prior_residuals(t, d["prior_centre"], d["prior_scale"])
+        return model.prior_residuals(t, data=d)
 
     jp = jax.jacfwd(prior_residuals)(theta)
     log_prior = model.log_prior(theta, data=d)

@@ -7,8 +7,9 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Channel", "noise_scale", "typical_level", "quantum", "effective_fraction",
-           "quanta_passed", "run_fraction"]
+           "quanta_passed", "run_fraction", "NU0"]
 
+NU0 = 2.0  # pseudo-observations of each channel's inverse-gamma noise prior
 
 DEAD_BAND = 2.0  # quanta: noise below q/2 scatters readings over three levels at most
 

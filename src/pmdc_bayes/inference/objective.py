@@ -35,16 +35,16 @@ from ..physics.solution import Params, experiment_from_traces, real_modes
 from . import cache as _cache
 from .channels import SteadyBlock, blocks_for, entry_weights
 from .effects import RigEffects
-from .noise import Channel, noise_scale
+from .noise import NU0, Channel, noise_scale
 from .nuisances import coast_down_specs, nuisance_specs, position_specs
 from .params import PRIOR_FACTOR, Registry, motor_registry
+from .pointwise import Pointwise
 from .predictions import Predictions
 from .seed import drop_seed, motor_seed
 
 __all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale",
            "integrated_log_likelihood", "noise_weights"]
 
-NU0 = 2.0
 BATCH_CHUNK = 4  # parameter vectors evaluated together inside a batch (see benchmarks/)
 
 
@@ -64,7 +64,7 @@ def noise_weights(ss, n, s0):
     return xp.where(n > 0, (n + NU0) / (NU0 * s0**2 + ss), 0.0)
 
 
-class SessionModel(RigEffects, Predictions):
+class SessionModel(RigEffects, Predictions, Pointwise):
     """Predictions, residuals and log-posterior of a session as functions of θ.
 
     Build with :func:`build_model`.  The likelihood is composed of the blocks of
@@ -111,6 +111,8 @@ class SessionModel(RigEffects, Predictions):
         alpha = np.array([c.alpha for c in self.channels], dtype=float)
         d.update(n_obs=alpha * self.n_obs, s0=self.s0 / np.sqrt(alpha))
         d["prior_centre"], d["prior_scale"] = self.registry.prior_arrays()
+        d["off"] = np.zeros(len(self.registry), bool)
+        d["neutral"] = np.zeros(len(self.registry))
         return jax.tree_util.tree_map(jnp.asarray, d)
 
     def _add(self, name, unit, n, s0, alpha=1.0) -> int:
@@ -166,9 +168,16 @@ class SessionModel(RigEffects, Predictions):
     def _d(self, data):
         return self.data if data is None else data
 
+    @staticmethod
+    def switched(theta, d):
+        """θ as the prediction reads it: each parameter ``d["off"]`` switches off at its
+        neutral θ ``d["neutral"]`` (:mod:`.superset`; none for a model of its own)."""
+        return jnp.where(d["off"], d["neutral"], theta)
+
     def _parts(self, theta, d, fast: bool = False) -> list:
         """Every residual array of every block with its mask and channels:
         ``[(r, mask, ch), ...]`` in block order."""
+        theta = self.switched(theta, d)
         out = []
         for b in self.blocks:
             bd = d[b.key]
@@ -203,10 +212,21 @@ class SessionModel(RigEffects, Predictions):
             ss = ss + jax.ops.segment_sum(sq, ch, num_segments=n_ch)
         return ss
 
+    def prior_residuals(self, theta, *, data=None):
+        """The registry's standardised prior residuals; a parameter switched off has a
+        standard Gaussian in θ about ``prior_centre`` instead, which leaves its value
+        nowhere in the prediction and adds nothing to the evidence."""
+        d = self._d(data)
+        theta = jnp.asarray(theta)
+        r = self.registry.prior_residuals(theta, d["prior_centre"], d["prior_scale"])
+        return jnp.where(d["off"], theta - d["prior_centre"], r)
+
     def log_prior(self, theta, *, data=None):
         """The registry's priors (bench Gaussians in value, log-normal elsewhere)."""
         d = self._d(data)
-        return self.registry.log_prior(theta, d["prior_centre"], d["prior_scale"])
+        r = self.prior_residuals(theta, data=d)
+        on = jnp.where(d["off"], 0.0, jnp.asarray(theta))
+        return -0.5 * jnp.sum(r * r) + self.registry.log_jacobian(on)
 
     def log_likelihood(self, theta, *, fast: bool = False, data=None):
         """Σ_c −(n_c + ν0)/2 · log(ν0·s0_c² + SS_c): Gaussian noise, σ_c integrated out."""
@@ -232,7 +252,7 @@ class SessionModel(RigEffects, Predictions):
                  else jnp.concatenate([jnp.zeros(1), exp.seg_b]))
 
         def real(t):  # with each segment's known viscous drag too: it moves the modes
-            p = self.circuit(t)
+            p = self.circuit(self.switched(t, d))
             return jnp.all(real_modes(p._replace(B=p.B + known)))
 
         ok = jnp.all(jax.vmap(real)(thetas))
@@ -256,65 +276,7 @@ class SessionModel(RigEffects, Predictions):
         sw = jnp.sqrt(weights)
         parts = [(jnp.where(m, r, 0.0) * entry_weights(sw, ch, r)).reshape(-1)
                  for r, m, ch in self._parts(theta, d, fast)]
-        prior = self.registry.prior_residuals(theta, d["prior_centre"], d["prior_scale"])
-        return jnp.concatenate(parts + [prior])
-
-    def padded_log_density(self, theta, *, data=None) -> list:
-        """Gaussian log-density of every observation, in each block's layout, at its
-        channel's noise level ``σ_c² = (ν0·s0_c² + SS_c)/(n_c + ν0)`` (for LOO);
-        :meth:`observation_selection` picks each channel's observations out of it."""
-        return [-0.5 * (jnp.log(2 * jnp.pi * v) + r * r / v)
-                for r, v in self.padded_residuals(theta, data=data)]
-
-    def padded_residuals(self, theta, *, data=None) -> list:
-        """Per output of :meth:`padded_log_density`, ``(residual, σ_c²)``, the second
-        broadcastable to the first: the model's prediction is the observation minus the
-        residual."""
-        d = self._d(data)
-        parts = self._parts(theta, d)
-        var = (NU0 * d["s0"] ** 2 + self._sums(parts)) / (d["n_obs"] + NU0)
-        out = []
-        for r, _, ch in parts:
-            if r.shape[0] == 0:
-                # lax.map cannot batch an empty output: an empty array gets a dummy
-                # entry that its (empty) selection never reads.
-                r = jnp.zeros((1,) + r.shape[1:])
-                out.append((r, jnp.ones_like(r)))
-                continue
-            out.append((r, entry_weights(var, ch, r)))
-        return out
-
-    def _numpy_data(self, block):
-        return jax.tree_util.tree_map(np.asarray, self.data[block.key])
-
-    def observed_values(self) -> list[np.ndarray]:
-        """Per channel, in channel order, its observations in the order of
-        :meth:`observation_selection` (and of the pointwise log-likelihood)."""
-        arrays = [np.asarray(o) for b in self.blocks for o in b.observed(self._numpy_data(b))]
-        return [arrays[k].reshape(-1)[idx] for k, idx in self.observation_selection()]
-
-    def observation_selection(self) -> list:
-        """Per channel, in channel order: (which output of :meth:`padded_log_density`,
-        flat indices of its observations)."""
-        layout = [(np.asarray(m), np.asarray(ch)) for b in self.blocks
-                  for m, ch in b.layout(self._numpy_data(b))]
-        sel = []
-        for c in range(len(self.channels)):
-            for k, (m, ch) in enumerate(layout):
-                own = (ch == c).reshape(ch.shape + (1,) * (m.ndim - ch.ndim))
-                idx = np.nonzero((m & own).reshape(-1))[0]
-                if idx.size:
-                    sel.append((k, idx))
-                    break
-            else:
-                sel.append((0, np.zeros(0, int)))
-        return sel
-
-    def pointwise_log_likelihood(self, theta, *, data=None) -> list:
-        """Per channel, the log-density of each of its observations (see
-        :meth:`padded_log_density`)."""
-        outs = self.padded_log_density(theta, data=data)
-        return [jnp.asarray(outs[k]).reshape(-1)[idx] for k, idx in self.observation_selection()]
+        return jnp.concatenate(parts + [self.prior_residuals(theta, data=d)])
 
 
 @x64

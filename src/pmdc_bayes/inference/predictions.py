@@ -93,7 +93,7 @@ class Predictions:
         block = self.blocks[0]
 
         def run(t, d):
-            d = d["traces"]
+            t, d = self.switched(t, d), d["traces"]
             r, flags = block.residuals(self, t, d, overflow=True)
             return tuple(d["exp"].unpad(d[k] - x)
                          for k, x in zip(("current", "speed", "position"), (r[1], r[0], r[2]),

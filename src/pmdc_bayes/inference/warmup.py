@@ -51,17 +51,23 @@ class WarmUp:
         self._threads(lines, start)
 
     @classmethod
-    def fits(cls, models, *, threads: int | None = None, start: bool = True) -> WarmUp:
+    def fits(cls, models, *, threads: int | None = None, start: bool = True,
+             kernels=None) -> WarmUp:
         """``threads`` threads (default: two, or one on a single core) making, model
         after model (each taking the next job in order), what a MAP fit and its
         adequacy checks call (the Gauss–Newton kernel, the prediction): for a run that
         fits several models in turn (``--compare``), so that the next models' programs
-        are made while this one is fitted (an XLA compilation keeps to one core)."""
+        are made while this one is fitted (an XLA compilation keeps to one core).
+        ``kernels``, per model, whether it needs its own kernel (not when it is fitted
+        in a superset's, :mod:`.superset`); default all."""
         if threads is None:
             threads = min(2, usable_cores())
+        if kernels is None:
+            kernels = [True] * len(models)
         self = cls.__new__(cls)
         self.n_walkers = None
-        jobs = _queue((m, job) for m in models for job in (self._kernel, self._predict))
+        jobs = _queue((m, job) for m, own in zip(models, kernels, strict=True)
+                      for job in ((self._kernel, self._predict) if own else (self._predict,)))
         self._threads([jobs] * max(1, threads), start)
         return self
 

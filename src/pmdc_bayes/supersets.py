@@ -1,0 +1,95 @@
+"""The superset models the search fits its candidates in
+(:class:`~.inference.superset.Superset`): one per *family* of candidates, made when the
+first candidate of that family is fitted.
+
+A family holds every non-ideality the search may reach from the session (its
+*universe*: what the session's model declares, every single addition with something
+in the session to act on, an unknown load on any driven trace) in one form: a dead
+time per trace or one shared by all (two forms of one term, which no superset holds
+at once); and with a solution of its own only when the candidate needs it: the
+regime-switching solution of a current limit or a voltage drop, the solution that
+sticks and slips of Coulomb friction or an unknown load.  Those solutions take several
+times as long to compile and to evaluate as the smooth one, so a candidate without
+them is fitted in a superset without them; the cheap terms (dead times, sensor gains
+and offsets, a source resistance, a dead zone) are in every superset, and the sensors'
+lags in every one without the regime-switching solution (through which a lag is
+followed regime by regime, at a compile several times as long: there only when held).
+A candidate no superset covers (one the session cannot seed) is fitted in its own
+programs.
+"""
+
+from __future__ import annotations
+
+from .inference.objective import build_model
+from .inference.seed import fit_seed
+from .inference.superset import Superset
+from .io.session import NUISANCES, Session
+from .terms import LOAD, SHARED, nuisance_of, with_terms
+
+__all__ = ["Supersets", "SWITCHING", "STICKING"]
+
+SWITCHING = frozenset({"current_limit", "voltage_drop"})  # need the regime-switching solution
+STICKING = frozenset({"coulomb", "unknown_load"})  # need the solution that sticks and slips
+LAGS = frozenset({"speed_lag", "current_lag"})
+
+
+class Supersets:
+    """The search's superset models of ``session``, by family."""
+
+    def __init__(self, session: Session, start_terms: frozenset, *, free_friction: bool):
+        self.session = session
+        self.universe = _universe(session, start_terms, free_friction)
+        self._made: dict[frozenset, Superset | None] = {}
+
+    def family(self, terms) -> frozenset:
+        """The terms of the superset a candidate of ``terms`` is fitted in."""
+        out = set(self.universe)
+        if SHARED in terms:
+            out = (out - {"dead_time"}) | {SHARED}
+        else:
+            out.discard(SHARED)
+        held = {nuisance_of(t) for t in terms}
+        for path in (SWITCHING, STICKING):
+            if not held & path:
+                out = {t for t in out if nuisance_of(t) not in path}
+        if held & SWITCHING:  # a lag followed through every regime: only when held
+            out = {t for t in out if t not in LAGS or t in held}
+        return frozenset(out)
+
+    def for_model(self, terms, model) -> Superset | None:
+        """The superset a candidate of ``terms`` (its own ``model``) is fitted in, made on
+        first use; None when none covers it."""
+        family = self.family(terms)
+        if not terms <= family:
+            return None
+        if family not in self._made:
+            s = with_terms(self.session, family)
+            try:
+                made = Superset(build_model(s, fit_seed(s)))
+            except ValueError:  # a superset the session cannot seed: its own programs
+                made = None
+            self._made[family] = made
+        made = self._made[family]
+        return made if made is not None and made.covers(model) else None
+
+
+def _universe(session: Session, start: frozenset, free_friction: bool) -> frozenset:
+    """Every term a search from ``start`` may add: the session's own, each non-ideality
+    with something in ``session`` to act on, an unknown load on each driven trace, a
+    dead time in both forms (the families keep one) and Coulomb friction when the
+    friction is searched over."""
+    out = set(start)
+    for key in NUISANCES:
+        if session.inert_nuisance((key,)) is not None:
+            continue
+        if key == "unknown_load":
+            out.update(LOAD + tr.name for tr in session.traces)
+        elif key == "dead_time":
+            out.add("dead_time")
+            if len(session.traces) > 1:
+                out.add(SHARED)
+        else:
+            out.add(key)
+    if free_friction:
+        out.add("coulomb")
+    return frozenset(out)
