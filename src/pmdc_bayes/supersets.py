@@ -4,11 +4,11 @@ first candidate of that family is fitted.
 
 A family holds every non-ideality the search may reach from the session (its
 *universe*: what the session's model declares, every single addition with something
-in the session to act on, an unknown load on any driven trace) in one form: a dead
-time per trace or one shared by all (two forms of one term, which no superset holds
-at once); and with a solution of its own only when the candidate needs it: the
-regime-switching solution of a current limit or a voltage drop, the solution that
-sticks and slips of Coulomb friction or an unknown load.  Those solutions take several
+in the session to act on, an unknown load on any driven trace; a dead time per trace
+and one shared by all, which the prediction adds), with a solution of its own only
+when the candidate needs it: the regime-switching solution of a current limit or a
+voltage drop, the solution that sticks and slips of Coulomb friction or an unknown
+load.  Those solutions take several
 times as long to compile and to evaluate as the smooth one, so a candidate without
 them is fitted in a superset without them; the cheap terms (dead times, sensor gains
 and offsets, a source resistance, a dead zone) are in every superset, and the sensors'
@@ -20,9 +20,10 @@ programs.
 
 from __future__ import annotations
 
+from .inference.nuisances import dead_time_name, nuisance_specs
 from .inference.objective import build_model
 from .inference.seed import fit_seed
-from .inference.superset import Superset
+from .inference.superset import Superset, extended
 from .io.session import NUISANCES, Session
 from .terms import LOAD, SHARED, nuisance_of, with_terms
 
@@ -44,10 +45,6 @@ class Supersets:
     def family(self, terms) -> frozenset:
         """The terms of the superset a candidate of ``terms`` is fitted in."""
         out = set(self.universe)
-        if SHARED in terms:
-            out = (out - {"dead_time"}) | {SHARED}
-        else:
-            out.discard(SHARED)
         held = {nuisance_of(t) for t in terms}
         for path in (SWITCHING, STICKING):
             if not held & path:
@@ -63,14 +60,24 @@ class Supersets:
         if not terms <= family:
             return None
         if family not in self._made:
-            s = with_terms(self.session, family)
             try:
-                made = Superset(build_model(s, fit_seed(s)))
+                made = Superset(self._build(family))
             except ValueError:  # a superset the session cannot seed: its own programs
                 made = None
             self._made[family] = made
         made = self._made[family]
         return made if made is not None and made.covers(model) else None
+
+    def _build(self, family):
+        """The superset model of ``family``: a session declares one form of dead time, so
+        the shared one is appended to the per-trace ones when the family holds both."""
+        s = with_terms(self.session, family - {SHARED})
+        model = build_model(s, fit_seed(s))
+        if SHARED in family and "dead_time" in family:
+            name = dead_time_name("", shared=True)
+            own = nuisance_specs(with_terms(self.session, frozenset({SHARED})))
+            model = extended(model, [sp for sp in own if sp.name == name])
+        return model
 
 
 def _universe(session: Session, start: frozenset, free_friction: bool) -> frozenset:

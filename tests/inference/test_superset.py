@@ -66,11 +66,13 @@ def test_a_parameter_switched_off_moves_nothing_and_adds_nothing(bench, superset
     assert lp_at_centre == pytest.approx(own_lp, rel=1e-9, abs=1e-6)
 
 
-def test_a_candidate_fitted_in_the_superset_is_the_candidate_fitted_in_its_own(bench,
-                                                                               superset):
-    for terms in (frozenset(), frozenset({"dead_time"})):
+def test_a_candidate_fitted_in_the_superset_is_the_candidate_fitted_in_its_own(bench):
+    families = Supersets(bench, frozenset(), free_friction=False)
+    made = []
+    for terms in (frozenset(), frozenset({SHARED}), frozenset({"dead_time"})):
         own = _model(bench, terms)
-        alone, shared = fit_map(own), superset.fit(own)
+        made.append(families.for_model(terms, own))
+        alone, shared = fit_map(own), made[-1].fit(own)
         assert alone.ok and shared.ok
         assert shared.names == alone.names
         for n in own.names:
@@ -78,6 +80,7 @@ def test_a_candidate_fitted_in_the_superset_is_the_candidate_fitted_in_its_own(b
             assert shared.sd[n] == pytest.approx(alone.sd[n], rel=1e-3), n
         assert laplace_log_evidence(own, shared) == pytest.approx(
             laplace_log_evidence(own, alone), abs=1e-2)
+    assert made[0] is not None and all(m is made[0] for m in made)  # one program for all
 
 
 def test_each_switched_off_parameter_sits_where_the_model_lacks_it(bench):
@@ -98,11 +101,10 @@ def test_a_family_holds_a_costly_solution_only_for_a_candidate_that_needs_it(ben
             "speed_lag"} <= universe
     assert {LOAD + tr.name for tr in bench.traces} <= universe
     smooth = families.family(frozenset({"dead_time"}))
-    assert "dead_time" in smooth and SHARED not in smooth and "speed_lag" in smooth
+    assert {"dead_time", SHARED, "speed_lag"} <= smooth
     assert not smooth & {"current_limit", "voltage_drop", "coulomb"}
     assert not any(t.startswith(LOAD) for t in smooth)
-    shared = families.family(frozenset({SHARED}))
-    assert SHARED in shared and "dead_time" not in shared
+    assert families.family(frozenset({SHARED})) == smooth == families.family(frozenset())
     switching = families.family(frozenset({"voltage_drop"}))
     assert {"voltage_drop", "current_limit"} <= switching and "speed_lag" not in switching
     assert "speed_lag" in families.family(frozenset({"voltage_drop", "speed_lag"}))

@@ -64,9 +64,11 @@ class RigEffects:
         if "dead_zone" in self.session.nuisances:
             exp = exp._replace(seg_va=self.driven(theta, exp.seg_va))
         if "dead_time" in self.session.nuisances:
-            v = self.registry.values(theta)
-            shared = self.session.shared_dead_time
-            exp = exp.delayed(jnp.stack([v[dead_time_name(tr.name, shared)]
+            # a trace's own dead time, one shared by every trace, or (in a superset
+            # model, :mod:`.superset`) the sum of both forms
+            v, zero = self.registry.values(theta), jnp.zeros(())
+            exp = exp.delayed(jnp.stack([v.get(dead_time_name(tr.name), zero)
+                                         + v.get(dead_time_name(tr.name, True), zero)
                                          for tr in self.session.traces]))
         loaded = self.session.unknown_load_traces()
         if loaded:

@@ -28,7 +28,7 @@ from ..physics.sensor import MIN_LAG
 from .fit import FitResult, fit_map
 from .params import ParamSpec, Registry
 
-__all__ = ["Superset", "neutral_value", "project"]
+__all__ = ["Superset", "neutral_value", "project", "extended"]
 
 SMALLEST = 1e-300  # a positive quantity taken as none at all (a resistance, drag, friction)
 
@@ -47,6 +47,19 @@ def neutral_value(spec: ParamSpec) -> float:
     if spec.unit == "1":
         return 1.0
     return SMALLEST
+
+
+@x64
+def extended(model, specs):
+    """A copy of ``model`` with the parameters ``specs`` appended: what a superset holds
+    beyond what one session can declare (a dead time shared by every trace beside each
+    trace's own, which the prediction adds)."""
+    out = copy.copy(model)
+    out.registry = Registry(model.registry.specs + tuple(specs))
+    out.names = out.registry.names
+    out.prior_sd = out.registry.prior_width_log()
+    out.data = out._collect_data()
+    return out
 
 
 class Superset:
