@@ -32,6 +32,14 @@ def _seed(text: str) -> int:
     return value
 
 
+def _workers(text: str) -> int:
+    """A number of workers: a whole number of at least 1."""
+    value = _seed(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError("at least one worker is needed")
+    return value
+
+
 def _seconds(text: str) -> float:
     """A duration in seconds, >= 0."""
     try:
@@ -211,6 +219,38 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                     help="neither read nor store compiled programs in the cache directory")
     _talk(rp, "a line per stage")
     rp.set_defaults(func=commands['report'])
+    lt = sub.add_parser(
+        "lot",
+        help="a production lot: every motor fitted (on a Dask cluster), then the lot as a "
+        "population with its outliers",
+        description=textwrap.fill("Fit each motor's session on its own, on a local Dask "
+        "cluster of one worker per core (--workers N) or an existing one (--scheduler), "
+        "then the lot as a log-normal population: its median and spread per parameter, "
+        "each motor's values pooled toward it, and the motors the population makes "
+        "improbable flagged as outliers (a posterior predictive p-value per motor, "
+        "Holm-corrected at 5 % over the lot).  Writes one run per motor and RUNS/lot.csv, "
+        "RUNS/lot.json, RUNS/population.nc and RUNS/lot.png.  Exits 0 when every motor "
+        "passed and none is an outlier, else the largest of the motors' exit codes, and "
+        "at least 1 when a motor is flagged.", 79),
+        epilog=EXIT_CODES, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    lt.add_argument("session", nargs="+", metavar="SESSION",
+                    help="session directories, or folders whose subfolders hold them")
+    lt.add_argument("--out", metavar="RUNS", type=Path, required=True,
+                    help="folder that gets one run per motor and the lot's files")
+    lt.add_argument("--workers", type=_workers, metavar="N",
+                    help="local Dask workers (default: one per core)")
+    lt.add_argument("--scheduler", metavar="ADDRESS",
+                    help="an existing Dask scheduler (e.g. tcp://host:8786) in place of a "
+                    "local cluster; its workers must reach the sessions and RUNS")
+    lt.add_argument("--no-mcmc", action="store_true",
+                    help="each motor's MAP and Laplace approximation only (faster; the "
+                    "population reads their Gaussians)")
+    lt.add_argument("--seed", type=_seed, default=0, metavar="N", help="random seed")
+    lt.add_argument("--force", action="store_true",
+                    help="replace the lot's earlier runs and files in RUNS")
+    _talk(lt, "a line per motor")
+    lt.set_defaults(func=commands['lot'])
     ch = sub.add_parser(
         "cache",
         help="show or clear the cache of compiled programs",

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["SessionError", "UsageError", "FitFailed"]
+__all__ = ["SessionError", "UsageError", "FitFailed", "EXIT_FAILED", "EXIT_USAGE",
+           "EXIT_INADEQUATE", "EXIT_INTERNAL"]
 
 
 class SessionError(ValueError):
@@ -38,3 +39,9 @@ class NotApplicable(SessionError):
 class FitFailed(RuntimeError):
     """The fit cannot go on from its MAP (its curvature is not finite: the model
     overflows near the optimum).  One line; the command line exits with code 1."""
+
+
+EXIT_FAILED = 1  # the fit or the posterior's gates failed
+EXIT_USAGE = 2  # bad input
+EXIT_INADEQUATE = 3  # the data reject the model
+EXIT_INTERNAL = 4  # a fault of the tool

@@ -16,17 +16,21 @@ from pathlib import Path
 from . import _signals, cachedir
 from ._cli_parser import build_parser
 from ._console import gate_failure_text, print_fit
-from ._errors import FitFailed, SessionError, UsageError
+from ._errors import (
+    EXIT_FAILED,
+    EXIT_INADEQUATE,
+    EXIT_INTERNAL,
+    EXIT_USAGE,
+    FitFailed,
+    SessionError,
+    UsageError,
+)
 from .io.bundled import session_path
 from .io.units import display_unit
 from .rundir import check_writable
 
 __all__ = ["main"]
 
-EXIT_FAILED = 1
-EXIT_USAGE = 2
-EXIT_INADEQUATE = 3
-EXIT_INTERNAL = 4
 
 
 def _cmd_closed_form(args) -> int:
@@ -183,6 +187,12 @@ def _fit_one(args, path, out) -> tuple[int, dict, Path]:
     return status, summary, out
 
 
+def _cmd_lot(args) -> int:
+    from ._lot_command import run_lot_command
+
+    return run_lot_command(args, note=None if args.quiet else _note)
+
+
 def _cmd_report(args) -> int:
     from .report import write_report
 
@@ -238,7 +248,8 @@ def _cmd_cache(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser({"closed-form": _cmd_closed_form, "simulate": _cmd_simulate,
-                         "fit": _cmd_fit, "report": _cmd_report, "cache": _cmd_cache},
+                         "fit": _cmd_fit, "report": _cmd_report, "cache": _cmd_cache,
+                         "lot": _cmd_lot},
                         ).parse_args(argv)
     try:
         with _signals.handled():

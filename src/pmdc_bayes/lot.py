@@ -1,0 +1,151 @@
+"""A production lot (``pmdc-bayes lot``): each motor's session fitted on its own, on a
+Dask cluster (a local one of one worker per core by default, or an existing one), then
+the lot as a population (:mod:`.inference.pooling`) where the command runs.
+
+A motor is fitted by :func:`fit_motor` in a worker process, which keeps compiled
+programs in the shared disk cache so that the motors after the first of a session
+shape do not compile.  A motor whose session is bad input, whose fit fails or that
+breaks its worker is reported with its one line and passed over; the others go on.
+The population takes the motors that passed (fit converged, model adequate, gates
+met).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ._errors import (
+    EXIT_FAILED,
+    EXIT_INADEQUATE,
+    EXIT_INTERNAL,
+    EXIT_USAGE,
+    FitFailed,
+    SessionError,
+    UsageError,
+)
+
+__all__ = ["MotorRun", "fit_motor", "run_lot", "pooled_names", "status_name"]
+
+POOLED = ("Ra", "La", "K", "B", "J", "Tc")
+
+
+@dataclass(frozen=True)
+class MotorRun:
+    """One motor of the lot: its session, exit status (as ``pmdc-bayes fit`` would
+    end), run directory, the one-line error when there was one, its evidence for the
+    population stage and the seconds its fit took."""
+
+    session: Path
+    name: str
+    status: int
+    run: Path | None = None
+    error: str = ""
+    evidence: object = None
+    seconds: float = 0.0
+    summary: dict | None = None
+
+
+def status_name(code: int) -> str:
+    """A motor's exit code in words, as ``lot.csv`` and the progress lines give it."""
+    from ._batch import STATUS
+
+    return STATUS.get(code, "internal error")
+
+
+def _status(summary: dict) -> tuple[int, str]:
+    if summary["fit"]["status"] != "converged":
+        return EXIT_FAILED, f"the fit did not converge: {summary['fit']['message']}"
+    adequacy = summary["adequacy"]
+    if adequacy.get("verdict") != "adequate":
+        first = next((f for f in adequacy["findings"] if f["severity"] == "fail"), None)
+        return EXIT_INADEQUATE, ("model inadequate" + (f": {first['where']}: "
+                                                          f"{first['message']}" if first else ""))
+    if summary["diagnostics"].get("gates_passed") is False:
+        return EXIT_FAILED, "the posterior failed its convergence gates"
+    return 0, ""
+
+
+def fit_motor(session: Path, out: Path, *, name: str, mcmc: bool = True, seed: int = 0,
+              force: bool = False, cache: bool = True) -> MotorRun:
+    """Fit one motor's session into ``out`` (in a worker process): its status and, when
+    it passed, its evidence about every motor parameter it has."""
+    from . import cachedir
+    from .inference.motor_evidence import from_run
+    from .inference.result import read_run
+    from .pipeline import run_fit
+
+    t0 = time.perf_counter()
+    if cache:
+        cachedir.enable()
+    try:
+        run, summary = run_fit(session, out=out, force=force, mcmc=mcmc, seed=seed)
+    except (SessionError, UsageError) as exc:
+        return MotorRun(session, name, EXIT_USAGE, error=str(exc),
+                        seconds=time.perf_counter() - t0)
+    except FitFailed as exc:
+        return MotorRun(session, name, EXIT_FAILED, error=str(exc),
+                        seconds=time.perf_counter() - t0)
+    status, error = _status(summary)
+    evidence = None
+    if status == 0:
+        result = read_run(run)
+        names = [n for n in POOLED if n in result.model.registry]
+        evidence = dataclasses.replace(from_run(result, names), name=name)
+    return MotorRun(session, name, status, Path(run), error, evidence,
+                    time.perf_counter() - t0, summary)
+
+
+def pooled_names(motors) -> tuple:
+    """The parameters the lot is pooled over: K, B, J and Ra, La where every motor's
+    was measured on the bench, Tc where every motor has Coulomb friction."""
+    out = []
+    for name in POOLED:
+        have = [name in m.names for m in motors]
+        if not all(have):
+            continue
+        if name == "La" and any(m.priors[m.names.index("La")][0] != "normal" for m in motors):
+            continue
+        out.append(name)
+    return tuple(out)
+
+
+def run_lot(sessions, outs, *, workers: int | None = None, scheduler: str | None = None,
+            mcmc: bool = True, seed: int = 0, force: bool = False, say=None) -> list[MotorRun]:
+    """Fit every motor of ``sessions`` into its run directory of ``outs`` on a Dask
+    cluster, ``say(line)`` as each finishes; the motors in the order given."""
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    from ._cores import usable_cores
+
+    say = say or (lambda text: None)
+    names = [Path(o).name for o in outs]
+    if scheduler is not None:
+        client, cluster = Client(scheduler), None
+    else:
+        n = workers or usable_cores()
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               memory_limit=0, dashboard_address=None)
+        client = Client(cluster)
+    try:
+        futures = {client.submit(fit_motor, Path(s), Path(o), name=name, mcmc=mcmc,
+                                 seed=seed, force=force, pure=False): k
+                   for k, (s, o, name) in enumerate(zip(sessions, outs, names, strict=True))}
+        done: list[MotorRun | None] = [None] * len(futures)
+        for count, future in enumerate(as_completed(futures), start=1):
+            k = futures[future]
+            try:
+                run = future.result()
+            except Exception as exc:  # noqa: BLE001  (a worker's fault: this motor only)
+                run = MotorRun(Path(sessions[k]), names[k], EXIT_INTERNAL,
+                               error=f"internal error ({type(exc).__name__}: {exc})")
+            done[k] = run
+            say(f"motor {count} of {len(futures)}: {run.name}: {status_name(run.status)} "
+                f"({run.seconds:.0f} s){': ' + run.error if run.error else ''}")
+        return done
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,132 @@
+"""The lot as a population: its median and spread recovered, poorly measured motors
+pooled toward it, outliers flagged and nobody else (simulated lots whose truth is
+known; each motor's own posterior the exact Gaussian of its measurement and prior)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pmdc_bayes.inference.motor_evidence import motor_evidence, subset
+from pmdc_bayes.inference.pooling import analyse_lot, holm
+from pmdc_bayes.inference.population import MIN_ESS, fit_population
+
+NAMES = ("K", "B", "J", "Ra")
+MU = np.log([0.05, 2e-5, 2e-5, 2.0])
+SIGMA = np.array([0.03, 0.2, 0.05, 0.04])
+PRIOR_SD = np.log(10.0)
+
+
+def _motor(rng, name, x, sd, *, draws: bool, sampler=None):
+    """A motor of true log-values ``x`` measured with sd ``sd`` (log), under wide
+    log-normal priors centred half an e-fold off: its exact posterior."""
+    est = x + sd * rng.standard_normal(x.size)
+    centre = est + 0.5
+    prec = 1.0 / sd**2 + 1.0 / PRIOR_SD**2
+    post_mean = (est / sd**2 + centre / PRIOR_SD**2) / prec
+    post_sd = 1.0 / np.sqrt(prec)
+    priors = [("lognormal", float(np.exp(c)), float(PRIOR_SD)) for c in centre]
+    if draws:
+        noise = (sampler or rng).standard_normal((4000, x.size))
+        return motor_evidence(name, NAMES, priors, draws=post_mean + post_sd * noise)
+    return motor_evidence(name, NAMES, priors, theta=post_mean, cov=np.diag(post_sd**2))
+
+
+def _lot(seed, n=16, *, draws=False, outlier=None, poor=()):
+    rng = np.random.default_rng(seed)
+    sampler = np.random.default_rng(seed + 10_000)  # the draws: the same lot either way
+    truth, motors = [], []
+    for k in range(n):
+        x = MU + SIGMA * rng.standard_normal(MU.size)
+        if k == outlier:
+            x = x + 6.0 * SIGMA
+        sd = np.array([0.005, 0.05, 0.01, 0.01]) * (20.0 if k in poor else 1.0)
+        truth.append(x)
+        motors.append(_motor(rng, f"m{k}", x, sd, draws=draws, sampler=sampler))
+    return np.array(truth), motors
+
+
+def _covered(draws, value, level=0.90) -> bool:
+    lo, hi = np.quantile(draws, [(1 - level) / 2, (1 + level) / 2])
+    return bool(lo <= value <= hi)
+
+
+def test_holm_rejects_step_down_at_the_family_level():
+    assert list(holm([0.001, 0.02, 0.03, 0.5], 0.05)) == [True, False, False, False]
+    assert list(holm([0.01, 0.012, 0.015], 0.05)) == [True, True, True]
+    assert not holm([0.2, 0.3]).any()
+
+
+def test_the_population_median_and_spread_are_covered_at_the_nominal_rate():
+    hits, total = 0, 0
+    for seed in range(10):
+        _, motors = _lot(seed)
+        pop = fit_population(motors, seed=seed)
+        for k in range(MU.size):
+            hits += int(_covered(pop.mu[:, k], MU[k])) + int(_covered(pop.sigma[:, k],
+                                                                        SIGMA[k]))
+            total += 2
+    # 80 intervals at 90 %: 72 expected, fewer than 64 has probability below 0.3 %
+    assert hits >= 64, f"{hits} of {total}"
+    assert hits <= total
+
+
+def test_an_injected_outlier_is_flagged_and_no_other_motor():
+    flagged_other, caught = 0, 0
+    for seed in range(5):
+        _, motors = _lot(100 + seed, outlier=3)
+        record, _ = analyse_lot(motors, seed=seed)
+        flags = [m["outlier"] for m in record["motors"]]
+        caught += flags[3]
+        flagged_other += sum(flags) - flags[3]
+    assert caught == 5
+    assert flagged_other <= 1
+
+
+def test_a_poorly_measured_motor_is_pulled_toward_the_lot_and_still_covered():
+    covered, narrower, n = 0, 0, 0
+    for seed in range(6):
+        truth, motors = _lot(200 + seed, poor=(0, 1))
+        record, _ = analyse_lot(motors, seed=seed)
+        for j in (0, 1):
+            for k, name in enumerate(NAMES):
+                v = record["motors"][j]["values"][name]
+                lo, hi = v["pooled_interval"]
+                olo, ohi = v["own_interval"]
+                narrower += (hi / lo) < (ohi / olo)
+                covered += lo <= np.exp(truth[j, k]) <= hi
+                n += 1
+    assert narrower == n
+    assert covered >= 0.8 * n, f"{covered} of {n}"
+
+
+@pytest.mark.slow
+def test_reweighted_draws_give_the_population_the_gaussians_give():
+    _, gauss = _lot(7)
+    _, drawn = _lot(7, draws=True)
+    a, b = fit_population(gauss, seed=1), fit_population(drawn, seed=1)
+    assert sum(b.gaussian) < len(drawn)  # most motors reweighted
+    for k in range(MU.size):
+        sd = a.mu[:, k].std()
+        assert abs(np.median(a.mu[:, k]) - np.median(b.mu[:, k])) < 0.5 * sd
+        assert np.median(b.sigma[:, k]) == pytest.approx(np.median(a.sigma[:, k]), rel=0.3)
+
+
+def test_a_motor_whose_draws_cannot_carry_the_reweighting_falls_back_to_its_gaussian():
+    rng = np.random.default_rng(3)
+    _, motors = _lot(3)
+    # a motor known far worse than the lot's spread: its few hundred draws spread so
+    # wide that the population's weights rest on a handful of them
+    wide = _motor(rng, "wide", MU.copy(), np.array([0.5, 2.0, 0.5, 0.5]), draws=True)
+    pop = fit_population(motors + [wide], seed=0)
+    assert pop.gaussian[-1]
+    assert pop.ess[-1] < MIN_ESS
+
+
+def test_a_subset_of_parameters_reads_the_same_motor():
+    rng = np.random.default_rng(0)
+    m = _motor(rng, "m", MU.copy(), np.full(4, 0.02), draws=True)
+    s = subset(m, ("K", "J"))
+    assert s.names == ("K", "J")
+    assert np.allclose(s.post_mean, m.post_mean[[0, 2]])
+    assert np.allclose(s.draws, m.draws[:, [0, 2]])

@@ -1,0 +1,87 @@
+"""``pmdc-bayes lot``: the motors fitted on a local Dask cluster of two workers, one's bad
+input passed over, the lot pooled and its files written."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from pmdc_bayes.cli import main
+from pmdc_bayes.simulate.session import simulate_session
+
+PLAN = """\
+seed = 1
+
+[motor]
+name = "lot motor"
+friction = "viscous"
+
+[truth]
+Ra = 2.0
+La = 1.5e-3
+K = {K}
+B = 2e-5
+J = 2e-5
+
+[bench.Ra]
+sd = 0.02
+unit = "ohm"
+
+[bench.La]
+sd = 0.05
+unit = "mH"
+
+[[steady_table]]
+name = "sweep"
+voltages = [3.0, 6.0, 9.0, 12.0]
+speed_sd = 0.5
+current_sd = 0.005
+
+[[trace]]
+name = "step"
+kind = "step"
+duration = 0.5
+rate = 1000.0
+voltage = [[0.0, 0.0], [0.05, 12.0]]
+initial = "rest"
+record_current = true
+speed_noise = 0.5
+current_noise = 0.01
+"""
+
+
+@pytest.mark.slow
+def test_a_lot_on_two_dask_workers_pools_the_motors_that_passed(tmp_path, capsys):
+    lot = tmp_path / "lot"
+    for k, gain in enumerate((0.050, 0.052, 0.049), start=1):
+        folder = lot / f"m{k}"
+        folder.mkdir(parents=True)
+        (folder / "plan.toml").write_text(PLAN.format(K=gain), encoding="utf-8")
+        simulate_session(folder / "plan.toml", folder, seed=10 + k)
+    (lot / "m4").mkdir()
+    (lot / "m4" / "session.toml").write_text("[motor\n", encoding="utf-8")
+    out = tmp_path / "runs"
+    code = main(["lot", str(lot), "--out", str(out), "--no-mcmc", "--workers", "2"])
+    text = capsys.readouterr()
+    assert code == 2, text.err  # m4's bad input; the others fitted all the same
+    assert "motor m4" in text.err and "TOML" in text.err
+    with (out / "lot.csv").open(encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["motor"] for r in rows] == ["m1", "m2", "m3", "m4"]
+    assert [r["status"] for r in rows] == ["ok", "ok", "ok", "bad input"]
+    for r, gain in zip(rows[:3], (0.050, 0.052, 0.049), strict=False):
+        sd = (float(r["K_hi"]) - float(r["K_lo"])) / (2 * 1.645)  # of a 90 % interval
+        assert abs(float(r["K"]) - gain) < 4 * sd
+        assert r["outlier"] == "false" and 0.0 < float(r["p_value"]) <= 1.0
+        assert (out / r["motor"] / "summary.json").is_file()
+    assert rows[3]["K"] == "" and rows[3]["outlier"] == ""
+    doc = json.loads((out / "lot.json").read_text(encoding="utf-8"))
+    k = doc["population"]["K"]
+    assert k["median_interval"][0] < k["median"] < k["median_interval"][1]
+    assert 0.045 < k["median"] < 0.056 and k["spread"] > 0
+    assert set(doc["parameters"]) >= {"Ra", "La", "K", "B", "J"}
+    assert (out / "population.nc").is_file() and (out / "lot.png").is_file()
+    # an earlier lot is never replaced without --force
+    assert main(["lot", str(lot / "m1"), "--out", str(out), "--no-mcmc"]) == 2
