@@ -297,7 +297,7 @@ def test_fit_help_names_every_non_ideality_and_every_candidate_of_compare():
     from pmdc_bayes._cli_parser import build_parser
     from pmdc_bayes.io.session import NUISANCES
 
-    commands = dict.fromkeys(("closed-form", "simulate", "fit", "report", "cache"))
+    commands = dict.fromkeys(("closed-form", "simulate", "fit", "report", "cache", "lot"))
     fit = build_parser(commands)._subparsers._group_actions[0].choices["fit"]
     helps = {a.dest: " ".join(a.help.split()) for a in fit._actions if a.help}
     for name in NUISANCES:
