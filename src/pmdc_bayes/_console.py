@@ -6,11 +6,12 @@ findings."""
 
 from __future__ import annotations
 
+from ._errors import EXIT_FAILED, EXIT_INADEQUATE
 from ._format import row_format
 from ._headline import headline_text, pi_loop_text, spread_text
 from .io.units import display_unit
 
-__all__ = ["print_fit", "print_adequacy", "gate_failure_text"]
+__all__ = ["print_fit", "print_adequacy", "gate_failure_text", "run_outcome"]
 
 
 def print_adequacy(adequacy: dict) -> bool:
@@ -94,3 +95,32 @@ def gate_failure_text(diag: dict, n_params: int) -> str:
     if spread:
         parts.append(spread)
     return "; ".join(parts)
+
+
+def run_outcome(summary: dict, *, allow_unconverged: bool = False,
+                allow_inadequate: bool = False, advice: bool = True) -> tuple[int, list[str]]:
+    """A finished run's exit code and its errors, in the order they are told: a fit that
+    did not converge first (the verdict was judged where the MAP is not), then the
+    model's inadequacy (which ends the run unless allowed), then a posterior that failed
+    its gates.  ``advice`` adds what to rerun with."""
+    status, errors = 0, []
+    if summary["fit"]["status"] != "converged" and not allow_unconverged:
+        errors.append(f"the fit did not converge: {summary['fit']['message']}")
+        status = EXIT_FAILED
+    adequacy = summary["adequacy"]
+    first = next((f for f in adequacy["findings"] if f["severity"] == "fail"), None)
+    if first is not None:
+        hint = next(iter(adequacy.get("diagnosis") or []), "")
+        hint = f"; likely: {hint}" if hint and not hint.startswith("no single") else ""
+        errors.append(f"model inadequate: {first['where']}: {first['message']}{hint}"
+                      + ("" if allow_inadequate or not advice else
+                         " (see the report; rerun with --allow-inadequate to go on)"))
+        if not allow_inadequate:
+            return status or EXIT_INADEQUATE, errors
+    diag = summary["diagnostics"]
+    if diag.get("gates_passed") is False and not allow_unconverged:
+        errors.append("the posterior failed its convergence gates: "
+                      + gate_failure_text(diag, len(summary["parameters"]))
+                      + (" (rerun with --allow-unconverged to accept)" if advice else ""))
+        status = EXIT_FAILED
+    return status, errors

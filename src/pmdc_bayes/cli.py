@@ -15,10 +15,9 @@ from pathlib import Path
 
 from . import _signals, cachedir
 from ._cli_parser import build_parser
-from ._console import gate_failure_text, print_fit
+from ._console import print_fit, run_outcome
 from ._errors import (
     EXIT_FAILED,
-    EXIT_INADEQUATE,
     EXIT_INTERNAL,
     EXIT_USAGE,
     FitFailed,
@@ -160,30 +159,13 @@ def _fit_one(args, path, out) -> tuple[int, dict, Path]:
     )
     if args.quiet:
         with contextlib.redirect_stdout(io.StringIO()):
-            adequate = print_fit(summary, out)
+            print_fit(summary, out)
     else:
-        adequate = print_fit(summary, out)
-    status = 0
-    if summary["fit"]["status"] != "converged" and not args.allow_unconverged:
-        # first, and its exit code first: the verdict was judged where the MAP is not
-        print(f"pmdc-bayes: error: the fit did not converge: {summary['fit']['message']}",
-              file=sys.stderr)
-        status = EXIT_FAILED
-    if not adequate:
-        first = next(f for f in summary["adequacy"]["findings"] if f["severity"] == "fail")
-        hint = next(iter(summary["adequacy"].get("diagnosis") or []), "")
-        hint = f"; likely: {hint}" if hint and not hint.startswith("no single") else ""
-        print(f"pmdc-bayes: error: model inadequate: {first['where']}: {first['message']}{hint}"
-              + ("" if args.allow_inadequate else " (see the report; rerun with "
-                 "--allow-inadequate to go on)"), file=sys.stderr)
-        if not args.allow_inadequate:
-            return status or EXIT_INADEQUATE, summary, out
-    diag = summary["diagnostics"]
-    if diag.get("gates_passed") is False and not args.allow_unconverged:
-        print("pmdc-bayes: error: the posterior failed its convergence gates: "
-              + gate_failure_text(diag, len(summary["parameters"]))
-              + " (rerun with --allow-unconverged to accept)", file=sys.stderr)
-        status = EXIT_FAILED
+        print_fit(summary, out)
+    status, errors = run_outcome(summary, allow_unconverged=args.allow_unconverged,
+                                 allow_inadequate=args.allow_inadequate)
+    for error in errors:
+        print(f"pmdc-bayes: error: {error}", file=sys.stderr)
     return status, summary, out
 
 

@@ -17,9 +17,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from ._console import run_outcome
 from ._errors import (
     EXIT_FAILED,
-    EXIT_INADEQUATE,
     EXIT_INTERNAL,
     EXIT_USAGE,
     FitFailed,
@@ -55,19 +55,6 @@ def status_name(code: int) -> str:
     return STATUS.get(code, "internal error")
 
 
-def _status(summary: dict) -> tuple[int, str]:
-    if summary["fit"]["status"] != "converged":
-        return EXIT_FAILED, f"the fit did not converge: {summary['fit']['message']}"
-    adequacy = summary["adequacy"]
-    if adequacy.get("verdict") != "adequate":
-        first = next((f for f in adequacy["findings"] if f["severity"] == "fail"), None)
-        return EXIT_INADEQUATE, ("model inadequate" + (f": {first['where']}: "
-                                                          f"{first['message']}" if first else ""))
-    if summary["diagnostics"].get("gates_passed") is False:
-        return EXIT_FAILED, "the posterior failed its convergence gates"
-    return 0, ""
-
-
 def fit_motor(session: Path, out: Path, *, name: str, mcmc: bool = True, seed: int = 0,
               force: bool = False, cache: bool = True) -> MotorRun:
     """Fit one motor's session into ``out`` (in a worker process): its status and, when
@@ -88,7 +75,8 @@ def fit_motor(session: Path, out: Path, *, name: str, mcmc: bool = True, seed: i
     except FitFailed as exc:
         return MotorRun(session, name, EXIT_FAILED, error=str(exc),
                         seconds=time.perf_counter() - t0)
-    status, error = _status(summary)
+    status, errors = run_outcome(summary, advice=False)
+    error = errors[0] if errors else ""
     evidence = None
     if status == 0:
         result = read_run(run)
