@@ -68,15 +68,22 @@ def write_lot_files(out: Path, runs, record, pop) -> list[Path]:
     paths.append(out / "lot.json")
     _write(paths[-1], lambda p: p.write_text(json.dumps(doc, indent=1), encoding="utf-8"))
     if pop is not None:
+        from .inference.correlation import correlations
         from .inference.diagnostics import az
-        from .inference.population import WALKERS
         from .report.lot_figure import lot_figure
 
-        walkers = WALKERS
+        def chains(x):
+            return x.reshape(-1, pop.walkers).T
+
         post = {}
         for k, n in enumerate(pop.names):
-            post[f"median_{n}"] = np.exp(pop.mu[:, k]).reshape(-1, walkers).T
-            post[f"spread_{n}"] = pop.sigma[:, k].reshape(-1, walkers).T
+            post[f"median_{n}"] = chains(np.exp(pop.mu[:, k]))
+            post[f"spread_{n}"] = chains(pop.sigma[:, k])
+        if pop.correlated:
+            r = correlations(pop.chol)
+            for i, a in enumerate(pop.names):
+                for j, b in enumerate(pop.names[:i]):
+                    post[f"correlation_{b}_{a}"] = chains(r[:, i, j])
         idata = az.from_dict(posterior=post)
         paths.append(out / "population.nc")
         _write(paths[-1], lambda p: idata.to_netcdf(str(p), engine="h5netcdf"))
@@ -128,6 +135,11 @@ def run_lot_command(args, *, note=None) -> int:
             slo, shi = p["spread_interval"]
             print(f"  {n:<3} median {p['median']:.4g} (90 %: {lo:.4g} .. {hi:.4g}), spread "
                   f"{100 * p['spread']:.2g} % (90 %: {100 * slo:.2g} .. {100 * shi:.2g} %)")
+        for pair, c in record["correlation"].get("pairs", {}).items():
+            if c["excludes_zero"]:
+                lo, hi = c["interval"]
+                print(f"  correlation {pair} across the lot {c['median']:.2f} "
+                      f"(90 %: {lo:.2f} .. {hi:.2f})")
     failed = [r for r in runs if r.status != 0]
     for r in failed:
         print(f"pmdc-bayes: error: motor {r.name}: {r.error}", file=sys.stderr)

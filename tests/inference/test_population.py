@@ -32,12 +32,13 @@ def _motor(rng, name, x, sd, *, draws: bool, sampler=None):
     return motor_evidence(name, NAMES, priors, theta=post_mean, cov=np.diag(post_sd**2))
 
 
-def _lot(seed, n=16, *, draws=False, outlier=None, poor=()):
+def _lot(seed, n=16, *, draws=False, outlier=None, poor=(), corr=None):
     rng = np.random.default_rng(seed)
     sampler = np.random.default_rng(seed + 10_000)  # the draws: the same lot either way
+    chol = np.eye(MU.size) if corr is None else np.linalg.cholesky(corr)
     truth, motors = [], []
     for k in range(n):
-        x = MU + SIGMA * rng.standard_normal(MU.size)
+        x = MU + SIGMA * (chol @ rng.standard_normal(MU.size))
         if k == outlier:
             x = x + 6.0 * SIGMA
         sd = np.array([0.005, 0.05, 0.01, 0.01]) * (20.0 if k in poor else 1.0)
@@ -130,3 +131,56 @@ def test_a_subset_of_parameters_reads_the_same_motor():
     assert s.names == ("K", "J")
     assert np.allclose(s.post_mean, m.post_mean[[0, 2]])
     assert np.allclose(s.draws, m.draws[:, [0, 2]])
+
+
+def _k_b_correlated(rho):
+    corr = np.eye(MU.size)
+    corr[0, 1] = corr[1, 0] = rho
+    return corr
+
+
+def test_a_correlated_lot_is_fitted_with_its_correlation_and_an_independent_one_without():
+    kept = []
+    for seed in range(3):
+        _, motors = _lot(300 + seed, n=24, corr=_k_b_correlated(0.85))
+        record, pop = analyse_lot(motors, seed=seed)
+        c = record["correlation"]
+        kept.append(c["fitted"])
+        if c["fitted"]:
+            pair = c["pairs"]["K,B"]
+            assert pair["excludes_zero"]
+            assert 0.5 < pair["median"] < 0.97
+            # coverage over many lots: benchmarks/lot_correlation.py
+            others = [v for k, v in c["pairs"].items() if k != "K,B"]
+            assert sum(v["excludes_zero"] for v in others) <= 1
+    assert all(kept), kept
+    independent = [analyse_lot(_lot(400 + seed, n=24)[1], seed=seed)[0]["correlation"]
+                   for seed in range(3)]
+    assert all(c["considered"] for c in independent)
+    assert not any(c["fitted"] for c in independent), independent
+
+
+def test_a_motor_off_the_lots_correlation_is_flagged_though_each_value_is_ordinary():
+    # K two spreads high and B two spreads low: ordinary one at a time, improbable
+    # against a lot whose K and B rise together
+    rng = np.random.default_rng(5)
+    _, motors = _lot(500, n=24, corr=_k_b_correlated(0.95))
+    x = MU + SIGMA * np.array([2.0, -2.0, 0.0, 0.0])
+    odd = _motor(rng, "odd", x, np.array([0.005, 0.05, 0.01, 0.01]), draws=False)
+    record, pop = analyse_lot(motors + [odd], seed=0)
+    assert pop.correlated
+    flags = [m["outlier"] for m in record["motors"]]
+    assert flags[-1]
+    assert sum(flags[:-1]) == 0
+
+
+def test_the_log_posterior_stays_defined_far_out_in_the_correlation():
+    from pmdc_bayes.inference.population import _log_posterior
+
+    _, motors = _lot(1, n=8)
+    fn = _log_posterior(motors, [True] * 8, correlated=True)
+    far = np.concatenate([MU, np.log(SIGMA), np.full(6, 40.0)])
+    near = np.concatenate([MU, np.log(SIGMA), np.zeros(6)])
+    lp = fn(np.stack([far, near]))
+    assert np.isfinite(lp[1])
+    assert lp[0] < lp[1]

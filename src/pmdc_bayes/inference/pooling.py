@@ -10,43 +10,54 @@ lot; a well-measured one keeps its own values.
 *without it* (each population draw weighted by the inverse of the motor's likelihood
 there, truncated at ``√N`` times the mean weight, as truncated importance sampling
 does): the chance that a motor of the lot measured as well as it was lies further from
-the population than it does, ``P(χ²_P > d²)`` with ``d² = rᵀ(diag(σ²) + C)⁻¹r``, ``r``
+the population than it does, ``P(χ²_P > d²)`` with ``d² = rᵀ(Σ + C)⁻¹r``, ``r``
 its own estimate less ``μ`` and ``C`` its own covariance.  The lot's p-values are
 corrected together by Holm's method at :data:`OUTLIER_ALPHA` (the chance that any motor
 of an in-population lot is flagged).
+
+**Correlation.**  The parameters' correlation across the lot is fitted where the data
+support it: with more motors than parameters plus one, the independent and the
+correlated population are compared by their leave-one-motor-out predictive density
+(PSIS-LOO over the motors, Vehtari, Gelman & Gabry 2017), and the correlated one is
+kept when it predicts a left-out motor better by more than :data:`CORRELATION_SE`
+standard errors of the difference, over the motors neither flags as an outlier.
 """
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from scipy import stats
 
-from .population import Population, fit_population
+from .correlation import correlations
+from .population import Population, fit_population, log_density
 
 __all__ = ["pooled_draws", "outlier_p_values", "holm", "lot_record", "analyse_lot",
-           "OUTLIER_ALPHA", "INTERVAL"]
+           "compare_correlation", "OUTLIER_ALPHA", "INTERVAL", "CORRELATION_SE"]
 
 OUTLIER_ALPHA = 0.05  # family-wise: the chance that an in-population lot flags any motor
 INTERVAL = 0.90  # central interval reported
+CORRELATION_SE = 2.0  # the correlated population's LOO gain, in its standard errors
 
 
 def pooled_draws(pop: Population, seed: int = 0) -> list[np.ndarray]:
     """Per motor, draws ``(N, P)`` of its log-values under the population, one per
     population draw."""
     rng = np.random.default_rng(seed)
-    mu, var = pop.mu, pop.sigma**2
+    mu, scale = pop.mu, pop.scale()
+    prec = np.linalg.inv(pop.covariance())
     out = []
     for m, gaussian in zip(pop.motors, pop.gaussian, strict=True):
         if gaussian:
             lam_l = np.linalg.inv(m.cov_likelihood)
-            lam = lam_l[None] + (1.0 / var)[:, :, None] * np.eye(mu.shape[1])
-            cov = np.linalg.inv(lam)
-            mean = np.einsum("nij,nj->ni", cov, (lam_l @ m.mean)[None] + mu / var)
+            cov = np.linalg.inv(lam_l[None] + prec)
+            mean = np.einsum("nij,nj->ni", cov, (lam_l @ m.mean)[None]
+                             + np.einsum("nij,nj->ni", prec, mu))
             chol = np.linalg.cholesky(0.5 * (cov + np.swapaxes(cov, 1, 2)))
             out.append(mean + np.einsum("nij,nj->ni", chol, rng.standard_normal(mu.shape)))
             continue
-        z = (m.draws[None] - mu[:, None, :]) / pop.sigma[:, None, :]
-        lw = -0.5 * np.sum(z * z, axis=2) - m.log_prior[None]
+        lw = log_density(m.draws, mu, scale) - m.log_prior[None]
         w = np.exp(lw - lw.max(axis=1, keepdims=True))
         cdf = np.cumsum(w, axis=1)
         pick = (cdf < rng.uniform(size=(mu.shape[0], 1)) * cdf[:, -1:]).sum(axis=1)
@@ -58,6 +69,7 @@ def outlier_p_values(pop: Population) -> np.ndarray:
     """Per motor, its posterior predictive p-value against the lot without it."""
     loglik = pop.log_likelihoods()
     n = pop.mu.shape[0]
+    cov = pop.covariance()
     p = np.empty(len(pop.motors))
     for j, m in enumerate(pop.motors):
         lw = -loglik[j]
@@ -65,7 +77,7 @@ def outlier_p_values(pop: Population) -> np.ndarray:
         w = np.minimum(w, np.sqrt(n) * w.mean())
         w /= w.sum()
         r = m.post_mean[None, :] - pop.mu
-        c = m.post_cov[None] + (pop.sigma**2)[:, :, None] * np.eye(r.shape[1])
+        c = m.post_cov[None] + cov
         d2 = np.einsum("ni,ni->n", r, np.linalg.solve(c, r[..., None])[..., 0])
         p[j] = float(np.sum(w * stats.chi2.sf(d2, df=r.shape[1])))
     return p
@@ -88,20 +100,86 @@ def _interval(x) -> list[float]:
     return [float(v) for v in np.quantile(x, [lo, 1.0 - lo])]
 
 
+def _loo(pop: Population) -> np.ndarray:
+    """Per motor, its PSIS-LOO log predictive density under the population."""
+    from .diagnostics import az
+
+    loglik = pop.log_likelihoods()
+    with warnings.catch_warnings():  # a poor tail only blurs the comparison
+        warnings.simplefilter("ignore")
+        lw, _ = az.psislw(-loglik)
+    top = (lw + loglik).max(axis=1, keepdims=True)
+    return top[:, 0] + np.log(np.sum(np.exp(lw + loglik - top), axis=1))
+
+
+def compare_correlation(independent: Population, correlated: Population,
+                        among=None) -> dict:
+    """The correlated population's LOO gain over the independent one, summed over the
+    motors ``among`` selects (all by default), with its standard error, and whether it
+    is kept."""
+    diff = _loo(correlated) - _loo(independent)
+    if among is not None:
+        diff = diff[np.asarray(among, bool)]
+    gain, se = float(diff.sum()), float(np.sqrt(diff.size * np.var(diff)))
+    return {"elpd_gain": gain, "se": se, "kept": bool(gain > CORRELATION_SE * se)}
+
+
+def _flags(p) -> np.ndarray:
+    return holm(p) if len(p) > 2 else np.zeros(len(p), bool)
+
+
+def _population(motors, seed: int):
+    """The population of ``motors``, correlated where the data support it (module
+    docstring), its motors' p-values and flags, and the comparison that chose it.  The
+    comparison is made over the motors neither population flags, so that one odd motor
+    does not decide the lot's correlation."""
+    pop = fit_population(motors, seed=seed)
+    p = outlier_p_values(pop)
+    flagged = _flags(p)
+    n = len(pop.names)
+    if n < 2 or len(motors) <= n + 1:
+        return pop, p, flagged, {"considered": False, "kept": False}
+    corr = fit_population(motors, seed=seed, correlated=True)
+    p_c = outlier_p_values(corr)
+    flagged_c = _flags(p_c)
+    comparison = dict(compare_correlation(pop, corr, among=~(flagged | flagged_c)),
+                      considered=True)
+    if comparison["kept"]:
+        return corr, p_c, flagged_c, comparison
+    return pop, p, flagged, comparison
+
+
 def analyse_lot(motors, *, seed: int = 0) -> tuple[dict, Population]:
     """The lot's record (:func:`lot_record`) and population: the outliers flagged among
     every motor, then the population fitted again without them, which the other motors
     are pooled toward (an outlier keeps its own values only)."""
     motors = tuple(motors)
-    pop = fit_population(motors, seed=seed)
-    p = outlier_p_values(pop)
-    flagged = holm(p) if len(motors) > 2 else np.zeros(len(motors), bool)
+    pop, p, flagged, comparison = _population(motors, seed)
     if flagged.any():
         pop = fit_population([m for m, f in zip(motors, flagged, strict=True) if not f],
-                             seed=seed)
+                             seed=seed, correlated=pop.correlated)
     pooled = iter(pooled_draws(pop, seed))
     draws = [None if f else next(pooled) for f in flagged]
-    return lot_record(pop, motors, draws, p, flagged), pop
+    record = lot_record(pop, motors, draws, p, flagged)
+    record["correlation"] = _correlation_record(pop, comparison)
+    return record, pop
+
+
+def _correlation_record(pop: Population, comparison: dict) -> dict:
+    """Whether the correlation was fitted, why, and each pair's with its interval (and
+    whether that interval excludes 0)."""
+    out = dict(comparison, fitted=pop.correlated)
+    if pop.correlated:
+        r = correlations(pop.chol)
+        pairs = {}
+        for i in range(len(pop.names)):
+            for j in range(i):
+                lo, hi = _interval(r[:, i, j])
+                pairs[f"{pop.names[j]},{pop.names[i]}"] = {
+                    "median": float(np.median(r[:, i, j])), "interval": [lo, hi],
+                    "excludes_zero": bool(lo > 0 or hi < 0)}
+        out["pairs"] = pairs
+    return out
 
 
 def lot_record(pop: Population, motors, pooled, p, flagged) -> dict:
