@@ -110,8 +110,9 @@ def main(argv=None) -> int:
              "command (cluster start, fits, population stage, files) and the peak resident "
              "memory GNU time reports for it (the largest of the command and the processes "
              "it waited for).  Second table: the population stage alone "
-             "(`inference.pooling.analyse_lot`: the population sampled, outliers tested, "
-             "pooled values) on simulated lots of 4 parameters, each motor's evidence "
+             "(`inference.pooling.analyse_lot`: the independent and the correlated "
+             "population sampled and compared, outliers tested, pooled values) on "
+             "simulated lots of 4 parameters, each motor's evidence "
              "4,000 posterior draws (thinned to 200 and reweighted) or its Gaussian.")
     header = ("run", "fits", "motors", "wall (s)", "motors/min", "peak memory (MiB)")
     table = [tuple(str(x) for x in r) for r in first]
