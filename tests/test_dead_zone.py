@@ -129,3 +129,25 @@ def test_the_search_finds_the_dead_zone_on_its_own(tmp_path):
     assert record["terms"] == ["dead_zone"], record["candidates"]
     chosen = [c for c in record["candidates"] if c["decision"] == "chosen"]
     assert [c["verdict"] for c in chosen] == ["adequate"], chosen
+
+
+def test_a_coarse_encoder_staircase_reads_no_asymmetry_into_its_resolution(tmp_path):
+    """Short plateaus of a coarse encoder's counts: the speed a plateau's last readings
+    differentiate to is the same few counts every sample, so its readings carry no
+    noise to weigh the level by; the resolution (one count over the window) does, and
+    a level the counts fix only coarsely neither decides the line nor breaks it."""
+    plan = tomllib.loads(PLAN.format(fwd=0.0, rev=0.0, current="false"))
+    tr = plan["trace"][0]
+    tr.update(rate=1000.0, speed_noise=0.0, encoder={"counts_per_rev": 16,
+                                                     "output": "position"})
+    tr["voltage"] = [[0.0, 0.0], [0.01, 3.0], [0.04, 8.0], [0.07, 5.0], [0.1, -3.0],
+                     [0.13, -8.0], [0.16, -5.0]]
+    tr["duration"] = 0.19
+    session = load_session(simulate_session(plan, tmp_path / "s"))
+    [enc] = session.traces
+    assert not enc.speed_logged and enc.encoder_step > 0
+    icpt = direction_intercepts(session)
+    for fit in icpt.values():
+        assert np.isfinite(fit["voltage"]) and fit["se"] > 0
+        assert abs(fit["voltage"]) < 4 * fit["se"] + 0.05
+    assert _asymmetry_rule(session) == []

@@ -13,6 +13,7 @@ __all__ = ["settled", "unloaded_levels", "voltage_intercept", "direction_interce
 
 LEVEL_MISS = 0.03  # a level off the others' line by more than this fraction of itself
 LINE_FIT = 0.01  # the others must sit on their line within this fraction (rms)
+_SE_FLOOR = 1e-9  # a level's standard error, at least this fraction of the largest level
 
 
 def settled(y) -> bool:
@@ -74,10 +75,13 @@ def _held_levels(tr, with_se: bool = False) -> list[tuple]:
     """The settled, unloaded end of every plateau a trace's voltage is held on, except
     a plateau at rest (0 V, or a logged 0 V's noise: below :data:`AT_REST` of the
     trace's largest voltage), which has no gain to read: ``(voltage, speed, current)``,
-    or with ``with_se`` ``(voltage, speed, the speed's standard error)``."""
+    or with ``with_se`` ``(voltage, speed, the speed's standard error)``: the noise's
+    over the root of the readings averaged, and no less than what the sensor's resolution
+    leaves (:func:`_resolution`), which averaging does not remove."""
     from .noise import noise_scale
 
     held = plateaus(tr)
+    dt = float(np.median(np.diff(tr.time))) if tr.n > 1 else 1.0
     top = max(abs(p.level) for p in held)
     cuts = sorted({p.start for p in held}
                   | {p.start for p in plateaus(tr, "load_torque")} | {tr.n})
@@ -92,10 +96,22 @@ def _held_levels(tr, with_se: bool = False) -> list[tuple]:
             continue
         i = np.nan if tr.current is None else float(np.mean(tr.current[b - n:b]))
         if with_se:
-            i = noise_scale(tr.speed[a:b]) / np.sqrt(n)
+            i = max(noise_scale(tr.speed[a:b]) / np.sqrt(n), _resolution(tr, n * dt))
         out.append((float(np.mean(tr.voltage.at(tr.time[b - n:b]))),
                     float(np.mean(tr.speed[b - n:b])), i))
     return out
+
+
+def _resolution(tr, window: float) -> float:
+    """The error a speed level averaged over ``window`` seconds keeps however quiet its
+    readings: a counted angle's (one count at each end of the window, over the window),
+    else a quantised speed's (its quantum over √12); 0 for an analogue speed."""
+    from .noise import quantum
+
+    if not tr.speed_logged and tr.position is not None:
+        step = tr.encoder_step or quantum(tr.position)
+        return step / (np.sqrt(6.0) * window)
+    return quantum(tr.speed) / np.sqrt(12.0)
 
 
 def voltage_intercept(session) -> dict | None:
@@ -141,15 +157,30 @@ def direction_intercepts(session) -> dict[int, dict]:
         w = np.array([abs(rows[k][1]) for k in pick])
         if np.unique(np.round(v, 9)).size < 2:
             continue
-        se = np.maximum(np.array([errs[k] for k in pick]), 1e-12 * max(w.max(), 1e-300))
-        x = np.stack([v, np.ones_like(v)], axis=1) / se[:, None]
-        cov = np.linalg.inv(x.T @ x)
-        slope, icpt = cov @ (x.T @ (w / se))
+        se = np.maximum(np.array([errs[k] for k in pick]), _SE_FLOOR * max(w.max(), 1e-300))
+        fitted = _weighted_line(v, w, se)
+        if fitted is None:
+            continue
+        (slope, icpt), cov = fitted
         if slope <= 0:
             continue
         g = np.array([icpt / slope**2, -1 / slope])
         out[sign] = {"voltage": float(-icpt / slope), "se": float(np.sqrt(max(g @ cov @ g, 0.0)))}
     return out
+
+
+def _weighted_line(x, y, se):
+    """The weighted least-squares line ``y = slope·x + intercept`` and its covariance,
+    solved through the singular values of the weighted design (not its normal
+    equations, which lose the line when a few levels carry almost all the weight);
+    None when the levels cannot fix a line."""
+    a = np.stack([x, np.ones_like(x)], axis=1) / se[:, None]
+    u, s, vt = np.linalg.svd(a, full_matrices=False)
+    if s[-1] <= s[0] * 1e-12:
+        return None
+    coef = vt.T @ ((u.T @ (y / se)) / s)
+    cov = (vt.T / s**2) @ vt
+    return coef, cov
 
 
 def friction_offset(session) -> dict | None:
