@@ -181,15 +181,18 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                     "current-offset (a calibration error of the traces' sensor), "
                     "source-resistance (the logged voltage is the supply's), "
                     "current-limit (the driver's, fitted; current_limit = A in [model] "
-                    "gives its setting), dead-zone (the driver's, a width each way); same as "
-                    "[model] in session.toml")
+                    "gives its setting), dead-zone (the driver's, a width each way), "
+                    "coloured-noise (each analogue channel's noise as AR(1), its correlation "
+                    "fitted; [model] coloured_noise = [\"trace\", ...] names the traces); "
+                    "same as [model] in session.toml")
     ft.add_argument("--compare", action="store_true",
                     help="search for the rig's model from the session's own: add, one at a time,"
                     " the non-idealities the adequacy verdict proposes (or, when the model "
                     "is rejected, any of + dead-time, + voltage-drop, + speed-lag, + "
                     "current-lag, + unknown-load, + speed-gain, + speed-offset, + "
                     "current-gain, + current-offset, + source-resistance, + current-limit, "
-                    "+ dead-zone, + Coulomb friction), remove what the evidence does not "
+                    "+ dead-zone, + coloured-noise, + Coulomb friction), remove what the "
+                    "evidence does not "
                     "support, stop when the data no longer reject the model and no addition"
                     " is clearly better (Laplace evidence); then run the chosen model and "
                     "write it as [model] into the run's copy of session.toml.  A plain fit "

@@ -88,7 +88,8 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
 
 
 # what the run's summary keeps of the session
-_RECORDED = {"nuisances", "loaded_traces", "load_kinds", "shared_dead_time", "friction"}
+_RECORDED = {"nuisances", "loaded_traces", "load_kinds", "shared_dead_time", "friction",
+             "coloured_traces"}
 
 
 def _same(a, b) -> bool:

@@ -134,6 +134,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
                     "holdout": list(holdout), "nuisances": list(session.nuisances),
                     "loaded_traces": list(session.unknown_load_traces()),
                     "load_kinds": dict(session.load_kinds),
+                    "coloured_traces": list(session.coloured_noise_traces()),
                     "dead_time": "shared" if session.shared_dead_time else "per_trace",
                     "gear_ratio": session.gear_ratio,
                     "rows_left_out": {tr.name: list(tr.rows_left_out)

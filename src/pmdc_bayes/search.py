@@ -36,13 +36,24 @@ import math
 
 from ._x64 import x64
 from .candidate import Candidate, Fitted, Searched, nested_start
+from .inference.coloured import COLOURED, analogue_channels
 from .inference.levels import level_outliers
 from .inference.objective import build_model
 from .inference.seed import fit_seed
 from .inference.warmup import WarmUp
 from .io.session import NUISANCES, Session
 from .supersets import Supersets
-from .terms import LOAD, SHARED, label, model_table, nuisance_of, ordered, terms_of, with_terms
+from .terms import (
+    LOAD,
+    NOISE,
+    SHARED,
+    label,
+    model_table,
+    nuisance_of,
+    ordered,
+    terms_of,
+    with_terms,
+)
 
 __all__ = ["search_model", "run_search", "Fitted", "Searched", "nested_start", "ADD_MARGIN",
            "REMOVE_MARGIN", "TIE", "MAX_FITS"]
@@ -116,6 +127,9 @@ class _Search:
         if nuisance == "unknown_load":
             return [frozenset({LOAD + (trace or t) for t in
                                ((trace,) if trace else self.suspects)})]
+        if nuisance == COLOURED:
+            return [frozenset({NOISE + t for t in ((trace,) if trace else
+                                                   set(analogue_channels(self.session).values()))})]
         return [frozenset({nuisance})]
 
     def allowed(self, move, held) -> bool:
@@ -126,6 +140,9 @@ class _Search:
         if "coulomb" in move and not self.free_friction:
             return False
         keys = {nuisance_of(t) for t in move} - {"coulomb"}
+        noisy = {t[len(NOISE):] for t in move if t.startswith(NOISE)}
+        if not noisy <= set(analogue_channels(self.session).values()):
+            return False
         return self.session.inert_nuisance(tuple(keys)) is None
 
     def proposed(self, cand) -> list[frozenset]:
@@ -280,6 +297,7 @@ def _record(search, chosen, stop, session) -> dict:
             "recommended": label(chosen.terms), "terms": ordered(chosen.terms),
             "nuisances": list(chosen.session.nuisances),
             "loaded_traces": list(chosen.session.loaded_traces),
+            "coloured_traces": list(chosen.session.coloured_traces),
             "shared_dead_time": chosen.session.shared_dead_time,
             "friction": friction, "model": table, "reason": reason,
             "equivalent": [label(c.terms) for c in ties]}

@@ -20,12 +20,13 @@ programs.
 
 from __future__ import annotations
 
+from .inference.coloured import COLOURED, analogue_channels
 from .inference.nuisances import dead_time_name, nuisance_specs
 from .inference.objective import build_model
 from .inference.seed import fit_seed
 from .inference.superset import Superset, extended
 from .io.session import NUISANCES, Session
-from .terms import LOAD, SHARED, nuisance_of, with_terms
+from .terms import LOAD, NOISE, SHARED, nuisance_of, with_terms
 
 __all__ = ["Supersets", "SWITCHING", "STICKING"]
 
@@ -89,7 +90,9 @@ def _universe(session: Session, start: frozenset, free_friction: bool) -> frozen
     for key in NUISANCES:
         if session.inert_nuisance((key,)) is not None:
             continue
-        if key == "unknown_load":
+        if key == COLOURED:
+            out.update(NOISE + t for t in set(analogue_channels(session).values()))
+        elif key == "unknown_load":
             out.update(LOAD + tr.name for tr in session.traces)
         elif key == "dead_time":
             out.add("dead_time")

@@ -2,7 +2,8 @@
 
 A term is one non-ideality of :data:`~pmdc_bayes.io.session.NUISANCES` (``"dead_time"``
 per trace, ``"dead_time:shared"`` one for every trace, ``"unknown_load:<trace>"`` a
-drag on that trace alone, the others by their name) or ``"coulomb"`` (Coulomb
+drag on that trace alone, ``"coloured_noise:<trace>"`` that trace's noise as AR(1), the
+others by their name) or ``"coulomb"`` (Coulomb
 friction).  :func:`terms_of` reads a session's model as terms, :func:`with_terms` gives
 the session fitted with other terms, :func:`model_table` the ``[model]`` table (and
 friction) that declares them in ``session.toml``.
@@ -18,6 +19,8 @@ __all__ = ["terms_of", "with_terms", "model_table", "label", "nuisance_of", "ter
 
 SHARED = "dead_time:shared"
 LOAD = "unknown_load:"
+NOISE = "coloured_noise:"
+PER_TRACE = (LOAD, NOISE)
 
 
 def nuisance_of(term: str) -> str:
@@ -29,15 +32,19 @@ def term_of(nuisance: str, trace: str | None = None) -> str:
     """The term of a non-ideality (of one trace, for an unknown load)."""
     if nuisance == "unknown_load" and trace is not None:
         return LOAD + trace
+    if nuisance == "coloured_noise" and trace is not None:
+        return NOISE + trace
     return nuisance
 
 
 def terms_of(session: Session) -> frozenset:
     """The terms of the model ``session`` declares (none: the ideal motor)."""
-    out = {n for n in session.nuisances if n not in ("dead_time", "unknown_load")}
+    out = {n for n in session.nuisances
+           if n not in ("dead_time", "unknown_load", "coloured_noise")}
     if "dead_time" in session.nuisances:
         out.add(SHARED if session.shared_dead_time else "dead_time")
     out.update(LOAD + t for t in session.unknown_load_traces())
+    out.update(NOISE + t for t in session.coloured_noise_traces())
     if session.friction == "coulomb":
         out.add("coulomb")
     return frozenset(out)
@@ -58,11 +65,13 @@ def with_terms(session: Session, terms) -> Session:
     """``session`` with the model ``terms`` declares in place of its own (a load's part
     kept for the traces the session gave one)."""
     loaded = tuple(t[len(LOAD):] for t in ordered(terms) if t.startswith(LOAD))
+    coloured = tuple(t[len(NOISE):] for t in ordered(terms) if t.startswith(NOISE))
     nuisances = {nuisance_of(t) for t in terms if t != "coulomb"}
     kinds = tuple((n, k) for n, k in session.load_kinds if n in loaded)
     return dataclasses.replace(
         session, nuisances=tuple(n for n in NUISANCES if n in nuisances),
         loaded_traces=loaded, load_kinds=kinds, shared_dead_time=SHARED in terms,
+        coloured_traces=coloured,
         friction="coulomb" if "coulomb" in terms else "viscous")
 
 
@@ -81,6 +90,8 @@ def model_table(session: Session, terms) -> tuple[dict, str]:
                 table.setdefault(key, {})[trace] = kinds.get(trace, "both")
             else:
                 table.setdefault(key, []).append(trace)
+        elif term.startswith(NOISE):
+            table.setdefault(key, []).append(term[len(NOISE):])
         elif key == "current_limit" and session.current_limit_setting is not None:
             table[key] = float(session.current_limit_setting)
         elif key != "coulomb":
@@ -99,6 +110,8 @@ def label(terms) -> str:
     for t in ordered(terms):
         if t.startswith(LOAD):
             out.append(f"unknown load ({t[len(LOAD):]})")
+        elif t.startswith(NOISE):
+            out.append(f"coloured noise ({t[len(NOISE):]})")
         else:
             out.append(_WORDS.get(t, t.replace("_", " ")))
     return " + ".join(out)

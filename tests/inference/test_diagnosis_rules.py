@@ -243,7 +243,7 @@ def test_a_quantised_levels_mean_is_read_with_the_quantisers_bias():
         true = 500.0 + rng.uniform(0, q)
         readings = q * np.round((true + 0.25 * q * rng.standard_normal(n)) / q)
         tr = SimpleNamespace(name="t", speed=readings, speed_logged=True)
-        se = _end_speed_se(tr, n, {"t: speed": float(np.std(readings))}, {})
+        se = _end_speed_se(tr, n, {"t: speed": float(np.std(readings))}, {}, {})
         misses += abs(np.mean(readings) - true) / se > 2.576
         ses.append(se)
     assert misses / trials < 0.03

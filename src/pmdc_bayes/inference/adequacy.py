@@ -39,6 +39,7 @@ from scipy.special import gammaincc
 from .._x64 import x64
 from .calibrate import FAMILY_LEVEL, holm, logged_quantum, session_rng
 from .channels import CoastDownBlock
+from .coloured import channel_rho
 
 __all__ = ["Finding", "Adequacy", "assess", "whiteness", "fit_percent", "systematic_misfit"]
 
@@ -205,11 +206,13 @@ def assess(model, fit, closed_form=None) -> Adequacy:
         except (ValueError, FloatingPointError):
             preds_cf = None
     by_name = {c.name: c for c in model.channels}
+    rho = channel_rho(model, fit.theta)
 
     def channel(name, y, yhat, ycf, u, quantum):
         ch = by_name[name]
         sigma = float(fit.noise_sd.get(name, ch.s0))
-        row, f, w = channel_tests(name, y, yhat, u, ch.s0, sigma, rng, quantum=quantum)
+        row, f, w = channel_tests(name, y, yhat, u, ch.s0, sigma, rng, quantum=quantum,
+                                  rho=float(rho[name]))
         row["unit"] = ch.unit
         row["fit_percent_closed_form"] = None if ycf is None else fit_percent(y, ycf)
         channels[name] = row
@@ -232,7 +235,8 @@ def assess(model, fit, closed_form=None) -> Adequacy:
             # a fitted dead time takes up a step's timing
             if "dead_time" not in session.nuisances:
                 fails += step_start_test(tr, what, y, yhat, by_name[f"{tr.name}: {what}"].s0,
-                                         sigma=sigma, rng=rng, quantum=quantum)
+                                         sigma=sigma, rng=rng, quantum=quantum,
+                                         rho=rho[f"{tr.name}: {what}"])
     for name, y, yhat in _coast_down_pairs(model, fit):
         channel(name, y, yhat, None, None, logged_quantum(y))
     for name, y, yhat, q in _position_pairs(model, fit):

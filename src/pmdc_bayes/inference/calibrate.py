@@ -22,6 +22,7 @@ import zlib
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.signal import lfilter
 from scipy.stats import chi2, norm
 
 __all__ = ["FAMILY_LEVEL", "REPLICATES", "Test", "session_rng", "logged_quantum",
@@ -70,17 +71,23 @@ def logged_quantum(y) -> float:
 
 
 def replicates(yhat, sigma: float, rng, *, quantum: float = 0.0, origin: float = 0.0,
-               n_rep: int = REPLICATES):
+               n_rep: int = REPLICATES, rho: float = 0.0):
     """Yield blocks of replicate data (rows): ``yhat`` plus white noise whose sd, with
     the rounding's q²/12, makes up ``sigma``, rounded to ``quantum`` on the lattice
-    through ``origin`` at a random sub-quantum phase per replicate."""
+    through ``origin`` at a random sub-quantum phase per replicate.  With ``rho``, the
+    noise is AR(1) (:mod:`.coloured`): innovations of sd ``sigma``, started from its
+    stationary distribution."""
     yhat = np.asarray(yhat, float)
     sn = float(np.sqrt(max(sigma**2 - quantum**2 / 12.0, 0.0))) if quantum > 0 else sigma
     rows = max(1, _CHUNK // max(yhat.size, 1))
     done = 0
     while done < n_rep:
         k = min(rows, n_rep - done)
-        x = yhat + sn * rng.standard_normal((k, yhat.size))
+        e = sn * rng.standard_normal((k, yhat.size))
+        if rho != 0.0:
+            e[:, 0] /= np.sqrt(1.0 - rho * rho)
+            e = lfilter([1.0], [1.0, -rho], e, axis=1)
+        x = yhat + e
         if quantum > 0:
             phase = rng.uniform(-0.5, 0.5, (k, 1)) * quantum
             x = origin + quantum * np.round((x + phase - origin) / quantum)

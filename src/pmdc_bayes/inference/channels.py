@@ -32,6 +32,7 @@ from ..physics.angle import since_first_sample
 from ..physics.experiment import Experiment, steady_points
 from ..physics.sensor import coast_down_reading, pole
 from ..physics.solution import simulate_padded
+from .coloured import COLOURED, breaks, previous_index
 from .noise import effective_fraction, noise_scale, typical_level
 from .nuisances import initial_speed_name, position_offset_name
 
@@ -57,6 +58,11 @@ class Block:
     @staticmethod
     def layout(d) -> list:
         return [(d["mask"], d["ch"])]
+
+    def previous(self, d) -> list:
+        """Per residual array, each entry's previous reading where its noise may be
+        coloured (:mod:`.coloured`), else None."""
+        return [None] * len(self.layout(d))
 
 
 def resting_counts(tr) -> np.ndarray:
@@ -130,6 +136,18 @@ class TraceBlock(Block):
             self._data[f"{what}_mask"] = (np.asarray(exp.mask) & (ch >= 0)[:, None]
                                           & np.asarray(exp.pad(np.concatenate(seen[what])),
                                                        bool))
+        if COLOURED in session.nuisances:  # each reading's previous, for the whitening
+            for what in ("speed", "current"):
+                self._data[f"{what}_prev"] = previous_index(
+                    np.concatenate(seen[what]),
+                    np.concatenate([breaks(tr.time) for tr in session.traces]),
+                    np.asarray(exp.index), np.shape(exp.mask))
+
+    @staticmethod
+    def previous(d) -> list:
+        """Per residual array, each entry's previous reading (:mod:`.coloured`), or None
+        for an array never whitened."""
+        return [d.get("speed_prev"), d.get("current_prev"), None]
 
     @staticmethod
     def layout(d) -> list:
@@ -237,6 +255,16 @@ class CoastDownBlock(Block):
             ch.append(add(f"{tr.name}: speed", "rad/s", tr.n, noise_scale(tr.speed),
                           effective_fraction(tr.speed)))
         self._data = {"t": t, "speed": y, "mask": mask, "ch": np.asarray(ch)}
+        if COLOURED in session.nuisances:
+            first = np.zeros(mask.shape, bool)
+            for k, tr in enumerate(traces):
+                first[k, :tr.n] = breaks(tr.time)
+            self._data["prev"] = previous_index(mask.reshape(-1), first.reshape(-1),
+                                                np.arange(mask.size), mask.shape)
+
+    @staticmethod
+    def previous(d) -> list:
+        return [d.get("prev")]
 
     @staticmethod
     def observed(d) -> list:

@@ -51,14 +51,15 @@ def _start_ratio(r, window):
 
 
 def step_start_test(tr, what: str, y, yhat, s0: float, *, sigma: float | None = None,
-                    rng=None, quantum: float = 0.0) -> list:
+                    rng=None, quantum: float = 0.0, rho: float = 0.0) -> list:
     """Whether the residuals of a channel concentrate at the starts of its voltage
     steps (within a few samples of each change of more than a fifth of the voltage's
     range): their mean square there against elsewhere, calibrated by the bootstrap at
     the MAP; material when the window holds most (:data:`START_SHARE`) of the
     channel's misfit beyond its noise ``s0``.  A step placed late or early (a logged
     voltage column knows a change only to a sample interval; a dead time; a driver's
-    delay) does this, which a fit can otherwise hide in a wrong La.  Returns a list of
+    delay) does this, which a fit can otherwise hide in a wrong La.  ``rho``: the lag-1
+    correlation of the channel's noise (:mod:`.coloured`).  Returns a list of
     at most one :class:`~.calibrate.Test`."""
     r = np.asarray(y, float) - np.asarray(yhat, float)
     window = _start_window(tr, r)
@@ -69,7 +70,8 @@ def step_start_test(tr, what: str, y, yhat, s0: float, *, sigma: float | None = 
     yhat = np.asarray(yhat, float)
     ratio = float(_start_ratio(r, window)[0])
     reps = np.concatenate([_start_ratio(b - yhat, window) for b in
-                           replicates(yhat, sigma, rng, quantum=quantum, origin=float(y[0]))])
+                           replicates(yhat, sigma, rng, quantum=quantum, origin=float(y[0]),
+                                      rho=rho)])
     n = int(window.sum())
     excess, total = float(np.sum(r[window] ** 2)) - n * s0**2, float(np.sum(r**2)) - r.size * s0**2
     share = excess / total if total > 0 else 0.0

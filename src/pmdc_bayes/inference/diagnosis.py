@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .checks import step_time
+from .coloured import analogue_channels
 from .diagnosis_levels import level_rules
 from .noise import noise_scale
 from .onset import departure, onset_shape
@@ -136,6 +137,14 @@ def _finding_rules(model, fit, findings, already=()):
     for f in findings:
         if f.severity != "fail":
             continue
+        if f.check == "systematic misfit" and f.where in analogue_channels(model.session):
+            out.append(said(f"{f.where}: the residual wanders slowly: a response the model "
+                            "lacks, or a sensor whose noise is correlated from one sample to "
+                            "the next (a filter, an average, a tachometer's ripple); fit that "
+                            "noise: --add coloured-noise (coloured_noise = true under "
+                            "[model]), which the evidence weighs against what the rest of "
+                            "this diagnosis proposes",
+                            Proposal("coloured_noise", analogue_channels(model.session)[f.where])))
         if f.check == "physical bound":
             out.append(f"{f.where} at its bound: {f.suggestion}")
         if f.check == "solver":

@@ -49,8 +49,10 @@ def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
     (float64: on a precise posterior an observation's log-density differs between
     draws by less than float32 resolves, and those differences are what PSIS-LOO
     reads) and a replicate of the observation (the model's prediction plus Gaussian
-    noise at its channel's level, float32), each ``(chains, kept, n_obs)``, filled
-    batch by batch (the next batch computed while this one is unpacked)."""
+    noise at its channel's level, float32; where the noise is coloured, the density and
+    the replicate of each reading given the one before it, :mod:`.coloured`), each
+    ``(chains, kept, n_obs)``, filled batch by batch (the next batch computed while this
+    one is unpacked)."""
     fn = model.residuals_of_batch
     observed = np.concatenate(model.observed_values()).astype(np.float32)
     selection = model.observation_selection()

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..io.session import Session
 from ..physics.regimes import NO_LIMIT
+from .coloured import ar_specs
 from .noise import noise_scale
 from .params import ParamSpec, Prior
 
@@ -118,6 +119,9 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     * ``dead_zone`` — ``Vdz_fwd`` and ``Vdz_rev`` (V), the widths of a driver's dead zone
       for positive and for negative commands (see :func:`_dead_zone_specs`).
 
+    * ``coloured_noise`` — per analogue channel the lag-1 correlation of its noise
+      (:func:`.coloured.ar_specs`).
+
     The drop and the dead times are untransformed (they may be zero or of either sign).
     The source resistance, the lags, the drags and the current limit are positive.
     """
@@ -146,7 +150,7 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     if "dead_time" in session.nuisances:
         specs += _dead_time_specs(session)
     return (specs + _dead_zone_specs(session) + _load_specs(session, b_seed)
-            + _calibration_specs(session))
+            + _calibration_specs(session) + ar_specs(session))
 
 
 DEAD_ZONE_NAMES = {1: ("Vdz_fwd", "positive"), -1: ("Vdz_rev", "negative")}

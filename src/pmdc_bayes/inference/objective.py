@@ -34,6 +34,8 @@ from ..physics.experiment import steady_points
 from ..physics.solution import Params, experiment_from_traces, real_modes
 from . import cache as _cache
 from .channels import SteadyBlock, blocks_for, entry_weights
+from .coloured import PREFIX as AR_PREFIX
+from .coloured import coloured_data, noise_rho, start_residuals, whiten
 from .effects import RigEffects
 from .noise import NU0, Channel, noise_scale
 from .nuisances import coast_down_specs, nuisance_specs, position_specs
@@ -101,6 +103,7 @@ class SessionModel(RigEffects, Predictions, Pointwise):
         self.n_obs = np.array([c.n for c in self.channels], dtype=float)
         self.s0 = np.array([c.s0 for c in self.channels], dtype=float)
         self.prior_sd = self.registry.prior_width_log()
+        self.coloured = any(s.name.startswith(AR_PREFIX) for s in self.registry.specs)
         self.data = self._collect_data()
 
     # -- construction helpers ---------------------------------------------------------
@@ -113,6 +116,8 @@ class SessionModel(RigEffects, Predictions, Pointwise):
         d["prior_centre"], d["prior_scale"] = self.registry.prior_arrays()
         d["off"] = np.zeros(len(self.registry), bool)
         d["neutral"] = np.zeros(len(self.registry))
+        if self.coloured:
+            d["noise_ar"] = coloured_data(self)
         return jax.tree_util.tree_map(jnp.asarray, d)
 
     def _add(self, name, unit, n, s0, alpha=1.0) -> int:
@@ -174,16 +179,26 @@ class SessionModel(RigEffects, Predictions, Pointwise):
         neutral θ ``d["neutral"]`` (:mod:`.superset`; none for a model of its own)."""
         return jnp.where(d["off"], d["neutral"], theta)
 
-    def _parts(self, theta, d, fast: bool = False) -> list:
+    def _parts(self, theta, d, fast: bool = False, whitened: bool = True) -> list:
         """Every residual array of every block with its mask and channels:
-        ``[(r, mask, ch), ...]`` in block order."""
+        ``[(r, mask, ch), ...]`` in block order; a channel whose noise is coloured gives
+        its innovations (:mod:`.coloured`) unless not ``whitened``."""
         theta = self.switched(theta, d)
+        rho = self.noise_rho(theta, d) if self.coloured else None
         out = []
         for b in self.blocks:
             bd = d[b.key]
-            out += [(r, m, c) for r, (m, c) in zip(b.residuals(self, theta, bd, fast),
-                                                   b.layout(bd), strict=True)]
+            for r, (m, c), prev in zip(b.residuals(self, theta, bd, fast), b.layout(bd),
+                                       b.previous(bd), strict=True):
+                if rho is not None and whitened and prev is not None:
+                    r = whiten(r, prev, entry_weights(rho, c, r))
+                out.append((r, m, c))
         return out
+
+    def noise_rho(self, theta, d=None):
+        """Per channel the lag-1 correlation of its noise (0: white; :mod:`.coloured`)."""
+        d = self._d(d)
+        return noise_rho(theta, d["noise_ar"]) if self.coloured else jnp.zeros(len(self.channels))
 
     def channel_residuals(self, theta, *, fast: bool = False, data=None):
         """Residuals per channel (observed − model) with their masks, in channel order."""
@@ -215,11 +230,17 @@ class SessionModel(RigEffects, Predictions, Pointwise):
     def prior_residuals(self, theta, *, data=None):
         """The registry's standardised prior residuals; a parameter switched off has a
         standard Gaussian in θ about ``prior_centre`` instead, which leaves its value
-        nowhere in the prediction and adds nothing to the evidence."""
+        nowhere in the prediction and adds nothing to the evidence.  With coloured noise,
+        one more per channel: its whitening's Jacobian (:func:`.coloured.start_residuals`),
+        a term of the likelihood that depends on θ alone."""
         d = self._d(data)
         theta = jnp.asarray(theta)
         r = self.registry.prior_residuals(theta, d["prior_centre"], d["prior_scale"])
-        return jnp.where(d["off"], theta - d["prior_centre"], r)
+        r = jnp.where(d["off"], theta - d["prior_centre"], r)
+        if not self.coloured:
+            return r
+        rho = self.noise_rho(self.switched(theta, d), d)
+        return jnp.concatenate([r, start_residuals(rho, d["noise_ar"]["starts"])])
 
     def log_prior(self, theta, *, data=None):
         """The registry's priors (bench Gaussians in value, log-normal elsewhere)."""

@@ -14,6 +14,7 @@ from ..physics import motor
 from .adequacy import Finding, _g
 from .calibrate import Test, logged_quantum, replicates, session_rng, tail_p
 from .checks import rise_time, step_time
+from .coloured import channel_rho, mean_se_factor
 from .levels import unloaded_levels
 from .noise import quantum, run_fraction
 from .nuisances import DEAD_ZONE_NAMES
@@ -50,12 +51,13 @@ def rise_eligible(trace) -> bool:
     return float(np.max(np.abs(np.diff(v)))) >= 0.5 * float(np.max(np.abs(v)))
 
 
-def _logged_speeds(model, k, tr, w, sigma, quantum, rng):
+def _logged_speeds(model, k, tr, w, sigma, quantum, rng, rho=0.0):
     """Replicates of the trace's speed as logged (rows): the model's speed plus noise
     through the speed sensor, or its angle plus noise counted by the encoder and
     differenced as the data's speed was."""
     if tr.speed_logged or tr.position is None:
-        for block in replicates(w, sigma, rng, quantum=quantum, origin=float(tr.speed[0])):
+        for block in replicates(w, sigma, rng, quantum=quantum, origin=float(tr.speed[0]),
+                                rho=rho):
             yield from block
         return
     t, ok = np.asarray(tr.time, float), np.isfinite(tr.position)
@@ -79,6 +81,7 @@ def plausibility_tests(model, fit, preds, rng=None) -> tuple[dict, list, list]:
     p = fit.values
     noise_sd = getattr(fit, "noise_sd", {})
     s0 = {c.name: c.s0 for c in model.channels}
+    rho = channel_rho(model, fit.theta) if hasattr(fit, "theta") else {}
     out, found, tests = {}, [], []
     logged = [float(np.max(np.abs(tr.current))) for tr in session.traces
               if tr.current is not None]
@@ -92,19 +95,19 @@ def plausibility_tests(model, fit, preds, rng=None) -> tuple[dict, list, list]:
         i_nl, w_nl = motor.steady_state(p["Ra"], p["K"], p["B"], v_max, 0.0,
                                         p.get("Tc") if model.coulomb else None)
         out["no_load_speed"] = {"voltage": v_max, "value": float(w_nl)}
-        tests += _no_load_test(model, fit, out, s0, preds, noise_sd)
+        tests += _no_load_test(model, fit, out, s0, preds, noise_sd, rho)
     rises = {}
     for k, (tr, (ia, w)) in enumerate(zip(session.traces, preds, strict=True)):
         ia, w = np.asarray(ia, float), np.asarray(w, float)
         if rise_eligible(tr):
-            tests += _rise_test(model, k, tr, w, noise_sd, s0, rng, rises)
+            tests += _rise_test(model, k, tr, w, noise_sd, s0, rng, rises, rho)
         if tr.current is not None:
-            tests += _peak_test(tr, ia, noise_sd, s0, rng)
+            tests += _peak_test(tr, ia, noise_sd, s0, rng, rho.get(f"{tr.name}: current", 0.0))
     out["rise_time"] = rises
     return out, found, tests
 
 
-def _rise_test(model, k, tr, w, noise_sd, s0, rng, rises) -> list:
+def _rise_test(model, k, tr, w, noise_sd, s0, rng, rises, rho) -> list:
     """The time to 63 % of the speed's change after the step, on the data against its
     distribution on replicates of the MAP through the speed's sensor path; the sample
     interval bounds its resolution (the data's step may fall anywhere within one)."""
@@ -117,7 +120,7 @@ def _rise_test(model, k, tr, w, noise_sd, s0, rng, rises) -> list:
     sigma = float(noise_sd.get(name, s0.get(name, 0.0)))
     quantum = logged_quantum(tr.speed) if tr.speed_logged else 0.0
     reps = [rise_time(tr.time, row, t_step) for row in
-            _logged_speeds(model, k, tr, w, sigma, quantum, rng)]
+            _logged_speeds(model, k, tr, w, sigma, quantum, rng, rho.get(name, 0.0))]
     reps = np.log([x for x in reps if x is not None and x > 0])
     dt = float(np.median(np.diff(tr.time)))
     pv = tail_p(np.log(obs), reps, side="two", floor=dt / (np.sqrt(6.0) * mod))
@@ -127,7 +130,7 @@ def _rise_test(model, k, tr, w, noise_sd, s0, rng, rises) -> list:
                          f"{_g(obs)} s"), pv)]
 
 
-def _peak_test(tr, ia, noise_sd, s0, rng) -> list:
+def _peak_test(tr, ia, noise_sd, s0, rng, rho=0.0) -> list:
     """The largest logged |current| against its distribution on replicates of the MAP:
     a model whose current peaks where the data's never reach (one-sided); a sample's
     change at the model's peak bounds the resolution."""
@@ -139,7 +142,7 @@ def _peak_test(tr, ia, noise_sd, s0, rng) -> list:
         return []
     reps = np.concatenate([np.log(np.max(np.abs(b), axis=1)) for b in
                            replicates(ia, sigma, rng, quantum=quantum,
-                                      origin=float(tr.current[0]))])
+                                      origin=float(tr.current[0]), rho=rho)])
     j = int(np.argmax(np.abs(ia)))
     step = float(np.max(np.abs(np.diff(np.abs(ia[max(j - 1, 0):j + 2]))), initial=0.0))
     pv = tail_p(np.log(obs), reps, side="lower", floor=step / (np.sqrt(6.0) * peak))
@@ -193,16 +196,17 @@ def _quantiser_bias_sd(y, sd: float) -> float:
     return q / np.pi * float(np.exp(-2.0 * np.pi**2 * analogue2 / q**2)) / np.sqrt(2.0)
 
 
-def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict) -> float:
+def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict, rho: dict) -> float:
     """The standard error of a trace's mean speed over its last ``n`` samples: its
     logged speed's noise over the root of the number of independent errors among them
     (a quantised speed that its noise does not dither: one per run of equal readings,
     :func:`.noise.run_fraction`, beside the quantiser's bias), or, for a speed
     estimated from the angle, the angle's noise at both ends of the window over the
-    window's length."""
+    window's length.  A coloured speed's (``rho``, :mod:`.coloured`) averages away
+    more slowly."""
     if tr.speed_logged:
         name = f"{tr.name}: speed"
-        sd = float(noise_sd.get(name, s0.get(name, 0.0)))
+        sd = float(noise_sd.get(name, s0.get(name, 0.0))) * mean_se_factor(rho.get(name, 0.0))
         independent = max(1.0, n * run_fraction(np.asarray(tr.speed)[-n:]))
         return float(np.hypot(sd / np.sqrt(independent), _quantiser_bias_sd(tr.speed, sd)))
     name = f"{tr.name}: position"
@@ -211,7 +215,7 @@ def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict) -> float:
     return np.sqrt(2.0) * sd / span if span > 0 else 0.0
 
 
-def _no_load_test(model, fit, out, s0, preds, noise_sd) -> list:
+def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
     """The model's steady speed at the session's largest settled unloaded voltage
     against the speed logged there; two-sided, in the level's noise: for a steady
     reading, its prior's (Student's t with ν0 degrees at the scale s0: a reading's noise
@@ -242,7 +246,7 @@ def _no_load_test(model, fit, out, s0, preds, noise_sd) -> list:
         expected = float(np.mean(np.asarray(preds[k][1])[-n:]))
         # the level is the same trace's the model was fitted to: its mean is read against
         # the model's, whose own uncertainty (the fit's) is of the same order
-        se = float(np.hypot(_end_speed_se(tr, n, noise_sd, s0),
+        se = float(np.hypot(_end_speed_se(tr, n, noise_sd, s0, rho),
                             _no_load_speed_sd(model, fit, float(v))))
     if not se > 0:  # no noise level to read the miss on: no test
         return []

@@ -25,13 +25,18 @@ class Pointwise:
         return [-0.5 * (jnp.log(2 * jnp.pi * v) + r * r / v)
                 for r, v in self.padded_residuals(theta, data=data)]
 
-    def padded_residuals(self, theta, *, data=None) -> list:
+    def padded_residuals(self, theta, *, data=None, whitened: bool = True) -> list:
         """Per output of :meth:`padded_log_density`, ``(residual, σ_c²)``, the second
         broadcastable to the first: the model's prediction is the observation minus the
-        residual."""
+        residual.  A channel whose noise is coloured gives its innovations and their
+        level: the observation minus the innovation is then the prediction of the
+        reading given the one before it (:mod:`.coloured`); not ``whitened``, its
+        residuals themselves."""
         d = self._d(data)
         parts = self._parts(theta, d)
         var = (NU0 * d["s0"] ** 2 + self._sums(parts)) / (d["n_obs"] + NU0)
+        if not whitened and self.coloured:
+            parts = self._parts(theta, d, whitened=False)
         out = []
         for r, _, ch in parts:
             if r.shape[0] == 0:

@@ -15,7 +15,7 @@ from ..io.session import NUISANCES
 __all__ = ["Proposal", "Said", "said", "has", "PER_TRACE", "COULOMB"]
 
 COULOMB = "coulomb"
-PER_TRACE = ("unknown_load", "dead_time")
+PER_TRACE = ("unknown_load", "dead_time", "coloured_noise")
 
 
 @dataclass(frozen=True)
@@ -51,4 +51,6 @@ def has(model, proposal: Proposal) -> bool:
         return bool(model.coulomb)
     if proposal.nuisance == "unknown_load" and proposal.trace is not None:
         return proposal.trace in session.unknown_load_traces()
+    if proposal.nuisance == "coloured_noise" and proposal.trace is not None:
+        return proposal.trace in session.coloured_noise_traces()
     return proposal.nuisance in session.nuisances

@@ -207,6 +207,12 @@ def _with_nuisances(session, run_dir: Path, info: dict):
             raise UsageError(f"{run_dir / 'summary.json'}: session.load_kinds is {kinds!r}, "
                              "not a table of loaded traces to constant, viscous or both; "
                              "rerun 'pmdc-bayes fit'")
+        coloured = info.get("coloured_traces") or []
+        if not isinstance(coloured, list) or not set(coloured) <= {
+                t.name for t in session.traces + session.coast_downs}:
+            raise UsageError(f"{run_dir / 'summary.json'}: session.coloured_traces is "
+                             f"{coloured!r}, not a list of the session's traces; rerun "
+                             "'pmdc-bayes fit'")
         dead = info.get("dead_time", "per_trace")
         if dead not in DEAD_TIMES:
             raise UsageError(f"{run_dir / 'summary.json'}: session.dead_time is {dead!r}, "
@@ -214,6 +220,7 @@ def _with_nuisances(session, run_dir: Path, info: dict):
         session = dataclasses.replace(session, nuisances=tuple(names),
                                       loaded_traces=tuple(loaded),
                                       load_kinds=tuple(kinds.items()),
+                                      coloured_traces=tuple(coloured),
                                       shared_dead_time=dead == "shared")
     return session
 

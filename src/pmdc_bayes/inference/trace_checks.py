@@ -15,6 +15,7 @@ import numpy as np
 from scipy.stats import norm
 
 from .calibrate import Test, ratio_p, replicates, tail_p
+from .coloured import innovation_scale
 from .noise import noise_scale
 
 __all__ = ["channel_tests", "slow_ratio", "autocorrelation", "MATERIAL_FRACTION",
@@ -58,14 +59,20 @@ def _finding(check, name, severity, size, message):
     return Finding(check, name, severity, size, message)
 
 
-def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0):
+def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0):
     """The figures of one trace channel (a row of the report's table) and its tests.
     ``quantum`` is the resolution the channel was logged at (0: not quantised); on a
-    quantised channel every statistic is calibrated by the bootstrap."""
+    quantised channel every statistic is calibrated by the bootstrap.  A channel whose
+    noise is coloured (lag-1 correlation ``rho``, :mod:`.coloured`) is checked on its
+    innovations, which are white at the fitted level ``sigma``, against the model-free
+    level an AR(1) noise's innovations have."""
     from .adequacy import fit_percent, systematic_misfit, whiteness
 
     y, yhat = np.asarray(y, float), np.asarray(yhat, float)
     r = y - yhat
+    if rho != 0.0:
+        r = np.concatenate([[np.sqrt(1.0 - rho * rho) * r[0]], r[1:] - rho * r[:-1]])
+        s0 = s0 * innovation_scale(rho)
     n = r.size
     span = float(np.max(y) - np.min(y)) or float(np.max(np.abs(y))) or 1.0
     white = whiteness(r / max(sigma, 1e-300), u)
@@ -99,7 +106,8 @@ def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0):
            "inflation_p": p_infl, "whiteness": dict(white, p_value=p_white),
            "systematic_rms": sys_rms, "systematic_fraction": sys_rms / span,
            "systematic_p": p_slow, "anti_correlation_p": p_anti, "input_xcorr_p": p_xcorr,
-           "quantum": quantum, "span": span, "fit_percent_map": fit_percent(y, yhat)}
+           "quantum": quantum, "span": span, "fit_percent_map": fit_percent(y, yhat),
+           "noise_correlation": rho}
     size = (f"noise sd {sigma:.3g} fitted against {s0:.3g} from the data "
             f"(x{inflation:.3g}); systematic misfit {100 * sys_rms / span:.2g} % of the span; "
             f"fit {row['fit_percent_map']:.1f} %")

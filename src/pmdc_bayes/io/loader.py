@@ -194,6 +194,22 @@ def _loaded_traces(mt: _Table, traces) -> tuple[tuple[str, ...], tuple[tuple[str
     return tuple(dict.fromkeys(value)), ()
 
 
+def _coloured_traces(mt: _Table, traces) -> tuple[str, ...]:
+    """``[model] coloured_noise``: true (every trace), false, or a list of trace names
+    (driven traces and coast-downs)."""
+    value = mt.data.get("coloured_noise", False)
+    if isinstance(value, bool):
+        return ()
+    names = [t.name for t in traces]
+    if (not isinstance(value, list) or not value
+            or not all(isinstance(v, str) and v in names for v in value)):
+        example = f"[{names[0]!r}]" if names else "true"
+        mt.fail("coloured_noise", f"expected true, false or a list of trace names (of "
+                f"{', '.join(map(repr, names))}), got {_describe(value)}; write e.g. "
+                f"coloured_noise = {example}")
+    return tuple(dict.fromkeys(value))
+
+
 def _truth(path: Path) -> dict | None:
     if not path.is_file():
         return None
@@ -279,7 +295,7 @@ def load_session(path) -> Session:
                 cf.fail("K_decimals", f"expected a whole number >= 0, got {_describe(d)}; "
                         "write e.g. K_decimals = 3")
             options["K_decimals"] = d
-    nuisances, loaded, kinds, limit_setting, shared = (), (), (), None, False
+    nuisances, loaded, kinds, limit_setting, shared, coloured = (), (), (), None, False, ()
     mt = top.table("model", required=False)
     traces, coast_downs = read_traces(top, root)
     _unique(traces + coast_downs, "trace", toml)
@@ -290,9 +306,10 @@ def load_session(path) -> Session:
         loaded, kinds = _loaded_traces(mt, traces)
         limit_setting = _limit_setting(mt)
         shared = _shared_dead_time(mt)
+        coloured = _coloured_traces(mt, traces + coast_downs)
         for key in NUISANCES:
             flag = mt.data.get(key, False)
-            if key not in ("unknown_load", "current_limit", "dead_time") \
+            if key not in ("unknown_load", "current_limit", "dead_time", "coloured_noise") \
                     and not isinstance(flag, bool):
                 mt.fail(key, f"expected true or false, got {_describe(flag)}; write e.g. "
                         f"{key} = true")
@@ -303,6 +320,7 @@ def load_session(path) -> Session:
         loaded_traces=loaded,
         load_kinds=kinds,
         shared_dead_time=shared,
+        coloured_traces=coloured,
         current_limit_setting=limit_setting,
         bench={k: m for k, m in measured.items() if k not in ("Ra", "La")},
         root=root,

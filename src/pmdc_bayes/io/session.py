@@ -37,7 +37,7 @@ LOAD_KINDS = ("both", "constant", "viscous")  # an unknown drag's fitted parts, 
 DEAD_TIMES = ("per_trace", "shared")  # one dead time per driven trace, or one for all
 NUISANCES = ("dead_time", "voltage_drop", "speed_lag", "current_lag", "unknown_load",
              "speed_gain", "speed_offset", "current_gain", "current_offset",
-             "source_resistance", "current_limit", "dead_zone")
+             "source_resistance", "current_limit", "dead_zone", "coloured_noise")
 COAST_DOWN = "coast-down"  # the trace kind of a run-down with the armature open
 LA_TIME_CONSTANT = 1e-3  # s: La/Ra assumed when La was not measured ...
 LA_PRIOR_LOG_SD = float(np.log(10.0)) / 2  # ... give or take a factor 10 at 2 sd (log)
@@ -205,6 +205,8 @@ class Session:
     user gave the driver's setting, a driver's dead zone ``"dead_zone"``, its own width
     for each direction of the command); ``shared_dead_time``: one dead time for every
     driven trace (one driver, one logger) instead of one per trace.
+    ``coloured_traces``: the traces whose noise ``"coloured_noise"`` fits as AR(1)
+    (empty: every trace).
     ``gear_ratio``: motor turns per output turn when the session was measured at a
     gearbox's output (every speed, angle and torque here is already the motor shaft's,
     :mod:`.gear`); 1 otherwise.
@@ -234,6 +236,7 @@ class Session:
     load_kinds: tuple[tuple[str, str], ...] = ()
     shared_dead_time: bool = False
     gear_ratio: float = 1.0
+    coloured_traces: tuple[str, ...] = ()
 
     def __repr__(self) -> str:
         parts = [f"{self.name!r}", f"motor={self.motor!r}", f"friction={self.friction!r}",
@@ -285,6 +288,16 @@ class Session:
             steady=steady, operating_points=operating_points, model=model, name=name,
             directory=directory)
 
+    def coloured_noise_traces(self) -> tuple[str, ...]:
+        """The traces (driven and coast-downs) whose analogue channels' noise is fitted
+        as coloured (``coloured_noise``): those ``coloured_traces`` names, or every one
+        when it names none."""
+        if "coloured_noise" not in self.nuisances:
+            return ()
+        names = tuple(t.name for t in self.traces + self.coast_downs)
+        return tuple(n for n in names if n in self.coloured_traces) if self.coloured_traces \
+            else names
+
     def load_kind(self, trace_name: str) -> str:
         """Which parts of a loaded trace's unknown drag are fitted: :data:`LOAD_KINDS`."""
         return dict(self.load_kinds).get(trace_name, "both")
@@ -319,6 +332,9 @@ class Session:
             if name == "dead_zone" and not (self.traces or self.steady_tables
                                             or self.operating_points):
                 return name, "the session commands no voltage (a driver's dead zone acts on it)"
+            if name == "coloured_noise" and not (speed or current):
+                return name, ("no trace logs a speed or a current (a counted angle's errors "
+                              "are its counts')")
         return None
 
     def trace(self, name: str) -> Trace:

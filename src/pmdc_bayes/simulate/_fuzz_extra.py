@@ -18,7 +18,7 @@ __all__ = ["NON_IDEALITIES", "rig_table", "log_voltage_column", "add_step_readin
 
 NON_IDEALITIES = ("dead time", "speed lag", "voltage drop", "source resistance",
                   "current limit", "unknown load", "encoder speed", "speed gain",
-                  "speed offset", "dead zone")
+                  "speed offset", "dead zone", "coloured noise")
 
 STEP_READING_SD = 0.01  # relative error of a time and a speed read off a plot
 
@@ -50,6 +50,15 @@ def rig_table(rng, key: str | None, truth: dict, v: float, tau_m: float, names, 
     if key == "dead zone":  # wider in reverse: a driver's asymmetric dead zone
         return {"dead_zone_forward": float(f"{rng.uniform(0.04, 0.08) * v:.4g}"),
                 "dead_zone_reverse": float(f"{rng.uniform(0.10, 0.15) * v:.4g}")}
+    if key == "coloured noise":  # every analogue speed read through a filtering sensor
+        w = v * truth["K"] / (truth["Ra"] * truth["B"] + truth["K"] ** 2)
+        for t in traces:
+            if "speed_noise" in t:
+                t.pop("speed_quantum", None)
+                sd = max(t["speed_noise"], rng.uniform(0.01, 0.03) * w)
+                t["speed_noise"] = float(f"{sd:.4g}")
+                t["speed_noise_correlation"] = float(f"{rng.uniform(0.8, 0.97):.3g}")
+        return {}
     if key == "encoder speed":
         for t in traces:  # every driven trace's speed: encoder counts differenced
             if t["kind"] != "coast-down":

@@ -90,6 +90,7 @@ class TraceSpec:
     delay: float
     encoder: tuple[int, str] | None = None  # (counts per revolution, output), with a [rig]
     drag: Drag = NO_DRAG  # a known load that depends on the speed (SI)
+    speed_noise_correlation: float = 0.0  # lag-1 correlation of the speed's noise, AR(1)
 
     @property
     def time(self) -> np.ndarray:
@@ -158,7 +159,7 @@ def _coast_down(t: Table) -> TraceSpec:
     """A coast-down: the armature open from the first sample, the rotor running down
     from ``initial = { speed = rad/s }``; a speed channel only."""
     t.check_keys(("name", "kind", "duration", "rate", "initial", "speed_unit", "speed_noise",
-                  "speed_quantum", "delay"))
+                  "speed_quantum", "delay", "speed_noise_correlation"))
     initial = t.value("initial", what="{ speed = rad/s }")
     if not isinstance(initial, dict):
         t.fail("initial", "a coast-down starts from its speed when the armature opens; write "
@@ -179,7 +180,17 @@ def _coast_down(t: Table) -> TraceSpec:
                      speed_noise=t.number("speed_noise", default=0.0, low=0.0),
                      speed_quantum=t.number("speed_quantum", default=0.0, low=0.0),
                      current_noise=0.0, current_quantum=0.0,
-                     delay=t.number("delay", default=0.0, low=0.0))
+                     delay=t.number("delay", default=0.0, low=0.0),
+                     speed_noise_correlation=_correlation(t))
+
+
+def _correlation(t: Table) -> float:
+    """``speed_noise_correlation``: the speed noise's lag-1 correlation, in [0, 1)."""
+    rho = t.number("speed_noise_correlation", default=0.0, low=0.0)
+    if not rho < 1.0:
+        t.fail("speed_noise_correlation", f"expected a correlation below 1, got {rho}; "
+               "write e.g. speed_noise_correlation = 0.9")
+    return rho
 
 
 def _trace(t: Table) -> TraceSpec:
@@ -200,7 +211,7 @@ def _driven(t: Table) -> TraceSpec:
     """A trace driven by a voltage schedule (any kind but a coast-down)."""
     t.check_keys(("name", "kind", "duration", "rate", "voltage", "load_torque", "initial",
             "speed_unit", "record_current", "speed_noise", "speed_quantum", "current_noise",
-            "current_quantum", "delay", "encoder", "drag"))
+            "current_quantum", "delay", "encoder", "drag", "speed_noise_correlation"))
     initial = t.value("initial", default="rest")
     if isinstance(initial, dict):
         sub = Table(t.file, initial, t.path("initial"))
@@ -226,6 +237,7 @@ def _driven(t: Table) -> TraceSpec:
                                                   "current_noise", "current_quantum",
                                                   "delay")},
         encoder=check_encoder(t), drag=read_drag(t, _SI_DRAG),
+        speed_noise_correlation=_correlation(t),
     )
     if spec.encoder is not None and spec.encoder[1] == "edges" and spec.initial != "rest":
         t.fail("encoder", 'an "edges" encoder trace starts at rest; set initial = "rest" or '

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+from scipy.signal import lfilter
 
 from .._errors import SessionError
 from .._x64 import x64
@@ -116,8 +117,9 @@ def sample_trace(truth: dict, spec: TraceSpec, seed: int, rig=None) -> dict[str,
     on a ``rig`` (:class:`~.rig.RigSpec`) its readings there, with ``position`` for an
     encoder trace.
 
-    Each analogue channel is the true signal plus Gaussian noise, then rounded to its
-    quantum; an encoder's counts are exact.
+    Each analogue channel is the true signal plus Gaussian noise (the speed's AR(1)
+    with the trace's ``speed_noise_correlation``, its sd ``speed_noise`` throughout),
+    then rounded to its quantum; an encoder's counts are exact.
     """
     if spec.kind == COAST_DOWN:
         true = (ideal_coast_down(truth, spec) if rig is None
@@ -134,8 +136,12 @@ def sample_trace(truth: dict, spec: TraceSpec, seed: int, rig=None) -> dict[str,
         out.update({k: true[k] for k in ("speed", "position", "direction")
                     if true.get(k) is not None})
     else:
-        out["speed"] = _quantise(true["speed"] + spec.speed_noise
-                                 * speed_rng.standard_normal(t.size), spec.speed_quantum)
+        noise = speed_rng.standard_normal(t.size)
+        rho = spec.speed_noise_correlation
+        if rho > 0:  # stationary AR(1) of unit variance
+            noise[1:] *= np.sqrt(1.0 - rho * rho)
+            noise = lfilter([1.0], [1.0, -rho], noise)
+        out["speed"] = _quantise(true["speed"] + spec.speed_noise * noise, spec.speed_quantum)
     if spec.record_current and true["current"] is not None:
         out["current"] = _quantise(true["current"] + spec.current_noise
                                    * current_rng.standard_normal(t.size), spec.current_quantum)
@@ -237,7 +243,10 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
             currents = f"the armature opened at {_f(tr.initial[1])} rad/s"
         files[f"{tr.name}.csv"] = _csv(cols)
         out += ["", f"# {tr.rate:g} Hz for {tr.duration:g} s ({tr.time.size} samples); "
-                f"speed noise sd {tr.speed_noise:g} rad/s, quantum {tr.speed_quantum:g} rad/s; "
+                f"speed noise sd {tr.speed_noise:g} rad/s"
+                + (f" (AR(1), lag-1 correlation {tr.speed_noise_correlation:g})"
+                   if tr.speed_noise_correlation else "")
+                + f", quantum {tr.speed_quantum:g} rad/s; "
                 f"{currents}; sensor delay {tr.delay:g} s.",
                 "[[trace]]", f"name = {_s(tr.name)}", f"kind = {_s(tr.kind)}",
                 f"file = {_s(tr.name + '.csv')}", f"columns = {_inline(roles)}",

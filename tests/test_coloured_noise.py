@@ -1,0 +1,226 @@
+"""Coloured noise (``coloured_noise``): a channel's errors as AR(1).  The whitened
+likelihood against the AR(1) Gaussian density written out in full; a step of the
+independent bench simulator (LSODA) read through a sensor whose noise is correlated
+from sample to sample: the ideal model rejected with coloured noise proposed, the model
+with it adequate with its correlation and K found; the search choosing it, and not
+choosing it over a dead time the noise does not explain."""
+
+import csv
+import dataclasses
+import tomllib
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from pmdc_bayes._x64 import x64
+from pmdc_bayes.inference.adequacy import assess
+from pmdc_bayes.inference.coloured import ar_name, previous_index, start_residuals
+from pmdc_bayes.inference.fit import fit_map
+from pmdc_bayes.inference.noise import NU0
+from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.io.session import Session
+from pmdc_bayes.search import search_model
+from pmdc_bayes.simulate.session import simulate_session
+
+RHO = 0.9
+
+PLAN = """\
+seed = 3
+[motor]
+name = "a tachometer through a filter"
+[truth]
+Ra = 2.0
+La = 2e-3
+K = 0.05
+B = 2e-5
+J = 2e-5
+[bench.Ra]
+sd = 0.05
+unit = "ohm"
+[bench.La]
+sd = 0.1
+unit = "mH"
+[rig]
+dead_time = {dead_time}
+[[trace]]
+name = "steps"
+kind = "step"
+duration = 0.6
+rate = 2000.0
+voltage = [[0.0, 0.0], [0.01, 6.0], [0.3, 2.0]]
+record_current = false
+speed_noise = {white}
+"""
+
+
+def _session(tmp_path, *, ar_sd=0.0, white=0.3, dead_time=0.0, seed=11):
+    """The plan drawn by the bench simulator, then AR(1) noise of marginal sd ``ar_sd``
+    added to its logged speed (as a filtering sensor would)."""
+    plan = tomllib.loads(PLAN.format(dead_time=dead_time, white=white))
+    root = simulate_session(plan, tmp_path / "s")
+    if ar_sd > 0:
+        path = root / "steps.csv"
+        rows = list(csv.reader(path.read_text().splitlines()))
+        head, data = rows[0], np.array(rows[1:], float)
+        j = head.index("speed")
+        rng = np.random.default_rng(seed)
+        e = np.zeros(len(data))
+        w = rng.standard_normal(len(data)) * ar_sd * np.sqrt(1 - RHO**2)
+        e[0] = rng.standard_normal() * ar_sd
+        for k in range(1, len(e)):
+            e[k] = RHO * e[k - 1] + w[k]
+        data[:, j] += e
+        with path.open("w", newline="") as fh:
+            out = csv.writer(fh)
+            out.writerow(head)
+            out.writerows([[f"{v:.10g}" for v in row] for row in data])
+    return load_session(root)
+
+
+def test_previous_readings_skip_a_missed_one_and_restart_each_record():
+    observed = np.array([True, True, False, True, True, True, True])
+    first = np.array([True, False, False, False, False, True, False])
+    pos = np.array([0, 1, 2, 3, 5, 6, 7])  # a padded slot at 4
+    prev = previous_index(observed, first, pos, (8,))
+    assert prev.tolist() == [-1, 0, -1, -1, -1, 3, -1, 6]
+
+
+def test_start_residual_is_the_whitening_jacobian_and_smooth_at_zero():
+    rho = jnp.asarray([0.0, 1e-5, 0.5, -0.9, 0.99])
+    r = np.asarray(start_residuals(rho, jnp.full(5, 3.0)))
+    np.testing.assert_allclose(-0.5 * r**2, 1.5 * np.log1p(-np.asarray(rho) ** 2),
+                               rtol=1e-9, atol=1e-15)
+
+
+@x64
+def test_the_whitened_likelihood_is_the_ar1_density_written_out(tmp_path):
+    """The model's log-likelihood plus its whitening Jacobian equals the AR(1)
+    Gaussian density (covariance ρ^|i−j|/(1−ρ²) per contiguous run of readings, a
+    missed reading starting a new run) with each channel's noise level integrated out
+    as the objective integrates it."""
+    rng = np.random.default_rng(0)
+    t = np.arange(400) / 1000.0
+    w = 100.0 * (1 - np.exp(-t / 0.03)) + rng.standard_normal(t.size)
+    i = 1.0 * np.exp(-t / 0.03) + 0.01 * rng.standard_normal(t.size)
+    Session.from_arrays(
+        Ra=(2.0, 0.05), La=(2e-3, 2e-4),
+        traces={"step": {"time": t, "speed": w, "current": i, "voltage": 6.0,
+                         "initial": "rest"}},
+        model={"coloured_noise": True}, directory=tmp_path / "s")
+    [path] = (tmp_path / "s").glob("*.csv")
+    rows = list(csv.reader(path.read_text().splitlines()))
+    rows[151][rows[0].index("speed")] = ""  # a missed reading
+    with path.open("w", newline="") as fh:
+        csv.writer(fh).writerows(rows)
+    session = load_session(tmp_path / "s")
+    model = build_model(session, fit_seed(session))
+    names = list(model.names)
+    theta = np.asarray(model.theta_seed()).copy()
+    rhos = {"step: speed": 0.7, "step: current": -0.4}
+    for channel, rho in rhos.items():
+        theta[names.index(ar_name(channel))] = np.arctanh(rho)
+    theta = jnp.asarray(theta)
+    n_reg = len(names)
+    model_ll = float(model.log_likelihood(theta)
+                     - 0.5 * jnp.sum(model.prior_residuals(theta)[n_reg:] ** 2))
+    raw = model._parts(theta, model.data, whitened=False)
+    direct = 0.0
+    for c, ch in enumerate(model.channels):
+        if ch.n == 0:
+            continue
+        r, m, chan = next((r, m, k) for r, m, k in raw
+                          if np.any(np.asarray(m) & (np.asarray(k) == c)[:, None]))
+        r = np.asarray(r)[np.asarray(m) & (np.asarray(chan) == c)[:, None]]
+        rho = rhos.get(ch.name, 0.0)
+        runs = [r[:150], r[150:]]  # either side of the missed reading (its row left out)
+        q, logdet = 0.0, 0.0
+        for e in runs:
+            k = np.arange(e.size)
+            cov = rho ** np.abs(k[:, None] - k[None, :]) / (1 - rho**2)
+            q += float(e @ np.linalg.solve(cov, e))
+            logdet += float(np.linalg.slogdet(cov)[1])
+        direct += -0.5 * (ch.n + NU0) * np.log(NU0 * ch.s0**2 + q) - 0.5 * logdet
+    assert model_ll == pytest.approx(direct, rel=1e-10)
+
+
+@x64
+def test_white_channels_read_the_same_with_their_correlation_at_zero(tmp_path):
+    session = _session(tmp_path)
+    plain = build_model(session, fit_seed(session))
+    coloured = build_model(dataclasses.replace(session, nuisances=("coloured_noise",)),
+                           fit_seed(session))
+    theta = np.asarray(plain.theta_seed())
+    full = jnp.asarray(np.concatenate([theta, [0.0]]))
+    assert float(coloured.log_likelihood(full)) == pytest.approx(
+        float(plain.log_likelihood(jnp.asarray(theta))), rel=1e-12)
+
+
+def test_a_filtering_sensor_is_rejected_as_white_and_fitted_as_coloured(tmp_path):
+    session = _session(tmp_path, ar_sd=6.0)
+    cf = fit_seed(session)
+    model = build_model(session, cf)
+    ideal = assess(model, fit_map(model), cf)
+    assert ideal.verdict == "inadequate"
+    assert ("coloured_noise", "steps") in [(p.nuisance, p.trace) for p in ideal.proposals]
+    s = dataclasses.replace(session, nuisances=("coloured_noise",))
+    cf = fit_seed(s)
+    model = build_model(s, cf)
+    fit = fit_map(model)
+    assert assess(model, fit, cf).verdict == "adequate"
+    phi = fit.values[ar_name("steps: speed")]
+    assert abs(phi - np.arctanh(RHO)) < 3 * fit.sd[ar_name("steps: speed")]
+    assert abs(fit.values["K"] - 0.05) < 3 * fit.sd["K"]
+
+
+@pytest.mark.slow
+def test_the_search_takes_coloured_noise_where_it_is_and_a_dead_time_where_that_is(tmp_path):
+    coloured = search_model(_session(tmp_path / "ar", ar_sd=6.0))
+    assert coloured["terms"] == ["coloured_noise:steps"], coloured["candidates"]
+    assert coloured["model"] == {"coloured_noise": ["steps"]}
+    delayed = search_model(_session(tmp_path / "dt", dead_time=0.004, white=0.3))
+    assert "dead_time" in delayed["terms"], delayed["candidates"]
+    assert not any(t.startswith("coloured_noise") for t in delayed["terms"])
+
+
+def test_coloured_noise_names_its_traces_and_refuses_others(tmp_path):
+    from pmdc_bayes._errors import SessionError
+    from pmdc_bayes.terms import model_table, terms_of
+
+    t = np.arange(200) / 1000.0
+    rng = np.random.default_rng(1)
+
+    def trace():
+        return {"time": t, "speed": 50.0 * (1 - np.exp(-t / 0.02)) + rng.standard_normal(t.size),
+                "voltage": 6.0, "initial": "rest"}
+
+    session = Session.from_arrays(Ra=(2.0, 0.05), traces={"a": trace(), "b": trace()},
+                                  model={"coloured_noise": ["b"]})
+    model = build_model(session, fit_seed(session))
+    assert [n for n in model.names if n.startswith("noise_ar")] == [ar_name("b: speed")]
+    assert terms_of(session) == {"coloured_noise:b"}
+    assert model_table(session, terms_of(session))[0] == {"coloured_noise": ["b"]}
+    with pytest.raises(SessionError, match="coloured_noise"):
+        Session.from_arrays(Ra=(2.0, 0.05), traces={"a": trace()},
+                            model={"coloured_noise": ["c"]})
+
+
+def test_the_simulators_coloured_speed_noise_has_its_correlation_and_sd(tmp_path):
+    from pmdc_bayes.simulate.plan import check_plan
+    from pmdc_bayes.simulate.session import sample_trace
+
+    plan = tomllib.loads(PLAN.format(dead_time=0.0, white=2.0))
+    del plan["rig"]
+    tr = plan["trace"][0]
+    tr.update(duration=5.0, rate=1000.0, voltage=[[0.0, 6.0]], initial="steady",
+              speed_noise_correlation=0.9)
+    spec = check_plan(plan)
+    steady = sample_trace(spec.truth, spec.traces[0], seed=5)["speed"]
+    e = steady - np.median(steady)
+    assert abs(np.std(e) / 2.0 - 1.0) < 0.15
+    assert abs(np.corrcoef(e[1:], e[:-1])[0, 1] - 0.9) < 0.03
+    tr["speed_noise_correlation"] = 1.0
+    with pytest.raises(Exception, match="speed_noise_correlation"):
+        check_plan(plan)
