@@ -67,7 +67,7 @@ def pooled_draws(pop: Population, seed: int = 0) -> list[np.ndarray]:
 
 def outlier_p_values(pop: Population) -> np.ndarray:
     """Per motor, its posterior predictive p-value against the lot without it."""
-    loglik = pop.log_likelihoods()
+    loglik = pop.log_likelihoods
     n = pop.mu.shape[0]
     cov = pop.covariance()
     p = np.empty(len(pop.motors))
@@ -104,7 +104,7 @@ def _loo(pop: Population) -> np.ndarray:
     """Per motor, its PSIS-LOO log predictive density under the population."""
     from .diagnostics import az
 
-    loglik = pop.log_likelihoods()
+    loglik = pop.log_likelihoods
     with warnings.catch_warnings():  # a poor tail only blurs the comparison
         warnings.simplefilter("ignore")
         lw, _ = az.psislw(-loglik)

@@ -18,6 +18,7 @@ half-normal of scale :data:`SPREAD_SCALE` on σ).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import emcee
 import numpy as np
@@ -83,8 +84,10 @@ class Population:
         s = self.scale()
         return s @ np.swapaxes(s, 1, 2)
 
+    @cached_property
     def log_likelihoods(self) -> np.ndarray:
-        """``(M, N)``: each motor's log-likelihood at each population draw."""
+        """``(M, N)``: each motor's log-likelihood at each population draw (computed
+        once: the outlier test and the LOO comparison both read it)."""
         scale = self.scale()
         return np.stack([_motor_loglik(m, g, self.mu, scale)
                          for m, g in zip(self.motors, self.gaussian, strict=True)])
@@ -106,23 +109,34 @@ def _precision(scale):
     return np.swapaxes(inv, 1, 2) @ inv, -half_logdet
 
 
-def log_density(x, mu, scale) -> np.ndarray:
+def outer_rows(x) -> np.ndarray:
+    """``(N, P·P)``: each point's outer product with itself, flattened (what
+    :func:`log_density` multiplies the precisions by)."""
+    x = np.atleast_2d(x)
+    return np.einsum("ni,nj->nij", x, x).reshape(len(x), -1)
+
+
+def log_density(x, mu, scale, xx=None) -> np.ndarray:
     """``(W, N)``: the population's log-density of points ``x`` ``(N, P)`` at each of
-    ``W`` population points (the quadratic form expanded into matrix products)."""
+    ``W`` population points (the quadratic form expanded into matrix products; ``xx``
+    the points' :func:`outer_rows` when already at hand)."""
     x = np.atleast_2d(x)
     w, p = mu.shape
     prec, norm = _precision(scale)
-    quad = (np.einsum("ni,nj->nij", x, x).reshape(len(x), p * p) @ prec.reshape(w, -1).T).T
+    xx = outer_rows(x) if xx is None else xx
+    quad = (xx @ prec.reshape(w, -1).T).T
     pm = np.einsum("wij,wj->wi", prec, mu)
     quad = quad - 2.0 * pm @ x.T + np.einsum("wi,wi->w", pm, mu)[:, None]
     return -0.5 * quad + (norm - 0.5 * p * _LOG_2PI)[:, None]
 
 
-def _reweighted_loglik(draws, log_prior, mu, scale) -> np.ndarray:
+def _reweighted_loglik(draws, log_prior, mu, scale, xx=None) -> np.ndarray:
     """``(W, M)``: ``log mean_s N(x_s | μ, Σ)/π(x_s)`` of motors' draws ``(M, S, P)``
-    with their prior densities ``(M, S)``, at each of ``W`` population points."""
+    with their prior densities ``(M, S)``, at each of ``W`` population points (``xx``:
+    the draws' :func:`outer_rows`, when at hand)."""
     m, s, p = draws.shape
-    lp = log_density(draws.reshape(m * s, p), mu, scale).reshape(-1, m, s) - log_prior[None]
+    lp = log_density(draws.reshape(m * s, p), mu, scale, xx).reshape(-1, m, s) \
+        - log_prior[None]
     top = lp.max(axis=2, keepdims=True)
     return top[:, :, 0] + np.log(np.mean(np.exp(lp - top), axis=2))
 
@@ -151,6 +165,7 @@ def _log_posterior(motors, gaussian, correlated: bool):
     normal = [m for m, g in zip(motors, gaussian, strict=True) if g]
     draws = np.stack([m.draws for m in drawn]) if drawn else None
     log_prior = np.stack([m.log_prior for m in drawn]) if drawn else None
+    xx = outer_rows(draws.reshape(-1, draws.shape[-1])) if drawn else None  # once, not per step
     means = np.stack([m.mean for m in normal]) if normal else None
     covs = np.stack([m.cov_likelihood for m in normal]) if normal else None
     p = motors[0].mean.size
@@ -165,7 +180,7 @@ def _log_posterior(motors, gaussian, correlated: bool):
             lp = lp + lkj_log_prior(params[:, 2 * p:], p)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             if draws is not None:
-                lp = lp + _reweighted_loglik(draws, log_prior, mu, scale).sum(axis=1)
+                lp = lp + _reweighted_loglik(draws, log_prior, mu, scale, xx).sum(axis=1)
             if means is not None:
                 lp = lp + _gaussian_loglik(means, covs, mu, scale).sum(axis=1)
         return np.where(np.isfinite(lp), lp, -np.inf)

@@ -57,7 +57,7 @@ def lot_figure(record: dict, path: Path) -> Path:
     x = np.arange(len(motors))
     z = 1.6448536269514722  # the population's central 90 % band
     scale = 1.0
-    for ax, name in zip(axes, names, strict=True):
+    for row, (ax, name) in enumerate(zip(axes, names, strict=True)):
         unit = display_unit(record.get("units", {}).get(name, ""))
         pop = record["population"][name]
         centre, spread = pop["median"] * scale, pop["spread"]
@@ -73,7 +73,7 @@ def lot_figure(record: dict, path: Path) -> Path:
                 _mark(ax, k + 0.12, v["pooled"], v["pooled_interval"], scale, "tab:blue",
                       "pooled 90 %" if k == 0 else None)
         ax.set_ylabel(f"{name} ({unit})")
-        _density(grid[axes.tolist().index(ax), 1], pop, [m["values"][name] for m in motors],
+        _density(grid[row, 1], pop, [m["values"][name] for m in motors],
                  [m["outlier"] for m in motors])
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="upper center", fontsize=7, ncol=4, frameon=False)
