@@ -127,6 +127,7 @@ def test_the_whitened_likelihood_is_the_ar1_density_written_out(tmp_path):
     model_ll = float(model.log_likelihood(theta)
                      - 0.5 * jnp.sum(model.prior_residuals(theta)[n_reg:] ** 2))
     raw = model._parts(theta, model.data, whitened=False)
+    pointwise = model.pointwise_log_likelihood(theta)
     direct = 0.0
     for c, ch in enumerate(model.channels):
         if ch.n == 0:
@@ -143,6 +144,11 @@ def test_the_whitened_likelihood_is_the_ar1_density_written_out(tmp_path):
             q += float(e @ np.linalg.solve(cov, e))
             logdet += float(np.linalg.slogdet(cov)[1])
         direct += -0.5 * (ch.n + NU0) * np.log(NU0 * ch.s0**2 + q) - 0.5 * logdet
+        # each reading's density (LOO's) at the channel's fitted level: together the
+        # AR(1) Gaussian density of the runs
+        var = (NU0 * ch.s0**2 + q) / (ch.n + NU0)
+        joint = -0.5 * (ch.n * np.log(2 * np.pi * var) + logdet + q / var)
+        assert float(np.sum(np.asarray(pointwise[c]))) == pytest.approx(joint, rel=1e-10)
     assert model_ll == pytest.approx(direct, rel=1e-10)
 
 
@@ -224,3 +230,13 @@ def test_the_simulators_coloured_speed_noise_has_its_correlation_and_sd(tmp_path
     tr["speed_noise_correlation"] = 1.0
     with pytest.raises(Exception, match="speed_noise_correlation"):
         check_plan(plan)
+
+
+def test_a_quantised_channels_row_records_white_noise():
+    from pmdc_bayes.inference.trace_checks import channel_tests
+
+    rng = np.random.default_rng(2)
+    yhat = np.linspace(0.0, 50.0, 400)
+    y = 0.5 * np.round((yhat + 0.2 * rng.standard_normal(400)) / 0.5)
+    row, _, _ = channel_tests("t: speed", y, yhat, None, 0.2, 0.2, rng, quantum=0.5)
+    assert row["noise_correlation"] == 0.0

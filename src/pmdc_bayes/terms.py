@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from .inference.coloured import analogue_channels
 from .io.session import NUISANCES, Session
 
 __all__ = ["terms_of", "with_terms", "model_table", "label", "nuisance_of", "term_of"]
@@ -44,7 +45,8 @@ def terms_of(session: Session) -> frozenset:
     if "dead_time" in session.nuisances:
         out.add(SHARED if session.shared_dead_time else "dead_time")
     out.update(LOAD + t for t in session.unknown_load_traces())
-    out.update(NOISE + t for t in session.coloured_noise_traces())
+    analogue = set(analogue_channels(session).values())  # a quantised trace has none
+    out.update(NOISE + t for t in session.coloured_noise_traces() if t in analogue)
     if session.friction == "coulomb":
         out.add("coulomb")
     return frozenset(out)

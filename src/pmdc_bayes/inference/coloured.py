@@ -8,9 +8,10 @@ quantisation, :func:`.noise.effective_fraction`) has its own lag-1 correlation �
 fitted as ``noise_ar_<channel>`` = atanh ρ (prior normal, centre 0, sd
 :data:`PHI_PRIOR_SD`: ρ = 0 is white noise, the neutral value).
 
-The likelihood is exact.  A channel's residuals ``e_k`` are *whitened* into
-innovations ``u_k = e_k − ρ·e_{k−1}``, and its first reading (and the first after a
-missed one) into ``√(1−ρ²)·e_k``; the innovations are white with one unknown level,
+The likelihood is exact for each run of consecutive readings (a missed reading starts
+a new run: the error before the gap is not carried across it).  A channel's residuals
+``e_k`` are *whitened* into innovations ``u_k = e_k − ρ·e_{k−1}``, and a run's first
+reading into ``√(1−ρ²)·e_k``; the innovations are white with one unknown level,
 so the channel's sum of squares, its integrated noise level and every residual check
 read them as they read a white channel's residuals.  The Jacobian of the whitening
 adds ``½·m·log(1−ρ²)`` for the channel's ``m`` starts: the model carries it as one

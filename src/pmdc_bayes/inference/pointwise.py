@@ -30,22 +30,32 @@ class Pointwise:
         broadcastable to the first: the model's prediction is the observation minus the
         residual.  A channel whose noise is coloured gives its innovations and their
         level: the observation minus the innovation is then the prediction of the
-        reading given the one before it (:mod:`.coloured`); not ``whitened``, its
-        residuals themselves."""
+        reading given the one before it (:mod:`.coloured`), and a run's first reading
+        its own residual at the stationary level ``σ_c²/(1−ρ²)``, so that the densities
+        add up to the likelihood the fit uses; not ``whitened``, its residuals
+        themselves."""
         d = self._d(data)
         parts = self._parts(theta, d)
         var = (NU0 * d["s0"] ** 2 + self._sums(parts)) / (d["n_obs"] + NU0)
-        if not whitened and self.coloured:
+        starts = [None] * len(parts)
+        if self.coloured and whitened:
+            rho = self.noise_rho(self.switched(theta, d), d)
+            starts = [p for b in self.blocks for p in b.previous(d[b.key])]
+        elif self.coloured:
             parts = self._parts(theta, d, whitened=False)
         out = []
-        for r, _, ch in parts:
+        for (r, _, ch), prev in zip(parts, starts, strict=True):
             if r.shape[0] == 0:
                 # lax.map cannot batch an empty output: an empty array gets a dummy
                 # entry that its (empty) selection never reads.
                 r = jnp.zeros((1,) + r.shape[1:])
                 out.append((r, jnp.ones_like(r)))
                 continue
-            out.append((r, entry_weights(var, ch, r)))
+            v = entry_weights(var, ch, r)
+            if prev is not None:  # a run's first reading: its residual, stationary level
+                share = jnp.where(prev < 0, 1.0 - entry_weights(rho, ch, r) ** 2, 1.0)
+                r, v = r / jnp.sqrt(share), v / share
+            out.append((r, v))
         return out
 
     def _numpy_data(self, block):

@@ -84,9 +84,9 @@ def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0):
         rr = block - yhat
         slow.append(slow_ratio(rr, w))
         if quantum > 0:
-            rho, q = autocorrelation(rr, m)
+            ac, q = autocorrelation(rr, m)
             q_rep.append(q)
-            rho1_rep.append(rho[:, 0])
+            rho1_rep.append(ac[:, 0])
             infl_rep += [np.sqrt(np.mean(x * x)) / noise_scale(b) for x, b in zip(rr, block,
                                                                                    strict=True)]
     p_slow = tail_p(t_slow, np.concatenate(slow), side="chi2")
