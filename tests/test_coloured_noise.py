@@ -240,3 +240,26 @@ def test_a_quantised_channels_row_records_white_noise():
     y = 0.5 * np.round((yhat + 0.2 * rng.standard_normal(400)) / 0.5)
     row, _, _ = channel_tests("t: speed", y, yhat, None, 0.2, 0.2, rng, quantum=0.5)
     assert row["noise_correlation"] == 0.0
+
+
+def test_coloured_noise_with_only_quantised_readings_is_refused():
+    """A speed on a logger's lattice has nothing coloured noise could fit: asked for in
+    the session or with ``add``, it is bad input naming why, not a model without it."""
+    import pmdc_bayes
+    from pmdc_bayes._errors import SessionError, UsageError
+
+    t = np.arange(300) / 1000.0
+    rng = np.random.default_rng(4)
+    speed = 0.5 * np.round((50.0 * (1 - np.exp(-t / 0.02))
+                            + 0.3 * rng.standard_normal(t.size)) / 0.5)
+    trace = {"time": t, "speed": speed, "voltage": 6.0, "initial": "rest"}
+    with pytest.raises(SessionError, match="coloured_noise.*quantis"):
+        Session.from_arrays(Ra=(2.0, 0.05), traces={"a": trace},
+                            model={"coloured_noise": True})
+    session = Session.from_arrays(Ra=(2.0, 0.05), traces={"a": trace})
+    with pytest.raises(UsageError, match="coloured_noise.*quantis"):
+        pmdc_bayes.fit(session, add="coloured_noise", mcmc=False)
+    analogue = dict(trace, speed=speed + 0.01 * rng.standard_normal(t.size))
+    coloured = Session.from_arrays(Ra=(2.0, 0.05), traces={"a": analogue},
+                                   model={"coloured_noise": True})
+    assert coloured.coloured_noise_traces() == ("a",)

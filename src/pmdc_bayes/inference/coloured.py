@@ -24,7 +24,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from .noise import quantum
+from ..io.lattice import analogue
 
 __all__ = ["COLOURED", "PHI_PRIOR_SD", "ar_name", "ar_specs", "analogue", "coloured_channels",
            "analogue_channels",
@@ -39,13 +39,6 @@ PREFIX = "noise_ar_"
 def ar_name(channel: str) -> str:
     """The parameter of a channel's lag-1 correlation, from the channel's name."""
     return PREFIX + "".join(c if c.isalnum() else "_" for c in channel).replace("__", "_")
-
-
-def analogue(y) -> bool:
-    """Whether a channel's readings are analogue (not on a quantiser's lattice)."""
-    y = np.asarray(y, float)
-    y = y[np.isfinite(y)]
-    return y.size > 2 and quantum(y) == 0.0
 
 
 def analogue_channels(session) -> dict[str, str]:

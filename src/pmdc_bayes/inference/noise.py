@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..io.lattice import quantum
+
 __all__ = ["Channel", "noise_scale", "typical_level", "quantum", "effective_fraction",
            "quanta_passed", "run_fraction", "NU0"]
 
@@ -29,18 +31,6 @@ def noise_scale(y: np.ndarray) -> float:
     steps = steps[steps > 1e-12 * max(1.0, np.abs(y).max())]
     quantum = steps.min() / np.sqrt(12.0) if steps.size else 0.0
     return float(max(mad, quantum, 1e-9 * max(1e-12, np.abs(y).max())))
-
-
-def quantum(y: np.ndarray) -> float:
-    """The step of the lattice a quantised signal's readings lie on (its smallest
-    change, when every change is a whole multiple of it to 1e-6), else 0."""
-    y = np.asarray(y, dtype=float)
-    d = np.abs(np.diff(y))
-    d = d[d > 1e-12 * max(1.0, np.abs(y).max())]
-    if d.size < 2:
-        return 0.0
-    q = float(d.min())
-    return q if np.all(np.abs(d / q - np.rint(d / q)) < 1e-6) else 0.0
 
 
 def _undithered(y: np.ndarray) -> float:

@@ -312,30 +312,10 @@ class Session:
 
     def inert_nuisance(self, names=None) -> tuple[str, str] | None:
         """The first of ``names`` (default: the session's nuisances) with nothing in the
-        session to act on, and why: a speed sensor's lag, gain or offset without a
-        logged speed (an angle an encoder counts is not read through them), a current
-        sensor's without a logged current, a dead time without a driven trace, a dead
-        zone without a commanded voltage.  A coast-down's speed is read by the speed
-        sensor too."""
-        speed = (any(tr.speed is not None and tr.speed_logged for tr in self.traces)
-                 or bool(self.coast_downs))
-        current = any(tr.current is not None for tr in self.traces)
-        for name in self.nuisances if names is None else names:
-            if name.startswith("speed_") and not speed:
-                return name, ("no trace logs a speed (a position or encoder trace is a "
-                              "counted angle, which a speed sensor's lag, gain or offset "
-                              "does not touch)")
-            if name.startswith("current_") and name != "current_limit" and not current:
-                return name, "no driven trace logs a current"
-            if name == "dead_time" and not self.traces:
-                return name, "the session has no driven trace"
-            if name == "dead_zone" and not (self.traces or self.steady_tables
-                                            or self.operating_points):
-                return name, "the session commands no voltage (a driver's dead zone acts on it)"
-            if name == "coloured_noise" and not (speed or current):
-                return name, ("no trace logs a speed or a current (a counted angle's errors "
-                              "are its counts')")
-        return None
+        session to act on, and why (:func:`._inert.inert_nuisance`)."""
+        from ._inert import inert_nuisance
+
+        return inert_nuisance(self, self.nuisances if names is None else names)
 
     def trace(self, name: str) -> Trace:
         for tr in self.traces:

@@ -1,0 +1,50 @@
+"""A non-ideality asked for with nothing in the session to act on."""
+
+from __future__ import annotations
+
+from .lattice import analogue
+
+__all__ = ["inert_nuisance"]
+
+
+def _analogue(session, traces) -> bool:
+    """Whether one of ``traces`` (names) has an analogue logged speed or current."""
+    for tr in session.traces:
+        if tr.name in traces and any(
+                y is not None and analogue(y)
+                for y in (tr.speed if tr.speed_logged else None, tr.current)):
+            return True
+    return any(tr.name in traces and analogue(tr.speed) for tr in session.coast_downs)
+
+
+def inert_nuisance(session, names) -> tuple[str, str] | None:
+    """The first of ``names`` with nothing in ``session`` to act on, and why: a speed
+    sensor's lag, gain or offset without a logged speed (an angle an encoder counts is
+    not read through them), a current sensor's without a logged current, a dead time
+    without a driven trace, a dead zone without a commanded voltage, coloured noise
+    without an analogue speed or current on the traces it names (a quantised reading's
+    errors are its quantisation's).  A coast-down's speed is read by the speed sensor
+    too."""
+    speed = (any(tr.speed is not None and tr.speed_logged for tr in session.traces)
+             or bool(session.coast_downs))
+    current = any(tr.current is not None for tr in session.traces)
+    for name in names:
+        if name.startswith("speed_") and not speed:
+            return name, ("no trace logs a speed (a position or encoder trace is a "
+                          "counted angle, which a speed sensor's lag, gain or offset "
+                          "does not touch)")
+        if name.startswith("current_") and name != "current_limit" and not current:
+            return name, "no driven trace logs a current"
+        if name == "dead_time" and not session.traces:
+            return name, "the session has no driven trace"
+        if name == "dead_zone" and not (session.traces or session.steady_tables
+                                        or session.operating_points):
+            return name, "the session commands no voltage (a driver's dead zone acts on it)"
+        if name == "coloured_noise":
+            named = session.coloured_traces or tuple(
+                t.name for t in session.traces + session.coast_downs)
+            if not _analogue(session, set(named)):
+                return name, ("no trace it names logs an analogue speed or current (a "
+                              "counted angle's or a quantised reading's errors are its "
+                              "quantisation's)")
+    return None

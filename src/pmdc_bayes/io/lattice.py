@@ -1,0 +1,32 @@
+"""Readings on a quantiser's lattice: an encoder's counts, a speed a logger rounds to
+its resolution, a current an ADC rounds to its step.
+
+A quantised channel's errors are handled by its quantisation (the inference's noise
+bookkeeping, :mod:`pmdc_bayes.inference.noise`); an analogue channel's are Gaussian,
+white or coloured (:mod:`pmdc_bayes.inference.coloured`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["quantum", "analogue"]
+
+
+def quantum(y: np.ndarray) -> float:
+    """The step of the lattice a quantised signal's readings lie on (its smallest
+    change, when every change is a whole multiple of it to 1e-6), else 0."""
+    y = np.asarray(y, dtype=float)
+    d = np.abs(np.diff(y))
+    d = d[d > 1e-12 * max(1.0, np.abs(y).max())]
+    if d.size < 2:
+        return 0.0
+    q = float(d.min())
+    return q if np.all(np.abs(d / q - np.rint(d / q)) < 1e-6) else 0.0
+
+
+def analogue(y) -> bool:
+    """Whether a channel's readings are analogue (not on a quantiser's lattice)."""
+    y = np.asarray(y, float)
+    y = y[np.isfinite(y)]
+    return y.size > 2 and quantum(y) == 0.0
