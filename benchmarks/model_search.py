@@ -4,7 +4,8 @@ process with that cache filled (warm), and each candidate's share (MAP fit, adeq
 checks, evidence) in the warm run.
 
 Sessions: the catalogue's bench with a 3 ms dead time (2 steps, currents and speeds,
-1,202 samples), and the same bench with a 3 ms dead time and a 1 V brush drop at once.
+1,202 samples), the same bench with a 3 ms dead time and a 1 V brush drop at once, and
+the bundled demo (4 traces, 10,204 samples, Coulomb friction).
 
 Prints the table and replaces the section ``## Model search`` of
 ``reports/benchmarks.md`` (``--no-report`` to print only).
@@ -24,6 +25,7 @@ from datetime import UTC, datetime
 SESSIONS = {
     "dead time (2 steps, speed and current, 1,202 samples)": "dead time",
     "dead time + brush drop (2 steps, speed and current, 1,202 samples)": "combination",
+    "the bundled demo (4 traces, speed and current, 10,204 samples, Coulomb)": "demo",
 }
 
 
@@ -31,6 +33,11 @@ def _session(which):
     from pmdc_bayes.simulate.bench import BenchMotor, bench_session
     from pmdc_bayes.simulate.cases import MOTOR, STEADY_VOLTAGES, STEPS, case_session
 
+    if which == "demo":
+        from pmdc_bayes.io.bundled import session_path
+        from pmdc_bayes.io.loader import load_session
+
+        return load_session(session_path("demo"))
     if which != "combination":
         return case_session(which, seed=2)
     return bench_session(BenchMotor(**MOTOR, dead_time=3e-3, brush_drop=1.0), STEPS, seed=3,
@@ -65,6 +72,8 @@ def _run(which: str, cache: str) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--no-report", action="store_true")
+    parser.add_argument("--only", choices=sorted(SESSIONS.values()), action="append",
+                        help="run only this session (repeatable)")
     parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -72,6 +81,8 @@ def main() -> None:
         return
     rows = []
     for title, which in SESSIONS.items():
+        if args.only and which not in args.only:
+            continue
         with tempfile.TemporaryDirectory() as cache:
             cold = _run(which, cache)
             warm = _run(which, cache)

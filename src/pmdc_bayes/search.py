@@ -20,9 +20,12 @@ the Kass–Raftery scale):
 - it stops when the data do not reject the model and no proposed addition is clearly
   better, when no step helps, or after :data:`MAX_FITS` fits.
 
-Every candidate is fitted in the compiled programs of a superset model of the session
-(:mod:`.supersets`), the non-idealities it lacks switched off as data, so that trying
-one costs a fit, not a compile.  A candidate is fitted from the usual starts and from
+The model the search starts from is fitted in its own programs (most sessions end
+there).  On a short session a further candidate is fitted in the compiled programs of a
+superset model (:mod:`.supersets`), the non-idealities it lacks switched off as data, so
+that trying one costs a fit, not a compile; elsewhere, where a fit in a superset costs
+more than a compile, in its own programs, made in background threads while the
+candidate before it is fitted.  A candidate is fitted from the usual starts and from
 its parent's MAP with the added parameters at their neutral values (no dead time, no
 drop, a negligible lag or load, a limit far above the currents), so a larger model
 never ends below the maximum of one it contains.  Adequate candidates whose evidence
@@ -113,7 +116,7 @@ class _Search:
         cf = fit_seed(s)
         cand = Candidate(terms, s, cf, build_model(s, cf), None, "start")
         self.done[terms] = cand
-        cand.run(self.seed, self.supersets.for_model(terms, cand.model))
+        cand.run(self.seed)
         self.order.append(cand)
         self.say(f"model search: {label(terms)}: {cand.adequacy.verdict}, "
                  f"log Z {cand.log_evidence:.1f}")

@@ -16,6 +16,19 @@ lags in every one without the regime-switching solution (through which a lag is
 followed regime by regime, at a compile several times as long: there only when held).
 A candidate no superset covers (one the session cannot seed) is fitted in its own
 programs.
+
+A superset pays only where a fit in it costs less than a compile of the candidate's own
+programs (measured in ``reports/benchmarks.md``, *Model search*): each Gauss–Newton step
+evaluates the Jacobian of every parameter the superset holds over every reading, so on
+the 2-trace bench of 2,404 readings a candidate costs 2–5 s in a smooth superset against
+about 0.5 s in its own programs once they are made (a search of 7 candidates: 65 s cold,
+29 s with the compile cache filled, against 81 s and 15 s in their own programs), and on
+the demo's 20,000 readings one fit in a superset holding the stick-slip solution takes
+52 s against 17 s for compiling the candidate's own programs and fitting in them.  A
+family is therefore used only when it needs no costly solution and the session has at
+most :data:`SUPERSET_READINGS` readings; any other candidate is fitted in its own
+programs, made ahead in background threads while the candidate before it is fitted and
+kept in the compile cache for the next run.
 """
 
 from __future__ import annotations
@@ -28,8 +41,9 @@ from .inference.superset import Superset, extended
 from .io.session import NUISANCES, Session
 from .terms import LOAD, NOISE, SHARED, nuisance_of, with_terms
 
-__all__ = ["Supersets", "SWITCHING", "STICKING"]
+__all__ = ["Supersets", "SWITCHING", "STICKING", "SUPERSET_READINGS"]
 
+SUPERSET_READINGS = 1_000  # a session's readings above which a superset fit costs a compile
 SWITCHING = frozenset({"current_limit", "voltage_drop"})  # need the regime-switching solution
 STICKING = frozenset({"coulomb", "unknown_load"})  # need the solution that sticks and slips
 LAGS = frozenset({"speed_lag", "current_lag"})
@@ -42,6 +56,13 @@ class Supersets:
         self.session = session
         self.universe = _universe(session, start_terms, free_friction)
         self._made: dict[frozenset, Superset | None] = {}
+        self.short = _readings(session) <= SUPERSET_READINGS
+
+    def pays(self, terms) -> bool:
+        """Whether a candidate of ``terms`` is fitted in its family's superset: the family
+        holds no costly solution and the session is short (module docstring)."""
+        held = {nuisance_of(t) for t in terms}
+        return self.short and not held & (SWITCHING | STICKING)
 
     def family(self, terms) -> frozenset:
         """The terms of the superset a candidate of ``terms`` is fitted in."""
@@ -58,7 +79,7 @@ class Supersets:
         """The superset a candidate of ``terms`` (its own ``model``) is fitted in, made on
         first use; None when none covers it."""
         family = self.family(terms)
-        if not terms <= family:
+        if not terms <= family or not self.pays(terms):
             return None
         if family not in self._made:
             try:
@@ -103,3 +124,10 @@ def _universe(session: Session, start: frozenset, free_friction: bool) -> frozen
     if free_friction:
         out.add("coulomb")
     return frozenset(out)
+
+
+def _readings(session: Session) -> int:
+    """Every reading of the session's traces and coast-downs (a channel's samples)."""
+    return sum(tr.n * ((tr.speed is not None and tr.speed_logged) + (tr.current is not None)
+                       + (tr.position is not None))
+               for tr in session.traces) + sum(len(tr.time) for tr in session.coast_downs)

@@ -66,7 +66,11 @@ def test_a_parameter_switched_off_moves_nothing_and_adds_nothing(bench, superset
     assert lp_at_centre == pytest.approx(own_lp, rel=1e-9, abs=1e-6)
 
 
-def test_a_candidate_fitted_in_the_superset_is_the_candidate_fitted_in_its_own(bench):
+def test_a_candidate_fitted_in_the_superset_is_the_candidate_fitted_in_its_own(bench,
+                                                                              monkeypatch):
+    import pmdc_bayes.supersets as supersets
+
+    monkeypatch.setattr(supersets, "SUPERSET_READINGS", sum(2 * tr.n for tr in bench.traces))
     families = Supersets(bench, frozenset(), free_friction=False)
     made = []
     for terms in (frozenset(), frozenset({SHARED}), frozenset({"dead_time"})):
@@ -111,3 +115,29 @@ def test_a_family_holds_a_costly_solution_only_for_a_candidate_that_needs_it(ben
     assert "coulomb" in families.family(frozenset({LOAD + bench.traces[0].name}))
     fixed = Supersets(bench, frozenset(), free_friction=False)
     assert "coulomb" not in fixed.universe
+
+
+def test_a_superset_is_used_only_where_a_fit_in_it_costs_less_than_a_compile(bench,
+                                                                            monkeypatch):
+    """On a session short enough (the bench's 2 traces of 601 samples, speed and current,
+    under a bound raised to hold them) a smooth family's superset serves its candidates;
+    a family holding the stick-slip or regime-switching solution does not, nor does any
+    family of a longer session: their candidates are fitted in their own programs."""
+    import dataclasses
+
+    import pmdc_bayes.supersets as supersets
+
+    assert not Supersets(bench, frozenset(), free_friction=True).pays(frozenset())
+    monkeypatch.setattr(supersets, "SUPERSET_READINGS", 2 * sum(tr.n for tr in bench.traces))
+    SUPERSET_READINGS = supersets.SUPERSET_READINGS
+    families = Supersets(bench, frozenset(), free_friction=True)
+    terms = frozenset({"dead_time"})
+    assert families.pays(terms)
+    assert families.for_model(terms, _model(bench, terms)) is not None
+    for costly in ("coulomb", "voltage_drop", LOAD + bench.traces[0].name):
+        assert not families.pays(terms | {costly})
+    stretch = int(np.ceil(SUPERSET_READINGS / sum(tr.n for tr in bench.traces)))
+    long = dataclasses.replace(bench, traces=tuple(
+        dataclasses.replace(tr, name=f"{tr.name}_{k}") for tr in bench.traces
+        for k in range(stretch)))
+    assert not Supersets(long, frozenset(), free_friction=True).pays(terms)
