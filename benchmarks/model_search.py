@@ -73,7 +73,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--no-report", action="store_true")
     parser.add_argument("--only", choices=sorted(SESSIONS.values()), action="append",
-                        help="run only this session (repeatable)")
+                        help="run only this session (repeatable; prints, leaves the "
+                        "report as it is)")
     parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -102,7 +103,7 @@ def main() -> None:
         "built, MAP from the usual starts and the nested one, adequacy checks, evidence).",
         "", "| session | fits | chosen (verdict) | cold (s) | warm (s) | "
         "per candidate, warm (s) |", "|---|---:|---|---:|---:|---|", *rows, ""])
-    if not args.no_report:
+    if not args.no_report and not args.only:
         sys.path.insert(0, os.path.dirname(__file__))
         from _common import REPORT, replace_section
 

@@ -263,3 +263,37 @@ def test_coloured_noise_with_only_quantised_readings_is_refused():
     coloured = Session.from_arrays(Ra=(2.0, 0.05), traces={"a": analogue},
                                    model={"coloured_noise": True})
     assert coloured.coloured_noise_traces() == ("a",)
+
+
+def test_a_search_may_add_coloured_noise_on_traces_the_session_does_not_name():
+    """Coloured noise named on one trace, that trace held out: the search's universe still
+    holds coloured noise on the others (each trace with an analogue channel)."""
+    from pmdc_bayes.supersets import Supersets
+    from pmdc_bayes.terms import NOISE, terms_of
+
+    t = np.arange(200) / 1000.0
+    rng = np.random.default_rng(3)
+
+    def trace():
+        return {"time": t, "speed": 50.0 * (1 - np.exp(-t / 0.02)) + rng.standard_normal(t.size),
+                "voltage": 6.0, "initial": "rest"}
+
+    session = Session.from_arrays(Ra=(2.0, 0.05), traces={n: trace() for n in "abc"},
+                                  model={"coloured_noise": ["a"]}).without_traces(["a"])
+    universe = Supersets(session, terms_of(session), free_friction=False).universe
+    assert {NOISE + "b", NOISE + "c"} <= universe
+
+
+def test_holding_out_the_only_trace_coloured_noise_names_is_bad_input():
+    import pmdc_bayes
+    from pmdc_bayes._errors import UsageError
+
+    t = np.arange(200) / 1000.0
+    rng = np.random.default_rng(5)
+    traces = {n: {"time": t, "voltage": 6.0, "initial": "rest",
+                  "speed": 50.0 * (1 - np.exp(-t / 0.02)) + rng.standard_normal(t.size)}
+              for n in "ab"}
+    session = Session.from_arrays(Ra=(2.0, 0.05), traces=traces,
+                                  model={"coloured_noise": ["a"]})
+    with pytest.raises(UsageError, match="holdout a.*coloured_noise"):
+        pmdc_bayes.fit(session, holdout="a", mcmc=False)

@@ -1,6 +1,6 @@
 """A candidate model of the search (:mod:`.search`): fitted at its MAP from the usual
-starts and from its parent's MAP (in a superset model's compiled programs where one
-covers it, :mod:`.supersets`), checked for adequacy and scored by its Laplace
+starts and from its parent's MAP (in its own compiled programs, or a superset model's
+where one covers it and pays, :mod:`.supersets`), checked for adequacy and scored by its Laplace
 evidence; and the typed results the search hands on."""
 
 from __future__ import annotations

@@ -92,7 +92,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     for name in holdout:
         if name not in {t.name for t in session_full.traces}:
             _no_trace(session_full, name)
-    session = session_full.without_traces(holdout) if holdout else session_full
+    session = _held_out(session_full, holdout)
     if fitted is not None:  # the model search fitted and checked it (its stage's time)
         cf, model, fit, adequacy = fitted.seed, fitted.model, fitted.fit, fitted.adequacy
         warm = WarmUp(model, mcmc=mcmc)
@@ -191,6 +191,21 @@ def _fit_failed(session: Session, fit) -> None:
         raise FitFailed(f"{session.root}: the MAP fit failed: {fit.message}")
 
 
+def _held_out(session_full: Session, holdout) -> Session:
+    """The session without the traces ``holdout`` names; bad input when that leaves one
+    of its non-idealities nothing to act on (a dead time of none, coloured noise on a
+    trace held out)."""
+    if not holdout:
+        return session_full
+    session = session_full.without_traces(holdout)
+    inert = session.inert_nuisance()
+    if inert is not None:
+        raise UsageError(f"--holdout {', '.join(holdout)}: without it, {inert[0]} in "
+                         f"session {session.name!r} has nothing to act on ({inert[1]}); "
+                         "hold out another trace or leave it out of [model]")
+    return session
+
+
 @x64
 def _refuse_inert(session: Session, added) -> None:
     """A non-ideality asked for with nothing in the session to act on is bad input."""
@@ -272,7 +287,7 @@ def search_session(session_full: Session, *, holdout, friction, seed, say, compa
     from .search import run_search
     from .terms import with_terms
 
-    fitted = session_full.without_traces(holdout) if holdout else session_full
+    fitted = _held_out(session_full, holdout)
     with announcing(say), clock.stage("model_search"):
         searched = run_search(fitted, friction=friction, seed=seed, say=say)
     selection = searched.record

@@ -21,11 +21,12 @@ the Kass–Raftery scale):
   better, when no step helps, or after :data:`MAX_FITS` fits.
 
 The model the search starts from is fitted in its own programs (most sessions end
-there).  On a short session a further candidate is fitted in the compiled programs of a
-superset model (:mod:`.supersets`), the non-idealities it lacks switched off as data, so
-that trying one costs a fit, not a compile; elsewhere, where a fit in a superset costs
-more than a compile, in its own programs, made in background threads while the
-candidate before it is fitted.  A candidate is fitted from the usual starts and from
+there).  On a short session a further candidate without a costly solution (stick-slip,
+regime switching) is fitted in the compiled programs of a superset model
+(:mod:`.supersets`), the non-idealities it lacks switched off as data, so that trying
+one costs a fit, not a compile; any other, where a fit in a superset costs more than a
+compile, in its own programs (a step's candidates after its first made in background
+threads while the one before is fitted).  A candidate is fitted from the usual starts and from
 its parent's MAP with the added parameters at their neutral values (no dead time, no
 drop, a negligible lag or load, a limit far above the currents), so a larger model
 never ends below the maximum of one it contains.  Adequate candidates whose evidence
@@ -142,9 +143,9 @@ class _Search:
             return False
         if "coulomb" in move and not self.free_friction:
             return False
-        keys = {nuisance_of(t) for t in move} - {"coulomb"}
+        keys = {nuisance_of(t) for t in move} - {"coulomb", COLOURED}
         noisy = {t[len(NOISE):] for t in move if t.startswith(NOISE)}
-        if not noisy <= set(analogue_channels(self.session).values()):
+        if not noisy <= set(analogue_channels(self.session).values()):  # the move's traces
             return False
         return self.session.inert_nuisance(tuple(keys)) is None
 

@@ -77,9 +77,11 @@ class Supersets:
 
     def for_model(self, terms, model) -> Superset | None:
         """The superset a candidate of ``terms`` (its own ``model``) is fitted in, made on
-        first use; None when none covers it."""
+        first use; None when none covers it or a fit in one costs more than a compile
+        (:meth:`pays`, or a known drag that needs the stick-slip solution in every
+        family)."""
         family = self.family(terms)
-        if not terms <= family or not self.pays(terms):
+        if not terms <= family or not self.pays(terms) or model.coulomb_path:
             return None
         if family not in self._made:
             try:
@@ -109,9 +111,9 @@ def _universe(session: Session, start: frozenset, free_friction: bool) -> frozen
     friction is searched over."""
     out = set(start)
     for key in NUISANCES:
-        if session.inert_nuisance((key,)) is not None:
+        if key != COLOURED and session.inert_nuisance((key,)) is not None:
             continue
-        if key == COLOURED:
+        if key == COLOURED:  # on every trace with an analogue channel, whichever it names
             out.update(NOISE + t for t in set(analogue_channels(session).values()))
         elif key == "unknown_load":
             out.update(LOAD + tr.name for tr in session.traces)

@@ -141,3 +141,18 @@ def test_a_superset_is_used_only_where_a_fit_in_it_costs_less_than_a_compile(ben
         dataclasses.replace(tr, name=f"{tr.name}_{k}") for tr in bench.traces
         for k in range(stretch)))
     assert not Supersets(long, frozenset(), free_friction=True).pays(terms)
+
+
+def test_a_candidate_a_superset_does_not_pay_for_gets_no_superset(bench, monkeypatch):
+    """``for_model`` hands no superset where ``pays`` says a compile costs less: a long
+    session, a candidate with the stick-slip solution."""
+    import pmdc_bayes.supersets as supersets
+
+    monkeypatch.setattr(supersets, "SUPERSET_READINGS", 0)
+    terms = frozenset({"dead_time"})
+    assert Supersets(bench, frozenset(), free_friction=True).for_model(
+        terms, _model(bench, terms)) is None
+    monkeypatch.setattr(supersets, "SUPERSET_READINGS", 10**9)
+    costly = frozenset({"coulomb"})
+    families = Supersets(bench, frozenset(), free_friction=True)
+    assert families.for_model(costly, _model(bench, costly)) is None
