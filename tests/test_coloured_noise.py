@@ -297,3 +297,54 @@ def test_holding_out_the_only_trace_coloured_noise_names_is_bad_input():
                                   model={"coloured_noise": ["a"]})
     with pytest.raises(UsageError, match="holdout a.*coloured_noise"):
         pmdc_bayes.fit(session, holdout="a", mcmc=False)
+
+
+SIBLINGS = """\
+seed = 8
+[motor]
+name = "one tachometer through a filter on every trace"
+[truth]
+Ra = 2.0
+La = 2e-3
+K = 0.05
+B = 2e-5
+J = 2e-5
+[bench.Ra]
+sd = 0.05
+unit = "ohm"
+[bench.La]
+sd = 0.1
+unit = "mH"
+[[trace]]
+name = "long"
+kind = "step"
+duration = 0.6
+rate = 2000.0
+voltage = [[0.0, 0.0], [0.01, 6.0], [0.3, 2.0]]
+record_current = false
+speed_noise = 2.0
+speed_noise_correlation = 0.9
+[[trace]]
+name = "short"
+kind = "step"
+duration = 0.08
+rate = 2000.0
+voltage = [[0.0, 0.0], [0.005, 4.0]]
+record_current = false
+speed_noise = 2.0
+speed_noise_correlation = 0.9
+"""
+
+
+@pytest.mark.slow
+def test_coloured_noise_taken_on_one_trace_is_tried_on_the_others(tmp_path):
+    """One filtering sensor logs both traces; the short one's correlated errors alone may
+    pass the misfit check.  Once the search takes coloured noise on one trace it tries it
+    on the other, and the chosen model holds it on both."""
+    from pmdc_bayes.search import run_search
+
+    root = simulate_session(tomllib.loads(SIBLINGS), tmp_path / "s")
+    found = run_search(load_session(root), seed=0)
+    terms = set(found.record["terms"])
+    assert {"coloured_noise:long", "coloured_noise:short"} <= terms, found.record["terms"]
+    assert found.chosen.adequacy.verdict == "adequate"

@@ -150,12 +150,17 @@ class _Search:
         return self.session.inert_nuisance(tuple(keys)) is None
 
     def proposed(self, cand) -> list[frozenset]:
-        """The additions the verdict proposes, in its order."""
+        """The additions the verdict proposes, in its order; and where the candidate holds
+        coloured noise on some traces, the same on every other trace with an analogue
+        channel (one sensor logs them all; a short or quiet trace whose correlated errors
+        pass the misfit check would otherwise be read as white)."""
         pairs = [(p.nuisance, p.trace) for p in cand.adequacy.proposals]
         moves = []
         for nuisance, trace in pairs:
             if nuisance in NUISANCES or nuisance == "coulomb":
                 moves += self._moves_for(nuisance, trace)
+        if any(t.startswith(NOISE) for t in cand.terms):
+            moves += [m - cand.terms for m in self._moves_for(COLOURED, None)]
         return [m for m in dict.fromkeys(moves) if self.allowed(m, cand.terms)]
 
     def singles(self, cand) -> list[frozenset]:
