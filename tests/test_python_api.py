@@ -186,7 +186,7 @@ from jax import export
 exported, real = [], export.export
 export.export = lambda *a, **k: exported.append(1) or real(*a, **k)  # count the exports
 root = pmdc_bayes.use_cache({str(cache_dir)!r})
-r = pmdc_bayes.fit({str(session)!r}, mcmc=False, progress=False)
+r = pmdc_bayes.fit({str(session)!r}, mcmc=False, search=False, progress=False)
 assert not jax.config.jax_enable_x64
 print(json.dumps({{"root": str(root), "K": r.values()["map"]["K"], "exported": len(exported)}}))
 """
