@@ -348,3 +348,21 @@ def test_coloured_noise_taken_on_one_trace_is_tried_on_the_others(tmp_path):
     terms = set(found.record["terms"])
     assert {"coloured_noise:long", "coloured_noise:short"} <= terms, found.record["terms"]
     assert found.chosen.adequacy.verdict == "adequate"
+
+
+def test_a_holdout_naming_no_trace_is_refused_before_the_search(monkeypatch):
+    """A session that leaves its model to the search: a ``--holdout`` naming no trace is
+    bad input at once, not after the search has fitted its candidates."""
+    import pmdc_bayes
+    import pmdc_bayes.search
+    from pmdc_bayes._errors import UsageError
+
+    def searched(*a, **k):
+        raise AssertionError("the search ran before the holdout was checked")
+
+    monkeypatch.setattr(pmdc_bayes.search, "run_search", searched)
+    t = np.arange(200) / 1000.0
+    trace = {"time": t, "voltage": 6.0, "initial": "rest", "speed": 50.0 * (1 - np.exp(-t / 0.02))}
+    session = Session.from_arrays(Ra=(2.0, 0.05), traces={"a": trace, "b": trace})
+    with pytest.raises(UsageError, match="holdout 'c' names no trace; traces are: a, b"):
+        pmdc_bayes.fit(session, holdout="c", mcmc=False)

@@ -89,9 +89,6 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     """
     say = say or (lambda text: None)
     clock = clock or StageClock()
-    for name in holdout:
-        if name not in {t.name for t in session_full.traces}:
-            _no_trace(session_full, name)
     session = _held_out(session_full, holdout)
     if fitted is not None:  # the model search fitted and checked it (its stage's time)
         cf, model, fit, adequacy = fitted.seed, fitted.model, fitted.fit, fitted.adequacy
@@ -194,7 +191,10 @@ def _fit_failed(session: Session, fit) -> None:
 def _held_out(session_full: Session, holdout) -> Session:
     """The session without the traces ``holdout`` names; bad input when that leaves one
     of its non-idealities nothing to act on (a dead time of none, coloured noise on a
-    trace held out)."""
+    trace held out), or when it names no trace."""
+    for name in holdout:
+        if name not in {t.name for t in session_full.traces}:
+            _no_trace(session_full, name)
     if not holdout:
         return session_full
     session = session_full.without_traces(holdout)

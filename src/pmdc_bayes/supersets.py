@@ -58,11 +58,15 @@ class Supersets:
         self._made: dict[frozenset, Superset | None] = {}
         self.short = _readings(session) <= SUPERSET_READINGS
 
-    def pays(self, terms) -> bool:
+    def pays(self, terms, model=None) -> bool:
         """Whether a candidate of ``terms`` is fitted in its family's superset: the family
-        holds no costly solution and the session is short (module docstring)."""
+        holds no costly solution, nor does the candidate's own ``model`` where given (a
+        known drag needs the stick-slip solution in every family), and the session is
+        short (module docstring)."""
         held = {nuisance_of(t) for t in terms}
-        return self.short and not held & (SWITCHING | STICKING)
+        costly = bool(held & (SWITCHING | STICKING)) or (model is not None
+                                                         and model.coulomb_path)
+        return self.short and not costly
 
     def family(self, terms) -> frozenset:
         """The terms of the superset a candidate of ``terms`` is fitted in."""
@@ -78,10 +82,9 @@ class Supersets:
     def for_model(self, terms, model) -> Superset | None:
         """The superset a candidate of ``terms`` (its own ``model``) is fitted in, made on
         first use; None when none covers it or a fit in one costs more than a compile
-        (:meth:`pays`, or a known drag that needs the stick-slip solution in every
-        family)."""
+        (:meth:`pays`)."""
         family = self.family(terms)
-        if not terms <= family or not self.pays(terms) or model.coulomb_path:
+        if not terms <= family or not self.pays(terms, model):
             return None
         if family not in self._made:
             try:

@@ -24,7 +24,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from ..io.lattice import analogue
+from ..io.lattice import analogue, analogue_channels
 
 __all__ = ["COLOURED", "PHI_PRIOR_SD", "ar_name", "ar_specs", "analogue", "coloured_channels",
            "analogue_channels",
@@ -39,20 +39,6 @@ PREFIX = "noise_ar_"
 def ar_name(channel: str) -> str:
     """The parameter of a channel's lag-1 correlation, from the channel's name."""
     return PREFIX + "".join(c if c.isalnum() else "_" for c in channel).replace("__", "_")
-
-
-def analogue_channels(session) -> dict[str, str]:
-    """Every channel ``coloured_noise`` may give a correlation, to its trace: each driven
-    trace's logged speed and current, each coast-down's speed, where analogue."""
-    out = {}
-    for tr in session.traces:
-        for what, y in (("speed", tr.speed if tr.speed_logged else None),
-                        ("current", tr.current)):
-            if y is not None and analogue(y):
-                out[f"{tr.name}: {what}"] = tr.name
-    out.update({f"{tr.name}: speed": tr.name for tr in session.coast_downs
-                if analogue(tr.speed)})
-    return out
 
 
 def coloured_channels(session) -> list[str]:

@@ -2,19 +2,9 @@
 
 from __future__ import annotations
 
-from .lattice import analogue
+from .lattice import analogue_channels
 
 __all__ = ["inert_nuisance"]
-
-
-def _analogue(session, traces) -> bool:
-    """Whether one of ``traces`` (names) has an analogue logged speed or current."""
-    for tr in session.traces:
-        if tr.name in traces and any(
-                y is not None and analogue(y)
-                for y in (tr.speed if tr.speed_logged else None, tr.current)):
-            return True
-    return any(tr.name in traces and analogue(tr.speed) for tr in session.coast_downs)
 
 
 def inert_nuisance(session, names) -> tuple[str, str] | None:
@@ -43,7 +33,7 @@ def inert_nuisance(session, names) -> tuple[str, str] | None:
         if name == "coloured_noise":
             named = session.coloured_traces or tuple(
                 t.name for t in session.traces + session.coast_downs)
-            if not _analogue(session, set(named)):
+            if not set(named) & set(analogue_channels(session).values()):
                 return name, ("no trace it names logs an analogue speed or current (a "
                               "counted angle's or a quantised reading's errors are its "
                               "quantisation's)")

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["quantum", "analogue"]
+__all__ = ["quantum", "analogue", "analogue_channels"]
 
 
 def quantum(y: np.ndarray) -> float:
@@ -30,3 +30,17 @@ def analogue(y) -> bool:
     y = np.asarray(y, float)
     y = y[np.isfinite(y)]
     return y.size > 2 and quantum(y) == 0.0
+
+
+def analogue_channels(session) -> dict[str, str]:
+    """Every channel ``coloured_noise`` may give a correlation, to its trace: each driven
+    trace's logged speed and current, each coast-down's speed, where analogue."""
+    out = {}
+    for tr in session.traces:
+        for what, y in (("speed", tr.speed if tr.speed_logged else None),
+                        ("current", tr.current)):
+            if y is not None and analogue(y):
+                out[f"{tr.name}: {what}"] = tr.name
+    out.update({f"{tr.name}: speed": tr.name for tr in session.coast_downs
+                if analogue(tr.speed)})
+    return out
