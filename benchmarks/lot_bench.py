@@ -7,8 +7,10 @@ and a voltage drop of 0.2–0.8 V, drawn per motor, declared in its ``[model]``)
 step from rest with speed and current logged at 5 kHz, a steady table at four
 voltages, a bench Ra.  ``pmdc-bayes lot`` fits them on 2 Dask workers (``--no-mcmc``:
 each motor's Laplace posterior) and pools them; the population's 90 % intervals are
-checked against the truth.  Prints the table; ``python benchmarks/lot_bench.py --lots
-10 --motors 12``.
+checked against the truth.  With ``--outlier K:5`` the last motor of each lot has
+its K drawn 5 spreads above the median (a weak magnet reads the other way: ``K:-5``),
+and the table says whether it was flagged and how many others were.  Prints the table;
+``python benchmarks/lot_bench.py --lots 10 --motors 12``.
 """
 
 from __future__ import annotations
@@ -66,13 +68,18 @@ voltage_drop = {drop:.4g}
 """
 
 
-def make_lot(folder: Path, seed: int, n: int) -> dict:
-    """``n`` motors from the population; returns each motor's truth."""
+def make_lot(folder: Path, seed: int, n: int, outlier: tuple[str, float] | None = None
+             ) -> dict:
+    """``n`` motors from the population, the last one ``outlier[1]`` spreads off in
+    ``outlier[0]`` where given; returns each motor's truth."""
     rng = np.random.default_rng(seed)
     truth = {}
     for k in range(n):
         values = {p: MEDIAN[p] * float(np.exp(SPREAD[p] * rng.standard_normal()))
                   for p in NAMES}
+        if outlier is not None and k == n - 1:
+            name, spreads = outlier
+            values[name] = MEDIAN[name] * float(np.exp(SPREAD[name] * spreads))
         session = folder / f"motor{k + 1:02d}"
         session.mkdir(parents=True)
         plan = PLAN.format(seed=seed * 100 + k, k=k + 1, dead_time=rng.uniform(3e-4, 1.5e-3),
@@ -89,7 +96,10 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--lots", type=int, default=10)
     ap.add_argument("--motors", type=int, default=12)
+    ap.add_argument("--outlier", metavar="PARAM:SPREADS", type=_outlier,
+                    help="the last motor of each lot this many spreads off in PARAM")
     args = ap.parse_args(argv)
+    caught, others, clean = 0, 0, 0
     hits = {"median": 0, "spread": 0}
     total, failed, flagged, walls = 0, 0, 0, []
     with tempfile.TemporaryDirectory() as tmp:
@@ -97,7 +107,7 @@ def main(argv=None) -> int:
         env_cache = {"PMDC_BAYES_CACHE": str(tmp / "cache")}
         for lot in range(args.lots):
             folder = tmp / f"lot{lot}"
-            make_lot(folder, 500 + lot, args.motors)
+            truth = make_lot(folder, 500 + lot, args.motors, args.outlier)
             out = tmp / f"runs{lot}"
             t0 = time.perf_counter()
             proc = subprocess.run([*cli_command(), "lot", str(folder), "--out", str(out),
@@ -112,6 +122,12 @@ def main(argv=None) -> int:
                       f"{proc.stderr.strip()[-500:]}", flush=True)
                 continue
             flagged += sum(m["outlier"] for m in doc["motors"])
+            if args.outlier is not None:
+                odd = sorted(truth)[-1]
+                hit = [m["motor"] for m in doc["motors"] if m["outlier"]]
+                caught += odd in hit
+                others += sum(h != odd for h in hit)
+                clean += all(h == odd for h in hit)
             line = []
             for p in NAMES:
                 pop = doc["population"][p]
@@ -129,7 +145,18 @@ def main(argv=None) -> int:
     print(f"| {args.lots} | {args.motors} | {failed} | {flagged} | "
           f"{hits['median']}/{total} | {hits['spread']}/{total} | "
           f"{np.median(walls):.0f} (first {walls[0]:.0f}) |")
+    if args.outlier is not None:
+        print(f"\nthe {args.outlier[0]} outlier ({args.outlier[1]:+g} spreads) flagged in "
+              f"{caught}/{args.lots} lots; other motors flagged: {others}; lots with no "
+              f"other motor flagged: {clean}/{args.lots}")
     return 0
+
+
+def _outlier(text: str) -> tuple[str, float]:
+    name, _, spreads = text.partition(":")
+    if name not in NAMES:
+        raise argparse.ArgumentTypeError(f"{name!r}: one of {', '.join(NAMES)}")
+    return name, float(spreads)
 
 
 if __name__ == "__main__":

@@ -9,9 +9,16 @@ lot; a well-measured one keeps its own values.
 **Outliers.**  Per motor, a posterior predictive p-value against the population fitted
 *without it* (each population draw weighted by the inverse of the motor's likelihood
 there, truncated at ``√N`` times the mean weight, as truncated importance sampling
-does): the chance that a motor of the lot measured as well as it was lies further from
-the population than it does, ``P(χ²_P > d²)`` with ``d² = rᵀ(Σ + C)⁻¹r``, ``r``
-its own estimate less ``μ`` and ``C`` its own covariance.  The lot's p-values are
+does; where those weights are too uneven to stand for the lot without the motor, its
+Pareto k̂ above :data:`PARETO_K`, and the p-value is small, the population fitted
+again without it, for a far motor would otherwise widen the spread it is judged by):
+the chance that a motor of the lot measured as well as it was lies further from the
+population than it does.  Two tests, the smaller p-value doubled (Bonferroni): the
+joint one, ``P(χ²_P > d²)`` with ``d² = rᵀ(Σ + C)⁻¹r``, ``r`` its own estimate less
+``μ`` and ``C`` its own covariance, which sees a motor off in several parameters or
+off their correlation; and the most extreme single parameter's ``P(χ²_1 > r_k²/(Σ +
+C)_kk)`` times ``P``, which sees a motor off in one (a weak magnet, a tight bearing)
+that the joint test dilutes over the ``P`` degrees of freedom.  The lot's p-values are
 corrected together by Holm's method at :data:`OUTLIER_ALPHA` (the chance that any motor
 of an in-population lot is flagged).
 
@@ -34,9 +41,11 @@ from .correlation import correlations
 from .population import Population, fit_population, log_density
 
 __all__ = ["pooled_draws", "outlier_p_values", "holm", "lot_record", "analyse_lot",
-           "compare_correlation", "OUTLIER_ALPHA", "INTERVAL", "CORRELATION_SE"]
+           "compare_correlation", "OUTLIER_ALPHA", "PARETO_K", "INTERVAL", "CORRELATION_SE"]
 
 OUTLIER_ALPHA = 0.05  # family-wise: the chance that an in-population lot flags any motor
+PARETO_K = 0.7  # above it, importance weights do not stand for the lot without a motor
+REFIT_BELOW = 0.05  # a masked motor's p-value below this is found again by a refit
 INTERVAL = 0.90  # central interval reported
 CORRELATION_SE = 2.0  # the correlated population's LOO gain, in its standard errors
 
@@ -65,22 +74,46 @@ def pooled_draws(pop: Population, seed: int = 0) -> list[np.ndarray]:
     return out
 
 
-def outlier_p_values(pop: Population) -> np.ndarray:
-    """Per motor, its posterior predictive p-value against the lot without it."""
+def outlier_p_values(pop: Population, seed: int = 0) -> np.ndarray:
+    """Per motor, its posterior predictive p-value against the lot without it (module
+    docstring): the population's draws reweighted by the inverse of the motor's
+    likelihood, or, for a motor the reweighting would mask (its weights too uneven,
+    Pareto k̂ above :data:`PARETO_K`, and its p-value small enough to matter), the
+    population fitted again without it."""
+    from .diagnostics import az
+
     loglik = pop.log_likelihoods
     n = pop.mu.shape[0]
-    cov = pop.covariance()
+    with warnings.catch_warnings():  # k̂ is read here, not warned about
+        warnings.simplefilter("ignore")
+        _, khat = az.psislw(-loglik)
     p = np.empty(len(pop.motors))
     for j, m in enumerate(pop.motors):
         lw = -loglik[j]
         w = np.exp(lw - lw.max())
         w = np.minimum(w, np.sqrt(n) * w.mean())
-        w /= w.sum()
-        r = m.post_mean[None, :] - pop.mu
-        c = m.post_cov[None] + cov
-        d2 = np.einsum("ni,ni->n", r, np.linalg.solve(c, r[..., None])[..., 0])
-        p[j] = float(np.sum(w * stats.chi2.sf(d2, df=r.shape[1])))
+        p[j] = _p_value(m, pop.mu, pop.covariance(), w / w.sum())
+        if khat[j] > PARETO_K and p[j] < REFIT_BELOW and len(pop.motors) > 2:
+            rest = fit_population(pop.motors[:j] + pop.motors[j + 1:], seed=seed,
+                                  correlated=pop.correlated)
+            p[j] = _p_value(m, rest.mu, rest.covariance())
     return p
+
+
+def _p_value(m, mu, cov, w=None) -> float:
+    """Motor ``m``'s p-value over the population draws ``mu``, ``cov`` (weights ``w``,
+    uniform by default): the smaller of the joint test's and the most extreme single
+    parameter's (times the parameters' count), doubled (module docstring)."""
+    w = np.full(mu.shape[0], 1.0 / mu.shape[0]) if w is None else w
+    r = m.post_mean[None, :] - mu
+    c = m.post_cov[None] + cov
+    d2 = np.einsum("ni,ni->n", r, np.linalg.solve(c, r[..., None])[..., 0])
+    joint = float(np.sum(w * stats.chi2.sf(d2, df=r.shape[1])))
+    if r.shape[1] == 1:
+        return joint
+    z2 = r**2 / np.diagonal(c, axis1=1, axis2=2)
+    single = float(np.min(w @ stats.chi2.sf(z2, df=1))) * r.shape[1]
+    return min(1.0, 2.0 * min(joint, single))
 
 
 def holm(p, alpha: float = OUTLIER_ALPHA) -> np.ndarray:
@@ -134,13 +167,13 @@ def _population(motors, seed: int):
     comparison is made over the motors neither population flags, so that one odd motor
     does not decide the lot's correlation."""
     pop = fit_population(motors, seed=seed)
-    p = outlier_p_values(pop)
+    p = outlier_p_values(pop, seed)
     flagged = _flags(p)
     n = len(pop.names)
     if n < 2 or len(motors) <= n + 1:
         return pop, p, flagged, {"considered": False, "kept": False}
     corr = fit_population(motors, seed=seed, correlated=True)
-    p_c = outlier_p_values(corr)
+    p_c = outlier_p_values(corr, seed)
     flagged_c = _flags(p_c)
     comparison = dict(compare_correlation(pop, corr, among=~(flagged | flagged_c)),
                       considered=True)
