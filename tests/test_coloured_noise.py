@@ -27,10 +27,7 @@ from pmdc_bayes.simulate.session import simulate_session
 
 RHO = 0.9
 
-PLAN = """\
-seed = 3
-[motor]
-name = "a tachometer through a filter"
+MOTOR = """\
 [truth]
 Ra = 2.0
 La = 2e-3
@@ -43,6 +40,13 @@ unit = "ohm"
 [bench.La]
 sd = 0.1
 unit = "mH"
+"""
+
+PLAN = """\
+seed = 3
+[motor]
+name = "a tachometer through a filter"
+""" + MOTOR + """\
 [rig]
 dead_time = {dead_time}
 [[trace]]
@@ -303,18 +307,7 @@ SIBLINGS = """\
 seed = 8
 [motor]
 name = "one tachometer through a filter on every trace"
-[truth]
-Ra = 2.0
-La = 2e-3
-K = 0.05
-B = 2e-5
-J = 2e-5
-[bench.Ra]
-sd = 0.05
-unit = "ohm"
-[bench.La]
-sd = 0.1
-unit = "mH"
+""" + MOTOR + """\
 [[trace]]
 name = "long"
 kind = "step"
