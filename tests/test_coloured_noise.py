@@ -331,9 +331,10 @@ speed_noise_correlation = 0.9
 
 @pytest.mark.slow
 def test_coloured_noise_taken_on_one_trace_is_tried_on_the_others(tmp_path):
-    """One filtering sensor logs both traces; the short one's correlated errors alone may
-    pass the misfit check.  Once the search takes coloured noise on one trace it tries it
-    on the other, and the chosen model holds it on both."""
+    """One filtering sensor logs both traces; one trace's correlated errors alone may
+    pass the misfit check (here the long one's: without the mend the search took
+    coloured noise on the short trace only).  Once the search takes coloured noise on
+    one trace it tries it on the other, and the chosen model holds it on both."""
     from pmdc_bayes.search import run_search
 
     root = simulate_session(tomllib.loads(SIBLINGS), tmp_path / "s")

@@ -152,8 +152,9 @@ class _Search:
     def proposed(self, cand) -> list[frozenset]:
         """The additions the verdict proposes, in its order; and where the candidate holds
         coloured noise on some traces, the same on every other trace with an analogue
-        channel (one sensor logs them all; a short or quiet trace whose correlated errors
-        pass the misfit check would otherwise be read as white)."""
+        channel (one sensor logs them all; a trace whose correlated errors pass the
+        misfit check, a quiet one or one its response fills, would otherwise be read as
+        white)."""
         pairs = [(p.nuisance, p.trace) for p in cand.adequacy.proposals]
         moves = []
         for nuisance, trace in pairs:

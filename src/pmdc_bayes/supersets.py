@@ -58,7 +58,7 @@ class Supersets:
         self._made: dict[frozenset, Superset | None] = {}
         self.short = _readings(session) <= SUPERSET_READINGS
 
-    def pays(self, terms, model=None) -> bool:
+    def pays(self, terms, *, model=None) -> bool:
         """Whether a candidate of ``terms`` is fitted in its family's superset: the family
         holds no costly solution, nor does the candidate's own ``model`` where given (a
         known drag needs the stick-slip solution in every family), and the session is
@@ -84,7 +84,7 @@ class Supersets:
         first use; None when none covers it or a fit in one costs more than a compile
         (:meth:`pays`)."""
         family = self.family(terms)
-        if not terms <= family or not self.pays(terms, model):
+        if not terms <= family or not self.pays(terms, model=model):
             return None
         if family not in self._made:
             try:

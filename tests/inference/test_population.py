@@ -85,26 +85,30 @@ def test_an_injected_outlier_is_flagged_and_no_other_motor():
 
 
 @pytest.mark.slow
-def test_a_motor_off_in_one_parameter_is_flagged_in_a_small_lot():
-    """A lot of 12 whose last motor's K is 8 spreads high (a strong magnet), the rest
-    ordinary: flagged in each of 4 lots, no other motor.  Judged against the lot with it
-    (the importance weights cannot take a motor this far out) and over all four
-    parameters at once, its p-value was about 0.005, short of Holm's 0.05/12."""
+@pytest.mark.parametrize(("n", "spreads"), [(12, 8.0), (6, 20.0)])
+def test_a_motor_off_in_one_parameter_is_flagged_in_a_small_lot(n, spreads):
+    """A lot whose last motor's K is far off (a strong magnet), the rest ordinary:
+    flagged in each of 4 lots, no other motor.  Judged against the lot with it in (the
+    importance weights cannot take a motor this far out, and the fewer the motors the
+    more it widens the spread it is judged by) and over all four parameters at once, its
+    p-value was about 0.005 in the lot of 12 (short of Holm's 0.05/12) and up to 0.09 in
+    the lot of 6."""
     caught, others = 0, 0
     for seed in range(4):
         rng = np.random.default_rng(300 + seed)
         motors = []
-        for k in range(12):
+        for k in range(n):
             x = MU + SIGMA * rng.standard_normal(MU.size)
-            if k == 11:
-                x[0] = MU[0] + 8.0 * SIGMA[0]
+            if k == n - 1:
+                x[0] = MU[0] + spreads * SIGMA[0]
             motors.append(_motor(rng, f"m{k}", x, np.array([0.005, 0.05, 0.01, 0.01]),
                                  draws=False))
         record, _ = analyse_lot(motors, seed=seed)
         flags = [m["outlier"] for m in record["motors"]]
         caught += flags[-1]
         others += sum(flags[:-1])
-    assert caught == 4 and others == 0, (caught, others)
+    assert caught == 4, caught
+    assert others <= 1, others  # 5 % family-wise per lot: P(2 or more in 4 lots) < 1.5 %
 
 
 def test_a_poorly_measured_motor_is_pulled_toward_the_lot_and_still_covered():

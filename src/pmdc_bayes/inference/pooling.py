@@ -10,8 +10,8 @@ lot; a well-measured one keeps its own values.
 *without it* (each population draw weighted by the inverse of the motor's likelihood
 there, truncated at ``√N`` times the mean weight, as truncated importance sampling
 does; where those weights are too uneven to stand for the lot without the motor, its
-Pareto k̂ above :data:`PARETO_K`, and the p-value is small, the population fitted
-again without it, for a far motor would otherwise widen the spread it is judged by):
+Pareto k̂ above :data:`PARETO_K`, the population fitted again without it, for a far
+motor would otherwise widen the spread it is judged by):
 the chance that a motor of the lot measured as well as it was lies further from the
 population than it does.  Two tests, the smaller p-value doubled (Bonferroni): the
 joint one, ``P(χ²_P > d²)`` with ``d² = rᵀ(Σ + C)⁻¹r``, ``r`` its own estimate less
@@ -41,11 +41,12 @@ from .correlation import correlations
 from .population import Population, fit_population, log_density
 
 __all__ = ["pooled_draws", "outlier_p_values", "holm", "lot_record", "analyse_lot",
-           "compare_correlation", "OUTLIER_ALPHA", "PARETO_K", "INTERVAL", "CORRELATION_SE"]
+           "compare_correlation", "OUTLIER_ALPHA", "PARETO_K", "MAX_REFITS", "INTERVAL",
+           "CORRELATION_SE"]
 
 OUTLIER_ALPHA = 0.05  # family-wise: the chance that an in-population lot flags any motor
 PARETO_K = 0.7  # above it, importance weights do not stand for the lot without a motor
-REFIT_BELOW = 0.05  # a masked motor's p-value below this is found again by a refit
+MAX_REFITS = 3  # motors at most judged against a population fitted again without them
 INTERVAL = 0.90  # central interval reported
 CORRELATION_SE = 2.0  # the correlated population's LOO gain, in its standard errors
 
@@ -74,16 +75,17 @@ def pooled_draws(pop: Population, seed: int = 0) -> list[np.ndarray]:
     return out
 
 
-def outlier_p_values(pop: Population, seed: int = 0) -> np.ndarray:
+def outlier_p_values(pop: Population, *, seed: int = 0) -> np.ndarray:
     """Per motor, its posterior predictive p-value against the lot without it (module
     docstring): the population's draws reweighted by the inverse of the motor's
-    likelihood, or, for a motor the reweighting would mask (its weights too uneven,
-    Pareto k̂ above :data:`PARETO_K`, and its p-value small enough to matter), the
-    population fitted again without it."""
+    likelihood, or, for a motor the reweighting cannot leave out (its weights too
+    uneven, Pareto k̂ above :data:`PARETO_K`; the :data:`MAX_REFITS` of them with the
+    smallest p-values), the population fitted again without it."""
     from .diagnostics import az
 
     loglik = pop.log_likelihoods
     n = pop.mu.shape[0]
+    cov = pop.covariance()
     with warnings.catch_warnings():  # k̂ is read here, not warned about
         warnings.simplefilter("ignore")
         _, khat = az.psislw(-loglik)
@@ -92,19 +94,20 @@ def outlier_p_values(pop: Population, seed: int = 0) -> np.ndarray:
         lw = -loglik[j]
         w = np.exp(lw - lw.max())
         w = np.minimum(w, np.sqrt(n) * w.mean())
-        p[j] = _p_value(m, pop.mu, pop.covariance(), w / w.sum())
-        if khat[j] > PARETO_K and p[j] < REFIT_BELOW and len(pop.motors) > 2:
-            rest = fit_population(pop.motors[:j] + pop.motors[j + 1:], seed=seed,
-                                  correlated=pop.correlated)
-            p[j] = _p_value(m, rest.mu, rest.covariance())
+        p[j] = _p_value(m, pop.mu, cov, w / w.sum())
+    masked = [j for j in np.argsort(p) if khat[j] > PARETO_K][:MAX_REFITS]
+    for j in masked if len(pop.motors) > 2 else ():
+        rest = fit_population(pop.motors[:j] + pop.motors[j + 1:], seed=seed,
+                              correlated=pop.correlated)
+        p[j] = _p_value(pop.motors[j], rest.mu, rest.covariance(),
+                        np.full(rest.mu.shape[0], 1.0 / rest.mu.shape[0]))
     return p
 
 
-def _p_value(m, mu, cov, w=None) -> float:
-    """Motor ``m``'s p-value over the population draws ``mu``, ``cov`` (weights ``w``,
-    uniform by default): the smaller of the joint test's and the most extreme single
-    parameter's (times the parameters' count), doubled (module docstring)."""
-    w = np.full(mu.shape[0], 1.0 / mu.shape[0]) if w is None else w
+def _p_value(m, mu, cov, w) -> float:
+    """Motor ``m``'s p-value over the population draws ``mu``, ``cov`` (weights ``w``):
+    the smaller of the joint test's and the most extreme single parameter's (times the
+    parameters' count), doubled; with one parameter, its test alone (module docstring)."""
     r = m.post_mean[None, :] - mu
     c = m.post_cov[None] + cov
     d2 = np.einsum("ni,ni->n", r, np.linalg.solve(c, r[..., None])[..., 0])
@@ -167,13 +170,13 @@ def _population(motors, seed: int):
     comparison is made over the motors neither population flags, so that one odd motor
     does not decide the lot's correlation."""
     pop = fit_population(motors, seed=seed)
-    p = outlier_p_values(pop, seed)
+    p = outlier_p_values(pop, seed=seed)
     flagged = _flags(p)
     n = len(pop.names)
     if n < 2 or len(motors) <= n + 1:
         return pop, p, flagged, {"considered": False, "kept": False}
     corr = fit_population(motors, seed=seed, correlated=True)
-    p_c = outlier_p_values(corr, seed)
+    p_c = outlier_p_values(corr, seed=seed)
     flagged_c = _flags(p_c)
     comparison = dict(compare_correlation(pop, corr, among=~(flagged | flagged_c)),
                       considered=True)
@@ -249,6 +252,9 @@ def lot_record(pop: Population, motors, pooled, p, flagged) -> dict:
                      "effective_draws": ess, "values": values})
     return {"parameters": list(pop.names), "population": population, "motors": rows,
             "outlier_test": {"method": "posterior predictive p-value against the lot "
-                             "without the motor, Holm-corrected", "alpha": OUTLIER_ALPHA},
+                             "without the motor: the smaller of the joint test's over "
+                             "every parameter and the most extreme parameter's (times "
+                             "their count), doubled; Holm-corrected over the lot",
+                             "alpha": OUTLIER_ALPHA},
             "interval": INTERVAL, "draws": int(pop.mu.shape[0]),
             "acceptance": pop.acceptance}
