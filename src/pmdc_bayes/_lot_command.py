@@ -38,7 +38,8 @@ def _rows(runs, record) -> list[dict]:
         row = {"motor": r.name, "session": str(r.session), "status": status_name(r.status),
                "exit_code": r.status, "run": str(r.run or ""), "error": r.error,
                "outlier": "" if m is None else str(m["outlier"]).lower(),
-               "p_value": "" if m is None else f"{m['p_value']:.4g}"}
+               "p_value": "" if m is None else f"{m['p_value']:.4g}",
+               "judged_against": "" if m is None else m["judged_against"]}
         for n in names:
             v = m["values"][n] if m is not None else {}
             row[n] = v.get("own", "")

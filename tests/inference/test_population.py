@@ -111,6 +111,36 @@ def test_a_motor_off_in_one_parameter_is_flagged_in_a_small_lot(n, spreads):
     assert others <= 1, others  # 5 % family-wise per lot: P(2 or more in 4 lots) < 1.5 %
 
 
+def test_a_far_motor_is_judged_against_the_lot_refitted_without_it_once(monkeypatch):
+    """The record says which motors were judged against a refit, and the population
+    without the flagged motor is that refit, not fitted a second time."""
+    from pmdc_bayes.inference import pooling
+
+    fits = []
+
+    def counted(motors, **kwargs):
+        fits.append((tuple(m.name for m in motors), kwargs.get("correlated", False)))
+        return fit_population(motors, **kwargs)
+
+    monkeypatch.setattr(pooling, "fit_population", counted)
+    rng = np.random.default_rng(300)
+    motors = []
+    for k in range(6):
+        x = MU + SIGMA * rng.standard_normal(MU.size)
+        if k == 5:
+            x[0] = MU[0] + 20.0 * SIGMA[0]
+        motors.append(_motor(rng, f"m{k}", x, np.array([0.005, 0.05, 0.01, 0.01]),
+                             draws=False))
+    record, pop = analyse_lot(motors, seed=0)
+    rows = record["motors"]
+    assert rows[-1]["outlier"] and rows[-1]["judged_against"] == "refit"
+    assert not any(r["outlier"] for r in rows[:-1])
+    assert [m.name for m in pop.motors] == [f"m{k}" for k in range(5)]
+    assert len(fits) == len(set(fits)), fits
+    again = fit_population(motors[:5], seed=0, correlated=pop.correlated)
+    np.testing.assert_array_equal(pop.mu, again.mu)
+
+
 def test_a_poorly_measured_motor_is_pulled_toward_the_lot_and_still_covered():
     covered, narrower, n = 0, 0, 0
     for seed in range(6):

@@ -33,6 +33,7 @@ standard errors of the difference, over the motors neither flags as an outlier.
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
@@ -40,7 +41,7 @@ from scipy import stats
 from .correlation import correlations
 from .population import Population, fit_population, log_density
 
-__all__ = ["pooled_draws", "outlier_p_values", "holm", "lot_record", "analyse_lot",
+__all__ = ["pooled_draws", "OutlierTest", "outlier_p_values", "holm", "lot_record", "analyse_lot",
            "compare_correlation", "OUTLIER_ALPHA", "PARETO_K", "MAX_REFITS", "INTERVAL",
            "CORRELATION_SE"]
 
@@ -75,7 +76,19 @@ def pooled_draws(pop: Population, seed: int = 0) -> list[np.ndarray]:
     return out
 
 
-def outlier_p_values(pop: Population, *, seed: int = 0) -> np.ndarray:
+@dataclass(frozen=True)
+class OutlierTest:
+    """The lot's outlier test: per motor its p-value (in the population's motor order),
+    the motors judged against the population fitted again without them (their
+    names), and those populations by the name left out, for the stage that fits the lot
+    without its outliers to reuse."""
+
+    p: np.ndarray
+    refitted: tuple[str, ...] = ()
+    without: dict = field(default_factory=dict, repr=False)
+
+
+def outlier_p_values(pop: Population, *, seed: int = 0) -> OutlierTest:
     """Per motor, its posterior predictive p-value against the lot without it (module
     docstring): the population's draws reweighted by the inverse of the motor's
     likelihood, or, for a motor the reweighting cannot leave out (its weights too
@@ -96,12 +109,15 @@ def outlier_p_values(pop: Population, *, seed: int = 0) -> np.ndarray:
         w = np.minimum(w, np.sqrt(n) * w.mean())
         p[j] = _p_value(m, pop.mu, cov, w / w.sum())
     masked = [j for j in np.argsort(p) if khat[j] > PARETO_K][:MAX_REFITS]
+    without = {}
     for j in masked if len(pop.motors) > 2 else ():
-        rest = fit_population(pop.motors[:j] + pop.motors[j + 1:], seed=seed,
+        motors = tuple(pop.motors)
+        rest = fit_population(motors[:j] + motors[j + 1:], seed=seed,
                               correlated=pop.correlated)
+        without[pop.motors[j].name] = rest
         p[j] = _p_value(pop.motors[j], rest.mu, rest.covariance(),
                         np.full(rest.mu.shape[0], 1.0 / rest.mu.shape[0]))
-    return p
+    return OutlierTest(p, tuple(without), without)
 
 
 def _p_value(m, mu, cov, w) -> float:
@@ -170,19 +186,19 @@ def _population(motors, seed: int):
     comparison is made over the motors neither population flags, so that one odd motor
     does not decide the lot's correlation."""
     pop = fit_population(motors, seed=seed)
-    p = outlier_p_values(pop, seed=seed)
-    flagged = _flags(p)
+    test = outlier_p_values(pop, seed=seed)
+    flagged = _flags(test.p)
     n = len(pop.names)
     if n < 2 or len(motors) <= n + 1:
-        return pop, p, flagged, {"considered": False, "kept": False}
+        return pop, test, flagged, {"considered": False, "kept": False}
     corr = fit_population(motors, seed=seed, correlated=True)
-    p_c = outlier_p_values(corr, seed=seed)
-    flagged_c = _flags(p_c)
+    test_c = outlier_p_values(corr, seed=seed)
+    flagged_c = _flags(test_c.p)
     comparison = dict(compare_correlation(pop, corr, among=~(flagged | flagged_c)),
                       considered=True)
     if comparison["kept"]:
-        return corr, p_c, flagged_c, comparison
-    return pop, p, flagged, comparison
+        return corr, test_c, flagged_c, comparison
+    return pop, test, flagged, comparison
 
 
 def analyse_lot(motors, *, seed: int = 0) -> tuple[dict, Population]:
@@ -190,13 +206,15 @@ def analyse_lot(motors, *, seed: int = 0) -> tuple[dict, Population]:
     every motor, then the population fitted again without them, which the other motors
     are pooled toward (an outlier keeps its own values only)."""
     motors = tuple(motors)
-    pop, p, flagged, comparison = _population(motors, seed)
+    pop, test, flagged, comparison = _population(motors, seed)
     if flagged.any():
-        pop = fit_population([m for m, f in zip(motors, flagged, strict=True) if not f],
-                             seed=seed, correlated=pop.correlated)
+        out = [m.name for m, f in zip(motors, flagged, strict=True) if f]
+        pop = test.without[out[0]] if len(out) == 1 and out[0] in test.without else (
+            fit_population([m for m, f in zip(motors, flagged, strict=True) if not f],
+                           seed=seed, correlated=pop.correlated))
     pooled = iter(pooled_draws(pop, seed))
     draws = [None if f else next(pooled) for f in flagged]
-    record = lot_record(pop, motors, draws, p, flagged)
+    record = lot_record(pop, motors, draws, test, flagged)
     record["correlation"] = _correlation_record(pop, comparison)
     return record, pop
 
@@ -218,10 +236,10 @@ def _correlation_record(pop: Population, comparison: dict) -> dict:
     return out
 
 
-def lot_record(pop: Population, motors, pooled, p, flagged) -> dict:
+def lot_record(pop: Population, motors, pooled, test: OutlierTest, flagged) -> dict:
     """The lot's population, and each of ``motors``' own and pooled values (None for a
-    motor left out of the population), its p-value and flag, as JSON (SI; spreads as
-    relative sds, the sd of the log)."""
+    motor left out of the population), its p-value, what it was judged against and its
+    flag, as JSON (SI; spreads as relative sds, the sd of the log)."""
     population = {}
     for k, name in enumerate(pop.names):
         median = np.exp(pop.mu[:, k])
@@ -246,7 +264,9 @@ def lot_record(pop: Population, motors, pooled, p, flagged) -> dict:
                 else [float(np.exp(v)) for v in _interval(pooled[j][:, k])]}
         k = fitted.get(m.name)
         ess = None if k is None or np.isnan(pop.ess[k]) else float(pop.ess[k])
-        rows.append({"motor": m.name, "p_value": float(p[j]), "outlier": bool(flagged[j]),
+        rows.append({"motor": m.name, "p_value": float(test.p[j]),
+                     "judged_against": "refit" if m.name in test.refitted else "reweighted",
+                     "outlier": bool(flagged[j]),
                      "in_population": k is not None,
                      "reweighted": k is not None and not pop.gaussian[k],
                      "effective_draws": ess, "values": values})
@@ -254,7 +274,12 @@ def lot_record(pop: Population, motors, pooled, p, flagged) -> dict:
             "outlier_test": {"method": "posterior predictive p-value against the lot "
                              "without the motor: the smaller of the joint test's over "
                              "every parameter and the most extreme parameter's (times "
-                             "their count), doubled; Holm-corrected over the lot",
+                             "their count), doubled; Holm-corrected over the lot. "
+                             "The lot without the motor is the population's draws "
+                             "reweighted by the inverse of the motor's likelihood "
+                             "('reweighted'), or, where those weights are too uneven "
+                             f"(Pareto k above {PARETO_K}), the population fitted again "
+                             "without it ('refit')",
                              "alpha": OUTLIER_ALPHA},
             "interval": INTERVAL, "draws": int(pop.mu.shape[0]),
             "acceptance": pop.acceptance}
