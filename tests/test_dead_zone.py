@@ -151,3 +151,24 @@ def test_a_coarse_encoder_staircase_reads_no_asymmetry_into_its_resolution(tmp_p
         assert np.isfinite(fit["voltage"]) and fit["se"] > 0
         assert abs(fit["voltage"]) < 4 * fit["se"] + 0.05
     assert _asymmetry_rule(session) == []
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.6, 0.9])
+def test_a_levels_standard_error_holds_when_a_filter_colours_the_readings(rho):
+    """The error of a settled level's mean, over 300 repeats of AR(1) readings: what
+    ``level_se`` gives is within 20 % of the means' own scatter (read as white, a
+    filter at ρ = 0.9 made it 16 times too small, and the two directions' intercepts
+    differ by 'many standard errors' on a symmetric driver)."""
+    from pmdc_bayes.inference.levels import level_se
+
+    rng = np.random.default_rng(7)
+    n, means, ses = 300, [], []
+    for _ in range(300):
+        e = rng.standard_normal(2000)
+        x = np.empty_like(e)
+        x[0] = e[0] / np.sqrt(1.0 - rho**2)
+        for t in range(1, e.size):
+            x[t] = rho * x[t - 1] + e[t]
+        means.append(np.mean(x[-n:]))
+        ses.append(level_se(50.0 + x, n))
+    assert np.median(ses) == pytest.approx(np.std(means), rel=0.2)

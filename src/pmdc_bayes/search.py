@@ -40,11 +40,12 @@ import math
 
 from ._x64 import x64
 from .candidate import Candidate, Fitted, Searched, nested_start
-from .inference.coloured import COLOURED, analogue_channels
+from .inference.coloured import COLOURED
 from .inference.levels import level_outliers
 from .inference.objective import build_model
 from .inference.seed import fit_seed
 from .inference.warmup import WarmUp
+from .io.lattice import analogue_channels
 from .io.session import NUISANCES, Session
 from .supersets import Supersets
 from .terms import (

@@ -33,11 +33,12 @@ kept in the compile cache for the next run.
 
 from __future__ import annotations
 
-from .inference.coloured import COLOURED, analogue_channels
+from .inference.coloured import COLOURED
 from .inference.nuisances import dead_time_name, nuisance_specs
 from .inference.objective import build_model
 from .inference.seed import fit_seed
 from .inference.superset import Superset, extended
+from .io.lattice import analogue_channels
 from .io.session import NUISANCES, Session
 from .terms import LOAD, NOISE, SHARED, nuisance_of, with_terms
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from .inference.coloured import analogue_channels
+from .io.lattice import analogue_channels
 from .io.session import NUISANCES, Session
 
 __all__ = ["terms_of", "with_terms", "model_table", "label", "nuisance_of", "term_of"]

@@ -24,11 +24,10 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from ..io.lattice import analogue, analogue_channels
+from ..io.lattice import analogue_channels
 
-__all__ = ["COLOURED", "PHI_PRIOR_SD", "ar_name", "ar_specs", "analogue", "coloured_channels",
-           "analogue_channels",
-           "breaks", "previous_index", "whiten", "channel_rho", "mean_se_factor", "noise_rho",
+__all__ = ["COLOURED", "PHI_PRIOR_SD", "ar_name", "ar_specs", "coloured_channels", "breaks",
+           "previous_index", "whiten", "channel_rho", "mean_se_factor", "noise_rho",
            "start_residuals", "innovation_scale", "coloured_data"]
 
 COLOURED = "coloured_noise"

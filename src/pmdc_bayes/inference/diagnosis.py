@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io.lattice import analogue_channels
 from .checks import step_time
-from .coloured import analogue_channels
 from .diagnosis_levels import level_rules
 from .noise import noise_scale
 from .onset import departure, onset_shape

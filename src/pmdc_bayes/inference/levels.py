@@ -9,7 +9,7 @@ import numpy as np
 from ..paper.changes import AT_REST, plateaus
 
 __all__ = ["settled", "unloaded_levels", "voltage_intercept", "direction_intercepts",
-           "friction_offset", "level_outliers"]
+           "friction_offset", "level_outliers", "level_se"]
 
 LEVEL_MISS = 0.03  # a level off the others' line by more than this fraction of itself
 LINE_FIT = 0.01  # the others must sit on their line within this fraction (rms)
@@ -75,11 +75,9 @@ def _held_levels(tr, with_se: bool = False) -> list[tuple]:
     """The settled, unloaded end of every plateau a trace's voltage is held on, except
     a plateau at rest (0 V, or a logged 0 V's noise: below :data:`AT_REST` of the
     trace's largest voltage), which has no gain to read: ``(voltage, speed, current)``,
-    or with ``with_se`` ``(voltage, speed, the speed's standard error)``: the noise's
-    over the root of the readings averaged, and no less than what the sensor's resolution
-    leaves (:func:`_resolution`), which averaging does not remove."""
-    from .noise import noise_scale
-
+    or with ``with_se`` ``(voltage, speed, the speed's standard error)``: the readings'
+    own (:func:`level_se`), and no less than what the sensor's resolution leaves
+    (:func:`_resolution`), which averaging does not remove."""
     held = plateaus(tr)
     dt = float(np.median(np.diff(tr.time))) if tr.n > 1 else 1.0
     top = max(abs(p.level) for p in held)
@@ -96,10 +94,27 @@ def _held_levels(tr, with_se: bool = False) -> list[tuple]:
             continue
         i = np.nan if tr.current is None else float(np.mean(tr.current[b - n:b]))
         if with_se:
-            i = max(noise_scale(tr.speed[a:b]) / np.sqrt(n), _resolution(tr, n * dt))
+            i = max(level_se(tr.speed[a:b], n), _resolution(tr, n * dt))
         out.append((float(np.mean(tr.voltage.at(tr.time[b - n:b]))),
                     float(np.mean(tr.speed[b - n:b])), i))
     return out
+
+
+def level_se(y, n: int) -> float:
+    """The standard error of the mean of a settled signal's last ``n`` readings: the
+    noise's level (:func:`~.noise.noise_scale`, over the whole of ``y``) over √n, times
+    what the readings' lag-1 correlation ρ makes of it when a sensor's filter colours
+    them (an AR(1) mean's error over that of white readings at the level the second
+    differences read: √(3(1+ρ)/(3−ρ))/(1−ρ)); ρ ≤ 0 counts as white."""
+    from .coloured import innovation_scale, mean_se_factor
+    from .noise import noise_scale
+
+    y = np.asarray(y, float)
+    tail = y[-n:] - np.mean(y[-n:])
+    ss = float(tail @ tail)
+    rho = float(tail[1:] @ tail[:-1]) / ss if ss > 0 and n > 2 else 0.0
+    rho = min(max(rho, 0.0), 0.99)
+    return noise_scale(y) / np.sqrt(n) * innovation_scale(rho) * mean_se_factor(rho)
 
 
 def _resolution(tr, window: float) -> float:
