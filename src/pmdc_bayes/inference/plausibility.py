@@ -215,6 +215,20 @@ def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict, rho: dict) -> float:
     return np.sqrt(2.0) * sd / span if span > 0 else 0.0
 
 
+def _input_noise_sd(tr, n: int, gain: float) -> float:
+    """What a logged voltage's noise moves the model's mean speed over a trace's last
+    ``n`` samples by: the model is driven by the logged values, the motor by the voltage
+    they measure, so the mean speed it predicts there follows the mean of the column's
+    noise over them (at most; the rotor's inertia averages over more), times the steady
+    gain; 0 for a voltage given as a schedule."""
+    if not tr.voltage_logged:
+        return 0.0
+    from .noise import noise_scale
+
+    u = np.asarray(tr.voltage.at(tr.time[-n:]), dtype=float)
+    return abs(gain) * noise_scale(u) / np.sqrt(n) if u.size > 2 else 0.0
+
+
 def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
     """The model's steady speed at the session's largest settled unloaded voltage
     against the speed logged there; two-sided, in the level's noise: for a steady
@@ -245,9 +259,11 @@ def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
         tr, n = model.session.traces[k], max(3, model.session.traces[k].n // 10)
         expected = float(np.mean(np.asarray(preds[k][1])[-n:]))
         # the level is the same trace's the model was fitted to: its mean is read against
-        # the model's, whose own uncertainty (the fit's) is of the same order
-        se = float(np.hypot(_end_speed_se(tr, n, noise_sd, s0, rho),
-                            _no_load_speed_sd(model, fit, float(v))))
+        # the model's, whose own uncertainty (the fit's) is of the same order, and which
+        # follows a logged voltage's noise where the motor did not
+        se = float(np.linalg.norm([_end_speed_se(tr, n, noise_sd, s0, rho),
+                                   _no_load_speed_sd(model, fit, float(v)),
+                                   _input_noise_sd(tr, n, w_mod / v)]))
     if not se > 0:  # no noise level to read the miss on: no test
         return []
     if expected * w_obs > 0:  # both turning the same way: the ratio, on a log scale
@@ -256,9 +272,19 @@ def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
         z = abs(expected - w_obs) / se
     pv = float(2 * (norm.sf(z) if dof is None else student_t.sf(z, dof)))
     out["no_load_speed"]["p_value"] = pv
+    d = _digits(w_mod, float(w_obs))
     return [Test(Finding("plausibility", "no-load speed", "fail",
-                         f"x{w_mod / w_obs:.2g}" if w_obs else "logged 0",
-                         f"the model's no-load speed at {_g(float(v))} V is {_g(w_mod)} rad/s "
-                         f"where the session settles at {_g(float(w_obs))} rad/s"), pv)]
+                         f"x{w_mod / w_obs:.{d - 1}g}" if w_obs else "logged 0",
+                         f"the model's no-load speed at {_g(float(v))} V is {w_mod:.{d}g} "
+                         f"rad/s where the session settles at {float(w_obs):.{d}g} rad/s"),
+                 pv)]
+
+
+def _digits(*values: float) -> int:
+    """The significant digits (3 at least) that show ``values`` apart."""
+    digits = 3
+    while digits < 12 and len({f"{v:.{digits}g}" for v in values}) < len(values):
+        digits += 1
+    return digits
 
 
