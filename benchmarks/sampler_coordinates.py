@@ -75,7 +75,7 @@ def main(argv=None) -> int:
             session = load_session(fz.path)
             model = build_model(session, fit_seed(session))
             fit = fit_map(model, seed=seed)
-            logp = LogProb(batch_log_posterior(model), 16)
+            logp = LogProb(batch_log_posterior(model), 16, model.registry.is_log())
             local = x64(coordinates.exact_laplace)(fit, logp)
             chosen = x64(coordinates.Coordinates.for_fit)(model.registry, local, logp)
             for label, clearly in (("log", np.inf), (f"chosen: {chosen.kind}",

@@ -192,6 +192,22 @@ def test_impossible_parameters_have_minus_inf_log_posterior(tiny):
     np.testing.assert_array_equal(_LogProb(broken, 8)(far[:2]), [-np.inf, -np.inf])
 
 
+def test_a_parameter_sampled_in_value_may_lie_beyond_the_logarithms_range():
+    """The guard against exp's overflow holds for logarithms only: a coast-down's
+    initial speed of 1,300 rad/s (sampled in value) is a density like any other, and
+    the sampler started from it (every walker was refused before)."""
+    seen = []
+
+    def fn(thetas):
+        seen.append(np.asarray(thetas))
+        return np.zeros(thetas.shape[0])
+
+    walkers = np.array([[np.log(2.0), 1300.0], [np.log(2.0), -1300.0], [750.0, 1.0]])
+    lp = _LogProb(fn, 4, is_log=[True, False])(walkers)
+    np.testing.assert_array_equal(lp, [0.0, 0.0, -np.inf])
+    np.testing.assert_array_equal(_LogProb(fn, 4)(walkers), np.full(3, -np.inf))
+
+
 def test_the_log_posterior_runs_in_64_bits_in_every_sampler_thread():
     """The ensembles step in threads, and JAX's 64-bit mode is a thread's own setting:
     the walkers reach the log-posterior in float64 whichever thread asks (the caller's

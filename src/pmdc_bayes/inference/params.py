@@ -142,7 +142,8 @@ class Registry:
     def to_values(self, theta) -> np.ndarray:
         """θ (NumPy, any leading shape) → values (SI), same shape."""
         theta = np.asarray(theta, dtype=float)
-        return np.where(self._is_log(), np.exp(theta), theta)
+        log = self._is_log()
+        return np.where(log, np.exp(np.where(log, theta, 0.0)), theta)
 
     def seed_theta(self) -> np.ndarray:
         return self.to_theta({s.name: s.seed for s in self.specs})

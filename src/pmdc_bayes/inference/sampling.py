@@ -194,7 +194,7 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     if progress is None:  # a terminal, or a notebook (where tqdm.auto draws a widget)
         progress = sys.stderr.isatty() or "ipykernel" in sys.modules
     batch_fn = _log_posterior_batch(model)
-    log_prob = LogProb(batch_fn, batch)
+    log_prob = LogProb(batch_fn, batch, model.registry.is_log())
     rng = np.random.default_rng(seed)
     theta0, lp0 = initial_walkers(fit, log_prob, n_walkers, rng)
     # the walkers move in φ (:mod:`.coordinates`); the draws are mapped back to θ
