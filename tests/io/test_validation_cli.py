@@ -68,6 +68,12 @@ def _coarse_clock(d):
         f"{int(round(float(r[0]) * 100)) // 2 / 50:.2f},{r[1]},{r[2]}\n" for r in rows))
 
 
+def _row_twice(d):
+    """Line 12 logged twice (a logger's repeated write)."""
+    lines = (d / "step.csv").read_text().splitlines(keepends=True)
+    (d / "step.csv").write_text("".join(lines[:12] + lines[11:]))
+
+
 def _flat_step(d):
     rows = "".join(f"{k * 0.01:.2f},500.0,0.2\n" for k in range(50))
     (d / "step.csv").write_text("t,speed_rpm,ia\n" + rows)
@@ -151,6 +157,8 @@ CASES = [
     ("time-coarse-clock", _coarse_clock,
      ["step.csv:line 3", "not strictly increasing", "coarser than the sampling",
       "sample_rate = 100 "]),
+    ("row-logged-twice", _row_twice,
+     ["step.csv:line 13", "line 13 repeats line 12 in every column", "remove line 13"]),
     ("fewer-than-3-samples", _two_samples, ["step.csv", "only 2 samples", "at least 3"]),
     # schedules
     ("schedule-no-overlap", _sub(SCHEDULE, "voltage = [[5.0, 6.0]]"),
