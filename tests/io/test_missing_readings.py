@@ -12,7 +12,7 @@ from pmdc_bayes.io._missing import MISSING_SHARE
 from pmdc_bayes.io.loader import load_session
 
 
-@pytest.mark.parametrize("marker", ["", "NaN", "nan", "N/A", "#N/A", "NA", "-", "null"])
+@pytest.mark.parametrize("marker", ["", "NaN", "nan", "-nan", "N/A", "#N/A", "NA", "-", "null"])
 def test_a_missed_reading_leaves_its_row_out_and_the_times_of_the_rest(session_dir, marker):
     set_csv_cell(session_dir / "step.csv", 7, "ia", marker)
     set_csv_cell(session_dir / "step.csv", 40, "speed_rpm", marker)

@@ -31,7 +31,8 @@ from ._text import read_text
 
 __all__ = ["read_columns", "MISSING"]
 
-MISSING = frozenset({"", "nan", "na", "n/a", "#n/a", "null", "none", "-", "--"})  # lower case
+MISSING = frozenset({"", "nan", "-nan", "+nan", "na", "n/a", "#n/a", "null", "none", "-",
+                     "--"})  # lower case (C's printf writes a NaN as "-nan" or "nan")
 
 _SEPARATORS = {",": "commas", ";": "semicolons", "\t": "tabs"}
 _CLOCK = re.compile(r"\d{1,2}:\d{2}(:\d{2}([.,]\d*)?)?")  # 12:00:01.250, as loggers stamp
