@@ -53,8 +53,15 @@ def _around(before=(), after_header=(), after=(), sep=None):
     return mutate
 
 
+def _header_as_comment(d):
+    """The header written as a comment, as NumPy's ``savetxt(..., header=...)`` does."""
+    header, *rows = _step_text(d).splitlines()
+    (d / "step.csv").write_text("\n".join([f"# {header}", *rows]) + "\n")
+
+
 ACCEPTED = [
     ("semicolon-decimal-comma", _resave(";", ",")),
+    ("numpy-savetxt-header", _header_as_comment),
     ("tab-separated", _resave("\t")),
     ("tab-decimal-comma", _resave("\t", ",")),
     ("utf-16-excel-unicode-text", _resave("\t", encoding="utf-16")),

@@ -10,10 +10,11 @@ Files as loggers and oscilloscopes write them are read as they are: lines of tex
 before the header (a logger's name, a date: the header is the first line naming every
 column asked for), a row of units right under the header (``s,rpm,A`` or ``(ms),(V)``:
 no number in any column read) and lines of text after the last sample (``End of log``)
-are passed over; a time column may hold a logger's time stamps (``12:00:01.250``); a
-reading a logger missed (an empty cell, ``NaN``, ``NA``, ``N/A``, ``#N/A``, ``null``, ``-``)
-is NaN in the columns the caller allows it in; anything else that is not a number is an
-error naming its line.
+are passed over, and a header written as a comment (``# t,speed,ia``, NumPy's
+``savetxt``) is read as the header; a time column may hold a logger's time stamps
+(``12:00:01.250``); a reading a logger missed (an empty cell, ``NaN``, ``NA``, ``N/A``,
+``#N/A``, ``null``, ``-``) is NaN in the columns the caller allows it in; anything else
+that is not a number is an error naming its line.
 """
 
 from __future__ import annotations
@@ -180,7 +181,7 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str,
         column, has a row with fewer or more fields than the header, or a cell that is
         not a finite number.
     """
-    text = read_text(path, "CSV file")
+    text = _uncommented_header(read_text(path, "CSV file"), wanted)
     if "\x00" in text:
         line = text[:text.index("\x00")].count("\n") + 1
         raise SessionError(path, "a NUL byte (binary data) in the text; export the CSV file "
@@ -206,14 +207,43 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str,
 PREAMBLE = 100  # lines searched for a header after a first line that is not one
 
 
+def _names(line: str) -> set[str]:
+    """The names a header line gives its columns."""
+    sep = _separator(line)
+    cells = line.split() if sep == _SPACES else line.rstrip("\r\n").split(sep)
+    return {cell.strip().strip('"') for cell in cells}
+
+
+def _uncommented_header(text: str, wanted: dict[str, str]) -> str:
+    """``text`` with a header written as a comment (``# t,speed,ia``, as NumPy's
+    ``savetxt`` writes one) read as the header, where no other of the first
+    :data:`PREAMBLE` lines names every column wanted; the line numbers unchanged."""
+    want, found, start = set(wanted.values()), None, 0
+    for _ in range(PREAMBLE + 1):
+        if start >= len(text):
+            break
+        end = text.find("\n", start)
+        end = len(text) if end < 0 else end + 1
+        line = text[start:end]
+        body = line.lstrip()
+        if body.startswith("#"):
+            body = body.lstrip("#").lstrip()
+            if found is None and body.strip() and want <= _names(body):
+                found = (start, end, body)
+        elif line.strip() and want <= _names(line):
+            return text
+        start = end
+    if found is None:
+        return text
+    a, b, body = found
+    return text[:a] + body + text[b:]
+
+
 def _header_line(text: str, wanted: dict[str, str], first: str) -> tuple[int, str]:
     """The header: the first non-blank line, or, when that does not name every column
     wanted, the first of the next :data:`PREAMBLE` lines that does (a logger's preamble
     above it); the count of lines before it and its text."""
-    def names(line):
-        sep = _separator(line)
-        cells = line.split() if sep == _SPACES else line.rstrip("\r\n").split(sep)
-        return {cell.strip().strip('"') for cell in cells}
+    names = _names
 
     if set(wanted.values()) <= names(first):
         return _blank_lines_before(text), first
