@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import SessionError
+from ._stamps import elapsed, stamp_seconds
 from ._text import read_text
 
 __all__ = ["read_columns", "MISSING"]
@@ -37,11 +38,6 @@ MISSING = frozenset({"", "nan", "-nan", "+nan", "na", "n/a", "#n/a", "null", "no
 
 _SEPARATORS = {",": "commas", ";": "semicolons", "\t": "tabs"}
 _CLOCK = re.compile(r"\d{1,2}:\d{2}(:\d{2}([.,]\d*)?)?")  # 12:00:01.250, as loggers stamp
-# A logger's time stamp: a clock time h:mm:ss[.f] (a date and a zone around it allowed,
-# both passed over) or m:ss.f; the day's turn is found from the clock going back.
-_STAMP = re.compile(r"(?:\d{1,4}[-/.]\d{1,2}[-/.]\d{1,4}(?:T|\s+))?(?:(\d{1,2}):)?(\d{1,2}):"
-                    r"(\d{2}(?:[.,]\d*)?)\s*(?:Z|UTC|[+-]\d{2}:?\d{2})?", re.IGNORECASE)
-_DAY = 86400.0
 _SPACES = " "  # columns separated by runs of spaces (a logger's plain text table)
 
 
@@ -79,27 +75,6 @@ def _parse_cell(path: Path, line: int, column: str, text: str, decimal_comma: bo
             where=f"line {line}",
         )
     return value
-
-
-def _stamp_seconds(text: str) -> float | None:
-    """The seconds since midnight of a logger's time stamp (:data:`_STAMP`), or None
-    when ``text`` is none (a stamp m:ss needs a fraction of a second, as ``12:00``
-    could be hours or minutes)."""
-    m = _STAMP.fullmatch(text.strip())
-    if m is None:
-        return None
-    hours, minutes, seconds = m.group(1), m.group(2), m.group(3).replace(",", ".")
-    if hours is None and "." not in seconds:
-        return None
-    return 3600.0 * int(hours or 0) + 60.0 * int(minutes) + float(seconds)
-
-
-def _elapsed(stamps: np.ndarray, seconds_per_unit: float) -> np.ndarray:
-    """Time stamps (seconds since midnight) as the time since the first, in the
-    column's unit: a stamp earlier than the one before by more than half a day is on
-    the next day."""
-    turn = np.concatenate([[0.0], np.cumsum(np.diff(stamps) < -0.5 * _DAY)])
-    return (stamps + _DAY * turn - stamps[0]) / seconds_per_unit
 
 
 def _lines(text: str):
@@ -329,7 +304,7 @@ def _read_rows(path, reader, sep, wanted, asked_by, stamps=None, missing=frozens
                     where=f"line {line}",
                 )
             cell = row[k].strip()
-            stamp = _stamp_seconds(cell) if role == stamped else None
+            stamp = stamp_seconds(cell) if role == stamped else None
             if role == stamped:
                 kinds.add(stamp is not None)
                 if len(kinds) > 1:
@@ -343,5 +318,5 @@ def _read_rows(path, reader, sep, wanted, asked_by, stamps=None, missing=frozens
         lines.append(line)
     out = {role: np.frombuffer(v, dtype=float).copy() for role, v in values.items()}
     if True in kinds and out[stamped].size:
-        out[stamped] = _elapsed(out[stamped], stamps[1])
+        out[stamped] = elapsed(out[stamped], stamps[1])
     return out, lines

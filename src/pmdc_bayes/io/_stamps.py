@@ -1,0 +1,38 @@
+"""A logger's time stamps in a CSV time column (``12:00:01.250``, a date and a zone
+around it allowed): read as seconds since midnight, then as the time since the first
+row, a day's turn found from the clock going back."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+__all__ = ["STAMP", "stamp_seconds", "elapsed"]
+
+# A logger's time stamp: a clock time h:mm:ss[.f] (a date and a zone around it allowed,
+# both passed over) or m:ss.f; the day's turn is found from the clock going back.
+STAMP = re.compile(r"(?:\d{1,4}[-/.]\d{1,2}[-/.]\d{1,4}(?:T|\s+))?(?:(\d{1,2}):)?(\d{1,2}):"
+                    r"(\d{2}(?:[.,]\d*)?)\s*(?:Z|UTC|[+-]\d{2}:?\d{2})?", re.IGNORECASE)
+DAY = 86400.0
+
+
+def stamp_seconds(text: str) -> float | None:
+    """The seconds since midnight of a logger's time stamp (:data:`STAMP`), or None
+    when ``text`` is none (a stamp m:ss needs a fraction of a second, as ``12:00``
+    could be hours or minutes)."""
+    m = STAMP.fullmatch(text.strip())
+    if m is None:
+        return None
+    hours, minutes, seconds = m.group(1), m.group(2), m.group(3).replace(",", ".")
+    if hours is None and "." not in seconds:
+        return None
+    return 3600.0 * int(hours or 0) + 60.0 * int(minutes) + float(seconds)
+
+
+def elapsed(stamps: np.ndarray, seconds_per_unit: float) -> np.ndarray:
+    """Time stamps (seconds since midnight) as the time since the first, in the
+    column's unit: a stamp earlier than the one before by more than half a day is on
+    the next day."""
+    turn = np.concatenate([[0.0], np.cumsum(np.diff(stamps) < -0.5 * DAY)])
+    return (stamps + DAY * turn - stamps[0]) / seconds_per_unit
