@@ -172,3 +172,16 @@ def test_a_levels_standard_error_holds_when_a_filter_colours_the_readings(rho):
         means.append(np.mean(x[-n:]))
         ses.append(level_se(50.0 + x, n))
     assert np.median(ses) == pytest.approx(np.std(means), rel=0.2)
+
+
+def test_a_levels_standard_error_is_not_coloured_by_a_drift_or_a_quantiser():
+    """White readings on a slow drift (what `settled` lets pass) and a quantised level
+    that crosses one step: the white error, not an AR(1) one from the drift or the
+    step read as correlation (which made it ~170 times too large)."""
+    from pmdc_bayes.inference.levels import level_se
+
+    rng = np.random.default_rng(3)
+    drift = 100.0 + np.linspace(0.0, 0.5, 300) + rng.standard_normal(300)
+    assert level_se(drift, 300) == pytest.approx(1.0 / np.sqrt(300), rel=0.2)
+    stepped = np.r_[np.full(150, 10.0), np.full(150, 11.0)]
+    assert level_se(stepped, 300) <= 1.0 / np.sqrt(12.0 * 300) * 1.01

@@ -175,7 +175,7 @@ def test_a_chain_long_enough_stopped_early_says_what_it_still_lacks(tiny):
 def test_impossible_parameters_have_minus_inf_log_posterior(tiny):
     model, _ = tiny
     batch_fn = _log_posterior_batch(model)
-    log_prob = _LogProb(batch_fn, 8)
+    log_prob = _LogProb(batch_fn, 8, model.registry.is_log())
     theta = np.asarray(model.theta(TRUTH))
     far = np.array([theta + 60.0, theta - 60.0, np.r_[theta[:4], 300.0], np.full(5, 709.0),
                     np.full(5, -745.0)])

@@ -101,20 +101,31 @@ def _held_levels(tr, with_se: bool = False) -> list[tuple]:
 
 
 def level_se(y, n: int) -> float:
-    """The standard error of the mean of a settled signal's last ``n`` readings: the
-    noise's level (:func:`~.noise.noise_scale`, over the whole of ``y``) over √n, times
-    what the readings' lag-1 correlation ρ makes of it when a sensor's filter colours
-    them (an AR(1) mean's error over that of white readings at the level the second
-    differences read: √(3(1+ρ)/(3−ρ))/(1−ρ)); ρ ≤ 0 counts as white."""
-    from .coloured import innovation_scale, mean_se_factor
-    from .noise import noise_scale
+    """The standard error of the mean of a settled signal's last ``n`` readings, from
+    the noise's level (:func:`~.noise.noise_scale`, over the whole of ``y``) and the
+    lag-1 correlation ρ of those readings about their straight line (a sensor's filter
+    colours them; less its estimate's bias, about −(2 + 4ρ)/n about a fitted line): the
+    AR(1) mean's, √(σ²/n·((1+ρ)/(1−ρ) − 2ρ(1−ρⁿ)/(n(1−ρ)²))) with
+    the marginal σ² = s²·3/((1−ρ)(3−ρ)) read from the second differences' level s; white
+    (ρ = 0) for a quantised signal (on a lattice, or few distinct readings), whose
+    resolution is reckoned apart, and for ρ ≤ 0."""
+    from .noise import noise_scale, quantum
 
     y = np.asarray(y, float)
-    tail = y[-n:] - np.mean(y[-n:])
-    ss = float(tail @ tail)
-    rho = float(tail[1:] @ tail[:-1]) / ss if ss > 0 and n > 2 else 0.0
-    rho = min(max(rho, 0.0), 0.99)
-    return noise_scale(y) / np.sqrt(n) * innovation_scale(rho) * mean_se_factor(rho)
+    s = noise_scale(y)
+    tail = y[-n:]
+    rho = 0.0
+    if n > 3 and quantum(y) == 0.0 and np.unique(tail).size > n // 2:  # analogue
+        k = np.arange(n, dtype=float)
+        tail = tail - np.polyval(np.polyfit(k, tail, 1), k)
+        ss = float(tail @ tail)
+        r = float(tail[1:] @ tail[:-1]) / ss if ss > 0 else 0.0
+        rho = min(max(r + (2.0 + 4.0 * r) / n, 0.0), 0.99) if r > 0 else 0.0
+    if rho == 0.0:
+        return s / np.sqrt(n)
+    var = s * s * 3.0 / ((1.0 - rho) * (3.0 - rho))
+    factor = (1 + rho) / (1 - rho) - 2 * rho * (1 - rho**n) / (n * (1 - rho) ** 2)
+    return float(np.sqrt(var * factor / n))
 
 
 def _resolution(tr, window: float) -> float:
@@ -148,8 +159,9 @@ def direction_intercepts(session) -> dict[int, dict]:
     """For each sign of the voltage with levels at two or more distinct voltages (every
     settled plateau of every trace, the tables' and operating points'), where the line of
     steady speed against voltage in magnitude crosses zero speed, with its standard error:
-    sign -> ``{"voltage", "se"}``.  Each level's speed is weighted by its own noise over
-    the root of its readings (a level of a table or operating point by 1 % of itself)."""
+    sign -> ``{"voltage", "se"}``.  Each level's speed is weighted by its mean's own
+    standard error (:func:`level_se`, a coloured sensor's counted; a level of a table or
+    operating point by 1 % of itself)."""
     rows, errs = [], []
     for tab in session.steady_tables:
         for v, w, tl in zip(tab.voltage, tab.speed, tab.load_torque, strict=True):

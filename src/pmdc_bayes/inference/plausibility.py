@@ -15,7 +15,7 @@ from .adequacy import Finding, _g
 from .calibrate import Test, logged_quantum, replicates, session_rng, tail_p
 from .checks import rise_time, step_time
 from .coloured import channel_rho, mean_se_factor
-from .levels import unloaded_levels
+from .levels import level_se, unloaded_levels
 from .noise import quantum, run_fraction
 from .nuisances import DEAD_ZONE_NAMES
 from .objective import NU0
@@ -215,18 +215,21 @@ def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict, rho: dict) -> float:
     return np.sqrt(2.0) * sd / span if span > 0 else 0.0
 
 
-def _input_noise_sd(tr, n: int, gain: float) -> float:
+def _input_noise_sd(model, p: dict, tr, n: int, v: float) -> float:
     """What a logged voltage's noise moves the model's mean speed over a trace's last
     ``n`` samples by: the model is driven by the logged values, the motor by the voltage
     they measure, so the mean speed it predicts there follows the mean of the column's
-    noise over them (at most; the rotor's inertia averages over more), times the steady
-    gain; 0 for a voltage given as a schedule."""
+    noise over them (:func:`~.levels.level_se`: at most, the rotor's inertia averages
+    over more) times the slope of the steady speed at ``v``; 0 for a voltage given as a
+    schedule."""
     if not tr.voltage_logged:
         return 0.0
-    from .noise import noise_scale
-
     u = np.asarray(tr.voltage.at(tr.time[-n:]), dtype=float)
-    return abs(gain) * noise_scale(u) / np.sqrt(n) if u.size > 2 else 0.0
+    if u.size <= 2:
+        return 0.0
+    h = 1e-3 * max(abs(v), 1e-9)
+    slope = (_no_load_speed(model, p, v + h) - _no_load_speed(model, p, v - h)) / (2 * h)
+    return abs(slope) * level_se(u, u.size)
 
 
 def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
@@ -235,7 +238,8 @@ def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
     reading, its prior's (Student's t with ν0 degrees at the scale s0: a reading's noise
     is not known from the reading), or for a trace's end, its speed's fitted noise over
     the samples averaged, around the mean the model predicts over them (which a trace
-    that has not quite settled holds short of the steady speed)."""
+    that has not quite settled holds short of the steady speed), and what a logged
+    voltage's noise moves that mean by (:func:`_input_noise_sd`)."""
     rows, names = unloaded_levels(model.session)
     driven = np.abs(rows[:, 0]) > 0  # a rotor at rest at 0 V says nothing of the no-load speed
     if not driven.any():
@@ -263,7 +267,7 @@ def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
         # follows a logged voltage's noise where the motor did not
         se = float(np.linalg.norm([_end_speed_se(tr, n, noise_sd, s0, rho),
                                    _no_load_speed_sd(model, fit, float(v)),
-                                   _input_noise_sd(tr, n, w_mod / v)]))
+                                   _input_noise_sd(model, p, tr, n, float(v))]))
     if not se > 0:  # no noise level to read the miss on: no test
         return []
     if expected * w_obs > 0:  # both turning the same way: the ratio, on a log scale
@@ -273,8 +277,9 @@ def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
     pv = float(2 * (norm.sf(z) if dof is None else student_t.sf(z, dof)))
     out["no_load_speed"]["p_value"] = pv
     d = _digits(w_mod, float(w_obs))
+    ratio = w_mod / w_obs if w_obs else 0.0
     return [Test(Finding("plausibility", "no-load speed", "fail",
-                         f"x{w_mod / w_obs:.{d - 1}g}" if w_obs else "logged 0",
+                         f"x{ratio:.{_digits(ratio, 1.0)}g}" if w_obs else "logged 0",
                          f"the model's no-load speed at {_g(float(v))} V is {w_mod:.{d}g} "
                          f"rad/s where the session settles at {float(w_obs):.{d}g} rad/s"),
                  pv)]

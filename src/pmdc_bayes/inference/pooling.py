@@ -278,8 +278,9 @@ def lot_record(pop: Population, motors, pooled, test: OutlierTest, flagged) -> d
                              "The lot without the motor is the population's draws "
                              "reweighted by the inverse of the motor's likelihood "
                              "('reweighted'), or, where those weights are too uneven "
-                             f"(Pareto k above {PARETO_K}), the population fitted again "
-                             "without it ('refit')",
+                             f"(Pareto k above {PARETO_K}; at most {MAX_REFITS} motors, "
+                             "those with the smallest p-values, in a lot of three or "
+                             "more), the population fitted again without it ('refit')",
                              "alpha": OUTLIER_ALPHA},
             "interval": INTERVAL, "draws": int(pop.mu.shape[0]),
             "acceptance": pop.acceptance}

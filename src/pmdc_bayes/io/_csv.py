@@ -12,7 +12,7 @@ column asked for), a row of units right under the header (``s,rpm,A`` or ``(ms),
 no number in any column read) and lines of text after the last sample (``End of log``)
 are passed over, and a header written as a comment (``# t,speed,ia``, NumPy's
 ``savetxt``) is read as the header; a time column may hold a logger's time stamps
-(``12:00:01.250``); a reading a logger missed (an empty cell, ``NaN``, ``NA``, ``N/A``,
+(``12:00:01.250``); a reading a logger missed (an empty cell, ``NaN``, ``-nan``, ``NA``, ``N/A``,
 ``#N/A``, ``null``, ``-``) is NaN in the columns the caller allows it in; anything else
 that is not a number is an error naming its line.
 """
