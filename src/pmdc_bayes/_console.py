@@ -111,7 +111,7 @@ def run_outcome(summary: dict, *, allow_unconverged: bool = False,
     first = next((f for f in adequacy["findings"] if f["severity"] == "fail"), None)
     if first is not None:
         hint = next(iter(adequacy.get("diagnosis") or []), "")
-        hint = f"; likely: {hint}" if hint and not hint.startswith("no single") else ""
+        hint = f"; likely: {hint}" if hint and adequacy.get("proposals") else ""
         errors.append(f"model inadequate: {first['where']}: {first['message']}{hint}"
                       + ("" if allow_inadequate or not advice else
                          " (see the report; rerun with --allow-inadequate to go on)"))

@@ -245,9 +245,12 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
     start_terms = terms_of(session)
     current = search.start(start_terms)
     current.why = "the session's model" if start_terms else "the ideal motor"
-    failed = current.fit.overflows
-    stop = "its MAP fit failed, so there is nothing to build on" if failed else ""
-    for _ in range(0 if failed else max_fits):  # each step fits a new candidate or stops
+    halt = current.fit.overflows
+    stop = "its MAP fit failed, so there is nothing to build on" if halt else ""
+    if not halt and current.adequacy is not None and current.adequacy.faulty_data:
+        halt, stop = True, ("the data hold a bad reading (its verdict's first line), "
+                            "which no addition to the model mends")
+    for _ in range(0 if halt else max_fits):  # each step fits a new candidate or stops
         if search.fits_left() <= 0:
             stop = f"the bound of {max_fits} fits was reached"
             break

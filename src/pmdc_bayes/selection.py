@@ -47,8 +47,9 @@ def format_selection(sel: dict) -> list[str]:
     chosen model and the candidates the evidence does not tell from it."""
     rows = sel["candidates"]
     width = max(len(r["name"]) for r in rows) + 2
-    lines = [f"Model search from {sel.get('start', 'ideal')}: {sel.get('fits', len(rows))} "
-             f"fits (at most {sel.get('max_fits', len(rows))})",
+    fits = sel.get("fits", len(rows))
+    lines = [f"Model search from {sel.get('start', 'ideal')}: {fits} "
+             f"fit{'s' * (fits != 1)} (at most {sel.get('max_fits', len(rows))})",
              f"{'candidate':<{width}}{'params':>7}  {'verdict':<11}{'log Z':>11}{'ΔZ':>9}"
              f"  why"]
     for r in rows:

@@ -41,8 +41,12 @@ from .calibrate import FAMILY_LEVEL, holm, logged_quantum, session_rng
 from .channels import CoastDownBlock
 from .coloured import channel_rho
 
-__all__ = ["Finding", "Adequacy", "assess", "whiteness", "fit_percent", "systematic_misfit"]
+__all__ = ["Finding", "Adequacy", "assess", "whiteness", "fit_percent", "systematic_misfit",
+           "DATA_FAULTS"]
 
+DATA_FAULTS = frozenset({"outlying reading"})  # checks that fail the data, not the model
+NOTHING_TO_ADD = ("nothing: the check that fails finds a bad reading in the data, not a part "
+                  "the model lacks; mend the reading and fit again")
 BENCH_WARN_Z = 3.0  # a bench quantity this many bench sd away is worth a warning
 STEADY_MATERIAL = 0.03  # steady readings missed by 3 % of the largest reading (rms)
 
@@ -83,6 +87,13 @@ class Adequacy:
     @property
     def ok(self) -> bool:
         return self.verdict == "adequate"
+
+    @property
+    def faulty_data(self) -> bool:
+        """Whether the verdict fails on the data alone: every failing check is one of
+        :data:`DATA_FAULTS`, which no addition to the model mends."""
+        fails = self.failures()
+        return bool(fails) and all(f.check in DATA_FAULTS for f in fails)
 
     def failures(self) -> list[Finding]:
         return [f for f in self.findings if f.severity == "fail"]
@@ -208,11 +219,11 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     by_name = {c.name: c for c in model.channels}
     rho = channel_rho(model, fit.theta)
 
-    def channel(name, y, yhat, ycf, u, quantum):
+    def channel(name, y, yhat, ycf, u, quantum, time=None):
         ch = by_name[name]
         sigma = float(fit.noise_sd.get(name, ch.s0))
         row, f, w = channel_tests(name, y, yhat, u, ch.s0, sigma, rng, quantum=quantum,
-                                  rho=float(rho[name]))
+                                  rho=float(rho[name]), time=time, unit=ch.unit)
         row["unit"] = ch.unit
         row["fit_percent_closed_form"] = None if ycf is None else fit_percent(y, ycf)
         channels[name] = row
@@ -231,7 +242,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
             y, yhat = np.asarray(y), np.asarray(yhat)
             quantum = logged_quantum(y)
             sigma = channel(f"{tr.name}: {what}", y, yhat,
-                            None if ycf is None else np.asarray(ycf), u, quantum)
+                            None if ycf is None else np.asarray(ycf), u, quantum, tr.time)
             # a fitted dead time takes up a step's timing
             if "dead_time" not in session.nuisances:
                 fails += step_start_test(tr, what, y, yhat, by_name[f"{tr.name}: {what}"].s0,
@@ -264,6 +275,9 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     verdict = "inadequate" if any(f.severity == "fail" for f in findings) else "adequate"
     diagnosis, proposals = (diagnose(model, fit, preds, findings) if verdict == "inadequate"
                             else ((), ()))
+    if verdict == "inadequate" and all(f.check in DATA_FAULTS for f in findings
+                                       if f.severity == "fail"):
+        diagnosis, proposals = (NOTHING_TO_ADD,), ()
     return Adequacy(verdict, tuple(findings), channels, bench, plaus, tuple(diagnosis),
                     tuple(proposals), FAMILY_LEVEL, tuple(record + record_w))
 

@@ -1,28 +1,31 @@
 """The residual checks of one trace channel, each with its p-value under the fitted
 model (:mod:`.calibrate`): a systematic misfit (the slow part of the residual against
 what white noise leaves in a moving average), anti-correlated noise (a differenced,
-quantised signal), residual whiteness (Ljung–Box), noise inflation (the fitted against
-the model-free level) and the residual's correlation with the input.
+quantised signal), an outlying reading (a glitch: one reading that jumps off its
+neighbours), residual whiteness (Ljung–Box), noise inflation (the fitted against the
+model-free level) and the residual's correlation with the input.
 
-The first two can fail a model, each only when its effect is also material (a slow
-part above :data:`MATERIAL_FRACTION` of the span; a lag-1 autocorrelation below
-:data:`ANTI_CORRELATION`); the others warn.
+The first three can fail a model, each only when its effect is also material (a slow
+part or a jump above :data:`MATERIAL_FRACTION` of the span; a lag-1 autocorrelation
+below :data:`ANTI_CORRELATION`); the others warn.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.stats import norm
+from scipy.stats import t as student_t
 
-from .calibrate import Test, ratio_p, replicates, tail_p
+from .calibrate import NOISE_LOG_SD, Test, ratio_p, replicates, tail_p
 from .coloured import innovation_scale
 from .noise import noise_scale
 
-__all__ = ["channel_tests", "slow_ratio", "autocorrelation", "MATERIAL_FRACTION",
-           "ANTI_CORRELATION"]
+__all__ = ["channel_tests", "slow_ratio", "autocorrelation", "outlier_test",
+           "MATERIAL_FRACTION", "ANTI_CORRELATION", "EDGE_FRACTION"]
 
 MATERIAL_FRACTION = 0.015  # a systematic misfit that matters, as a fraction of the span
 ANTI_CORRELATION = -0.3  # a lag-1 autocorrelation this negative: not the assumed noise
+EDGE_FRACTION = 0.05  # an input change this share of the input's range is a step edge
 
 
 def smoothing_window(n: int) -> int:
@@ -53,28 +56,79 @@ def autocorrelation(r, lags: int):
     return rho, q
 
 
+def outlier_test(name, r, s0, span, *, u=None, time=None, unit="") -> Test | None:
+    """Whether one reading jumps off its neighbours more than the noise allows: a glitch
+    (a sentinel such as 65535, a dropped or doubled byte, a spike of interference).
+
+    The statistic is each residual's second difference ``r[i−1] − 2·r[i] + r[i+1]``,
+    which a slow misfit barely moves and a lone bad reading doubles, over ``√6·s0``
+    (``s0`` the model-free level, the median absolute second difference of the data, so
+    that the bad reading does not set its own yardstick): for stationary Gaussian
+    noise, white or correlated, a standard normal (Student's t with the degrees the
+    median's own uncertainty leaves).  The largest of the ``m`` second differences is
+    read with Bonferroni's ``m·p``.  The few readings around a step of the input ``u``
+    (by :data:`EDGE_FRACTION` of its range) are left out: there the timing of a switch
+    between samples, not a bad reading, moves the second difference.  Material when the
+    reading stands off its neighbours' mean by :data:`MATERIAL_FRACTION` of ``span``;
+    None with fewer than 20 readings."""
+    r = np.asarray(r, float)
+    n = r.size
+    if n < 20 or not s0 > 0:
+        return None
+    d2 = r[:-2] - 2.0 * r[1:-1] + r[2:]
+    eligible = np.isfinite(d2)
+    if u is not None:
+        u = np.asarray(u, float)
+        rng = float(np.nanmax(u) - np.nanmin(u))
+        steps = np.flatnonzero(np.abs(np.diff(u)) > EDGE_FRACTION * rng) + 1 if rng > 0 \
+            else np.zeros(0, int)
+        near = np.zeros(n, bool)
+        for off in (-1, 0, 1, 2):
+            near[np.clip(steps + off, 0, n - 1)] = True
+        eligible &= ~near[1:-1]
+    m = int(np.count_nonzero(eligible))
+    if m == 0:
+        return None
+    z = np.where(eligible, np.abs(d2), -1.0) / (np.sqrt(6.0) * s0)
+    k = int(np.argmax(z))
+    dof = max(3.0, n / (2.0 * NOISE_LOG_SD**2))
+    p = float(min(1.0, m * 2.0 * student_t.sf(z[k], dof)))
+    i = k + 1
+    jump = float(r[i] - 0.5 * (r[i - 1] + r[i + 1]))
+    where = f"at t = {time[i]:.6g} s" if time is not None else f"number {i + 1}"
+    off = f"{jump:+.3g} {unit}".rstrip()
+    return Test(_finding("outlying reading", name, "fail", f"{off}, {z[k]:.2g} noise sd",
+                         f"the reading {where} stands {off} off its neighbours, {z[k]:.2g} "
+                         "times the noise's sd (a glitch: a dropped, saturated or "
+                         "corrupted reading); leave that cell empty (a missed reading) "
+                         "and fit again"), p, abs(jump) > MATERIAL_FRACTION * span)
+
+
 def _finding(check, name, severity, size, message):
     from .adequacy import Finding
 
     return Finding(check, name, severity, size, message)
 
 
-def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0):
+def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, time=None,
+                  unit=""):
     """The figures of one trace channel (a row of the report's table) and its tests.
     ``quantum`` is the resolution the channel was logged at (0: not quantised); on a
     quantised channel every statistic is calibrated by the bootstrap.  A channel whose
     noise is coloured (lag-1 correlation ``rho``, :mod:`.coloured`) is checked on its
     innovations, which are white at the fitted level ``sigma``, against the model-free
-    level an AR(1) noise's innovations have."""
+    level an AR(1) noise's innovations have; ``time`` (the readings' times) and
+    ``unit`` place an outlying reading in the report (:func:`outlier_test`)."""
     from .adequacy import fit_percent, systematic_misfit, whiteness
 
     y, yhat = np.asarray(y, float), np.asarray(yhat, float)
     r = y - yhat
+    span = float(np.max(y) - np.min(y)) or float(np.max(np.abs(y))) or 1.0
+    glitch = outlier_test(name, r, s0, span, u=u, time=time, unit=unit)
     if rho != 0.0:
         r = np.concatenate([[np.sqrt(1.0 - rho * rho) * r[0]], r[1:] - rho * r[:-1]])
         s0 = s0 * innovation_scale(rho)
     n = r.size
-    span = float(np.max(y) - np.min(y)) or float(np.max(np.abs(y))) or 1.0
     white = whiteness(r / max(sigma, 1e-300), u)
     m, w = white["lags"], smoothing_window(n)
     sys_rms = systematic_misfit(r, s0)
@@ -121,6 +175,9 @@ def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0):
                            f"the noise is strongly anti-correlated (lag-1 autocorrelation "
                            f"{white['rho1']:.2f}), so it is not the white noise the "
                            "likelihood assumes"), p_anti, white["rho1"] < ANTI_CORRELATION)]
+    if glitch is not None:
+        fails.append(glitch)
+        row["outlier_p"] = glitch.p_value
     warns = [Test(_finding("residual whiteness", name, "warn", size,
                            "the residuals are not white but the misfit is small; "
                            "intervals may be somewhat optimistic"), p_white),
