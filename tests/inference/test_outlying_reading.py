@@ -1,0 +1,104 @@
+"""One bad reading in a trace (a logger's 65535, a dropped byte, a spike): the outlying
+reading check finds it and names it, holds its false-alarm rate on noise of every kind
+the likelihood admits, leaves step edges and slow misfits to the checks made for them,
+and a whole fit on a bench-simulator session with a glitch says first that the data,
+not the model, are at fault."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from pmdc_bayes.inference.noise import noise_scale
+from pmdc_bayes.inference.trace_checks import MATERIAL_FRACTION, outlier_test
+from pmdc_bayes.simulate.fuzz import fuzz_session
+
+N = 1500
+T = np.arange(N) * 1e-3
+SIGNAL = 100.0 * (1.0 - np.exp(-T / 0.2))  # a step response, span about 100
+
+
+def _p(y, yhat=SIGNAL, u=None, **kw):
+    t = outlier_test("tr: speed", y - yhat, noise_scale(y), float(np.ptp(y)), u=u,
+                     time=T, **kw)
+    return t
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.8], ids=["white", "AR(1) 0.8"])
+def test_noise_alone_is_flagged_at_its_stated_rate(rho):
+    rng = np.random.default_rng(11)
+    p = []
+    for _ in range(300):
+        e = lfilter([1.0], [1.0, -rho], rng.standard_normal(N)) * np.sqrt(1 - rho**2) * 0.3
+        p.append(_p(SIGNAL + e).p_value)
+    p = np.asarray(p)
+    # Bonferroni's bound over the readings: at most the nominal share, not far below it
+    assert np.mean(p < 0.01) <= 0.025
+    assert np.mean(p < 0.2) >= 0.05
+
+
+def test_a_glitch_is_found_and_placed():
+    rng = np.random.default_rng(3)
+    y = SIGNAL + 0.3 * rng.standard_normal(N)
+    y[700] = 65535.0
+    t = _p(y, unit="rad/s")
+    assert t.p_value < 1e-12 and t.material
+    assert "t = 0.7 s" in t.finding.message and "rad/s" in t.finding.message
+    assert t.finding.check == "outlying reading"
+    # a spike of twelve noise sd on a quieter sensor is as rare, but below the material
+    # share of the span: it does not fail the model
+    y = SIGNAL + 0.05 * rng.standard_normal(N)
+    y[400] += 12 * 0.05
+    t = _p(y)
+    assert t.p_value < 1e-6
+    assert not t.material and 12 * 0.05 < MATERIAL_FRACTION * np.ptp(y)
+
+
+def test_a_step_edge_and_a_slow_misfit_are_not_glitches():
+    rng = np.random.default_rng(5)
+    u = np.where(T >= 0.5, 12.0, 6.0)
+    y = SIGNAL + 0.3 * rng.standard_normal(N)
+    yhat = SIGNAL.copy()
+    yhat[500] += 20.0  # the model's switch a sample early: one reading far off, at the edge
+    assert _p(y, yhat, u=u).p_value > 0.01
+    assert _p(y, yhat).p_value < 1e-6  # the same residual away from any step is one
+    slow = 5.0 * np.sin(2 * np.pi * T / 0.4)  # a misfit 5 % of the span, smooth
+    assert _p(y + slow, u=u).p_value > 0.01
+
+
+def test_a_quantised_reading_is_not_a_glitch():
+    rng = np.random.default_rng(8)
+    q = 2.0  # a quantum well above the noise: the readings flick between levels
+    y = q * np.round((SIGNAL + 0.2 * rng.standard_normal(N)) / q)
+    assert _p(y).p_value > 0.01
+
+
+@pytest.mark.slow
+def test_a_session_with_a_glitch_is_refused_for_its_data_with_no_search(tmp_path):
+    fuzz_session(5, out=tmp_path / "s")
+    where = tmp_path / "s"
+    csv = next(where.glob("tr0_*.csv"))
+    lines = csv.read_text().splitlines()
+    col = lines[0].split(",").index("speed")
+    row = lines[len(lines) * 2 // 3].split(",")
+    row[col] = "65535"
+    lines[len(lines) * 2 // 3] = ",".join(row)
+    csv.write_text("\n".join(lines) + "\n")
+    run = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(where),
+                          "--out", str(tmp_path / "out"), "--no-mcmc"],
+                         capture_output=True, text=True, timeout=900)
+    assert run.returncode == 3, run.stdout + run.stderr
+    first = run.stdout.splitlines()[1]
+    assert "outlying reading" in first and "leave that cell empty" in first
+    assert "Model search from ideal: 1 fit " in run.stdout
+    assert "likely:" not in run.stderr
+    # the reading left empty, as the message says: the same session fits
+    row[col] = ""
+    lines[len(lines) * 2 // 3] = ",".join(row)
+    csv.write_text("\n".join(lines) + "\n")
+    run = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(where),
+                          "--out", str(tmp_path / "out2"), "--no-mcmc"],
+                         capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stdout + run.stderr
