@@ -79,6 +79,11 @@ def _flat_step(d):
     (d / "step.csv").write_text("t,speed_rpm,ia\n" + rows)
 
 
+def _dead_current(d):
+    rows = "".join(f"{k * 0.01:.2f},{500.0 * (1 - 0.9 ** k):.3f},0\n" for k in range(50))
+    (d / "step.csv").write_text("t,speed_rpm,ia\n" + rows)
+
+
 def _truth(text):
     def mutate(d):
         (d / "truth.json").write_text(text)
@@ -216,6 +221,8 @@ CASES = [
     # found by the closed-form method rather than the loader
     ("speed-never-changes", _flat_step,
      ["step.csv", "the speed column 'speed_rpm' is 500 in every row", "did not turn"]),
+    ("current-dead", _dead_current,
+     ["step.csv", "the current column 'ia' is 0 in every row", "leave current out of columns"]),
     ("truth-bad-json", _truth("{Ra: 1}"), ["truth.json", "not valid JSON"]),
     ("truth-non-number", _truth('{"Ra": "two"}'), ["truth.json:Ra", "not a finite number"]),
 ]

@@ -186,6 +186,14 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
             raise SessionError(path, f"the {role} column {cols[role]!r} is {y[0]:g} in every "
                                f"row: the motor did not turn, or the column is not the {role}; "
                                "remove the trace or log one in which the motor turns")
+    y = raw.get("current")
+    if y is not None and np.isfinite(y).sum() > 2 and np.ptp(y[np.isfinite(y)]) == 0:
+        c = y[np.isfinite(y)][0]
+        raise SessionError(path, f"the current column {cols['current']!r} is {c:g} in every "
+                           "row while the motor turns: a dead or unplugged channel, a sensor "
+                           "too coarse to see the current, or a setpoint rather than a "
+                           "reading; leave current out of columns (the speed alone then "
+                           "carries the fit) or log the current itself")
     time = to_si(t_raw, "time", u["time"])
     return path, raw, t_raw, time, left_out
 
