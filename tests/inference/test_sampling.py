@@ -189,7 +189,8 @@ def test_impossible_parameters_have_minus_inf_log_posterior(tiny):
     def broken(_):
         raise RuntimeError("solver failed")
 
-    np.testing.assert_array_equal(_LogProb(broken, 8)(far[:2]), [-np.inf, -np.inf])
+    every_log = np.ones(far.shape[1], bool)
+    np.testing.assert_array_equal(_LogProb(broken, 8, every_log)(far[:2]), [-np.inf, -np.inf])
 
 
 def test_a_parameter_sampled_in_value_may_lie_beyond_the_logarithms_range():
@@ -205,7 +206,8 @@ def test_a_parameter_sampled_in_value_may_lie_beyond_the_logarithms_range():
     walkers = np.array([[np.log(2.0), 1300.0], [np.log(2.0), -1300.0], [750.0, 1.0]])
     lp = _LogProb(fn, 4, is_log=[True, False])(walkers)
     np.testing.assert_array_equal(lp, [0.0, 0.0, -np.inf])
-    np.testing.assert_array_equal(_LogProb(fn, 4)(walkers), np.full(3, -np.inf))
+    lp = _LogProb(fn, 4, [True, True])(walkers)  # both logarithms: every walker beyond
+    np.testing.assert_array_equal(lp, np.full(3, -np.inf))
 
 
 def test_the_log_posterior_runs_in_64_bits_in_every_sampler_thread():
@@ -225,7 +227,8 @@ def test_the_log_posterior_runs_in_64_bits_in_every_sampler_thread():
     walkers = np.array([[1.0 + 1e-12, 2.0], [3.0, 4.0]])
     jax.config.update("jax_enable_x64", False)  # as a caller may have it
     try:
-        worker = threading.Thread(target=lambda: seen.append(_LogProb(record, 2)(walkers)))
+        log_prob = _LogProb(record, 2, [True, True])
+        worker = threading.Thread(target=lambda: seen.append(log_prob(walkers)))
         worker.start()
         worker.join()
         assert not jax.config.jax_enable_x64

@@ -26,22 +26,20 @@ def batch_log_posterior(model):
 class LogProb:
     """emcee's vectorised ``log_prob_fn``: NumPy ``(n, P)`` in, ``(n,)`` out, -inf for
     anything non-finite and for a logarithm |θ| ≥ 700 (a parameter beyond e^±700, where
-    exp over- or underflows; ``is_log`` marks the coordinates that hold one, all by
-    default; a parameter sampled in value, an initial speed of 1,300 rad/s, may lie
-    there).  Evaluates in padded batches of a fixed size so the batch log-posterior
+    exp over- or underflows; ``is_log``, one flag per coordinate, marks those that hold
+    one: a parameter sampled in value, an initial speed of 1,300 rad/s, may lie there).
+    Evaluates in padded batches of a fixed size so the batch log-posterior
     compiles once, whatever size of batch a move proposes."""
 
-    def __init__(self, fn, batch: int, is_log=None):
+    def __init__(self, fn, batch: int, is_log):
         self.fn, self.batch = fn, batch
-        self.is_log = None if is_log is None else np.asarray(is_log, bool)
+        self.is_log = np.asarray(is_log, bool)
 
     @x64  # in every thread: JAX's 64-bit mode is a thread's own setting
     def __call__(self, thetas) -> np.ndarray:
         thetas = np.asarray(thetas, dtype=float)
         n = thetas.shape[0]
-        far = np.abs(thetas) >= 700.0
-        if self.is_log is not None:
-            far &= self.is_log
+        far = (np.abs(thetas) >= 700.0) & self.is_log
         ok = np.all(np.isfinite(thetas), axis=1) & ~np.any(far, axis=1)
         out = np.full(n, -np.inf)
         good = thetas[ok]
