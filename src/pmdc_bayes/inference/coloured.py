@@ -100,10 +100,15 @@ def channel_rho(model, theta) -> dict:
     return {c.name: float(r) for c, r in zip(model.channels, rho, strict=True)}
 
 
-def mean_se_factor(rho: float) -> float:
-    """The standard error of a mean of many AR(1) readings, over that of as many white
-    readings at the innovations' level: 1/(1−ρ)."""
-    return 1.0 / (1.0 - rho)
+def mean_se_factor(rho: float, n: int | None = None) -> float:
+    """The standard error of a mean of ``n`` AR(1) readings, over that of as many white
+    readings at the innovations' level: with the marginal variance σ²/(1−ρ²), the
+    square root of ((1+ρ)/(1−ρ) − 2ρ(1−ρⁿ)/(n(1−ρ)²))/(1−ρ²); for many readings
+    (``n`` None), 1/(1−ρ)."""
+    if n is None:
+        return 1.0 / (1.0 - rho)
+    factor = (1 + rho) / (1 - rho) - 2 * rho * (1 - rho**n) / (n * (1 - rho) ** 2)
+    return float(np.sqrt(factor / (1.0 - rho * rho)))
 
 
 def noise_rho(theta, ar):

@@ -105,10 +105,11 @@ def level_se(y, n: int) -> float:
     the noise's level (:func:`~.noise.noise_scale`, over the whole of ``y``) and the
     lag-1 correlation ρ of those readings about their straight line (a sensor's filter
     colours them; less its estimate's bias, about −(2 + 4ρ)/n about a fitted line): the
-    AR(1) mean's, √(σ²/n·((1+ρ)/(1−ρ) − 2ρ(1−ρⁿ)/(n(1−ρ)²))) with
-    the marginal σ² = s²·3/((1−ρ)(3−ρ)) read from the second differences' level s; white
-    (ρ = 0) for a quantised signal (on a lattice, or few distinct readings), whose
-    resolution is reckoned apart, and for ρ ≤ 0."""
+    AR(1) mean's (:func:`~.coloured.mean_se_factor`), its innovations' level read from
+    the second differences' (:func:`~.coloured.innovation_scale`); white (ρ = 0) for a
+    quantised signal (on a lattice, or few distinct readings), whose resolution is
+    reckoned apart, and for ρ ≤ 0."""
+    from .coloured import innovation_scale, mean_se_factor
     from .noise import noise_scale, quantum
 
     y = np.asarray(y, float)
@@ -123,9 +124,7 @@ def level_se(y, n: int) -> float:
         rho = min(max(r + (2.0 + 4.0 * r) / n, 0.0), 0.99) if r > 0 else 0.0
     if rho == 0.0:
         return s / np.sqrt(n)
-    var = s * s * 3.0 / ((1.0 - rho) * (3.0 - rho))
-    factor = (1 + rho) / (1 - rho) - 2 * rho * (1 - rho**n) / (n * (1 - rho) ** 2)
-    return float(np.sqrt(var * factor / n))
+    return float(s * innovation_scale(rho) * mean_se_factor(rho, n) / np.sqrt(n))
 
 
 def _resolution(tr, window: float) -> float:
