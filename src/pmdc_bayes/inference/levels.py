@@ -9,7 +9,7 @@ import numpy as np
 from ..paper.changes import AT_REST, plateaus
 
 __all__ = ["settled", "unloaded_levels", "voltage_intercept", "direction_intercepts",
-           "friction_offset", "level_outliers", "level_se"]
+           "friction_offset", "level_outliers", "level_se", "reversed_speed"]
 
 LEVEL_MISS = 0.03  # a level off the others' line by more than this fraction of itself
 LINE_FIT = 0.01  # the others must sit on their line within this fraction (rms)
@@ -243,3 +243,37 @@ def level_outliers(session) -> dict | None:
         if abs(miss) > LEVEL_MISS and spread < LINE_FIT:
             out[name] = float(miss)
     return out if judged else None
+
+
+def reversed_speed(session) -> tuple[str | None, str] | None:
+    """Where the speed turns against the voltage at every held, unloaded level that
+    moves the motor (above :data:`AT_REST` of the session's largest level): the whole
+    session's speeds (the motor's leads or every sensor wired against the voltage's
+    sign; ``None``) or one trace's, named, where the rest of the session turns with its
+    voltage (that trace's sensor reversed); with the sentence that says so.  None when
+    the speeds follow their voltages, or too few levels move to tell."""
+    rows, names = unloaded_levels(session, held=True)
+    if rows.shape[0] == 0:
+        return None
+    v, w = rows[:, 0], rows[:, 1]
+    moving = (np.abs(w) > AT_REST * np.max(np.abs(w))) & (v != 0)
+    against = moving & (np.sign(w) == -np.sign(v))
+    groups = {}
+    for k, name in enumerate(names):
+        if moving[k]:
+            groups.setdefault(name, []).append(bool(against[k]))
+    reversed_ = {g for g, flags in groups.items() if all(flags)}
+    if not reversed_:
+        return None
+    if reversed_ == set(groups):
+        return None, ("the speed turns against the voltage at every steady level (a "
+                      "positive voltage, a negative speed): the motor's leads, or its speed "
+                      "sensor, are wired the other way round; negate the speeds (or the "
+                      "voltages) and fit again")
+    name = next((g for g in names if g in reversed_ and g is not None), None)
+    if name is None:
+        return None
+    return name, (f"the speed of trace {name!r} turns against its voltage at every level it "
+                  "holds, where the rest of the session turns with it: its speed sensor is "
+                  "wired the other way round; negate that trace's speed column and fit "
+                  "again")

@@ -10,7 +10,7 @@ from ..io.session import LA_ASSUMED
 from ..paper.changes import responses
 from ..paper.closed_form import ClosedForm, closed_form, j_from_tau, read_time_constant
 from ..physics.motor import gain
-from .levels import settled, unloaded_levels, voltage_intercept
+from .levels import reversed_speed, settled, unloaded_levels, voltage_intercept
 
 __all__ = ["fit_seed", "seed_from_data", "motor_seed", "drop_seed", "FRICTION_SHARE"]
 
@@ -20,7 +20,15 @@ AT_REST = 0.02  # a steady level below this share of the largest is the motor at
 
 def fit_seed(session) -> ClosedForm:
     """The closed form of ``session``, or, when the method cannot run on it, a seed
-    from the data (``applicable`` False, the reason kept)."""
+    from the data (``applicable`` False, the reason kept).  A session whose speed turns
+    against its voltage (:func:`~.levels.reversed_speed`) is bad input: no motor does
+    that, and the fit would take the wiring for noise."""
+    backwards = reversed_speed(session)
+    if backwards is not None:
+        name, why = backwards
+        tr = next((t for t in session.traces if t.name == name), None)
+        raise SessionError(session.root / "session.toml",
+                           why, where=None if tr is None else f"trace[{tr.name!r}]")
     try:
         return closed_form(session)
     except NotApplicable as exc:
