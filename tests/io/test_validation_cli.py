@@ -74,6 +74,12 @@ def _row_twice(d):
     (d / "step.csv").write_text("".join(lines[:12] + lines[11:]))
 
 
+def _header_again(d):
+    """The header written again at line 21 (two logs joined into one file)."""
+    lines = (d / "step.csv").read_text().splitlines(keepends=True)
+    (d / "step.csv").write_text("".join(lines[:20] + lines[:1] + lines[20:]))
+
+
 def _flat_step(d):
     rows = "".join(f"{k * 0.01:.2f},500.0,0.2\n" for k in range(50))
     (d / "step.csv").write_text("t,speed_rpm,ia\n" + rows)
@@ -164,6 +170,8 @@ CASES = [
       "sample_rate = 100 "]),
     ("row-logged-twice", _row_twice,
      ["step.csv:line 13", "line 13 repeats line 12 in every column", "remove line 13"]),
+    ("header-written-again", _header_again,
+     ["step.csv:line 21", "the header ('t' ...) is written again here", "remove this line"]),
     ("fewer-than-3-samples", _two_samples, ["step.csv", "only 2 samples", "at least 3"]),
     # schedules
     ("schedule-no-overlap", _sub(SCHEDULE, "voltage = [[5.0, 6.0]]"),

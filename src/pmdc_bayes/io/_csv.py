@@ -57,6 +57,11 @@ def _parse_cell(path: Path, line: int, column: str, text: str, decimal_comma: bo
     try:
         value = float(text.replace(",", ".") if decimal_comma and "." not in text else text)
     except ValueError:
+        if text.strip() == column:
+            raise SessionError(path, f"the header ({column!r} ...) is written again here, as "
+                               "when two logs are joined into one file; remove this line "
+                               "(and check the time carries on after it)",
+                               where=f"line {line}") from None
         clock = _CLOCK.fullmatch(text) is not None
         raise SessionError(
             path,
