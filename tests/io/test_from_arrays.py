@@ -60,7 +60,8 @@ def test_a_dataframe_is_a_trace_and_units_convert_at_the_boundary():
     pd = pytest.importorskip("pandas")
     t = np.linspace(0.0, 2.0, 201)
     rpm = 1500.0 * (1 - np.exp(-t / 0.3))
-    frame = pd.DataFrame({"time": t, "speed": rpm, "current": 0.1 + 0 * t})
+    amps = 0.1 + 1.2 * np.exp(-t / 0.3)
+    frame = pd.DataFrame({"time": t, "speed": rpm, "current": amps})
     session = Session.from_arrays(
         Ra=(8.5, 0.1), traces={"step": {**frame, "voltage": 12.0,
                                         "units": {"speed": "rpm"}}})

@@ -1,5 +1,5 @@
 """Readings a logger missed: the rows of a trace's CSV with an empty or ``NaN`` cell in a
-channel (:data:`._csv.MISSING`) are left out, the others kept at their own times, as long
+channel (:data:`._cells.MISSING`) are left out, the others kept at their own times, as long
 as they are a few; the trace records the file lines it left out."""
 
 from __future__ import annotations
