@@ -16,16 +16,17 @@ import numpy as np
 from scipy.stats import norm
 from scipy.stats import t as student_t
 
-from .calibrate import NOISE_LOG_SD, Test, ratio_p, replicates, tail_p
+from .calibrate import Test, ratio_p, replicates, tail_p
 from .coloured import innovation_scale
 from .noise import noise_scale
 
 __all__ = ["channel_tests", "slow_ratio", "autocorrelation", "outlier_test",
-           "MATERIAL_FRACTION", "ANTI_CORRELATION", "EDGE_FRACTION"]
+           "MATERIAL_FRACTION", "ANTI_CORRELATION", "EDGE_FRACTION", "OUTLIER_WINDOW"]
 
 MATERIAL_FRACTION = 0.015  # a systematic misfit that matters, as a fraction of the span
 ANTI_CORRELATION = -0.3  # a lag-1 autocorrelation this negative: not the assumed noise
 EDGE_FRACTION = 0.05  # an input change this share of the input's range is a step edge
+OUTLIER_WINDOW = 100  # second differences each side that give a reading's noise scale
 
 
 def smoothing_window(n: int) -> int:
@@ -56,24 +57,26 @@ def autocorrelation(r, lags: int):
     return rho, q
 
 
-def outlier_test(name, r, s0, span, *, u=None, time=None, unit="") -> Test | None:
+def outlier_test(name, r, span, *, u=None, time=None, unit="") -> Test | None:
     """Whether one reading jumps off its neighbours more than the noise allows: a glitch
     (a sentinel such as 65535, a dropped or doubled byte, a spike of interference).
 
     The statistic is each residual's second difference ``r[i−1] − 2·r[i] + r[i+1]``,
-    which a slow misfit barely moves and a lone bad reading doubles, over ``√6·s0``
-    (``s0`` the model-free level, the median absolute second difference of the data, so
-    that the bad reading does not set its own yardstick): for stationary Gaussian
-    noise, white or correlated, a standard normal (Student's t with the degrees the
-    median's own uncertainty leaves).  The largest of the ``m`` second differences is
-    read with Bonferroni's ``m·p``.  The few readings around a step of the input ``u``
-    (by :data:`EDGE_FRACTION` of its range) are left out: there the timing of a switch
+    which a slow misfit barely moves and a lone bad reading doubles, over the root mean
+    square of the second differences around it (:data:`OUTLIER_WINDOW` each side, the
+    three a reading at ``i`` enters left out, so that a bad reading does not set its own
+    yardstick, and a sensor's noise that differs between rest and motion is read where
+    it is): for stationary Gaussian noise, white, correlated or dithered by a
+    quantiser, Student's t with the window's degrees (its second differences, about
+    half of them independent).  The largest is read with Bonferroni's ``m·p`` over the
+    ``m`` readings.  The few readings around a step of the input ``u`` (by
+    :data:`EDGE_FRACTION` of its range) are left out: there the timing of a switch
     between samples, not a bad reading, moves the second difference.  Material when the
     reading stands off its neighbours' mean by :data:`MATERIAL_FRACTION` of ``span``;
     None with fewer than 20 readings."""
     r = np.asarray(r, float)
     n = r.size
-    if n < 20 or not s0 > 0:
+    if n < 20:
         return None
     d2 = r[:-2] - 2.0 * r[1:-1] + r[2:]
     eligible = np.isfinite(d2)
@@ -87,21 +90,35 @@ def outlier_test(name, r, s0, span, *, u=None, time=None, unit="") -> Test | Non
             near[np.clip(steps + off, 0, n - 1)] = True
         eligible &= ~near[1:-1]
     m = int(np.count_nonzero(eligible))
-    if m == 0:
+    if m < 10:
         return None
-    z = np.where(eligible, np.abs(d2), -1.0) / (np.sqrt(6.0) * s0)
-    k = int(np.argmax(z))
-    dof = max(3.0, n / (2.0 * NOISE_LOG_SD**2))
-    p = float(min(1.0, m * 2.0 * student_t.sf(z[k], dof)))
-    i = k + 1
+    sq = np.where(eligible, d2, 0.0) ** 2
+    one = eligible.astype(float)
+    # the window's sums, less the three second differences the middle reading enters
+    h = OUTLIER_WINDOW
+    pad = np.concatenate([[0.0], np.cumsum(sq)]), np.concatenate([[0.0], np.cumsum(one)])
+    k = np.arange(d2.size)
+    lo, hi = np.clip(k - h, 0, d2.size), np.clip(k + h + 1, 0, d2.size)
+    near_lo, near_hi = np.clip(k - 1, 0, d2.size), np.clip(k + 2, 0, d2.size)
+    total, count = ((c[hi] - c[lo]) - (c[near_hi] - c[near_lo]) for c in pad)
+    scale = np.sqrt(np.where(count > 0, total / np.maximum(count, 1.0), 0.0))
+    z = np.where(eligible & (scale > 0), np.abs(np.nan_to_num(d2)) / np.where(
+        scale > 0, scale, 1.0), 0.0)
+    dof = np.maximum(3.0, count / 2.0)
+    p_each = np.where(z > 0, 2.0 * student_t.sf(z, dof), 1.0)
+    j = int(np.argmin(p_each))
+    p = float(min(1.0, m * p_each[j]))
+    i = j + 1
     jump = float(r[i] - 0.5 * (r[i - 1] + r[i + 1]))
+    times = float(z[j])  # the jump, −d2/2, over its sd in the noise, half the scale
     where = f"at t = {time[i]:.6g} s" if time is not None else f"number {i + 1}"
     off = f"{jump:+.3g} {unit}".rstrip()
-    return Test(_finding("outlying reading", name, "fail", f"{off}, {z[k]:.2g} noise sd",
-                         f"the reading {where} stands {off} off its neighbours, {z[k]:.2g} "
-                         "times the noise's sd (a glitch: a dropped, saturated or "
-                         "corrupted reading); leave that cell empty (a missed reading) "
-                         "and fit again"), p, abs(jump) > MATERIAL_FRACTION * span)
+    return Test(_finding("outlying reading", name, "fail", f"{off}, {times:.2g} noise sd",
+                         f"the reading {where} stands {off} off its neighbours, {times:.2g} "
+                         "times the sd of such a jump in the noise around it (a glitch: a "
+                         "dropped, saturated or corrupted reading); leave that cell empty "
+                         "(a missed reading) and fit again"), p,
+                abs(jump) > MATERIAL_FRACTION * span)
 
 
 def _finding(check, name, severity, size, message):
@@ -124,7 +141,7 @@ def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, tim
     y, yhat = np.asarray(y, float), np.asarray(yhat, float)
     r = y - yhat
     span = float(np.max(y) - np.min(y)) or float(np.max(np.abs(y))) or 1.0
-    glitch = outlier_test(name, r, s0, span, u=u, time=time, unit=unit)
+    glitch = outlier_test(name, r, span, u=u, time=time, unit=unit)
     if rho != 0.0:
         r = np.concatenate([[np.sqrt(1.0 - rho * rho) * r[0]], r[1:] - rho * r[:-1]])
         s0 = s0 * innovation_scale(rho)
