@@ -63,6 +63,13 @@ def test_a_step_edge_and_a_slow_misfit_are_not_glitches():
     assert _p(y, yhat).p_value < 1e-6  # the same residual away from any step is one
     slow = 5.0 * np.sin(2 * np.pi * T / 0.4)  # a misfit 5 % of the span, smooth
     assert _p(y + slow, u=u).p_value > 0.01
+    # a response that starts three samples after the step (a dead time the model lacks):
+    # the residual steps there, away from the edge; the statistic sees it, but it is no
+    # lone bad reading, so it does not fail the data
+    late = yhat.copy()
+    late[500:503] = y[500:503] - 20.0
+    t = _p(y, late, u=u)
+    assert t.p_value < 1e-6 and not t.material
 
 
 def test_a_quantised_reading_is_not_a_glitch():

@@ -72,8 +72,11 @@ def outlier_test(name, r, span, *, u=None, time=None, unit="") -> Test | None:
     ``m`` readings.  The few readings around a step of the input ``u`` (by
     :data:`EDGE_FRACTION` of its range) are left out: there the timing of a switch
     between samples, not a bad reading, moves the second difference.  Material when the
-    reading stands off its neighbours' mean by :data:`MATERIAL_FRACTION` of ``span``;
-    None with fewer than 20 readings."""
+    reading stands off its neighbours' mean by :data:`MATERIAL_FRACTION` of ``span`` and
+    its two neighbours agree with each other within half that jump: a lone bad reading,
+    not a step of the residual (a response that starts later or jumps where the model's
+    does not, which the systematic misfit and the step start read as the model's); None
+    with fewer than 20 readings."""
     r = np.asarray(r, float)
     n = r.size
     if n < 20:
@@ -113,12 +116,13 @@ def outlier_test(name, r, span, *, u=None, time=None, unit="") -> Test | None:
     times = float(z[j])  # the jump, −d2/2, over its sd in the noise, half the scale
     where = f"at t = {time[i]:.6g} s" if time is not None else f"number {i + 1}"
     off = f"{jump:+.3g} {unit}".rstrip()
+    lone = abs(r[i + 1] - r[i - 1]) <= 0.5 * abs(jump)
     return Test(_finding("outlying reading", name, "fail", f"{off}, {times:.2g} noise sd",
                          f"the reading {where} stands {off} off its neighbours, {times:.2g} "
                          "times the sd of such a jump in the noise around it (a glitch: a "
                          "dropped, saturated or corrupted reading); leave that cell empty "
                          "(a missed reading) and fit again"), p,
-                abs(jump) > MATERIAL_FRACTION * span)
+                lone and abs(jump) > MATERIAL_FRACTION * span)
 
 
 def _finding(check, name, severity, size, message):
