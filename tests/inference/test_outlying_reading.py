@@ -83,6 +83,15 @@ def test_a_quantised_reading_is_not_a_glitch():
     p = [_p(0.24 * np.round((SIGNAL + 0.15 * rng.standard_normal(N)) / 0.24)).p_value
          for _ in range(200)]
     assert np.mean(np.asarray(p) < 0.01) <= 0.03
+    # a steady level read by a quantiser its noise seldom moves: one reading flickers a
+    # quantum down, which the quiet readings around it make a rare jump, but it is the
+    # quantiser's resolution, no bad reading
+    y = np.full(N, 57.256)
+    y[700] -= 0.6736
+    t = outlier_test("tr: speed", y - 57.25, 200.0, time=T, quantum=0.6736)
+    assert t.p_value < 1e-6 and not t.material
+    y[700] = 65535.0
+    assert outlier_test("tr: speed", y - 57.25, 200.0, time=T, quantum=0.6736).material
 
 
 @pytest.mark.slow

@@ -57,7 +57,7 @@ def autocorrelation(r, lags: int):
     return rho, q
 
 
-def outlier_test(name, r, span, *, u=None, time=None, unit="") -> Test | None:
+def outlier_test(name, r, span, *, u=None, time=None, unit="", quantum=0.0) -> Test | None:
     """Whether one reading jumps off its neighbours more than the noise allows: a glitch
     (a sentinel such as 65535, a dropped or doubled byte, a spike of interference).
 
@@ -75,8 +75,10 @@ def outlier_test(name, r, span, *, u=None, time=None, unit="") -> Test | None:
     reading stands off its neighbours' mean by :data:`MATERIAL_FRACTION` of ``span`` and
     its two neighbours agree with each other within half that jump: a lone bad reading,
     not a step of the residual (a response that starts later or jumps where the model's
-    does not, which the systematic misfit and the step start read as the model's); None
-    with fewer than 20 readings."""
+    does not, which the systematic misfit and the step start read as the model's); and,
+    on a channel logged at a resolution ``quantum``, by more than two quanta (a quantiser
+    whose noise seldom moves it flickers by one, and its quiet stretches are no
+    yardstick).  None with fewer than 20 readings."""
     r = np.asarray(r, float)
     n = r.size
     if n < 20:
@@ -105,8 +107,10 @@ def outlier_test(name, r, span, *, u=None, time=None, unit="") -> Test | None:
     near_lo, near_hi = np.clip(k - 1, 0, d2.size), np.clip(k + 2, 0, d2.size)
     total, count = ((c[hi] - c[lo]) - (c[near_hi] - c[near_lo]) for c in pad)
     scale = np.sqrt(np.where(count > 0, total / np.maximum(count, 1.0), 0.0))
-    z = np.where(eligible & (scale > 0), np.abs(np.nan_to_num(d2)) / np.where(
-        scale > 0, scale, 1.0), 0.0)
+    size = np.abs(np.nan_to_num(d2))
+    # a jump where the readings around it do not move at all is beyond any noise
+    z = np.where(eligible, np.where(scale > 0, size / np.where(scale > 0, scale, 1.0),
+                                    np.where(size > 0, np.inf, 0.0)), 0.0)
     dof = np.maximum(3.0, count / 2.0)
     p_each = np.where(z > 0, 2.0 * student_t.sf(z, dof), 1.0)
     j = int(np.argmin(p_each))
@@ -117,12 +121,14 @@ def outlier_test(name, r, span, *, u=None, time=None, unit="") -> Test | None:
     where = f"at t = {time[i]:.6g} s" if time is not None else f"number {i + 1}"
     off = f"{jump:+.3g} {unit}".rstrip()
     lone = abs(r[i + 1] - r[i - 1]) <= 0.5 * abs(jump)
-    return Test(_finding("outlying reading", name, "fail", f"{off}, {times:.2g} noise sd",
-                         f"the reading {where} stands {off} off its neighbours, {times:.2g} "
-                         "times the sd of such a jump in the noise around it (a glitch: a "
-                         "dropped, saturated or corrupted reading); leave that cell empty "
-                         "(a missed reading) and fit again"), p,
-                lone and abs(jump) > MATERIAL_FRACTION * span)
+    how = (f"{times:.2g} times the sd of such a jump in the noise around it"
+           if np.isfinite(times) else "where the readings around it do not move at all")
+    return Test(_finding("outlying reading", name, "fail",
+                         f"{off}, {times:.2g} noise sd" if np.isfinite(times) else off,
+                         f"the reading {where} stands {off} off its neighbours, {how} (a "
+                         "glitch: a dropped, saturated or corrupted reading); leave that "
+                         "cell empty (a missed reading) and fit again"), p,
+                lone and abs(jump) > max(MATERIAL_FRACTION * span, 2.0 * quantum))
 
 
 def _finding(check, name, severity, size, message):
@@ -145,7 +151,7 @@ def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, tim
     y, yhat = np.asarray(y, float), np.asarray(yhat, float)
     r = y - yhat
     span = float(np.max(y) - np.min(y)) or float(np.max(np.abs(y))) or 1.0
-    glitch = outlier_test(name, r, span, u=u, time=time, unit=unit)
+    glitch = outlier_test(name, r, span, u=u, time=time, unit=unit, quantum=quantum)
     if rho != 0.0:
         r = np.concatenate([[np.sqrt(1.0 - rho * rho) * r[0]], r[1:] - rho * r[:-1]])
         s0 = s0 * innovation_scale(rho)
