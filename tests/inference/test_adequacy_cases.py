@@ -103,20 +103,34 @@ def test_false_alarm_rate_over_motors_the_model_describes():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("factor", "words"), [(60 / (2 * np.pi), ("rpm given as rad/s",)),
-                                               (-1.0, ("reversed sign",))])
-def test_a_unit_slip_or_reversed_sign_on_one_trace_is_named(factor, words):
-    """The step_6v log holds rpm read as rad/s, or counts the other way: the fit cannot
-    absorb it (the other trace and the steady table disagree) and names the slip."""
+def test_a_unit_slip_on_one_trace_is_named():
+    """The step_6v log holds rpm read as rad/s: the fit cannot absorb it (the other
+    trace and the steady table disagree) and names the slip."""
     import dataclasses
 
     session = case_session()
-    traces = tuple(dataclasses.replace(tr, speed=tr.speed * factor)
+    traces = tuple(dataclasses.replace(tr, speed=tr.speed * 60 / (2 * np.pi))
                    if tr.name == "step_6v" else tr for tr in session.traces)
     a = _verdict(dataclasses.replace(session, traces=traces))
     assert a.verdict == "inadequate"
-    assert _says(a, "step_6v", *words), a.diagnosis
+    assert _says(a, "step_6v", "rpm given as rad/s"), a.diagnosis
     assert not _says(a, "unmeasured load"), a.diagnosis
+
+
+def test_a_trace_counting_the_other_way_is_refused_before_the_fit():
+    """The step_6v log counts the other way (its speed against its voltage, where the
+    other trace and the steady table turn with theirs): bad input, named, before any
+    fit."""
+    import dataclasses
+
+    from pmdc_bayes._errors import SessionError
+    from pmdc_bayes.inference.seed import fit_seed
+
+    session = case_session()
+    traces = tuple(dataclasses.replace(tr, speed=-tr.speed)
+                   if tr.name == "step_6v" else tr for tr in session.traces)
+    with pytest.raises(SessionError, match="'step_6v' turns against its voltage"):
+        fit_seed(dataclasses.replace(session, traces=traces))
 
 
 @pytest.mark.slow
