@@ -94,30 +94,30 @@ def test_a_quantised_reading_is_not_a_glitch():
     assert outlier_test("tr: speed", y - 57.25, 200.0, time=T, quantum=0.6736).material
 
 
+def _fit_with_cell(root, text, out):
+    """``pmdc-bayes fit`` of the session at ``root`` with the speed two thirds down its
+    first trace written as ``text``."""
+    csv = next(root.glob("tr0_*.csv"))
+    lines = csv.read_text().splitlines()
+    col = lines[0].split(",").index("speed")
+    k = len(lines) * 2 // 3
+    row = lines[k].split(",")
+    row[col] = text
+    lines[k] = ",".join(row)
+    csv.write_text("\n".join(lines) + "\n")
+    return subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(root), "--out",
+                           str(out), "--no-mcmc"], capture_output=True, text=True, timeout=900)
+
+
 @pytest.mark.slow
 def test_a_session_with_a_glitch_is_refused_for_its_data_with_no_search(tmp_path):
     fuzz_session(5, out=tmp_path / "s")
-    where = tmp_path / "s"
-    csv = next(where.glob("tr0_*.csv"))
-    lines = csv.read_text().splitlines()
-    col = lines[0].split(",").index("speed")
-    row = lines[len(lines) * 2 // 3].split(",")
-    row[col] = "65535"
-    lines[len(lines) * 2 // 3] = ",".join(row)
-    csv.write_text("\n".join(lines) + "\n")
-    run = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(where),
-                          "--out", str(tmp_path / "out"), "--no-mcmc"],
-                         capture_output=True, text=True, timeout=900)
+    run = _fit_with_cell(tmp_path / "s", "65535", tmp_path / "out")
     assert run.returncode == 3, run.stdout + run.stderr
     first = run.stdout.splitlines()[1]
     assert "outlying reading" in first and "leave that cell empty" in first
     assert "Model search from ideal: 1 fit " in run.stdout
     assert "likely:" not in run.stderr
     # the reading left empty, as the message says: the same session fits
-    row[col] = ""
-    lines[len(lines) * 2 // 3] = ",".join(row)
-    csv.write_text("\n".join(lines) + "\n")
-    run = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(where),
-                          "--out", str(tmp_path / "out2"), "--no-mcmc"],
-                         capture_output=True, text=True, timeout=900)
+    run = _fit_with_cell(tmp_path / "s", "", tmp_path / "out2")
     assert run.returncode == 0, run.stdout + run.stderr
