@@ -20,7 +20,7 @@ from .inference.fit import fit_map
 from .inference.identifiability import identifiability
 from .inference.objective import build_model
 from .inference.result import RunResult
-from .inference.seed import fit_seed
+from .inference.seed import fit_seed, refuse_reversed
 from .inference.warmup import WarmUp
 from .io._jsonio import dumps
 from .io.loader import load_session
@@ -99,6 +99,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     else:
         with clock.stage("closed_form"):
             say("closed form (the paper's method), or a seed from the data")
+            refuse_reversed(session)
             cf = fit_seed(session)
         with clock.stage("map"):
             coulomb = None if friction is None else friction == "coulomb"

@@ -43,7 +43,7 @@ from .candidate import Candidate, Fitted, Searched, nested_start
 from .inference.coloured import COLOURED
 from .inference.levels import level_outliers
 from .inference.objective import build_model
-from .inference.seed import fit_seed
+from .inference.seed import fit_seed, refuse_reversed
 from .inference.warmup import WarmUp
 from .io.lattice import analogue_channels
 from .io.session import NUISANCES, Session
@@ -236,6 +236,7 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
                max_fits: int = MAX_FITS, say=None) -> Searched:
     """:func:`search_model`'s record and the chosen candidate's fit."""
     say = say or (lambda text: None)
+    refuse_reversed(session)
     if friction is not None:
         import dataclasses
 

@@ -9,7 +9,7 @@ import pytest
 
 from pmdc_bayes._errors import SessionError
 from pmdc_bayes.inference.levels import reversed_speed
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.seed import refuse_reversed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import fuzz_session
 
@@ -39,9 +39,9 @@ def test_a_trace_whose_sensor_is_reversed_is_named(speed_only, tmp_path):
     assert reversed_speed(load_session(d)) is None
     _negate(next(d.glob("tr0_*.csv")), "speed")
     with pytest.raises(SessionError) as err:
-        fit_seed(load_session(d))
-    text = str(err.value)
-    assert "tr0_step_from_rest" in text and "negate that trace's speed column" in text
+        refuse_reversed(load_session(d))
+    assert err.value.path.name.startswith("tr0_step_from_rest")
+    assert "negate this file's speed column" in str(err.value)
 
 
 def test_a_whole_session_turning_against_its_voltage_is_one_wiring(speed_only, tmp_path):
@@ -50,8 +50,20 @@ def test_a_whole_session_turning_against_its_voltage_is_one_wiring(speed_only, t
     _negate(next(d.glob("tr0_*.csv")), "speed")
     _negate(d / "steady.csv", "w")
     found = reversed_speed(load_session(d))
-    assert found is not None and found[0] is None
-    assert "wired the other way round" in found[1]
+    assert found is not None and found.file.name == "session.toml"
+    assert "wired the other way round" in found.why
+
+
+def test_a_steady_table_written_with_the_other_sign_is_named(speed_only, tmp_path):
+    """The traces turn with their voltage, the table's speeds against theirs: the table's
+    file is named, not the traces'."""
+    d = tmp_path / "s"
+    shutil.copytree(speed_only, d)
+    _negate(d / "steady.csv", "w")
+    with pytest.raises(SessionError) as err:
+        refuse_reversed(load_session(d))
+    assert err.value.path == d / "steady.csv"
+    assert "negate its speed column" in str(err.value)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3, 5])  # each holds levels of both signs
@@ -59,3 +71,21 @@ def test_sessions_that_turn_both_ways_with_their_voltage_pass(seed, tmp_path):
     fuzz_session(seed, out=tmp_path / "s", shapes=("staircase", "up-down"))
     session = load_session(tmp_path / "s")
     assert reversed_speed(session) is None
+
+
+@pytest.mark.parametrize("entry", ["search", "fit"])
+def test_both_ways_into_a_fit_refuse_it_first(speed_only, tmp_path, entry):
+    """The model search and a fit of the session's own model each refuse the session
+    before their first fit."""
+    from pmdc_bayes.pipeline import fit_session
+    from pmdc_bayes.search import run_search
+
+    d = tmp_path / "s"
+    shutil.copytree(speed_only, d)
+    _negate(next(d.glob("tr0_*.csv")), "speed")
+    session = load_session(d)
+    with pytest.raises(SessionError, match="negate this file's speed column"):
+        if entry == "search":
+            run_search(session)
+        else:
+            fit_session(session, mcmc=False)

@@ -92,8 +92,7 @@ class Adequacy:
     def faulty_data(self) -> bool:
         """Whether the verdict fails on the data alone: every failing check is one of
         :data:`DATA_FAULTS`, which no addition to the model mends."""
-        fails = self.failures()
-        return bool(fails) and all(f.check in DATA_FAULTS for f in fails)
+        return _data_faults_only(self.findings)
 
     def failures(self) -> list[Finding]:
         return [f for f in self.findings if f.severity == "fail"]
@@ -118,6 +117,12 @@ class Adequacy:
 
 
 # -- the statistics --------------------------------------------------------------------
+def _data_faults_only(findings) -> bool:
+    """Whether some check fails and every one that does is one of :data:`DATA_FAULTS`."""
+    fails = [f.check for f in findings if f.severity == "fail"]
+    return bool(fails) and all(c in DATA_FAULTS for c in fails)
+
+
 def whiteness(r, u=None, *, lags: int | None = None) -> dict:
     """Autocorrelation of ``r`` at lags 1..M, its 99 % band ±2.58/√n, the Ljung–Box
     statistic and p-value; and the largest |cross-correlation| with the input ``u`` at
@@ -273,11 +278,12 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     findings += bound_checks(model, fit)
     findings.sort(key=lambda f: f.severity != "fail")
     verdict = "inadequate" if any(f.severity == "fail" for f in findings) else "adequate"
-    diagnosis, proposals = (diagnose(model, fit, preds, findings) if verdict == "inadequate"
-                            else ((), ()))
-    if verdict == "inadequate" and all(f.check in DATA_FAULTS for f in findings
-                                       if f.severity == "fail"):
+    if verdict == "adequate":
+        diagnosis, proposals = (), ()
+    elif _data_faults_only(findings):
         diagnosis, proposals = (NOTHING_TO_ADD,), ()
+    else:
+        diagnosis, proposals = diagnose(model, fit, preds, findings)
     return Adequacy(verdict, tuple(findings), channels, bench, plaus, tuple(diagnosis),
                     tuple(proposals), FAMILY_LEVEL, tuple(record + record_w))
 

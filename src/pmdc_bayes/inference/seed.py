@@ -12,23 +12,25 @@ from ..paper.closed_form import ClosedForm, closed_form, j_from_tau, read_time_c
 from ..physics.motor import gain
 from .levels import reversed_speed, settled, unloaded_levels, voltage_intercept
 
-__all__ = ["fit_seed", "seed_from_data", "motor_seed", "drop_seed", "FRICTION_SHARE"]
+__all__ = ["fit_seed", "refuse_reversed", "seed_from_data", "motor_seed", "drop_seed",
+           "FRICTION_SHARE"]
 
 FRICTION_SHARE = 0.1  # without a current, viscous friction is taken as this share of Ra·B + K²
 AT_REST = 0.02  # a steady level below this share of the largest is the motor at rest
 
 
-def fit_seed(session) -> ClosedForm:
-    """The closed form of ``session``, or, when the method cannot run on it, a seed
-    from the data (``applicable`` False, the reason kept).  A session whose speed turns
-    against its voltage (:func:`~.levels.reversed_speed`) is bad input: no motor does
-    that, and the fit would take the wiring for noise."""
+def refuse_reversed(session) -> None:
+    """Raise :class:`~pmdc_bayes.SessionError` where the session's speed turns against
+    its voltage (:func:`~.levels.reversed_speed`): no motor does that, and a fit would
+    take the wiring for noise.  Checked once per session, before its first fit."""
     backwards = reversed_speed(session)
     if backwards is not None:
-        name, why = backwards
-        tr = next((t for t in session.traces if t.name == name), None)
-        raise SessionError(session.root / "session.toml",
-                           why, where=None if tr is None else f"trace[{tr.name!r}]")
+        raise SessionError(backwards.file, backwards.why, where=backwards.where)
+
+
+def fit_seed(session) -> ClosedForm:
+    """The closed form of ``session``, or, when the method cannot run on it, a seed
+    from the data (``applicable`` False, the reason kept)."""
     try:
         return closed_form(session)
     except NotApplicable as exc:
