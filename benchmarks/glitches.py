@@ -3,9 +3,9 @@
 Draws in-class sessions with :func:`pmdc_bayes.simulate.fuzz.fuzz_session` (the
 independent bench simulator, every session shape and sensor), and writes into one
 logged speed column of one driven trace (a random reading, away from the first and
-last) either a logger's sentinel (65535 in the file's own unit) or a spike of
-``--size`` times the column's own noise (its model-free level, in the file's unit);
-then loads, fits
+last) either a logger's sentinel (65535 in the file's own unit; with ``--run L``, on
+``L`` readings in a row) or a spike of ``--size`` times the column's own noise (its
+model-free level, in the file's unit); then loads, fits
 (``fit_seed``, ``build_model``, ``fit_map``) and checks (``assess``) as the command
 does.  Prints, per kind of fault, the sessions whose verdict names the outlying reading,
 those it fails on another check, and those it passes.  Each result is one JSON line in
@@ -51,7 +51,7 @@ def _speed_trace(root: Path, plan: dict, rng) -> tuple[Path, str, float] | None:
     return choices[rng.integers(len(choices))] if choices else None
 
 
-def inject(root: Path, plan: dict, kind: str, size: float, rng) -> dict | None:
+def inject(root: Path, plan: dict, kind: str, size: float, rng, run: int = 1) -> dict | None:
     """Write the fault into the session at ``root``; where it went (None: no speed
     column to write it in)."""
     found = _speed_trace(root, plan, rng)
@@ -64,19 +64,22 @@ def inject(root: Path, plan: dict, kind: str, size: float, rng) -> dict | None:
     cells = lines[k].split(",")
     was = float(cells[j])
     spike = size * max(noise, 1e-9) * float(rng.choice([-1.0, 1.0]))
-    cells[j] = "65535" if kind == "sentinel" else repr(was + spike)
-    lines[k] = ",".join(cells)
+    now = "65535" if kind == "sentinel" else repr(was + spike)
+    for line in range(k, k + (run if kind == "sentinel" else 1)):
+        cells = lines[line].split(",")
+        cells[j] = now
+        lines[line] = ",".join(cells)
     csv.write_text("\n".join(lines) + "\n")
-    return {"file": csv.name, "line": k + 1, "was": was, "now": cells[j], "noise": noise}
+    return {"file": csv.name, "line": k + 1, "was": was, "now": now, "noise": noise}
 
 
-def run_one(seed: int, kind: str, size: float) -> dict:
+def run_one(seed: int, kind: str, size: float, run: int = 1) -> dict:
     rng = np.random.default_rng(10_000 + seed)
     with tempfile.TemporaryDirectory() as d:
         root = Path(d) / "s"
         fuzz_session(seed, out=root)
         plan, _ = fuzz_plan(seed)
-        where = inject(root, plan, kind, size, rng)
+        where = inject(root, plan, kind, size, rng, run)
         if where is None:
             return {"seed": seed, "kind": kind, "outcome": "no logged speed"}
         try:
@@ -98,17 +101,20 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, default=20, help="sessions per kind of fault")
     ap.add_argument("--start", type=int, default=0, help="first seed")
     ap.add_argument("--size", type=float, default=30.0, help="a spike, in noise sd")
+    ap.add_argument("--run", type=int, default=1, help="sentinels written in a row")
     ap.add_argument("--log", type=Path, default=None)
     args = ap.parse_args(argv)
     done = []
     if args.log is not None and args.log.exists():
         done = [json.loads(x) for x in args.log.read_text().splitlines() if x.strip()]
     seen = {(r["seed"], r["kind"]) for r in done}
-    for kind in ("sentinel", f"spike {args.size:g} sd"):
+    sentinel = "sentinel" if args.run == 1 else f"sentinel x{args.run}"
+    for kind in (sentinel, f"spike {args.size:g} sd"):
         for seed in range(args.start, args.start + args.n):
             if (seed, kind) in seen:
                 continue
-            rec = run_one(seed, "sentinel" if kind == "sentinel" else "spike", args.size)
+            rec = run_one(seed, "sentinel" if kind == sentinel else "spike", args.size,
+                          args.run)
             rec["kind"] = kind
             done.append(rec)
             print(json.dumps(rec), flush=True)

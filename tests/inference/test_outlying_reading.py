@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from pmdc_bayes.inference.trace_checks import MATERIAL_FRACTION, outlier_test
+from pmdc_bayes.inference.glitches import outlier_test
+from pmdc_bayes.inference.trace_checks import MATERIAL_FRACTION
 from pmdc_bayes.simulate.fuzz import fuzz_session
 
 N = 1500
@@ -53,6 +54,38 @@ def test_a_glitch_is_found_and_placed():
     assert not t.material and 12 * 0.05 < MATERIAL_FRACTION * np.ptp(y)
 
 
+@pytest.mark.parametrize("length", [2, 3])
+def test_a_short_run_of_bad_readings_is_one_glitch(length):
+    """Two or three readings lost together (a dropped packet written as zeros, a
+    sentinel held over a few samples): found, placed from its first to its last reading,
+    and material, where the one-reading contrast sees only its edges."""
+    rng = np.random.default_rng(4)
+    y = SIGNAL + 0.3 * rng.standard_normal(N)
+    y[900:900 + length] = 0.0
+    t = _p(y, unit="rad/s")
+    assert t.p_value < 1e-12 and t.material
+    text = t.finding.message
+    assert f"the {length} readings from t = 0.9 s to {0.9 + (length - 1) * 1e-3:g} s" in text
+    assert "leave those cells empty" in text
+    # the same run with a sensor so quiet that its noise never moves the readings
+    flat = np.full(N, 57.0)
+    flat[900:900 + length] = 65535.0
+    assert outlier_test("tr: speed", flat - 57.0, 200.0, time=T).material
+
+
+def test_a_run_longer_than_a_glitch_or_a_late_start_is_not_one():
+    """Five readings off together is a stretch the model misses, not a glitch; nor is a
+    response that starts a few samples after its input's step."""
+    rng = np.random.default_rng(6)
+    y = SIGNAL + 0.3 * rng.standard_normal(N)
+    y[900:905] -= 30.0
+    assert not _p(y).material
+    u = np.where(T >= 0.5, 12.0, 6.0)
+    late = SIGNAL.copy()
+    late[500:503] -= 20.0
+    assert not _p(y, late, u=u).material
+
+
 def test_a_step_edge_and_a_slow_misfit_are_not_glitches():
     rng = np.random.default_rng(5)
     u = np.where(T >= 0.5, 12.0, 6.0)
@@ -92,6 +125,20 @@ def test_a_quantised_reading_is_not_a_glitch():
     assert t.p_value < 1e-6 and not t.material
     y[700] = 65535.0
     assert outlier_test("tr: speed", y - 57.25, 200.0, time=T, quantum=0.6736).material
+
+
+def test_a_bad_reading_is_the_data_s_fault_whatever_else_fails():
+    """A bad reading pulls the fit, so the other checks it fails with wait for the mended
+    data: the verdict is the data's, its first line; a misfit alone is the model's."""
+    from pmdc_bayes.inference.adequacy import Adequacy, Finding
+
+    glitch = Finding("outlying reading", "tr: speed", "fail", "+6.6e4 rad/s", "a glitch")
+    misfit = Finding("systematic misfit", "tr: speed", "fail", "3 %", "a misfit")
+    assert Adequacy("inadequate", (glitch, misfit)).faulty_data
+    assert not Adequacy("inadequate", (misfit,)).faulty_data
+    warned = Finding("outlying reading", "tr: speed", "warn", "", "")
+    assert not Adequacy("inadequate", (misfit, warned)).faulty_data
+    assert not Adequacy("adequate").faulty_data
 
 
 def _fit_with_cell(root, text, out):

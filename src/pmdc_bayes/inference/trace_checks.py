@@ -1,9 +1,10 @@
 """The residual checks of one trace channel, each with its p-value under the fitted
 model (:mod:`.calibrate`): a systematic misfit (the slow part of the residual against
 what white noise leaves in a moving average), anti-correlated noise (a differenced,
-quantised signal), an outlying reading (a glitch: one reading that jumps off its
-neighbours), residual whiteness (Ljung–Box), noise inflation (the fitted against the
-model-free level) and the residual's correlation with the input.
+quantised signal), an outlying reading (:mod:`.glitches`: a reading or a short run of
+them that jumps off its neighbours and back), residual whiteness (Ljung–Box), noise
+inflation (the fitted against the model-free level) and the residual's correlation with
+the input.
 
 The first three can fail a model, each only when its effect is also material (a slow
 part or a jump above :data:`MATERIAL_FRACTION` of the span; a lag-1 autocorrelation
@@ -14,19 +15,17 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.stats import norm
-from scipy.stats import t as student_t
 
 from .calibrate import Test, ratio_p, replicates, tail_p
 from .coloured import innovation_scale
+from .glitches import outlier_test
 from .noise import noise_scale
 
-__all__ = ["channel_tests", "slow_ratio", "autocorrelation", "outlier_test",
-           "MATERIAL_FRACTION", "ANTI_CORRELATION", "EDGE_FRACTION", "OUTLIER_WINDOW"]
+__all__ = ["channel_tests", "slow_ratio", "autocorrelation", "MATERIAL_FRACTION",
+           "ANTI_CORRELATION"]
 
 MATERIAL_FRACTION = 0.015  # a systematic misfit that matters, as a fraction of the span
 ANTI_CORRELATION = -0.3  # a lag-1 autocorrelation this negative: not the assumed noise
-EDGE_FRACTION = 0.05  # an input change this share of the input's range is a step edge
-OUTLIER_WINDOW = 100  # second differences each side that give a reading's noise scale
 
 
 def smoothing_window(n: int) -> int:
@@ -55,80 +54,6 @@ def autocorrelation(r, lags: int):
                    axis=1)
     q = n * (n + 2) * np.sum(rho**2 / (n - np.arange(1, lags + 1)), axis=1)
     return rho, q
-
-
-def outlier_test(name, r, span, *, u=None, time=None, unit="", quantum=0.0) -> Test | None:
-    """Whether one reading jumps off its neighbours more than the noise allows: a glitch
-    (a sentinel such as 65535, a dropped or doubled byte, a spike of interference).
-
-    The statistic is each residual's second difference ``r[i−1] − 2·r[i] + r[i+1]``,
-    which a slow misfit barely moves and a lone bad reading doubles, over the root mean
-    square of the second differences around it (:data:`OUTLIER_WINDOW` each side, the
-    three a reading at ``i`` enters left out, so that a bad reading does not set its own
-    yardstick, and a sensor's noise that differs between rest and motion is read where
-    it is): for stationary Gaussian noise, white, correlated or dithered by a
-    quantiser, Student's t with the window's degrees (its second differences, about
-    half of them independent).  The largest is read with Bonferroni's ``m·p`` over the
-    ``m`` readings.  The few readings around a step of the input ``u`` (by
-    :data:`EDGE_FRACTION` of its range) are left out: there the timing of a switch
-    between samples, not a bad reading, moves the second difference.  Material when the
-    reading stands off its neighbours' mean by :data:`MATERIAL_FRACTION` of ``span`` and
-    its two neighbours agree with each other within half that jump: a lone bad reading,
-    not a step of the residual (a response that starts later or jumps where the model's
-    does not, which the systematic misfit and the step start read as the model's); and,
-    on a channel logged at a resolution ``quantum``, by more than two quanta (a quantiser
-    whose noise seldom moves it flickers by one, and its quiet stretches are no
-    yardstick).  None with fewer than 20 readings."""
-    r = np.asarray(r, float)
-    n = r.size
-    if n < 20:
-        return None
-    d2 = r[:-2] - 2.0 * r[1:-1] + r[2:]
-    eligible = np.isfinite(d2)
-    if u is not None:
-        u = np.asarray(u, float)
-        rng = float(np.nanmax(u) - np.nanmin(u))
-        steps = np.flatnonzero(np.abs(np.diff(u)) > EDGE_FRACTION * rng) + 1 if rng > 0 \
-            else np.zeros(0, int)
-        near = np.zeros(n, bool)
-        for off in (-1, 0, 1, 2):
-            near[np.clip(steps + off, 0, n - 1)] = True
-        eligible &= ~near[1:-1]
-    m = int(np.count_nonzero(eligible))
-    if m < 10:
-        return None
-    sq = np.where(eligible, d2, 0.0) ** 2
-    one = eligible.astype(float)
-    # the window's sums, less the three second differences the middle reading enters
-    h = OUTLIER_WINDOW
-    pad = np.concatenate([[0.0], np.cumsum(sq)]), np.concatenate([[0.0], np.cumsum(one)])
-    k = np.arange(d2.size)
-    lo, hi = np.clip(k - h, 0, d2.size), np.clip(k + h + 1, 0, d2.size)
-    near_lo, near_hi = np.clip(k - 1, 0, d2.size), np.clip(k + 2, 0, d2.size)
-    total, count = ((c[hi] - c[lo]) - (c[near_hi] - c[near_lo]) for c in pad)
-    scale = np.sqrt(np.where(count > 0, total / np.maximum(count, 1.0), 0.0))
-    size = np.abs(np.nan_to_num(d2))
-    # a jump where the readings around it do not move at all is beyond any noise
-    z = np.where(eligible, np.where(scale > 0, size / np.where(scale > 0, scale, 1.0),
-                                    np.where(size > 0, np.inf, 0.0)), 0.0)
-    dof = np.maximum(3.0, count / 2.0)
-    p_each = np.where(z > 0, 2.0 * student_t.sf(z, dof), 1.0)
-    j = int(np.argmin(p_each))
-    p = float(min(1.0, m * p_each[j]))
-    i = j + 1
-    jump = float(r[i] - 0.5 * (r[i - 1] + r[i + 1]))
-    times = float(z[j])  # the jump, −d2/2, over its sd in the noise, half the scale
-    where = f"at t = {time[i]:.6g} s" if time is not None else f"number {i + 1}"
-    off = f"{jump:+.3g} {unit}".rstrip()
-    lone = abs(r[i + 1] - r[i - 1]) <= 0.5 * abs(jump)
-    how = (f"{times:.2g} times the sd of such a jump in the noise around it"
-           if np.isfinite(times) else "where the readings around it do not move at all")
-    return Test(_finding("outlying reading", name, "fail",
-                         f"{off}, {times:.2g} noise sd" if np.isfinite(times) else off,
-                         f"the reading {where} stands {off} off its neighbours, {how} (a "
-                         "glitch: a dropped, saturated or corrupted reading); leave that "
-                         "cell empty (a missed reading) and fit again"), p,
-                lone and abs(jump) > max(MATERIAL_FRACTION * span, 2.0 * quantum))
 
 
 def _finding(check, name, severity, size, message):
