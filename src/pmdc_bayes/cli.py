@@ -33,13 +33,11 @@ __all__ = ["main"]
 
 
 def _cmd_closed_form(args) -> int:
-    from .inference.seed import refuse_reversed
     from .io.loader import load_session
     from .paper.closed_form import closed_form
 
     _note_bundled(args.session)
     session = load_session(session_path(args.session))
-    refuse_reversed(session)
     cf = closed_form(session)
     code = _closed_form_warnings(cf)
     if args.json:

@@ -90,15 +90,6 @@ def _dead_current(d):
     (d / "step.csv").write_text("t,speed_rpm,ia\n" + rows)
 
 
-def _reversed_speed(d):
-    """The step's speed counting the other way; the operating point turns with its
-    voltage."""
-    lines = (d / "step.csv").read_text().splitlines()
-    rows = [line.split(",") for line in lines[1:]]
-    lines[1:] = [",".join([r[0], repr(-float(r[1])), *r[2:]]) for r in rows]
-    (d / "step.csv").write_text("\n".join(lines) + "\n")
-
-
 def _truth(text):
     def mutate(d):
         (d / "truth.json").write_text(text)
@@ -240,8 +231,6 @@ CASES = [
      ["step.csv", "the speed column 'speed_rpm' is 500 in every row", "did not turn"]),
     ("current-dead", _dead_current,
      ["step.csv", "the current column 'ia' is 0 in every row", "leave current out of columns"]),
-    ("speed-reversed", _reversed_speed,
-     ["step.csv", "'step' turns against its voltage", "negate this file's speed column"]),
     ("truth-bad-json", _truth("{Ra: 1}"), ["truth.json", "not valid JSON"]),
     ("truth-non-number", _truth('{"Ra": "two"}'), ["truth.json:Ra", "not a finite number"]),
 ]

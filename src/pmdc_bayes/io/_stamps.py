@@ -1,6 +1,6 @@
-"""A logger's time stamps in a CSV time column (``12:00:01.250``, a date and a zone
-around it allowed): read as seconds since midnight, then as the time since the first
-row, a day's turn found from the clock going back."""
+"""A logger's time stamps in a CSV time column (``12:00:01.250``, ``10:15:03.120 PM``,
+a date and a zone around it allowed): read as seconds since midnight, then as the time
+since the first row, a day's turn found from the clock going back."""
 
 from __future__ import annotations
 
@@ -10,10 +10,12 @@ import numpy as np
 
 __all__ = ["STAMP", "stamp_seconds", "elapsed"]
 
-# A logger's time stamp: a clock time h:mm:ss[.f] (a date and a zone around it allowed,
-# both passed over) or m:ss.f; the day's turn is found from the clock going back.
+# A logger's time stamp: a clock time h:mm:ss[.f] (on a 12-hour clock with AM or PM; a
+# date and a zone around it allowed, both passed over) or m:ss.f; the day's turn is
+# found from the clock going back.
 STAMP = re.compile(r"(?:\d{1,4}[-/.]\d{1,2}[-/.]\d{1,4}(?:T|\s+))?(?:(\d{1,2}):)?(\d{1,2}):"
-                    r"(\d{2}(?:[.,]\d*)?)\s*(?:Z|UTC|[+-]\d{2}:?\d{2})?", re.IGNORECASE)
+                    r"(\d{2}(?:[.,]\d*)?)\s*(?:([AP])\.?M\.?)?\s*(?:Z|UTC|[+-]\d{2}:?\d{2})?",
+                    re.IGNORECASE)
 DAY = 86400.0
 
 
@@ -27,7 +29,12 @@ def stamp_seconds(text: str) -> float | None:
     hours, minutes, seconds = m.group(1), m.group(2), m.group(3).replace(",", ".")
     if hours is None and "." not in seconds:
         return None
-    return 3600.0 * int(hours or 0) + 60.0 * int(minutes) + float(seconds)
+    h = int(hours or 0)
+    if m.group(4) is not None:  # a 12-hour clock: 12:00 AM is midnight, 12:00 PM noon
+        if hours is None or not 1 <= h <= 12:
+            return None
+        h = h % 12 + (12 if m.group(4).upper() == "P" else 0)
+    return 3600.0 * h + 60.0 * int(minutes) + float(seconds)
 
 
 def elapsed(stamps: np.ndarray, seconds_per_unit: float) -> np.ndarray:

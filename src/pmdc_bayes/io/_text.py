@@ -66,6 +66,8 @@ def read_text(path: Path, what: str = "file") -> str:
     path = Path(path)
     data = _raw(path, what)
     encoding = next((enc for bom, enc in _BOMS if data.startswith(bom)), "utf-8")
+    if encoding.startswith("utf-8"):
+        data = data.rstrip(b"\0")  # a logger's card pads the file with NULs
     head = data[:4096]
     if encoding == "utf-8" and sum(head.count(c) for c in _CONTROL) > 0.05 * len(head):
         raise SessionError(path, f"a binary file, not text; export the {what} as text "

@@ -21,6 +21,7 @@ from ._position import (
 )
 from ._toml import Table as _Table
 from ._toml import describe as _describe
+from ._units_row import check_units_row
 from .drag import check_curve_reach, read_drag
 from .session import COAST_DOWN, Schedule, Trace
 from .units import to_si
@@ -35,10 +36,11 @@ _DUTY_UNITS = {"1": 1.0, "%": 100.0}  # a voltage logged as a duty: its full sca
 _COLUMNS = dict(_TRACE_KINDS, direction="")  # the roles a column may have
 
 
-def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray,
+def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray, start: float,
               duty=None) -> Schedule:
     """A ``[[time, value], ...]`` schedule in the trace's units, checked against the samples
-    (a voltage logged as a duty of ``duty``'s supply when given)."""
+    (``start``: the file's first row's time, before rows missing a reading were left out;
+    a voltage logged as a duty of ``duty``'s supply when given)."""
     pairs = t.data[key]
     example = f"{key} = [[0.0, 0.0], [1.0, 12.0]]"
     if not isinstance(pairs, list) or not pairs:
@@ -70,6 +72,12 @@ def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray,
         t.fail(key, f"the {key} changes at {later[0]:g} {tu}, after the last sample at "
                f"{t_raw[-1]:g} {tu}, and is constant over the samples; check the schedule's "
                "times (they are in the trace's time unit)")
+    changes = [tk for k, tk in enumerate(times) if k and values[k] != values[k - 1]]
+    if changes and changes[-1] < start and not edges_flag(t):  # an edge comes after a step
+        t.fail(key, f"the {key} changes last at {changes[-1]:g} {tu}, before the first row "
+               f"at {start:g} {tu}, and is constant over the samples; write the "
+               "schedule's times on the time column's clock (a time column that does not "
+               "start at 0 is read as written)")
     values = (_duty_to_volts(t, key, np.array(values), duty) if duty is not None
               else to_si(np.array(values), kind, u[key]))
     return Schedule(to_si(np.array(times), "time", tu), values)
@@ -147,14 +155,18 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
     missing reading (:func:`._missing.without_missing`)."""
     path = root / t.string("file")
     second = float(to_si(np.array([1.0]), "time", u["time"])[0])
-    raw, lines = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}",
-                              stamps=("time", second), missing=MISSABLE)
+    read = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}",
+                        stamps=("time", second), missing=MISSABLE)
+    check_units_row(path, cols, read.units, read.units_line, u, _TRACE_KINDS, t.where)
+    raw, lines = read.values, read.lines
     if "time" in cols:
         t_raw = unwrap_time(t, path, raw["time"])
     else:  # rows at a stated rate, in the trace's unit of time from the first row
         rate = t.number("sample_rate", "frequency", u["sample_rate"], positive=True)
         t_raw = np.arange(len(lines)) / rate / second
+    start = float(t_raw[0]) if t_raw.size else 0.0  # before any row is left out
     raw, t_raw, lines, left_out = without_missing(path, raw, t_raw, lines, cols)
+    left_out = tuple(sorted((*left_out, *read.skipped)))
     if t_raw.size < 3:
         raise SessionError(path, f"only {t_raw.size} samples; a trace needs at least 3 "
                            "samples (log a longer record)")
@@ -195,7 +207,7 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
                            "reading; leave current out of columns (the speed alone then "
                            "carries the fit) or log the current itself")
     time = to_si(t_raw, "time", u["time"])
-    return path, raw, t_raw, time, left_out
+    return path, raw, t_raw, time, left_out, start
 
 
 def _counter_wrap(before: float, after: float) -> int | None:
@@ -285,7 +297,7 @@ def _trace(t: _Table, root: Path) -> Trace:
     if "voltage" not in cols and "voltage" not in t.data:
         t.fail("voltage", "no armature voltage given; add a column (columns.voltage = "
                "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
-    path, raw, t_raw, time, left_out = _read_trace_file(t, root, cols, u)
+    path, raw, t_raw, time, left_out, start = _read_trace_file(t, root, cols, u)
     si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw
           if role == "load_torque" or (role == "voltage" and duty is None)}
     if "current" in raw:
@@ -297,7 +309,7 @@ def _trace(t: _Table, root: Path) -> Trace:
         if inp in si:
             inputs[inp] = Schedule(time, si[inp])
         elif inp in t.data:
-            inputs[inp] = _schedule(t, inp, u, _TRACE_KINDS[inp], t_raw,
+            inputs[inp] = _schedule(t, inp, u, _TRACE_KINDS[inp], t_raw, start,
                                     duty if inp == "voltage" else None)
         else:
             inputs[inp] = Schedule(time[:1].copy(), np.zeros(1))
@@ -323,7 +335,7 @@ def _coast_down(t: _Table, root: Path) -> Trace:
                 extra={"speed": sensors.VOLTS})
     cols = _columns(t, kinds, ("speed",))
     sensors.check_unused(t, u, cols)
-    path, raw, _, time, left_out = _read_trace_file(t, root, cols, u)
+    path, raw, _, time, left_out, _ = _read_trace_file(t, root, cols, u)
     none = Schedule(time[:1].copy(), np.zeros(1))
     return Trace(name=name, kind=COAST_DOWN, file=path, time=time,
                  speed=sensors.speed_si(t, raw["speed"], u), current=None, voltage=none,

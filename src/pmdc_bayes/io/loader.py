@@ -23,6 +23,7 @@ from ._text import read_text
 from ._toml import Table as _Table
 from ._toml import describe as _describe
 from ._traces import read_traces
+from ._units_row import check_units_row
 from .bundled import BUNDLED, session_path
 from .session import (
     FRICTION_MODELS,
@@ -115,7 +116,9 @@ def _steady_table(t: _Table, root: Path) -> SteadyTable:
     name, u = t.string("name"), t.units(_TABLE_KINDS)
     cols = t.columns(_TABLE_KINDS, ("voltage", "speed"))
     path = root / t.string("file")
-    raw, _ = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}")
+    read = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}")
+    check_units_row(path, cols, read.units, read.units_line, u, _TABLE_KINDS, t.where)
+    raw = read.values
     if raw["voltage"].size == 0:
         raise SessionError(path, "no data rows; add one row per steady operating point")
     si = {role: to_si(raw[role], _TABLE_KINDS[role], u[role]) for role in raw}

@@ -10,7 +10,8 @@ import math
 
 import numpy as np
 
-__all__ = ["KINDS", "SI_UNIT", "DISPLAY", "display_unit", "to_si", "from_si", "unit_factor"]
+__all__ = ["KINDS", "SI_UNIT", "DISPLAY", "display_unit", "to_si", "from_si", "unit_factor",
+           "unit_named"]
 
 _TORQUE = {"N*m": 1.0, "N.m": 1.0, "N·m": 1.0, "Nm": 1.0, "mN*m": 1e-3, "mN.m": 1e-3,
            "mN·m": 1e-3, "mNm": 1e-3}
@@ -51,6 +52,31 @@ DISPLAY: dict[str, str] = {
     "H*kg*m^2": "H·kg·m²", "ohm*kg*m^2": "Ω·kg·m²", "(V*s/rad)^2": "(V·s/rad)²",
     "rad/s^2/A": "rad/s² per A", "ohm/s": "Ω/s",
 }
+
+
+# Names a logger's row of units writes for a unit of KINDS (compared case-blind).
+_ALIASES: dict[str, dict[str, str]] = {
+    "time": {"sec": "s", "secs": "s", "second": "s", "seconds": "s", "msec": "ms",
+             "usec": "us", "μs": "µs"},
+    "speed": {"1/min": "rpm", "u/min": "rpm", "min^-1": "rpm", "min-1": "rpm",
+              "r/min": "rpm", "rev/min": "rpm", "rad/sec": "rad/s", "rps": "rev/s"},
+    "voltage": {"volt": "V", "volts": "V"},
+    "current": {"amp": "A", "amps": "A"},
+    "angle": {"°": "deg", "degrees": "deg", "revs": "rev"},
+}
+
+
+def unit_named(kind: str, text: str) -> str | None:
+    """The unit of ``kind`` that ``text`` names, as a logger writes it in a row of units
+    (``ms``, ``(rpm)``, ``[A]``, ``1/min``), or None when it names none."""
+    key = text.strip().strip("()[]{}<>").strip()
+    table = KINDS.get(kind, {})
+    if key in table and key:
+        return key
+    folded = {u.lower(): u for u in table if u}
+    aliases = {a.lower(): u for a, u in _ALIASES.get(kind, {}).items()}
+    found = {folded.get(key.lower()), aliases.get(key.lower())} - {None}
+    return found.pop() if len(found) == 1 else None
 
 
 def display_unit(unit: str) -> str:

@@ -1,0 +1,187 @@
+"""The rows of a CSV file under its header, as the columns asked for: a row of units
+under the header, rows whose every reading was missed, text after the last sample and a
+last line cut off mid-write each taken for what they are."""
+
+from __future__ import annotations
+
+from array import array
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from .._errors import SessionError
+from ._cells import MISSING, DecimalMarks, number, parse_cell
+from ._stamps import elapsed, stamp_seconds
+
+__all__ = ["Columns", "read_rows"]
+
+SEPARATOR_NAMES = {",": "commas", ";": "semicolons", "\t": "tabs"}
+
+
+class Columns(NamedTuple):
+    """The columns read from a CSV file.
+
+    values : role -> 1-D float array, in file order (NaN: a reading missed).
+    lines : the 1-based file line of each row, for later error messages.
+    skipped : the lines of rows that were left out whole: every reading missed in a file
+        with a time column (no time to place them at), or a last line cut off mid-write.
+    units : role -> the text of a row of units under the header, when there is one, and
+        ``units_line`` its line.
+    """
+
+    values: dict
+    lines: list
+    skipped: tuple = ()
+    units: dict = {}
+    units_line: int | None = None
+
+
+class _Row(NamedTuple):
+    cells: list
+    line: int
+
+
+def _kind(row, index, stamped, missable) -> str:
+    """``"data"`` (a number, or a time stamp, in a column read), ``"missed"`` (every
+    column read empty or a missed reading, in a file whose columns may miss one) or
+    ``"text"`` (a row of units, a closing line)."""
+    cells = {role: (row[k].strip() if k < len(row) else "") for role, k in index.items()}
+    if any(number(c) or (role == stamped and stamp_seconds(c) is not None)
+           for role, c in cells.items() if c):
+        return "data"
+    if missable and all(c.lower() in MISSING for c in cells.values()):
+        return "missed"
+    return "text"
+
+
+def _refuse_text(path, row: _Row, index, wanted, marks) -> None:
+    """A line of text between samples: the error its first cell that is no number
+    gives (the header written again, a clock time), or one naming the line."""
+    for role, k in index.items():
+        cell = row.cells[k].strip() if k < len(row.cells) else ""
+        if cell and cell.lower() not in MISSING:
+            parse_cell(path, row.line, wanted[role], cell, marks)
+    raise SessionError(path, "a line of text between the samples; remove it",
+                       where=f"line {row.line}")
+
+
+def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stamps=None,
+              missing=frozenset(), cut: int | None = None) -> Columns:
+    """The columns ``wanted`` (role -> header name) of the rows ``reader`` gives (a
+    ``csv.reader`` at the header); ``cut`` is the line number of a last line without
+    its newline (a logger stopped mid-write), if any."""
+    header = None
+    for row in reader:
+        if any(cell.strip() for cell in row):
+            header = [cell.strip() for cell in row]
+            break
+    header_line = reader.line_num
+    index = _index(path, header, sep, wanted, asked_by, header_line)
+    marks = DecimalMarks(path, sep)
+    values = {role: array("d") for role in wanted}
+    stamped = stamps[0] if stamps is not None and stamps[0] in wanted else None
+    missable = bool(missing) and set(wanted) - {"time"} <= set(missing)
+    timed = "time" in wanted
+    kinds: set[bool] = set()  # whether the stamped column's cells were time stamps
+    lines: list[int] = []
+    skipped: list[int] = []
+    pending: list[int] = []  # rows of missed readings, placed once a sample follows
+    units: dict = {}
+    units_line = None
+    closing = None  # a line of text after the samples, an error if samples follow it
+    end = reader.line_num
+    for cells in reader:
+        start, end = end + 1, reader.line_num
+        if not any(cell.strip() for cell in cells) and (len(cells) < 2 or not missable):
+            continue
+        row = _Row(cells, reader.line_num if all("\n" not in c for c in cells) else start)
+        kind = _kind(cells, index, stamped, missable)
+        short = any(k >= len(cells) for k in index.values())
+        if row.line == cut and short:
+            kind = "missed"  # a last line cut off mid-write: its readings are lost
+        if kind == "text" and all("\n" not in c for c in cells):
+            if not lines and not pending and closing is None and not units:
+                units = {role: (cells[k].strip() if k < len(cells) else "")
+                         for role, k in index.items()}
+                units_line = row.line
+                continue
+            if lines:
+                closing = closing or row
+                continue
+        if kind == "missed":
+            pending.append(row.line)
+            if row.line != cut:
+                continue
+        if closing is not None:
+            _refuse_text(path, closing, index, wanted, marks)
+        for line in pending:  # missed readings keep their place, or, timed, are left out
+            if timed:
+                skipped.append(line)
+            else:
+                for role in wanted:
+                    values[role].append(np.nan)
+                lines.append(line)
+        pending = []
+        if kind == "missed":
+            continue
+        _check_width(path, row, header, sep)
+        for role, k in index.items():
+            if k >= len(cells):
+                raise SessionError(path, f"the row has {len(cells)} fields but column "
+                                   f"{wanted[role]!r} is field {k + 1}; fill in the missing "
+                                   "fields", where=f"line {row.line}")
+            cell = cells[k].strip()
+            stamp = stamp_seconds(cell) if role == stamped else None
+            if role == stamped:
+                kinds.add(stamp is not None)
+                if len(kinds) > 1:
+                    raise SessionError(path, f"column {wanted[role]!r}: {cell!r} is written "
+                                       "unlike the rows before it (time stamps and plain "
+                                       "numbers mixed); write every time the same way",
+                                       where=f"line {row.line}")
+            values[role].append(stamp if stamp is not None
+                                else parse_cell(path, row.line, wanted[role], cell, marks,
+                                                role in missing))
+        lines.append(row.line)
+    marks.check()
+    out = {role: np.frombuffer(v, dtype=float).copy() for role, v in values.items()}
+    if True in kinds and out[stamped].size:
+        out[stamped] = elapsed(out[stamped], stamps[1])
+    return Columns(out, lines, tuple(skipped), units, units_line)
+
+
+def _index(path, header, sep, wanted, asked_by, line) -> dict:
+    """Each role's field in the header; a name asked for twice, or missing, is an
+    error (other columns may share a name: they are not read)."""
+    names = [h for h in header if h]
+    dup = sorted({h for h in names if names.count(h) > 1 and h in wanted.values()})
+    if dup:
+        raise SessionError(path, f"the header names {', '.join(map(repr, dup))} more than "
+                           "once; give every column its own name", where=f"line {line}")
+    if len(header) == 1 and len(header[0].split()) > 1:
+        raise SessionError(path, f"the header {header[0]!r} has no comma, semicolon or tab; "
+                           "separate the columns with commas", where=f"line {line}")
+    index = {}
+    for role, name in wanted.items():
+        if name not in header:
+            cols = ", ".join(repr(h) for h in header)
+            raise SessionError(
+                path,
+                f"no column named {name!r} (the {role} column named in {asked_by}); the "
+                f"header, separated by {SEPARATOR_NAMES.get(sep, 'spaces')}, has {cols}; fix "
+                "the name in session.toml or in the header",
+                where=f"line {line}",
+            )
+        index[role] = header.index(name)
+    return index
+
+
+def _check_width(path, row: _Row, header, sep) -> None:
+    cells = row.cells
+    if len(cells) > len(header) and any(cell.strip() for cell in cells[len(header):]):
+        hint = (" (is the decimal separator a comma? write decimals with a point, or "
+                "separate the columns with semicolons)" if sep == "," else "")
+        raise SessionError(path, f"the row has {len(cells)} fields but the header has "
+                           f"{len(header)}{hint}; make every row match the header",
+                           where=f"line {row.line}")

@@ -1,0 +1,180 @@
+"""Trace files as real benches write them: rows a logger missed whole, a last line cut
+off mid-write, a 12-hour clock, a minus sign from a word processor, an overrange code,
+a card's NUL padding, lines ended by a carriage return alone.  Each is read with the
+readings where they were taken; what cannot be read unambiguously (a thousands
+separator, a row of units that contradicts session.toml, a schedule on another clock)
+is refused with one line naming the file, the line and the fix, never read wrong."""
+
+import numpy as np
+import pytest
+from conftest import STEP_N, replace_once, step_rows
+
+from pmdc_bayes._errors import SessionError
+from pmdc_bayes.io.loader import load_session
+
+RATE_TOML = ('columns = { time = "t", speed = "speed_rpm", current = "ia" }',
+             'columns = { speed = "speed_rpm", current = "ia" }\nsample_rate = 100.0')
+RPM = 2 * np.pi / 60
+
+
+def _rows(d):
+    return (d / "step.csv").read_text().splitlines()
+
+
+def _write(d, lines, end="\n"):
+    (d / "step.csv").write_text(end.join(lines) + end, encoding="utf-8")
+
+
+def _at_rate(d):
+    """The step file without its time column, at its rate of 100 Hz."""
+    replace_once(d / "session.toml", *RATE_TOML)
+    _write(d, [",".join(line.split(",")[1:]) for line in _rows(d)])
+
+
+@pytest.mark.parametrize("missed", [",", "-,-", "NaN,NaN"])
+def test_a_row_that_missed_every_reading_keeps_its_place(session_dir, missed):
+    """At a sample rate, a row whose every cell is empty or a missed reading is a
+    sample of its own: the rows after it keep their times, and it is left out."""
+    _at_rate(session_dir)
+    lines = _rows(session_dir)
+    lines[41] = missed  # file line 42: the sample at 0.40 s
+    _write(session_dir, lines)
+    tr = load_session(session_dir).trace("step")
+    assert tr.rows_left_out == (42,) and tr.n == STEP_N - 1
+    k = int(np.searchsorted(tr.time, 0.5))
+    assert tr.time[k] == pytest.approx(0.5)
+    assert tr.speed[k] == pytest.approx(step_rows()[50][1] * RPM, rel=1e-6)
+
+
+def test_a_stamped_row_that_missed_every_reading_is_left_out(session_dir):
+    lines = _rows(session_dir)
+    lines[30] = "-,-,-"
+    _write(session_dir, lines)
+    tr = load_session(session_dir).trace("step")
+    assert tr.rows_left_out == (31,) and tr.n == STEP_N - 1
+    assert np.all(np.diff(tr.time) > 0)
+
+
+def test_a_last_line_cut_off_mid_write_is_left_out(session_dir):
+    lines = _rows(session_dir)
+    lines[-1] = lines[-1].rsplit(",", 1)[0]  # the current never written
+    (session_dir / "step.csv").write_text("\n".join(lines), encoding="utf-8")
+    tr = load_session(session_dir).trace("step")
+    assert tr.rows_left_out == (len(lines),) and tr.n == STEP_N - 1
+    # the same short row with its newline is a row to mend, not a cut
+    _write(session_dir, lines)
+    with pytest.raises(SessionError, match="fill in the missing fields"):
+        load_session(session_dir)
+
+
+def test_an_instrument_overrange_code_is_a_missed_reading(session_dir):
+    lines = _rows(session_dir)
+    cells = lines[60].split(",")
+    lines[60] = ",".join([cells[0], "9.9E37", cells[2]])
+    _write(session_dir, lines)
+    tr = load_session(session_dir).trace("step")
+    assert tr.rows_left_out == (61,) and np.max(tr.speed) < 1100 * RPM
+
+
+def test_a_twelve_hour_clock_reads_across_noon(session_dir):
+    lines = _rows(session_dir)
+    out = [lines[0]]
+    for k, line in enumerate(lines[1:]):
+        s = 11 * 3600 + 59 * 60 + 59.5 + 0.01 * k  # 11:59:59.50 AM, then past noon
+        h, rem = divmod(s, 3600)
+        m, sec = divmod(rem, 60)
+        clock = f"{int(h) % 12 or 12:02d}:{int(m):02d}:{sec:06.3f} {'PM' if h >= 12 else 'AM'}"
+        out.append(",".join([clock, *line.split(",")[1:]]))
+    _write(session_dir, out)
+    tr = load_session(session_dir).trace("step")
+    assert np.allclose(tr.time, np.arange(STEP_N) * 0.01, atol=1e-9)
+
+
+def test_text_as_word_processors_and_cards_leave_it_is_read(session_dir):
+    lines = _rows(session_dir)
+    minus = [lines[0], lines[1].replace(",0.0500", ",\u22120.0500"), *lines[2:]]
+    _write(session_dir, minus)
+    assert load_session(session_dir).trace("step").current[0] == pytest.approx(-0.05)
+    (session_dir / "step.csv").write_bytes(("\r".join(lines) + "\r").encode())
+    assert load_session(session_dir).trace("step").n == STEP_N
+    (session_dir / "step.csv").write_bytes(("\n".join(lines) + "\n").encode() + b"\0" * 512)
+    assert load_session(session_dir).trace("step").n == STEP_N
+
+
+def test_columns_not_read_may_share_a_name(session_dir):
+    lines = _rows(session_dir)
+    _write(session_dir, [lines[0] + ",V,V"] + [line + ",1,2" for line in lines[1:]])
+    assert load_session(session_dir).trace("step").n == STEP_N
+
+
+def test_a_decimal_comma_in_quotes_is_read_in_a_comma_separated_file(session_dir):
+    lines = _rows(session_dir)
+    quoted = [lines[0]] + [",".join(f'"{c.replace(".", ",")}"' for c in line.split(","))
+                           for line in lines[1:]]
+    _write(session_dir, quoted)
+    tr = load_session(session_dir).trace("step")
+    assert tr.speed[-1] == pytest.approx(step_rows()[-1][1] * RPM, rel=1e-4)
+
+
+@pytest.mark.parametrize(("sep", "big", "mark"), [
+    (";", "1.800", "decimal point"),  # a spreadsheet's locale: decimal comma, 1.800 grouped
+    ("\t", "1,800", "decimal comma"),  # decimal point, 1,800 grouped
+])
+def test_a_thousands_separator_is_refused_not_read_as_decimals(session_dir, sep, big, mark):
+    lines = _rows(session_dir)
+    comma = sep == ";"
+    out = [lines[0].replace(",", sep)]
+    for k, line in enumerate(lines[1:]):
+        cells = line.split(",")
+        if comma:
+            cells = [c.replace(".", ",") for c in cells]
+        if k == 120:
+            cells[1] = big
+        out.append(sep.join(cells))
+    _write(session_dir, out)
+    with pytest.raises(SessionError) as err:
+        load_session(session_dir)
+    text = str(err.value)
+    assert "line 122" in text and repr(big) in text and mark in text
+    assert "thousands separator" in text
+
+
+def test_a_quoted_number_that_may_be_grouped_is_refused(session_dir):
+    """In a comma-separated file whose numbers have no decimals, "1,800" is 1800 or 1.8:
+    refused; beside a decimal comma elsewhere in the file it is 1.8."""
+    lines = _rows(session_dir)
+    whole = [lines[0]] + [",".join(str(round(float(c) * 100)) for c in line.split(","))
+                          for line in lines[1:]]
+    whole[100] = '990,"1,800",5'
+    _write(session_dir, whole)
+    with pytest.raises(SessionError, match="'1,800' may be a thousands separator"):
+        load_session(session_dir)
+
+
+@pytest.mark.parametrize(("row", "ok"), [
+    ("s,rpm,A", True), ("(s),(1/min),(A)", True), ("[s],[RPM],[mA]", False),
+    ("ms,rpm,A", False), ("s,rad/s,A", False), ("Time,Speed,Current", True),
+])
+def test_a_row_of_units_is_checked_against_session_toml(session_dir, row, ok):
+    lines = _rows(session_dir)
+    _write(session_dir, [lines[0], row, *lines[1:]])
+    if ok:
+        assert load_session(session_dir).trace("step").n == STEP_N
+        return
+    with pytest.raises(SessionError) as err:
+        load_session(session_dir)
+    text = str(err.value)
+    assert "step.csv:line 2" in text and "the row of units gives column" in text
+    assert "trace['step'].units." in text
+
+
+def test_a_schedule_on_another_clock_than_the_samples_is_refused(session_dir):
+    """The logger's time starts at 12.345 s, the schedule at 0: every change lies before
+    the first row, so no step would be seen; refused, where leading rows left out for a
+    missed reading are not."""
+    lines = _rows(session_dir)
+    shifted = [lines[0]] + [",".join([f"{float(line.split(',')[0]) + 12.345:.3f}",
+                                      *line.split(",")[1:]]) for line in lines[1:]]
+    _write(session_dir, shifted)
+    with pytest.raises(SessionError, match="before the first row at 12.345 s"):
+        load_session(session_dir)
