@@ -178,3 +178,14 @@ def test_a_schedule_on_another_clock_than_the_samples_is_refused(session_dir):
     _write(session_dir, shifted)
     with pytest.raises(SessionError, match="before the first row at 12.345 s"):
         load_session(session_dir)
+
+
+def test_a_header_in_another_case_is_matched(session_dir):
+    lines = _rows(session_dir)
+    _write(session_dir, ["T , Speed_RPM ,IA", *lines[1:]])
+    assert load_session(session_dir).trace("step").n == STEP_N
+    # two columns that differ only in case leave the name to match exactly
+    _write(session_dir, ["T,Speed_rpm,SPEED_RPM,ia"] + [
+        ",".join([line.split(",")[0], "1", *line.split(",")[1:]]) for line in lines[1:]])
+    with pytest.raises(SessionError, match="no column named 'speed_rpm'"):
+        load_session(session_dir)

@@ -138,17 +138,22 @@ PREAMBLE = 100  # lines searched for a header after a first line that is not one
 
 
 def _names(line: str) -> set[str]:
-    """The names a header line gives its columns."""
+    """The names a header line gives its columns, case folded (a header matches the
+    names asked for in any case, :func:`._rows.column_index`)."""
     sep = _separator(line)
     cells = line.split() if sep == _SPACES else line.rstrip("\r\n").split(sep)
-    return {cell.strip().strip('"') for cell in cells}
+    return {cell.strip().strip('"').casefold() for cell in cells}
+
+
+def _asked(wanted: dict[str, str]) -> set[str]:
+    return {name.casefold() for name in wanted.values()}
 
 
 def _uncommented_header(text: str, wanted: dict[str, str]) -> str:
     """``text`` with a header written as a comment (``# t,speed,ia``, as NumPy's
     ``savetxt`` writes one) read as the header, where no other of the first
     :data:`PREAMBLE` lines names every column wanted; the line numbers unchanged."""
-    want, found, start = set(wanted.values()), None, 0
+    want, found, start = _asked(wanted), None, 0
     for _ in range(PREAMBLE + 1):
         if start >= len(text):
             break
@@ -175,12 +180,12 @@ def _header_line(text: str, wanted: dict[str, str], first: str) -> tuple[int, st
     above it); the count of lines before it and its text."""
     names = _names
 
-    if set(wanted.values()) <= names(first):
+    if _asked(wanted) <= names(first):
         return _blank_lines_before(text), first
     for k, line in enumerate(_lines(text)):
         if k > PREAMBLE:
             break
-        if line.strip() and set(wanted.values()) <= names(line):
+        if line.strip() and _asked(wanted) <= names(line):
             return k, line
     return _blank_lines_before(text), first
 

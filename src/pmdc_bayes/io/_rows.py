@@ -164,7 +164,8 @@ def _index(path, header, sep, wanted, asked_by, line) -> dict:
                            "separate the columns with commas", where=f"line {line}")
     index = {}
     for role, name in wanted.items():
-        if name not in header:
+        k = column_index(header, name)
+        if k is None:
             cols = ", ".join(repr(h) for h in header)
             raise SessionError(
                 path,
@@ -173,8 +174,17 @@ def _index(path, header, sep, wanted, asked_by, line) -> dict:
                 "the name in session.toml or in the header",
                 where=f"line {line}",
             )
-        index[role] = header.index(name)
+        index[role] = k
     return index
+
+
+def column_index(header: list, name: str) -> int | None:
+    """The field named ``name``: exactly, or, where no field is, the one field whose
+    name differs only in case (``Time`` for ``time``)."""
+    if name in header:
+        return header.index(name)
+    folded = [k for k, h in enumerate(header) if h.casefold() == name.casefold()]
+    return folded[0] if len(folded) == 1 else None
 
 
 def _check_width(path, row: _Row, header, sep) -> None:
