@@ -1,7 +1,8 @@
 """A candidate model of the search (:mod:`.search`): fitted at its MAP from the usual
 starts and from its parent's MAP (in its own compiled programs, or a superset model's
-where one covers it and pays, :mod:`.supersets`), checked for adequacy and scored by its Laplace
-evidence; and the typed results the search hands on."""
+where one covers it and pays, :mod:`.supersets`), scored by its Laplace evidence and
+checked for adequacy where the search's choice turns on it; and the typed results the
+search hands on."""
 
 from __future__ import annotations
 
@@ -66,10 +67,23 @@ class Candidate:
     def __init__(self, terms, session, cf, model, parent, move):
         self.terms, self.session, self.cf, self.model = terms, session, cf, model
         self.parent, self.move = parent, move
-        self.fit = self.adequacy = None
+        self.fit = self._adequacy = None
         self.log_evidence = math.nan
         self.undetermined = ()
         self.why = ""
+
+    @property
+    def adequacy(self):
+        """The verdict on the candidate (:func:`~.inference.adequacy.assess`), made when
+        first asked for: the search asks only of the candidates its choice turns on."""
+        if self._adequacy is None:
+            self._adequacy = assess(self.model, self.fit, self.cf)
+        return self._adequacy
+
+    @property
+    def checked(self) -> bool:
+        """Whether the verdict has been made."""
+        return self._adequacy is not None
 
     @property
     def ok(self) -> bool:
@@ -84,7 +98,6 @@ class Candidate:
             self.fit = fit_map(self.model, seed=seed, alternatives=starts)
         else:
             self.fit = superset.fit(self.model, seed=seed, alternatives=starts)
-        self.adequacy = assess(self.model, self.fit, self.cf)
         self.log_evidence = laplace_log_evidence(self.model, self.fit)
         own = set(self.parent.model.names) if self.parent is not None else set(self.model.names)
         ratio = np.sqrt(np.clip(np.diag(self.fit.cov_log), 0, None)) / self.model.prior_sd
@@ -92,16 +105,21 @@ class Candidate:
                                   if n not in own and r > PRIOR_DOMINATED)
 
     def row(self) -> dict:
+        """The candidate's row of the record; its verdict ``"not checked"`` where the
+        search's choice did not turn on it (its evidence too low to be taken)."""
         fit = self.fit
         parent = self.parent
+        verdict = self._adequacy
         return {"name": label(self.terms), "terms": ordered(self.terms),
                 "n_params": len(self.model.names), "move": self.move,
                 "parent": None if parent is None else label(parent.terms),
-                "verdict": self.adequacy.verdict, "converged": fit.status == "converged",
+                "verdict": "not checked" if verdict is None else verdict.verdict,
+                "converged": fit.status == "converged",
                 "log_posterior": float(fit.log_posterior), "log_evidence": self.log_evidence,
                 "delta_log_evidence": None if parent is None
                 else self.log_evidence - parent.log_evidence,
                 "undetermined": list(self.undetermined),
-                "failures": [f"{f.where}: {f.check}" for f in self.adequacy.failures()],
+                "failures": [] if verdict is None else [f"{f.where}: {f.check}"
+                                                         for f in verdict.failures()],
                 "values": {n: [fit.values[n], fit.sd[n]] for n in self.model.names},
                 "loo": None, "decision": "dropped", "why": ""}

@@ -1,9 +1,11 @@
 """The rig's model found by a stepwise search over its non-idealities (``fit --compare``).
 
 The search starts from the session's model (the ideal motor without a ``[model]``) and
-moves one step at a time, every candidate fitted at its MAP, checked for adequacy and
-scored by its Laplace evidence (:func:`~.selection.laplace_log_evidence`, compared on
-the Kass–Raftery scale):
+moves one step at a time, every candidate fitted at its MAP and scored by its Laplace
+evidence (:func:`~.selection.laplace_log_evidence`, compared on the Kass–Raftery
+scale), and checked for adequacy where the choice turns on it (in order of evidence,
+until one the data do not reject gains enough; a candidate below it keeps its verdict
+"not checked"):
 
 - **forward**: the additions the adequacy verdict proposes (its ``proposals``), or,
   when the model is rejected and nothing is proposed, every single addition of the
@@ -108,8 +110,7 @@ class _Search:
             for cand, superset in zip(new, programs, strict=True):
                 cand.run(self.seed, superset)
                 self.order.append(cand)
-                self.say(f"model search: {label(cand.terms)}: {cand.adequacy.verdict}, "
-                         f"log Z {cand.log_evidence:.1f}")
+                self.say(f"model search: {label(cand.terms)}: log Z {cand.log_evidence:.1f}")
         ahead.stop()
         return out
 
@@ -179,23 +180,28 @@ def _suspect_traces(session: Session) -> tuple[str, ...]:
 
 
 def _better(current, cands) -> tuple[Candidate | None, str]:
-    """The candidate an addition step takes, and why (None: none)."""
-    best, why = None, ""
-    for c in sorted(cands, key=lambda c: (-c.ok, -c.log_evidence if
-                                          math.isfinite(c.log_evidence) else math.inf)):
-        if c.fit.status != "converged" or not math.isfinite(c.log_evidence):
-            continue
+    """The candidate an addition step takes, and why (None: none): the one of highest
+    evidence the data do not reject that gains enough over ``current`` (more than
+    :data:`ADD_MARGIN`, or anything where ``current`` is rejected; its added parameters
+    determined by the data where ``current`` is not rejected); else, where ``current`` is
+    rejected, the one of highest evidence that gains more than the margin.  The
+    candidates are checked for adequacy in order of evidence, only as far as the choice
+    needs."""
+    fallback = None
+    for c in sorted((c for c in cands if c.fit.status == "converged"
+                     and math.isfinite(c.log_evidence)), key=lambda c: -c.log_evidence):
         gain = c.log_evidence - current.log_evidence
-        if current.ok and (c.undetermined or not c.ok):
+        if gain <= ADD_MARGIN and (current.ok or gain < 0):
+            break  # in order of evidence: none after it gains enough
+        if current.ok and c.undetermined:
             continue
-        if gain > ADD_MARGIN:
-            best, why = c, f"log Z {gain:+.1f} over {label(current.terms)}"
-        elif not current.ok and c.ok and gain >= 0:
-            best, why = c, (f"the data reject {label(current.terms)}, not it "
+        if c.ok:
+            return c, (f"log Z {gain:+.1f} over {label(current.terms)}" if gain > ADD_MARGIN
+                       else f"the data reject {label(current.terms)}, not it "
                             f"(log Z {gain:+.1f})")
-        if best is not None:
-            break
-    return best, why
+        if not current.ok and gain > ADD_MARGIN and fallback is None:
+            fallback = c, f"log Z {gain:+.1f} over {label(current.terms)}"
+    return fallback or (None, "")
 
 
 def _removals(search, current, start_terms, last_move) -> Candidate:
@@ -297,8 +303,8 @@ def _record(search, chosen, stop, session) -> dict:
         row["why"] = c.why
         row["decision"] = "chosen" if c is chosen else "dropped"
         rows.append(row)
-    ties = [c for c in search.order if c is not chosen and c.ok and chosen.ok
-            and abs(c.log_evidence - chosen.log_evidence) <= TIE]
+    ties = [c for c in search.order if c is not chosen and chosen.ok
+            and abs(c.log_evidence - chosen.log_evidence) <= TIE and c.ok]
     table, friction = model_table(session, chosen.terms)
     if chosen.ok:
         reason = f"the data do not reject it; the search stopped: {stop}"

@@ -50,16 +50,19 @@ def format_selection(sel: dict) -> list[str]:
     fits = sel.get("fits", len(rows))
     lines = [f"Model search from {sel.get('start', 'ideal')}: {fits} "
              f"fit{'s' * (fits != 1)} (at most {sel.get('max_fits', len(rows))})",
-             f"{'candidate':<{width}}{'params':>7}  {'verdict':<11}{'log Z':>11}{'ΔZ':>9}"
+             f"{'candidate':<{width}}{'params':>7}  {'verdict':<13}{'log Z':>11}{'ΔZ':>9}"
              f"  why"]
     for r in rows:
         mark = "*" if r.get("decision") == "chosen" else " "
         why = r.get("why") or ", ".join(r["failures"][:2]) or "—"
-        lines.append(f"{mark}{r['name']:<{width - 1}}{r['n_params']:>7}  {r['verdict']:<11}"
+        lines.append(f"{mark}{r['name']:<{width - 1}}{r['n_params']:>7}  {r['verdict']:<13}"
                      f"{_num(r.get('log_evidence')):>11}"
                      f"{_num(r.get('delta_log_evidence'), '+.1f'):>9}  {why}")
     lines.append("log Z: the Laplace approximation of each candidate's log marginal "
                  "likelihood; ΔZ against the model it was made from (a log Bayes factor).")
+    if any(r["verdict"] == "not checked" for r in rows):
+        lines.append("not checked: its evidence too low to be chosen, so its verdict was "
+                     "not needed.")
     lines.append(f"Chosen: {sel['recommended']} — {sel['reason']}.")
     if sel.get("equivalent"):
         lines.append("The data do not tell it from: " + "; ".join(sel["equivalent"])
