@@ -10,6 +10,7 @@ import numpy as np
 from .._errors import SessionError
 from . import _sensors as sensors
 from ._csv import read_columns
+from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
 from ._missing import MISSABLE, without_missing
 from ._position import (
     angle_si,
@@ -32,92 +33,7 @@ _TRACE_KINDS = {"time": "time", "speed": "speed", "current": "current", "voltage
                 "load_torque": "torque", "position": "angle"}
 _UNIT_KINDS = dict(_TRACE_KINDS, supply_voltage="voltage", sample_rate="frequency",
                    **sensors.UNIT_KINDS)  # the keys of a trace's units
-_DUTY_UNITS = {"1": 1.0, "%": 100.0}  # a voltage logged as a duty: its full scale
 _COLUMNS = dict(_TRACE_KINDS, direction="")  # the roles a column may have
-
-
-def _schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray, start: float,
-              duty=None) -> Schedule:
-    """A ``[[time, value], ...]`` schedule in the trace's units, checked against the samples
-    (``start``: the file's first row's time, before rows missing a reading were left out;
-    a voltage logged as a duty of ``duty``'s supply when given)."""
-    pairs = t.data[key]
-    example = f"{key} = [[0.0, 0.0], [1.0, 12.0]]"
-    if not isinstance(pairs, list) or not pairs:
-        t.fail(key, f"expected a list of [time, value] pairs, got {_describe(pairs)}; "
-               f"write e.g. {example}")
-    times, values = [], []
-    for i, pair in enumerate(pairs):
-        if not isinstance(pair, list) or len(pair) != 2:
-            t.fail(f"{key}[{i}]", f"expected a [time, value] pair, got {_describe(pair)}; "
-                   f"write e.g. {example}")
-        pt = _Table(t.file, {"time": pair[0], "value": pair[1]}, t.path(f"{key}[{i}]"))
-        times.append(pt.number("time"))
-        values.append(pt.number("value"))
-        if i and times[i] <= times[i - 1]:
-            t.fail(f"{key}[{i}]", f"schedule time {times[i]:g} does not follow "
-                   f"{times[i - 1]:g}; list the pairs with strictly increasing times")
-    tu = u["time"]
-    if times[0] > t_raw[-1]:
-        t.fail(key, f"trace and schedule don't overlap: the schedule starts at {times[0]:g} "
-               f"{tu}, after the last sample at {t_raw[-1]:g} {tu}; check the times (both "
-               "are in the trace's time unit)")
-    if times[0] > t_raw[0]:
-        t.fail(key, f"the schedule starts at {times[0]:g} {tu}, after the first sample at "
-               f"{t_raw[0]:g} {tu}; add a pair at the first sample time, "
-               f"[{t_raw[0]:g}, <value>]")
-    inside = [v for tk, v in zip(times, values, strict=True) if tk <= t_raw[-1]]
-    later = [tk for k, tk in enumerate(times) if tk > t_raw[-1] and values[k] != inside[-1]]
-    if len(set(inside)) == 1 and later:
-        t.fail(key, f"the {key} changes at {later[0]:g} {tu}, after the last sample at "
-               f"{t_raw[-1]:g} {tu}, and is constant over the samples; check the schedule's "
-               "times (they are in the trace's time unit)")
-    changes = [tk for k, tk in enumerate(times) if k and values[k] != values[k - 1]]
-    if changes and changes[-1] < start and not edges_flag(t):  # an edge comes after a step
-        t.fail(key, f"the {key} changes last at {changes[-1]:g} {tu}, before the first row "
-               f"at {start:g} {tu}, and is constant over the samples; write the "
-               "schedule's times on the time column's clock (a time column that does not "
-               "start at 0 is read as written)")
-    values = (_duty_to_volts(t, key, np.array(values), duty) if duty is not None
-              else to_si(np.array(values), kind, u[key]))
-    return Schedule(to_si(np.array(times), "time", tu), values)
-
-
-def _duty_scale(t: _Table, u: dict) -> tuple[float, float] | None:
-    """``(supply voltage, full scale)`` when the trace's voltage is logged as a duty (a
-    fraction, a percentage, or PWM counts of ``pwm_full_scale``) of ``supply_voltage``;
-    None when it is a voltage."""
-    duty_unit = u["voltage"] in (*_DUTY_UNITS, "pwm")
-    if "supply_voltage" not in t.data:
-        if duty_unit:
-            t.fail("supply_voltage", f"the voltage is logged as a duty (units.voltage = "
-                   f"\"{u['voltage']}\") but no supply_voltage is given; add the driver's "
-                   "supply, e.g. supply_voltage = 12.0")
-        if "pwm_full_scale" in t.data:
-            t.fail("pwm_full_scale", "is only read with a voltage logged as PWM counts; set "
-                   "units.voltage = \"pwm\" and supply_voltage, or remove it")
-        return None
-    if not duty_unit:
-        t.fail("supply_voltage", "is only read with a voltage logged as a duty; set "
-               "units.voltage = \"%\", \"1\" (a fraction) or \"pwm\" (with pwm_full_scale), "
-               "or remove supply_voltage")
-    supply = t.number("supply_voltage", "voltage", u["supply_voltage"], positive=True)
-    if u["voltage"] == "pwm":
-        return supply, t.number("pwm_full_scale", positive=True)
-    if "pwm_full_scale" in t.data:
-        t.fail("pwm_full_scale", "is only read with units.voltage = \"pwm\"; remove it or "
-               "set that unit")
-    return supply, _DUTY_UNITS[u["voltage"]]
-
-
-def _duty_to_volts(t: _Table, where: str, duty: np.ndarray, scale) -> np.ndarray:
-    """A duty (in its unit, signed for a reversing bridge) as the mean armature voltage."""
-    supply, full = scale
-    worst = float(np.max(np.abs(duty))) if duty.size else 0.0
-    if worst > full * (1 + 1e-9):
-        t.fail(where, f"a duty of {worst:g} is beyond full scale ({full:g}); check "
-               "units.voltage (\"1\" for a fraction, \"%\", or \"pwm\" with pwm_full_scale)")
-    return duty / full * supply
 
 
 def _initial(t: _Table, u: dict):
@@ -283,9 +199,9 @@ def _trace(t: _Table, root: Path) -> Trace:
                   *sensors.KEYS))
     # an angle in counts is 2π/counts_per_rev each, known per trace (_position.angle_si)
     name, kind = t.string("name"), t.string("kind")
-    u = t.units(_UNIT_KINDS, extra={"position": ("counts",), "voltage": (*_DUTY_UNITS, "pwm"),
+    u = t.units(_UNIT_KINDS, extra={"position": ("counts",), "voltage": (*DUTY_UNITS, "pwm"),
                                     "speed": sensors.VOLTS, "current": sensors.VOLTS})
-    duty = _duty_scale(t, u)
+    duty = duty_scale(t, u)
     cols = _columns(t, _COLUMNS)
     sensors.check_unused(t, u, cols)
     edges = edges_flag(t)
@@ -303,13 +219,13 @@ def _trace(t: _Table, root: Path) -> Trace:
     if "current" in raw:
         si["current"] = sensors.current_si(t, raw["current"], u)
     if "voltage" in raw and duty is not None:
-        si["voltage"] = _duty_to_volts(t, "columns.voltage", raw["voltage"], duty)
+        si["voltage"] = duty_to_volts(t, "columns.voltage", raw["voltage"], duty)
     inputs = {}
     for inp in ("voltage", "load_torque"):
         if inp in si:
             inputs[inp] = Schedule(time, si[inp])
         elif inp in t.data:
-            inputs[inp] = _schedule(t, inp, u, _TRACE_KINDS[inp], t_raw, start,
+            inputs[inp] = schedule(t, inp, u, _TRACE_KINDS[inp], t_raw, start,
                                     duty if inp == "voltage" else None)
         else:
             inputs[inp] = Schedule(time[:1].copy(), np.zeros(1))
