@@ -45,8 +45,8 @@ __all__ = ["Finding", "Adequacy", "assess", "whiteness", "fit_percent", "systema
            "DATA_FAULTS"]
 
 DATA_FAULTS = frozenset({"outlying reading"})  # checks that fail the data, not the model
-NOTHING_TO_ADD = ("nothing yet: a bad reading in the data pulls the fit, and any other check "
-                  "that fails may follow from it; mend the reading and fit again")
+NOTHING_TO_ADD = ("nothing: the check that fails finds a bad reading in the data, not a part "
+                  "the model lacks; mend the reading and fit again")
 BENCH_WARN_Z = 3.0  # a bench quantity this many bench sd away is worth a warning
 STEADY_MATERIAL = 0.03  # steady readings missed by 3 % of the largest reading (rms)
 
@@ -90,9 +90,9 @@ class Adequacy:
 
     @property
     def faulty_data(self) -> bool:
-        """Whether the verdict fails on the data: a check of :data:`DATA_FAULTS` fails
-        (a bad reading, which no addition to the model mends and which pulls the fit, so
-        that the other checks wait for the mended data)."""
+        """Whether the verdict fails on the data alone: every failing check is one of
+        :data:`DATA_FAULTS`, which no addition to the model mends (where others fail
+        beside it, a model far off the data can leave a lone reading far off too)."""
         return _data_fault(self.findings)
 
     def failures(self) -> list[Finding]:
@@ -119,8 +119,9 @@ class Adequacy:
 
 # -- the statistics --------------------------------------------------------------------
 def _data_fault(findings) -> bool:
-    """Whether a check of :data:`DATA_FAULTS` fails."""
-    return any(f.severity == "fail" and f.check in DATA_FAULTS for f in findings)
+    """Whether some check fails and every one that does is one of :data:`DATA_FAULTS`."""
+    fails = [f.check for f in findings if f.severity == "fail"]
+    return bool(fails) and all(c in DATA_FAULTS for c in fails)
 
 
 def whiteness(r, u=None, *, lags: int | None = None) -> dict:
@@ -276,7 +277,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     findings += solver_checks(model, fit)
     findings += drag_checks(model)
     findings += bound_checks(model, fit)
-    findings.sort(key=lambda f: (f.severity != "fail", f.check not in DATA_FAULTS))
+    findings.sort(key=lambda f: f.severity != "fail")
     verdict = "inadequate" if any(f.severity == "fail" for f in findings) else "adequate"
     if verdict == "adequate":
         diagnosis, proposals = (), ()
