@@ -20,6 +20,12 @@ after the text is dropped; a time column may hold a logger's time stamps
 9.9E37) is NaN in the columns the caller allows it in, and a row that missed every
 reading keeps its place (:mod:`._rows`); anything else that is not a number is an
 error naming its line.
+
+A file without a header is read by field numbers (``columns = { time = 1, ... }``):
+every line whose numbered fields hold numbers is a sample, the text before the first
+(an instrument's settings, a header not read) is passed over.  A log of ``name=value``
+lines (:mod:`._key_values`) is read by the names.  A file that is not UTF-8 is read as
+Windows-1252, whose letters only its names can hold.
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ from pathlib import Path
 
 from .._errors import SessionError
 from ._cells import MISSING
+from ._key_values import key_value_rows
 from ._rows import SEPARATOR_NAMES, Columns, read_rows
 from ._text import read_text
 
@@ -106,10 +113,13 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str,
         column, has a row with fewer or more fields than the header, or a cell that is
         not a finite number.
     """
-    text = read_text(path, "CSV file").rstrip("\x00")  # a logger's card padded with NULs
+    text = read_text(path, "CSV file", legacy=True)
+    text = text.rstrip("\x00")  # a logger's card padded with NULs
     if "\n" not in text:
         text = text.replace("\r", "\n")  # lines ended by a carriage return alone
-    text = _uncommented_header(text, wanted)
+    positional = all(isinstance(v, int) for v in wanted.values())  # no header
+    if not positional:
+        text = _uncommented_header(text, wanted)
     cut = None if text.endswith("\n") else text.count("\n") + 1  # a last line unended
     if "\x00" in text:
         line = text[:text.index("\x00")].count("\n") + 1
@@ -119,19 +129,52 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str,
     if first is None:
         raise SessionError(path, "the file is empty; its first line must be a header "
                            "naming the columns, followed by one row per sample")
-    at, first = _header_line(text, wanted, first)
-    sep = _separator(first)
+    fields = None
+    if positional:
+        at, sep = 0, _data_separator(text)
+        fields = {role: k - 1 for role, k in wanted.items()}
+        wanted = {role: f"field {k}" for role, k in wanted.items()}
+    else:
+        at, first = _header_line(text, wanted, first)
+        if not _asked(wanted) <= _names(first):
+            pairs = key_value_rows(text, wanted)
+            if pairs is not None:
+                return _read_key_values(path, pairs, wanted, stamps, missing, cut)
+        sep = _separator(first)
     reader = (_SpaceReader(_lines(text)) if sep == _SPACES
               else csv.reader(_lines(text), delimiter=sep))
     try:
         for _ in range(at):  # a preamble before the header
             next(reader)
         return read_rows(path, reader, sep, wanted, asked_by, stamps=stamps,
-                         missing=missing, cut=cut)
+                         missing=missing, cut=cut, fields=fields)
     except csv.Error as exc:
         raise SessionError(path, f"not readable as CSV ({exc}); check the quoting and that "
                            "each cell is a short number", where=f"line {reader.line_num}") \
             from None
+
+
+def _read_key_values(path, table, wanted, stamps, missing, cut) -> Columns:
+    """The columns of a log written as ``name=value`` pairs (:mod:`._key_values`), with
+    the unit written after each value, if any, as a row of units on the first line."""
+    fields = {role: k for k, role in enumerate(wanted)}
+    read = read_rows(path, csv.reader(_lines(table.text), delimiter=","), ",", wanted, "",
+                     stamps=stamps, missing=missing, cut=cut, fields=fields)
+    return read._replace(units=table.units, units_line=table.units_line)
+
+
+def _data_separator(text: str) -> str:
+    """The separator of a file without a header: the one most of its first lines that
+    hold a digit use, a tab or semicolon before a comma (a decimal comma sits beside
+    semicolons and tabs, never the other way round), runs of spaces where none is."""
+    votes: dict[str, int] = {}
+    for k, line in enumerate(_lines(text)):
+        if k > PREAMBLE:
+            break
+        if any(c.isdigit() for c in line):
+            sep = next((s for s in ("\t", ";", ",") if s in line), _SPACES)
+            votes[sep] = votes.get(sep, 0) + 1
+    return max(votes, key=votes.get) if votes else ","
 
 
 PREAMBLE = 100  # lines searched for a header after a first line that is not one

@@ -67,17 +67,23 @@ def _refuse_text(path, row: _Row, index, wanted, marks) -> None:
 
 
 def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stamps=None,
-              missing=frozenset(), cut: int | None = None) -> Columns:
+              missing=frozenset(), cut: int | None = None,
+              fields: dict | None = None) -> Columns:
     """The columns ``wanted`` (role -> header name) of the rows ``reader`` gives (a
     ``csv.reader`` at the header); ``cut`` is the line number of a last line without
-    its newline (a logger stopped mid-write), if any."""
+    its newline (a logger stopped mid-write), if any.  With ``fields`` (role -> field
+    index from 0) the file has no header: ``reader`` is at its start, ``wanted`` names
+    each column for messages, and the lines of text before the first sample (a
+    preamble, a header not read) are passed over."""
     header = None
-    for row in reader:
-        if any(cell.strip() for cell in row):
-            header = [cell.strip() for cell in row]
-            break
-    header_line = reader.line_num
-    index = _index(path, header, sep, wanted, asked_by, header_line)
+    if fields is None:
+        for row in reader:
+            if any(cell.strip() for cell in row):
+                header = [cell.strip() for cell in row]
+                break
+        index = _index(path, header, sep, wanted, asked_by, reader.line_num)
+    else:
+        index = dict(fields)
     marks = DecimalMarks(path, sep)
     values = {role: array("d") for role in wanted}
     stamped = stamps[0] if stamps is not None and stamps[0] in wanted else None
@@ -100,6 +106,8 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
         short = any(k >= len(cells) for k in index.values())
         if row.line == cut and short:
             kind = "missed"  # a last line cut off mid-write: its readings are lost
+        if header is None and not lines and kind != "data":
+            continue  # a headerless file's preamble
         if kind == "text" and all("\n" not in c for c in cells):
             if not lines and not pending and closing is None and not units:
                 units = {role: (cells[k].strip() if k < len(cells) else "")
@@ -125,8 +133,14 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
         pending = []
         if kind == "missed":
             continue
-        _check_width(path, row, header, sep)
+        if header is not None:
+            _check_width(path, row, header, sep)
         for role, k in index.items():
+            if k >= len(cells) and header is None:
+                raise SessionError(path, f"the row has {len(cells)} fields, and {wanted[role]} "
+                                   f"is asked for (the {role} column in {asked_by}); give "
+                                   "the column's field number, counting from 1",
+                                   where=f"line {row.line}")
             if k >= len(cells):
                 raise SessionError(path, f"the row has {len(cells)} fields but column "
                                    f"{wanted[role]!r} is field {k + 1}; fill in the missing "

@@ -57,8 +57,10 @@ def _raw(path: Path, what: str) -> bytes:
                            "place") from None
 
 
-def read_text(path: Path, what: str = "file") -> str:
-    """The text of ``path``: UTF-8, or UTF-8/UTF-16 with a byte-order mark.
+def read_text(path: Path, what: str = "file", *, legacy: bool = False) -> str:
+    """The text of ``path``: UTF-8, or UTF-8/UTF-16 with a byte-order mark; with
+    ``legacy``, a file that is not UTF-8 is read as Windows-1252 (Latin-1 for the bytes
+    that code leaves undefined), as older Windows programs write text.
 
     ``what`` names the file in messages ("CSV file", "session.toml").  Newlines are
     kept as written (the caller's parser handles them).
@@ -75,6 +77,11 @@ def read_text(path: Path, what: str = "file") -> str:
     try:
         return data.decode(encoding)
     except UnicodeDecodeError as exc:
+        if legacy and encoding == "utf-8":
+            try:
+                return data.decode("cp1252")
+            except UnicodeDecodeError:
+                return data.decode("latin-1")
         line = data[:exc.start].count(b"\n") + 1
         bad = data[exc.start:exc.start + 1].hex()
         raise SessionError(

@@ -143,9 +143,25 @@ class Table:
                               else given.unit(key, kinds[key])) for key in given.data})
         return out
 
-    def columns(self, kinds: dict[str, str], required: tuple[str, ...]) -> dict[str, str]:
+    def columns(self, kinds: dict[str, str], required: tuple[str, ...]) -> dict[str, str | int]:
+        """Each role's column: a header name, or, in a file without a header, the
+        column's field number counted from 1 (every role the same way)."""
         cols = self.table("columns")
         cols.check_keys(kinds)
         for role in required:
-            cols.string(role)
-        return {role: cols.string(role) for role in kinds if role in cols.data}
+            cols._get(role, REQUIRED, "text in quotes")
+        out = {role: (cols._field(role) if isinstance(cols.data[role], int)
+                      and not isinstance(cols.data[role], bool) else cols.string(role))
+               for role in kinds if role in cols.data}
+        if len({type(v) for v in out.values()}) > 1:
+            self.fail("columns", "mixes header names and field numbers; name every column "
+                      "by its header, or, in a file without a header, give every one as its "
+                      "field number (1 for the first)")
+        return out
+
+    def _field(self, key: str) -> int:
+        value = self.data[key]
+        if value < 1:
+            self.fail(key, f"field {value} does not exist; count the fields from 1 (the "
+                      "first column of the file)")
+        return value

@@ -1,0 +1,121 @@
+"""Trace files without a header of names: columns given by their field number (a
+logger that writes bare rows, an oscilloscope's export with its settings in the first
+fields), ``name=value`` lines as a microcontroller's serial prints write them, JSON
+lines, and a header in Windows-1252.  Each is read to the same arrays as the plain
+file with a header; what the file cannot answer is refused with one line."""
+
+import numpy as np
+import pytest
+from conftest import STEP_N, replace_once
+
+from pmdc_bayes._errors import SessionError
+from pmdc_bayes.io.loader import load_session
+
+COLUMNS = 'columns = { time = "t", speed = "speed_rpm", current = "ia" }'
+
+
+def _rows(d):
+    return (d / "step.csv").read_text().splitlines()
+
+
+def _write(d, lines):
+    (d / "step.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def _arrays(d):
+    tr = load_session(d).trace("step")
+    return tr.time, tr.speed, tr.current
+
+
+def _same(a, b):
+    return all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+
+
+@pytest.mark.parametrize("sep", [",", ";", "\t", " "])
+def test_columns_given_by_field_number_read_a_file_without_header(session_dir, sep):
+    plain = _arrays(session_dir)
+    lines = _rows(session_dir)[1:]
+    if sep == ";":  # a spreadsheet's locale: decimal commas between semicolons
+        lines = [line.replace(",", ";").replace(".", ",") for line in lines]
+    else:
+        lines = [line.replace(",", sep) for line in lines]
+    _write(session_dir, lines)
+    replace_once(session_dir / "session.toml", COLUMNS,
+                 "columns = { time = 1, speed = 2, current = 3 }")
+    assert _same(_arrays(session_dir), plain)
+
+
+def test_an_oscilloscope_export_with_settings_in_the_first_fields(session_dir):
+    """Settings in fields 1-3 of the first rows, the samples in fields 4-6 of every
+    row; a header line above them is passed over when the columns are numbered."""
+    plain = _arrays(session_dir)
+    lines = _rows(session_dir)
+    settings = ["Record Length,151,", "Sample Interval,0.01,s", "Trigger Point,10,Samples"]
+    out = [",,," + lines[0]]
+    for k, line in enumerate(lines[1:]):
+        out.append((settings[k] if k < len(settings) else ",,") + "," + line)
+    _write(session_dir, out)
+    replace_once(session_dir / "session.toml", COLUMNS,
+                 "columns = { time = 4, speed = 5, current = 6 }")
+    assert _same(_arrays(session_dir), plain)
+
+
+@pytest.mark.parametrize(("columns", "match"), [
+    ('{ time = 1, speed = "speed_rpm", current = 3 }', "mixes header names and field numbers"),
+    ("{ time = 0, speed = 2, current = 3 }", "count the fields from 1"),
+    ("{ time = 1, speed = 2, current = 7 }", "the row has 3 fields, and field 7 is asked for"),
+])
+def test_field_numbers_the_file_cannot_answer_are_refused(session_dir, columns, match):
+    _write(session_dir, _rows(session_dir)[1:])
+    replace_once(session_dir / "session.toml", COLUMNS, f"columns = {columns}")
+    with pytest.raises(SessionError, match=match):
+        load_session(session_dir)
+
+
+def _pairs(lines, fmt):
+    out = []
+    for line in lines[1:]:
+        t, w, i = line.split(",")
+        out.append(fmt.format(t=t, w=w, i=i))
+    return out
+
+
+@pytest.mark.parametrize("fmt", [
+    "t={t} s speed_rpm={w} rpm ia={i} A",  # Serial.print with the units after the values
+    "t: {t}, speed_rpm: {w}, ia: {i}",
+    '{{"t": {t}, "speed_rpm": {w}, "ia": {i}, "state": "run"}}',  # JSON lines
+    "[log] 12:00:01 t={t}\tspeed_rpm={w}\tia={i}",
+])
+def test_name_value_lines_are_read_as_rows(session_dir, fmt):
+    plain = _arrays(session_dir)
+    lines = _pairs(_rows(session_dir), fmt)
+    _write(session_dir, ["# motor test, firmware 1.2", "starting...", *lines, "done"])
+    assert _same(_arrays(session_dir), plain)
+
+
+def test_name_value_lines_with_a_reading_missed_or_a_unit_against_the_session(session_dir):
+    lines = _pairs(_rows(session_dir), "t={t} s speed_rpm={w} rpm ia={i} A")
+    lines[40] = lines[40].split(" ia=")[0]  # the current not printed on file line 41
+    _write(session_dir, lines)
+    tr = load_session(session_dir).trace("step")
+    assert tr.rows_left_out == (41,) and tr.n == STEP_N - 1
+    _write(session_dir, [line.replace(" s ", " ms ") for line in lines])
+    with pytest.raises(SessionError, match=r"step.csv:line 1: the row of units gives column "
+                                           r"'t' in 'ms'.*units.time = \"ms\""):
+        load_session(session_dir)
+
+
+def test_a_header_written_in_windows_1252_is_read(session_dir):
+    plain = _arrays(session_dir)
+    lines = _rows(session_dir)
+    text = "\n".join(["t [\u00b5s]," + lines[0].split(",", 1)[1]] + [
+        ",".join([str(round(float(line.split(",")[0]) * 1e6)), *line.split(",")[1:]])
+        for line in lines[1:]]) + "\n"
+    (session_dir / "step.csv").write_bytes(text.encode("cp1252"))
+    toml = session_dir / "session.toml"
+    replace_once(toml, 'time = "t",', 'time = "t [\u00b5s]",')
+    replace_once(toml, 'time = "s",', 'time = "us",')
+    replace_once(toml, "voltage = [[0.0, 0.0], [0.1, 6.0]]", "voltage = [[0.0, 0.0], [1e5, 6.0]]")
+    time, speed, current = _arrays(session_dir)
+    assert np.allclose(time, plain[0], rtol=0, atol=1e-12)
+    assert np.array_equal(speed, plain[1]) and np.array_equal(current, plain[2])
