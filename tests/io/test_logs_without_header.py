@@ -119,3 +119,13 @@ def test_a_header_written_in_windows_1252_is_read(session_dir):
     time, speed, current = _arrays(session_dir)
     assert np.allclose(time, plain[0], rtol=0, atol=1e-12)
     assert np.array_equal(speed, plain[1]) and np.array_equal(current, plain[2])
+
+
+def test_a_steady_table_without_header(session_dir):
+    plain = load_session(session_dir).steady_tables[0]
+    (session_dir / "sweep.csv").write_text("2.0,10.0\n4.0,30.0\n6.0,50.0\n")
+    replace_once(session_dir / "session.toml", 'columns = { voltage = "Va", speed = "w" }',
+                 "columns = { voltage = 1, speed = 2 }")
+    table = load_session(session_dir).steady_tables[0]
+    assert np.array_equal(table.voltage, plain.voltage)
+    assert np.array_equal(table.speed, plain.speed)
