@@ -81,11 +81,6 @@ class Candidate:
         return self._adequacy
 
     @property
-    def checked(self) -> bool:
-        """Whether the verdict has been made."""
-        return self._adequacy is not None
-
-    @property
     def ok(self) -> bool:
         return self.adequacy.ok and self.fit.status == "converged" \
             and math.isfinite(self.log_evidence)

@@ -40,6 +40,7 @@ from .._x64 import x64
 from .calibrate import FAMILY_LEVEL, holm, logged_quantum, session_rng
 from .channels import CoastDownBlock
 from .coloured import channel_rho
+from .findings import Finding
 
 __all__ = ["Finding", "Adequacy", "assess", "whiteness", "fit_percent", "systematic_misfit",
            "DATA_FAULTS"]
@@ -49,21 +50,6 @@ NOTHING_TO_ADD = ("nothing: the check that fails finds a bad reading in the data
                   "the model lacks; mend the reading and fit again")
 BENCH_WARN_Z = 3.0  # a bench quantity this many bench sd away is worth a warning
 STEADY_MATERIAL = 0.03  # steady readings missed by 3 % of the largest reading (rms)
-
-
-@dataclass(frozen=True)
-class Finding:
-    """One thing the checks found: ``severity`` is ``"fail"`` or ``"warn"``;
-    ``p_value`` the check's p-value under the fitted model (None for a check that is
-    not statistical: the solver's limit, a parameter at its bound)."""
-
-    check: str
-    where: str
-    severity: str
-    size: str
-    message: str
-    suggestion: str = ""
-    p_value: float | None = None
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ import numpy as np
 from scipy.stats import t as student_t
 
 from .calibrate import Test
+from .findings import MATERIAL_FRACTION, Finding
 
 __all__ = ["outlier_test", "EDGE_FRACTION", "OUTLIER_WINDOW", "BURST"]
 
@@ -61,15 +62,13 @@ def outlier_test(name, r, span, *, u=None, time=None, unit="", quantum=0.0) -> T
     the few readings around a step of the input ``u`` (by :data:`EDGE_FRACTION` of its
     range) are left out: there the timing of a switch between samples, or a delay the
     model lacks, moves the readings, not a fault.  Material when the run stands off its
-    neighbours by :data:`~.trace_checks.MATERIAL_FRACTION` of ``span`` and those two
+    neighbours by :data:`~.findings.MATERIAL_FRACTION` of ``span`` and those two
     neighbours agree with each other within half that jump (bad readings among good
     ones, not a step of the residual, a response that starts later or jumps where the
     model's does not, which the systematic misfit and the step start read as the
     model's); and, on a channel logged at a resolution ``quantum``, by more than two
     quanta (a quantiser whose noise seldom moves it flickers by one, and its quiet
     stretches are no yardstick).  None with fewer than 20 readings."""
-    from .adequacy import Finding
-    from .trace_checks import MATERIAL_FRACTION
 
     r = np.asarray(r, float)
     n = r.size

@@ -18,13 +18,13 @@ from scipy.stats import norm
 
 from .calibrate import Test, ratio_p, replicates, tail_p
 from .coloured import innovation_scale
+from .findings import MATERIAL_FRACTION, Finding
 from .glitches import outlier_test
 from .noise import noise_scale
 
 __all__ = ["channel_tests", "slow_ratio", "autocorrelation", "MATERIAL_FRACTION",
            "ANTI_CORRELATION"]
 
-MATERIAL_FRACTION = 0.015  # a systematic misfit that matters, as a fraction of the span
 ANTI_CORRELATION = -0.3  # a lag-1 autocorrelation this negative: not the assumed noise
 
 
@@ -57,7 +57,6 @@ def autocorrelation(r, lags: int):
 
 
 def _finding(check, name, severity, size, message):
-    from .adequacy import Finding
 
     return Finding(check, name, severity, size, message)
 

@@ -4,6 +4,7 @@ and initial state, read, checked and converted to SI (part of the session loader
 from __future__ import annotations
 
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -65,10 +66,22 @@ def _columns(t: _Table, kinds: dict, required=()) -> dict:
     return cols
 
 
-def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
-    """A trace's CSV file: its path, the raw columns, the raw and SI time axes (at
-    least 3 samples, strictly increasing) and the file lines of the rows left out for a
-    missing reading (:func:`._missing.without_missing`)."""
+class _TraceFile(NamedTuple):
+    """A trace's CSV file read: its path, the raw columns (role -> values in the file's
+    units), the raw and SI time axes, the file lines of the rows left out and the raw
+    time of the first row (before any is left out)."""
+
+    path: Path
+    raw: dict
+    t_raw: np.ndarray
+    time: np.ndarray
+    left_out: tuple
+    start: float
+
+
+def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
+    """A trace's CSV file (at least 3 samples, strictly increasing in time; rows left
+    out for a missing reading, :func:`._missing.without_missing`)."""
     path = root / t.string("file")
     second = float(to_si(np.array([1.0]), "time", u["time"])[0])
     read = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}",
@@ -123,7 +136,7 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict):
                            "reading; leave current out of columns (the speed alone then "
                            "carries the fit) or log the current itself")
     time = to_si(t_raw, "time", u["time"])
-    return path, raw, t_raw, time, left_out, start
+    return _TraceFile(path, raw, t_raw, time, left_out, start)
 
 
 def _counter_wrap(before: float, after: float) -> int | None:
@@ -251,11 +264,11 @@ def _coast_down(t: _Table, root: Path) -> Trace:
                 extra={"speed": sensors.VOLTS})
     cols = _columns(t, kinds, ("speed",))
     sensors.check_unused(t, u, cols)
-    path, raw, _, time, left_out, _ = _read_trace_file(t, root, cols, u)
-    none = Schedule(time[:1].copy(), np.zeros(1))
-    return Trace(name=name, kind=COAST_DOWN, file=path, time=time,
-                 speed=sensors.speed_si(t, raw["speed"], u), current=None, voltage=none,
-                 load_torque=none, rows_left_out=left_out)
+    f = _read_trace_file(t, root, cols, u)
+    none = Schedule(f.time[:1].copy(), np.zeros(1))
+    return Trace(name=name, kind=COAST_DOWN, file=f.path, time=f.time,
+                 speed=sensors.speed_si(t, f.raw["speed"], u), current=None, voltage=none,
+                 load_torque=none, rows_left_out=f.left_out)
 
 
 def read_traces(top: _Table, root: Path) -> tuple[tuple, tuple]:
