@@ -189,3 +189,17 @@ def test_a_header_in_another_case_is_matched(session_dir):
         ",".join([line.split(",")[0], "1", *line.split(",")[1:]]) for line in lines[1:]])
     with pytest.raises(SessionError, match="no column named 'speed_rpm'"):
         load_session(session_dir)
+
+
+def test_a_schedule_in_seconds_beside_a_time_column_in_milliseconds_is_refused(session_dir):
+    """The samples in ms, the schedule still written in s: its step at 0.1 falls between
+    the first two samples (0 and 10 ms), where no one schedules a step."""
+    lines = _rows(session_dir)
+    _write(session_dir, [lines[0]] + [",".join([f"{float(line.split(',')[0]) * 1e3:g}",
+                                                *line.split(",")[1:]]) for line in lines[1:]])
+    replace_once(session_dir / "session.toml", 'time = "s",', 'time = "ms",')
+    with pytest.raises(SessionError, match=r"changes only at 0.1 ms, between the first two "
+                                           r"samples \(0 and 10 ms\).*units.time"):
+        load_session(session_dir)
+    replace_once(session_dir / "session.toml", "[0.1, 6.0]", "[100.0, 6.0]")
+    assert load_session(session_dir).trace("step").n == STEP_N
