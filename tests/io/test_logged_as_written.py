@@ -203,3 +203,17 @@ def test_a_schedule_in_seconds_beside_a_time_column_in_milliseconds_is_refused(s
         load_session(session_dir)
     replace_once(session_dir / "session.toml", "[0.1, 6.0]", "[100.0, 6.0]")
     assert load_session(session_dir).trace("step").n == STEP_N
+
+
+def test_a_row_logged_twice_is_read_once(session_dir):
+    """A row repeated whole, its time included (a logger's repeated write), is read once
+    and named among the rows left out; a time repeated with other readings is refused."""
+    lines = _rows(session_dir)
+    _write(session_dir, lines[:12] + lines[11:12] + lines[11:])  # file line 12 thrice
+    tr = load_session(session_dir).trace("step")
+    assert tr.n == STEP_N and tr.rows_left_out == (13, 14)
+    assert np.all(np.diff(tr.time) > 0)
+    cells = lines[11].split(",")
+    _write(session_dir, lines[:12] + [",".join([cells[0], "1", cells[2]])] + lines[12:])
+    with pytest.raises(SessionError, match="line 13: time column 't' is not strictly increasing"):
+        load_session(session_dir)

@@ -68,12 +68,6 @@ def _coarse_clock(d):
         f"{int(round(float(r[0]) * 100)) // 2 / 50:.2f},{r[1]},{r[2]}\n" for r in rows))
 
 
-def _row_twice(d):
-    """Line 12 logged twice (a logger's repeated write)."""
-    lines = (d / "step.csv").read_text().splitlines(keepends=True)
-    (d / "step.csv").write_text("".join(lines[:12] + lines[11:]))
-
-
 def _header_again(d):
     """The header written again at line 21 (two logs joined into one file)."""
     lines = (d / "step.csv").read_text().splitlines(keepends=True)
@@ -168,8 +162,6 @@ CASES = [
     ("time-coarse-clock", _coarse_clock,
      ["step.csv:line 3", "not strictly increasing", "coarser than the sampling",
       "sample_rate = 100 "]),
-    ("row-logged-twice", _row_twice,
-     ["step.csv:line 13", "line 13 repeats line 12 in every column", "remove line 13"]),
     ("header-written-again", _header_again,
      ["step.csv:line 21", "the header ('t' ...) is written again here", "remove this line"]),
     ("fewer-than-3-samples", _two_samples, ["step.csv", "only 2 samples", "at least 3"]),

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._errors import SessionError
 
-__all__ = ["MISSABLE", "MISSING_SHARE", "without_missing"]
+__all__ = ["MISSABLE", "MISSING_SHARE", "without_missing", "without_repeats"]
 
 MISSABLE = frozenset({"speed", "current", "voltage", "load_torque", "position"})
 MISSING_SHARE = 0.1  # at most this share of a trace's rows may be left out
@@ -40,3 +40,27 @@ def without_missing(path: Path, raw: dict, t_raw: np.ndarray, lines: list, cols:
     out = {role: v[keep] for role, v in raw.items()}
     dropped = tuple(int(x) for x, b in zip(lines, bad, strict=True) if b)
     return out, t_raw[keep], [x for x, k in zip(lines, keep, strict=True) if k], dropped
+
+
+def without_repeats(raw: dict, t_raw: np.ndarray, lines: list):
+    """``raw``, ``t_raw`` and ``lines`` without the rows that repeat the row before them
+    in every column, the time included, where the readings move (a row a logger wrote
+    twice: read once), and the file lines of those rows.  Where the readings stand still
+    (a motor at rest) a repeated row may as well be a sample whose time is wrong, and is
+    left to the check of the time."""
+    same = np.zeros(t_raw.size, bool)
+    moved = np.zeros(t_raw.size, bool)  # a row's readings differ from the row before
+    if t_raw.size > 2:
+        same[1:] = t_raw[1:] == t_raw[:-1]
+        for role, v in raw.items():
+            same[1:] &= (v[1:] == v[:-1]) | (np.isnan(v[1:]) & np.isnan(v[:-1]))
+            if role != "time":
+                moved[1:] |= v[1:] != v[:-1]
+        first = np.maximum.accumulate(np.where(same, 0, np.arange(t_raw.size)))
+        same &= moved[first]  # the row repeated had moved on from the one before it
+    if not same.any():
+        return raw, t_raw, lines, ()
+    keep = ~same
+    return ({role: v[keep] for role, v in raw.items()}, t_raw[keep],
+            [x for x, k in zip(lines, keep, strict=True) if k],
+            tuple(int(x) for x, b in zip(lines, same, strict=True) if b))

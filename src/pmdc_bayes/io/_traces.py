@@ -12,7 +12,7 @@ from .._errors import SessionError
 from . import _sensors as sensors
 from ._csv import read_columns
 from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
-from ._missing import MISSABLE, without_missing
+from ._missing import MISSABLE, without_missing, without_repeats
 from ._position import (
     angle_si,
     edge_angles,
@@ -94,8 +94,11 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
         rate = t.number("sample_rate", "frequency", u["sample_rate"], positive=True)
         t_raw = np.arange(len(lines)) / rate / second
     start = float(t_raw[0]) if t_raw.size else 0.0  # before any row is left out
+    twice = ()
+    if "time" in cols:
+        raw, t_raw, lines, twice = without_repeats(raw, t_raw, lines)
     raw, t_raw, lines, left_out = without_missing(path, raw, t_raw, lines, cols)
-    left_out = tuple(sorted((*left_out, *read.skipped)))
+    left_out = tuple(sorted((*left_out, *read.skipped, *twice)))
     if t_raw.size < 3:
         raise SessionError(path, f"only {t_raw.size} samples; a trace needs at least 3 "
                            "samples (log a longer record)")
@@ -107,10 +110,6 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
         if wrap is not None and "time_wrap" not in t.data:
             fix = (f"the time jumps back near 2^{wrap.bit_length() - 1}: a timer that wraps; "
                    f"add time_wrap = {wrap} to the trace (in its time unit)")
-        elif (all(v[k] == v[k - 1] for v in raw.values())
-              and np.count_nonzero(np.diff(t_raw) == 0) == 1):
-            fix = (f"line {lines[k]} repeats line {lines[k - 1]} in every column: a row "
-                   f"logged twice; remove line {lines[k]}")
         elif np.all(np.diff(t_raw) >= 0) and t_raw[-1] > t_raw[0]:
             rows = t_raw.size + len(left_out)
             rate = (rows - 1) / float(t_raw[-1] - t_raw[0]) / second
