@@ -59,12 +59,14 @@ def schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray, start: 
                f"at {start:g} {tu}, and is constant over the samples; write the "
                "schedule's times on the time column's clock (a time column that does not "
                "start at 0 is read as written)")
-    if (changes and t_raw.size > 10 and not edges_flag(t)
-            and all(t_raw[0] < tk < t_raw[1] for tk in changes)):
+    per_second = 1.0 / float(to_si(np.array([1.0]), "time", tu)[0])  # 1000 for ms
+    if (changes and t_raw.size > 10 and not edges_flag(t) and per_second > 1.5
+            and all(t_raw[0] < tk < t_raw[1] for tk in changes)
+            and all(t_raw[1] < tk * per_second < t_raw[-1] for tk in changes)):
         t.fail(key, f"the {key} changes only at {changes[0]:g} {tu}, between the first two "
                f"samples ({t_raw[0]:g} and {t_raw[1]:g} {tu}): is the schedule written in "
-               f"another unit? Its times are in the trace's time unit ({tu}, units.time); "
-               "write them in it")
+               f"seconds? Its times are in the trace's time unit ({tu}, units.time); write "
+               f"{changes[0] * per_second:g} for {changes[0]:g} s")
     values = (duty_to_volts(t, key, np.array(values), duty) if duty is not None
               else to_si(np.array(values), kind, u[key]))
     return Schedule(to_si(np.array(times), "time", tu), values)

@@ -9,8 +9,8 @@ rpm, or counted by an encoder at the samples or at its edges), current channels 
 not, a steady table (with or without currents), an operating point, a step reading.
 The plan always has a ``[rig]``, so every reading comes from
 :mod:`pmdc_bayes.simulate.bench` (LSODA on its own motor, not the fitted model).  With
-``misspecified`` (a key of :data:`NON_IDEALITIES`) the rig carries that one
-non-ideality, sized so that it matters.
+``misspecified`` (a key of :data:`NON_IDEALITIES`, or several) the rig carries that
+non-ideality (each of them), sized so that it matters.
 
 :func:`fuzz_session` renders the plan with :func:`~.session.render_session` (the writer
 of ``pmdc-bayes simulate``), adds what plans cannot say (a voltage logged as a column,
@@ -47,7 +47,7 @@ class FuzzedSession:
     """A fuzzed session: where it was written, its truth and what it is made of."""
 
     seed: int
-    misspecified: str | None
+    misspecified: str | tuple[str, ...] | None
     path: Path | None
     truth: dict
     shapes: tuple[str, ...]  # one label per item: trace shapes, tables, points ...
@@ -166,7 +166,7 @@ def _sensors(rng, t: dict, motor: BenchMotor, v: float, features: set) -> None:
         t["current_noise"] = float(f"{_log_uniform(rng, 1e-3, 5e-2) * i_span:.4g}")
 
 
-def fuzz_plan(seed: int, *, misspecified: str | None = None, shapes=None,
+def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, shapes=None,
               trace_current: bool | None = None, steady: str | None = None
               ) -> tuple[dict, dict]:
     """A random plan and what it holds.
@@ -174,7 +174,8 @@ def fuzz_plan(seed: int, *, misspecified: str | None = None, shapes=None,
     Parameters
     ----------
     seed : the draw (``numpy.random.default_rng(seed)``) and the plan's noise seed.
-    misspecified : a key of :data:`NON_IDEALITIES`, or None for an in-class session.
+    misspecified : a key of :data:`NON_IDEALITIES`, a tuple of them (a rig carrying
+        each), or None for an in-class session.
     shapes : the trace shapes to draw from (default :data:`TRACE_SHAPES`).
     trace_current : force (True) or forbid (False) the driven traces' current channels.
     steady : ``"table"``, ``"table without current"`` or ``"point"`` to force that
@@ -186,8 +187,11 @@ def fuzz_plan(seed: int, *, misspecified: str | None = None, shapes=None,
         The plan dict for :func:`~.plan.check_plan`; ``extras`` says which trace logs
         its voltage as a column and whether to add a step reading.
     """
-    if misspecified is not None and misspecified not in NON_IDEALITIES:
-        raise ValueError(f"unknown non-ideality {misspecified!r}; use one of {NON_IDEALITIES}")
+    keys = (misspecified,) if isinstance(misspecified, str) or misspecified is None \
+        else tuple(misspecified)
+    for key in keys:
+        if key is not None and key not in NON_IDEALITIES:
+            raise ValueError(f"unknown non-ideality {key!r}; use one of {NON_IDEALITIES}")
     rng = np.random.default_rng(seed)
     coulomb = rng.uniform() < 0.3
     truth, v = fuzz_motor(rng, coulomb)
@@ -237,9 +241,11 @@ def fuzz_plan(seed: int, *, misspecified: str | None = None, shapes=None,
             "speed_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * w_top:.4g}"),
             "current_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * i_level:.4g}")}]
     step = steady is None and rng.uniform() < 0.15
-    plan["rig"] = rig_table(rng, misspecified, truth, v, tau_m, [t["name"] for t in traces
-                                                             if t["kind"] != "coast-down"],
-                       traces)
+    plan["rig"] = {}
+    for key in keys:
+        plan["rig"].update(rig_table(rng, key, truth, v, tau_m,
+                                     [t["name"] for t in traces if t["kind"] != "coast-down"],
+                                     traces))
     return plan, {"columns": tuple(columns), "step_reading": bool(step),
                   "shapes": tuple(kinds), "features": frozenset(features)}
 
@@ -256,8 +262,8 @@ def fuzz_files(seed: int, **kw) -> tuple[dict[str, str], dict, dict]:
     return files, plan, extras
 
 
-def fuzz_session(seed: int, *, misspecified: str | None = None, out=None, shapes=None,
-                 trace_current: bool | None = None, steady: str | None = None
+def fuzz_session(seed: int, *, misspecified: str | tuple[str, ...] | None = None, out=None,
+                 shapes=None, trace_current: bool | None = None, steady: str | None = None
                  ) -> FuzzedSession:
     """Draw the session of ``seed`` (see :func:`fuzz_plan`) and, given ``out``, write it
     there (replacing an earlier fuzzed session) for :func:`~pmdc_bayes.io.loader.load_session`."""
