@@ -199,7 +199,8 @@ def test_a_schedule_in_seconds_beside_a_time_column_in_milliseconds_is_refused(s
                                                 *line.split(",")[1:]]) for line in lines[1:]])
     replace_once(session_dir / "session.toml", 'time = "s",', 'time = "ms",')
     with pytest.raises(SessionError, match=r"changes only at 0.1 ms, between the first two "
-                                           r"samples \(0 and 10 ms\).*units.time\); write 100 for 0.1 s"):
+                                           r"samples \(0 and 10 ms\).*units.time\); "
+                                           r"write 100 for 0.1 s"):
         load_session(session_dir)
     replace_once(session_dir / "session.toml", "[0.1, 6.0]", "[100.0, 6.0]")
     assert load_session(session_dir).trace("step").n == STEP_N
