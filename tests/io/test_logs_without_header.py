@@ -129,3 +129,10 @@ def test_a_steady_table_without_header(session_dir):
     table = load_session(session_dir).steady_tables[0]
     assert np.array_equal(table.voltage, plain.voltage)
     assert np.array_equal(table.speed, plain.speed)
+
+
+def test_a_file_without_header_read_by_names_says_to_number_the_fields(session_dir):
+    _write(session_dir, _rows(session_dir)[1:])
+    with pytest.raises(SessionError, match=r"step.csv:line 1: no header: line 1 holds numbers "
+                                           r"\('0.00', .*give every column as its field number"):
+        load_session(session_dir)

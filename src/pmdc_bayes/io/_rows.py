@@ -181,11 +181,18 @@ def _index(path, header, sep, wanted, asked_by, line) -> dict:
         k = column_index(header, name)
         if k is None:
             cols = ", ".join(repr(h) for h in header)
+            if all(number(h) for h in header if h):
+                raise SessionError(
+                    path, f"no header: line {line} holds numbers ({cols}), where session.toml "
+                    f"names the columns ({asked_by}); give every column as its field number "
+                    "instead (columns = { time = 1, speed = 2, ... }, counting from 1), or "
+                    "write a header line", where=f"line {line}")
             raise SessionError(
                 path,
                 f"no column named {name!r} (the {role} column named in {asked_by}); the "
                 f"header, separated by {SEPARATOR_NAMES.get(sep, 'spaces')}, has {cols}; fix "
-                "the name in session.toml or in the header",
+                "the name in session.toml or in the header (a file without one: give every "
+                "column as its field number, counting from 1)",
                 where=f"line {line}",
             )
         index[role] = k
