@@ -140,6 +140,21 @@ def test_a_non_ideality_keeps_the_draw_and_records_its_truth(key, tmp_path):
         fuzz_plan(seed, misspecified="gremlins")
 
 
+def test_a_rig_carries_several_non_idealities_at_once(tmp_path):
+    keys = ("dead time", "voltage drop", "speed offset")
+    clean = fuzz_session(5, out=tmp_path / "clean")
+    bad = fuzz_session(5, misspecified=keys, out=tmp_path / "bad")
+    assert {k: bad.truth[k] for k in MOTOR} == {k: clean.truth[k] for k in MOTOR}
+    assert bad.truth["dead_time"] > 0 and bad.truth["Vdrop"] > 0
+    assert bad.truth["speed_offset"] != 0
+    one = fuzz_session(5, misspecified="dead time", out=tmp_path / "one")
+    assert one.truth["Vdrop"] == 0 and one.truth["speed_offset"] == 0
+    assert fuzz_plan(5, misspecified=("dead time",))[0] == fuzz_plan(5, misspecified="dead time")[0]
+    load_session(bad.path)
+    with pytest.raises(ValueError, match="unknown non-ideality"):
+        fuzz_plan(5, misspecified=("dead time", "gremlins"))
+
+
 def spec_rate(spec, name):
     return next(t for t in spec.traces if t.name == name).rate
 

@@ -1,0 +1,164 @@
+"""The model search on rigs carrying two or three non-idealities at once: does the
+model it chooses hold every one of them, and do the data accept it?
+
+Each session is drawn by :func:`pmdc_bayes.simulate.fuzz.fuzz_session` (random motors
+and plans over the session format, the bench simulator's LSODA, written and read back
+by the loader) with a random combination of 2–3 of :data:`COMBINED` (the non-idealities
+the search can name: a speed gain is left out, exactly unidentifiable without a bench
+K, J or B, and so is an encoder's differenced speed, a way of logging rather than a
+term), and searched as a plain ``fit`` of a session without ``[model]`` does
+(:func:`pmdc_bayes.search.run_search`).  A session counts as recovered when every
+non-ideality it carries is among the chosen terms and the chosen model's verdict is
+adequate.  ``--in-class`` sessions (no non-ideality) count when the search keeps the
+ideal model.  Each result is one JSON line in ``--log`` (resumable); the section
+``## Model search on combined non-idealities`` of ``reports/benchmarks.md`` is
+replaced.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from collections import Counter
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+from _common import REPORT, replace_section
+from scipy import stats
+
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.search import run_search
+from pmdc_bayes.simulate.fuzz import fuzz_session
+from pmdc_bayes.terms import nuisance_of
+
+TITLE = "Model search on combined non-idealities"
+TERM = {"dead time": "dead_time", "speed lag": "speed_lag", "voltage drop": "voltage_drop",
+        "source resistance": "source_resistance", "current limit": "current_limit",
+        "unknown load": "unknown_load", "speed offset": "speed_offset",
+        "dead zone": "dead_zone", "coloured noise": "coloured_noise"}
+COMBINED = tuple(TERM)
+
+
+def combination(seed: int) -> tuple[str, ...]:
+    """The 2–3 non-idealities of session ``seed`` (its own stream, apart from the
+    session's draw)."""
+    rng = np.random.default_rng([seed, 33])
+    k = int(rng.integers(2, 4))
+    return tuple(sorted(str(x) for x in rng.choice(COMBINED, size=k, replace=False)))
+
+
+def run_one(seed: int, keys: tuple[str, ...] | None, root: Path) -> dict:
+    t0 = time.perf_counter()
+    f = fuzz_session(seed, misspecified=keys, out=root / f"s{seed}")
+    rec = {"seed": seed, "keys": list(keys or ()), "shapes": list(f.shapes),
+           "features": sorted(f.features)}
+    try:
+        found = run_search(load_session(f.path), seed=seed)
+        chosen = found.chosen
+        terms = sorted(found.record["terms"])
+        held = {nuisance_of(t) for t in terms}
+        rec.update(outcome="searched", terms=terms, verdict=chosen.adequacy.verdict,
+                   missing=[k for k in keys or () if TERM[k] not in held],
+                   fits=found.record["fits"])
+    except Exception as exc:  # noqa: BLE001 - every failure is a row of the table
+        rec.update(outcome="error", why=f"{type(exc).__name__}: {exc}"[:300])
+    return dict(rec, seconds=time.perf_counter() - t0)
+
+
+def _rate(k: int, n: int) -> str:
+    if not n:
+        return "–"
+    lo, hi = stats.beta.ppf([0.025, 0.975], [k, k + 1], [n - k + 1, n - k]) if 0 < k < n \
+        else (stats.beta.ppf(0.025, k, n - k + 1) if k else 0.0,
+              stats.beta.ppf(0.975, k + 1, n - k) if k < n else 1.0)
+    return f"{k}/{n} ({100 * k / n:.0f} %; 95 % interval {100 * lo:.0f}–{100 * hi:.0f} %)"
+
+
+def report(records, argv) -> str:
+    now = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
+    cmd = f"python benchmarks/combinations.py {' '.join(argv)}"
+    mis = [r for r in records if r["keys"]]
+    ok = [r for r in mis if r["outcome"] == "searched"]
+    found = [r for r in ok if not r["missing"] and r["verdict"] == "adequate"]
+    lines = [f"## {TITLE}", "", f"Measured {now} by `{cmd}` (see the script's docstring).",
+             "", f"- recovered (every non-ideality chosen, verdict adequate): "
+             f"{_rate(len(found), len(mis))}; errors {len(mis) - len(ok)}",
+             f"- every non-ideality chosen, whatever the verdict: "
+             f"{_rate(sum(not r['missing'] for r in ok), len(mis))}",
+             "- chosen model adequate: "
+             f"{_rate(sum(r['verdict'] == 'adequate' for r in ok), len(mis))}"]
+    for k in (2, 3):
+        sub = [r for r in mis if len(r["keys"]) == k]
+        rec = [r for r in sub if r["outcome"] == "searched" and not r["missing"]
+               and r["verdict"] == "adequate"]
+        lines.append(f"- {k} at once: {_rate(len(rec), len(sub))}")
+    inclass = [r for r in records if not r["keys"]]
+    if inclass:
+        ideal = [r for r in inclass if r["outcome"] == "searched" and not r["terms"]]
+        lines.append(f"- in-class sessions that keep the ideal model: "
+                     f"{_rate(len(ideal), len(inclass))}")
+    lines += ["", "| non-ideality | sessions carrying it | chosen |", "|---|---:|---:|"]
+    for key in COMBINED:
+        sub = [r for r in ok if key in r["keys"]]
+        lines.append(f"| {key} | {len(sub)} | {sum(key not in r['missing'] for r in sub)} |")
+    misses = [r for r in ok if r["missing"] or r["verdict"] != "adequate"]
+    if misses:
+        lines += ["", "Not recovered:", "", "| seed | carries | chosen | verdict |",
+                  "|---:|---|---|---|"]
+        lines += [f"| {r['seed']} | {', '.join(r['keys'])} | {' + '.join(r['terms']) or 'ideal'}"
+                  f" | {r['verdict']} |" for r in misses]
+    extra = Counter(t for r in ok for t in r["terms"]
+                    if nuisance_of(t) not in {TERM[k] for k in r["keys"]})
+    if extra:
+        lines += ["", "Terms chosen beyond what the rig carries: "
+                  + ", ".join(f"{t} {n}×" for t, n in extra.most_common()) + "."]
+    secs = sorted(r["seconds"] for r in records)
+    if secs:
+        lines += ["", f"Per session (the whole search, compilation included, 2 processes "
+                  f"side by side): median {secs[len(secs) // 2]:.0f} s, max {secs[-1]:.0f} s."]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    ap.add_argument("--n", type=int, default=30, help="sessions with a combination")
+    ap.add_argument("--in-class", type=int, default=0, help="in-class sessions too")
+    ap.add_argument("--start", type=int, default=0, help="first seed")
+    ap.add_argument("--part", type=str, default="0/1",
+                    help="K/N: run only every N-th session from the K-th (side by side)")
+    ap.add_argument("--log", type=Path, default=None, help="JSON lines of results (resumed)")
+    ap.add_argument("--no-report", action="store_true")
+    args = ap.parse_args(argv)
+    part, parts = (int(x) for x in args.part.split("/"))
+    seeds = range(args.start, args.start + args.n)
+    jobs = [(s, combination(s)) for s in seeds] + [
+        (s, None) for s in range(args.start, args.start + args.in_class)]
+    jobs = jobs[part::parts]
+    done = {}
+    if args.log and args.log.exists():
+        for line in args.log.read_text().splitlines():
+            r = json.loads(line)
+            done[(r["seed"], tuple(r["keys"]))] = r
+    records = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed, keys in jobs:
+            r = done.get((seed, tuple(keys or ()))) or run_one(seed, keys, Path(tmp))
+            if (seed, tuple(keys or ())) not in done and args.log:
+                with args.log.open("a") as fh:
+                    fh.write(json.dumps(r) + "\n")
+            records.append(r)
+            print(seed, keys, r["outcome"], r.get("terms"), r.get("verdict"), r.get("missing"),
+                  f"{r['seconds']:.0f} s", flush=True)
+    section = report(records, sys.argv[1:] if argv is None else argv)
+    print(section)
+    if not args.no_report:
+        replace_section(REPORT, TITLE, section)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
