@@ -136,3 +136,36 @@ def test_a_file_without_header_read_by_names_says_to_number_the_fields(session_d
     with pytest.raises(SessionError, match=r"step.csv:line 1: no header: line 1 holds numbers "
                                            r"\('0.00', .*give every column as its field number"):
         load_session(session_dir)
+
+
+def test_name_value_lines_read_the_names_asked_for_and_not_their_look_alikes(session_dir):
+    """A pair whose name differs only in case (a power ``W`` beside the speed ``w``) is
+    another column; a comment line holding pairs is no sample; a decimal comma is read."""
+    plain = _arrays(session_dir)
+    lines = _pairs(_rows(session_dir), "t={t} w={w} ia={i} W={i}0 IA=7")
+    _write(session_dir, ["# t=0 w=500 ia=9", *lines])
+    replace_once(session_dir / "session.toml", COLUMNS,
+                 'columns = { time = "t", speed = "w", current = "ia" }')
+    assert _same(_arrays(session_dir), plain)
+    _write(session_dir, [line.replace(".", ",") for line in lines])
+    assert _same(_arrays(session_dir), plain)
+
+
+def test_a_header_of_names_and_units_is_not_read_as_pairs(session_dir):
+    lines = _rows(session_dir)
+    _write(session_dir, ["t:s,speed_rpm:rpm,ia:A", *lines[1:]])
+    with pytest.raises(SessionError, match="no column named 't'"):
+        load_session(session_dir)
+
+
+def test_a_stray_windows_1252_byte_leaves_the_utf8_names_as_written(session_dir):
+    plain = _arrays(session_dir)
+    lines = _rows(session_dir)
+    text = ("Temp 25\u00b0C".encode("cp1252") + b"\n"
+            + "\n".join(["speed_rpm [\u00b5]," + lines[0].split(",", 1)[0] + ",ia",
+                         *[",".join([ln.split(",")[1], ln.split(",")[0], ln.split(",")[2]])
+                           for ln in lines[1:]]]).encode("utf-8") + b"\n")
+    (session_dir / "step.csv").write_bytes(text)
+    replace_once(session_dir / "session.toml", 'speed = "speed_rpm"',
+                 'speed = "speed_rpm [\u00b5]"')
+    assert _same(_arrays(session_dir), plain)

@@ -9,11 +9,14 @@ from __future__ import annotations
 import re
 from typing import NamedTuple
 
+from ._cells import number
+from ._stamps import stamp_seconds
+
 __all__ = ["KeyValueTable", "key_value_rows"]
 
 _PAIR = re.compile(
     r"""(?<![\w.])["']?([A-Za-z_][\w.\[\]()/]*)["']?\s*[=:]\s*"""  # a name, = or :
-    r"""["']?([^\s,;=}"']+)["']?"""  # its value
+    r"""["']?([^\s,;=}"']+(?:,\d+(?![\d,]*\s*[=:]))?)["']?"""  # its value (a decimal comma)
     r"""(?:[ \t]+(?![^\s,;=:]+\s*[=:])([^\s\d,;=:}][^\s,;=:}]*))?""")  # a unit after it
 SEARCHED = 100  # lines searched for the first with every name asked for
 
@@ -29,24 +32,49 @@ class KeyValueTable(NamedTuple):
 
 
 def _pairs(line: str) -> dict[str, tuple[str, str]]:
-    return {m.group(1).casefold(): (m.group(2), m.group(3) or "") for m in _PAIR.finditer(line)}
+    """A line's pairs, name -> (value, unit); none in a comment line (``#``)."""
+    if line.lstrip().startswith("#"):
+        return {}
+    return {m.group(1): (m.group(2), m.group(3) or "") for m in _PAIR.finditer(line)}
+
+
+def _named(pairs: dict, name: str) -> str | None:
+    """The pair's name that ``name`` reads: itself, or, where no pair has it, the one
+    pair's name that differs from it only in case (as a header's names are matched)."""
+    if name in pairs:
+        return name
+    folded = [k for k in pairs if k.casefold() == name.casefold()]
+    return folded[0] if len(folded) == 1 else None
+
+
+def _readable(value: str) -> bool:
+    return number(value) or stamp_seconds(value) is not None
 
 
 def key_value_rows(text: str, wanted: dict[str, str]) -> KeyValueTable | None:
     """``text`` read as ``name=value`` pairs, when one of its first :data:`SEARCHED`
-    lines gives every name ``wanted`` (role -> name, matched in any case), else None."""
+    lines gives every name ``wanted`` (role -> name) a number or a time stamp, else None.
+    A value with a decimal comma is quoted in the table, where the loader's decimal marks
+    read it (:class:`._cells.DecimalMarks`)."""
     lines = text.split("\n")
-    names = {role: name.casefold() for role, name in wanted.items()}
-    first = next((k for k, line in enumerate(lines[:SEARCHED])
-                  if set(names.values()) <= set(_pairs(line))), None)
+
+    def complete(line):
+        pairs = _pairs(line)
+        keys = [_named(pairs, name) for name in wanted.values()]
+        return all(k is not None and _readable(pairs[k][0]) for k in keys)
+
+    first = next((k for k, line in enumerate(lines[:SEARCHED]) if complete(line)), None)
     if first is None:
         return None
-    units = {role: _pairs(lines[first])[name][1] for role, name in names.items()}
+    pairs = _pairs(lines[first])
+    units = {role: pairs[_named(pairs, name)][1] for role, name in wanted.items()}
     rows = []
     for line in lines:
         pairs = _pairs(line)
-        if any(name in pairs for name in names.values()):
-            rows.append(",".join(pairs.get(name, ("", ""))[0] for name in names.values()))
+        keys = [_named(pairs, name) for name in wanted.values()]
+        if any(k is not None for k in keys):
+            rows.append(",".join('"' + pairs[k][0] + '"' if k is not None else ""
+                                 for k in keys))
         else:
             rows.append("")
     return KeyValueTable("\n".join(rows), units if any(units.values()) else {},

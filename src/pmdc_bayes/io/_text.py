@@ -57,10 +57,20 @@ def _raw(path: Path, what: str) -> bytes:
                            "place") from None
 
 
+def _legacy_bytes(exc: UnicodeDecodeError):
+    """Bytes that are not UTF-8 read as Windows-1252 (Latin-1 where it has no letter)."""
+    bad = exc.object[exc.start:exc.end]
+    return "".join(bytes([b]).decode("cp1252", errors="ignore") or chr(b) for b in bad), exc.end
+
+
+_LEGACY = "pmdc_bayes_windows_1252"
+codecs.register_error(_LEGACY, _legacy_bytes)
+
+
 def read_text(path: Path, what: str = "file", *, legacy: bool = False) -> str:
     """The text of ``path``: UTF-8, or UTF-8/UTF-16 with a byte-order mark; with
-    ``legacy``, a file that is not UTF-8 is read as Windows-1252 (Latin-1 for the bytes
-    that code leaves undefined), as older Windows programs write text.
+    ``legacy``, the bytes of a file that are not UTF-8 are read as Windows-1252 (Latin-1
+    for the bytes that code leaves undefined), as older Windows programs write text.
 
     ``what`` names the file in messages ("CSV file", "session.toml").  Newlines are
     kept as written (the caller's parser handles them).
@@ -78,10 +88,7 @@ def read_text(path: Path, what: str = "file", *, legacy: bool = False) -> str:
         return data.decode(encoding)
     except UnicodeDecodeError as exc:
         if legacy and encoding == "utf-8":
-            try:
-                return data.decode("cp1252")
-            except UnicodeDecodeError:
-                return data.decode("latin-1")
+            return data.decode("utf-8", errors=_LEGACY)
         line = data[:exc.start].count(b"\n") + 1
         bad = data[exc.start:exc.start + 1].hex()
         raise SessionError(

@@ -150,9 +150,12 @@ class Table:
         cols.check_keys(kinds)
         for role in required:
             cols._get(role, REQUIRED, "text in quotes")
-        out = {role: (cols._field(role) if isinstance(cols.data[role], int)
-                      and not isinstance(cols.data[role], bool) else cols.string(role))
-               for role in kinds if role in cols.data}
+        for role in kinds:
+            if isinstance(cols.data.get(role), float | bool):
+                cols.fail(role, f"expected a header name in quotes or a field number (a whole "
+                          f"number from 1), got {describe(cols.data[role])}")
+        out = {role: (cols._field(role) if isinstance(cols.data[role], int) else
+                      cols.string(role)) for role in kinds if role in cols.data}
         if len({type(v) for v in out.values()}) > 1:
             self.fail("columns", "mixes header names and field numbers; name every column "
                       "by its header, or, in a file without a header, give every one as its "

@@ -110,6 +110,11 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
         if wrap is not None and "time_wrap" not in t.data:
             fix = (f"the time jumps back near 2^{wrap.bit_length() - 1}: a timer that wraps; "
                    f"add time_wrap = {wrap} to the trace (in its time unit)")
+        elif (all(v[k] == v[k - 1] for v in raw.values())
+              and np.count_nonzero(np.diff(t_raw) == 0) == 1):
+            fix = (f"line {lines[k]} repeats line {lines[k - 1]} in every column: a row "
+                   f"logged twice, or a sample whose time is wrong; remove line {lines[k]} "
+                   "or mend its time")
         elif np.all(np.diff(t_raw) >= 0) and t_raw[-1] > t_raw[0]:
             rows = t_raw.size + len(left_out)
             rate = (rows - 1) / float(t_raw[-1] - t_raw[0]) / second

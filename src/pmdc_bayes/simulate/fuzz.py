@@ -187,10 +187,10 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
         The plan dict for :func:`~.plan.check_plan`; ``extras`` says which trace logs
         its voltage as a column and whether to add a step reading.
     """
-    keys = (misspecified,) if isinstance(misspecified, str) or misspecified is None \
-        else tuple(misspecified)
+    keys = (misspecified,) if isinstance(misspecified, str) else tuple(misspecified or ())
+    keys = tuple(dict.fromkeys(keys))
     for key in keys:
-        if key is not None and key not in NON_IDEALITIES:
+        if key not in NON_IDEALITIES:
             raise ValueError(f"unknown non-ideality {key!r}; use one of {NON_IDEALITIES}")
     rng = np.random.default_rng(seed)
     coulomb = rng.uniform() < 0.3
