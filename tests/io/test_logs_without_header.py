@@ -169,3 +169,13 @@ def test_a_stray_windows_1252_byte_leaves_the_utf8_names_as_written(session_dir)
     replace_once(session_dir / "session.toml", 'speed = "speed_rpm"',
                  'speed = "speed_rpm [\u00b5]"')
     assert _same(_arrays(session_dir), plain)
+
+
+def test_a_short_row_in_a_file_without_header_is_named_as_such(session_dir):
+    lines = _rows(session_dir)[1:]
+    lines[40] = lines[40].rsplit(",", 1)[0]  # file line 41 without its current
+    _write(session_dir, lines)
+    replace_once(session_dir / "session.toml", COLUMNS,
+                 "columns = { time = 1, speed = 2, current = 3 }")
+    with pytest.raises(SessionError, match="line 41: the row has 2 fields but column 'field 3'"):
+        load_session(session_dir)

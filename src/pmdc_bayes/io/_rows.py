@@ -136,7 +136,7 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
         if header is not None:
             _check_width(path, row, header, sep)
         for role, k in index.items():
-            if k >= len(cells) and header is None:
+            if k >= len(cells) and header is None and not lines:  # the first sample
                 raise SessionError(path, f"the row has {len(cells)} fields, and {wanted[role]} "
                                    f"is asked for (the {role} column in {asked_by}); give "
                                    "the column's field number, counting from 1",
