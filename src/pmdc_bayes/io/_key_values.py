@@ -10,6 +10,7 @@ import re
 from typing import NamedTuple
 
 from ._cells import number
+from ._rows import column_index
 from ._stamps import stamp_seconds
 
 __all__ = ["KeyValueTable", "key_value_rows"]
@@ -41,10 +42,9 @@ def _pairs(line: str) -> dict[str, tuple[str, str]]:
 def _named(pairs: dict, name: str) -> str | None:
     """The pair's name that ``name`` reads: itself, or, where no pair has it, the one
     pair's name that differs from it only in case (as a header's names are matched)."""
-    if name in pairs:
-        return name
-    folded = [k for k in pairs if k.casefold() == name.casefold()]
-    return folded[0] if len(folded) == 1 else None
+    names = list(pairs)
+    k = column_index(names, name)
+    return None if k is None else names[k]
 
 
 def _readable(value: str) -> bool:
