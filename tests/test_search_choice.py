@@ -1,6 +1,8 @@
 """The search's choice among a step's candidates asks for verdicts only as far as it
 needs (each costs the adequacy checks of a fit), and chooses exactly as the rule that
-checks every candidate first: on random steps, the same candidate and reason."""
+checks every candidate first: on random steps, the same candidate and reason.  A step
+tries changes to the model's structure before coloured noise, and every single addition
+also where the data do not reject the model."""
 
 import math
 from types import SimpleNamespace
@@ -8,7 +10,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from pmdc_bayes.search import ADD_MARGIN, _better
+from pmdc_bayes.search import ADD_MARGIN, _better, _forward
+from pmdc_bayes.terms import NOISE
 
 
 class _Stub:
@@ -71,3 +74,66 @@ def test_a_step_whose_best_is_adequate_checks_only_it():
     chosen, why = _better(current, cands)
     assert chosen is cands[0] and "log Z +40.0" in why
     assert [c.asked for c in cands] == [1, 0, 0]
+
+
+class _Step:
+    """A search whose candidates' evidence and verdicts are given: ``table`` maps a move
+    (a frozenset of terms) to (log Z, adequate); the moves fitted are recorded."""
+
+    def __init__(self, proposed, singles, table):
+        self._proposed, self._singles, self.table = proposed, singles, table
+        self.fitted = []
+
+    def proposed(self, current):
+        return list(self._proposed)
+
+    def singles(self, current):
+        return list(self._singles)
+
+    def evaluate(self, moves, parent, kind):
+        self.fitted += moves
+        out = []
+        for move in moves:
+            z, adequate = self.table[move]
+            out.append(_Stub("+".join(sorted(move)), z, adequate))
+        return out
+
+
+NOISY = frozenset({NOISE + "step"})
+LAG, DROP, DEAD = (frozenset({t}) for t in ("speed_lag", "voltage_drop", "dead_time"))
+
+
+def test_a_structural_addition_comes_before_noise_that_gains_more():
+    """Noise gains most (it soaks up any misfit), yet a structural addition the data
+    accept is taken first, and the noise is not even fitted."""
+    search = _Step([NOISY, LAG], [DROP], {NOISY: (500.0, True), LAG: (60.0, True),
+                                          DROP: (10.0, False)})
+    best, why, source, tried = _forward(search, _Stub("ideal", 0.0, False))
+    assert best.terms == frozenset({"speed_lag"}) and source == "proposed by the verdict"
+    assert NOISY not in search.fitted and DROP not in search.fitted
+
+
+def test_noise_is_taken_where_no_change_of_structure_helps():
+    search = _Step([NOISY], [LAG, DROP], {NOISY: (80.0, True), LAG: (-2.0, False),
+                                          DROP: (1.0, False)})
+    best, _, _, tried = _forward(search, _Stub("ideal", 0.0, False))
+    assert best.terms == NOISY
+    assert search.fitted == [LAG, DROP, NOISY] and len(tried) == 3
+
+
+def test_an_adequate_model_still_takes_an_addition_the_evidence_strongly_supports():
+    """The verdict proposes nothing for a model the data do not reject; every single
+    addition is tried, and one gaining more than the margin is taken."""
+    gain = ADD_MARGIN + 4.0
+    search = _Step([], [LAG, DEAD, NOISY], {LAG: (1.0, True), DEAD: (gain, True),
+                                            NOISY: (2.0, True)})
+    best, why, source, _ = _forward(search, _Stub("ideal", 0.0, True))
+    assert best.terms == frozenset({"dead_time"}) and source == "every single addition tried"
+    assert f"{gain:+.1f}" in why and NOISY not in search.fitted
+
+
+def test_an_adequate_model_is_kept_when_no_addition_gains_enough():
+    search = _Step([], [LAG, DEAD, NOISY], {LAG: (ADD_MARGIN - 0.5, True),
+                                            DEAD: (-4.0, True), NOISY: (1.0, True)})
+    best, _, _, tried = _forward(search, _Stub("ideal", 0.0, True))
+    assert best is None and search.fitted == [LAG, DEAD, NOISY] and len(tried) == 3

@@ -290,7 +290,8 @@ def search_session(session_full: Session, *, holdout, friction, seed, say, compa
 
     fitted = _held_out(session_full, holdout)
     with announcing(say), clock.stage("model_search"):
-        searched = run_search(fitted, friction=friction, seed=seed, say=say)
+        searched = run_search(fitted, friction=friction, seed=seed, say=say,
+                              only_if_rejected=not compare)
     selection = searched.record
     failed = searched.chosen.fit.overflows
     if not compare and selection["fits"] == 1 and (

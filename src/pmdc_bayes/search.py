@@ -7,19 +7,20 @@ scale), and checked for adequacy where the choice turns on it (in order of evide
 until one the data do not reject gains enough; a candidate below it keeps its verdict
 "not checked"):
 
-- **forward**: the additions the adequacy verdict proposes (its ``proposals``), or,
-  when the model is rejected and nothing is proposed, every single addition of the
-  registry (:mod:`.terms`) with something in the session to act on.  The best is
-  taken when its evidence beats the current model's by more than :data:`ADD_MARGIN`
-  ("strong"), or when the data reject the current model and not it while its evidence
-  is no lower.  A candidate whose added
-  parameters the data cannot determine (posterior as wide as the prior) is not taken
-  over an adequate model;
+- **forward**: the changes to the model's structure the adequacy verdict proposes (its
+  ``proposals``), then every other single addition of the registry (:mod:`.terms`)
+  with something in the session to act on, then coloured noise (proposed, then on
+  every analogue trace): noise would otherwise soak up the misfit of a missing term.
+  The best of a stage is taken when its evidence beats the current model's by more
+  than :data:`ADD_MARGIN` ("strong"), or when the data reject the current model and
+  not it while its evidence is no lower.  A candidate whose added parameters the data
+  cannot determine (posterior as wide as the prior) is not taken over an adequate
+  model;
 - **backward**: after each addition, every term the search added before it is taken
   out again when the evidence does not support it (the smaller model's evidence within
   :data:`REMOVE_MARGIN` of the larger's, and the data not rejecting it unless they
   reject the larger too);
-- it stops when the data do not reject the model and no proposed addition is clearly
+- it stops when the data do not reject the model and no single addition is clearly
   better, when no step helps, or after :data:`MAX_FITS` fits.
 
 The model the search starts from is fitted in its own programs (most sessions end
@@ -68,7 +69,7 @@ __all__ = ["search_model", "run_search", "Fitted", "Searched", "nested_start", "
 ADD_MARGIN = 3.0  # log Bayes factor an addition must gain over an adequate model ("strong")
 REMOVE_MARGIN = 1.0  # a term whose removal costs less is not supported ("a bare mention")
 TIE = 1.0  # adequate candidates this close in log evidence are reported side by side
-MAX_FITS = 16  # the search's bound on MAP fits
+MAX_FITS = 32  # the search's bound on MAP fits
 
 
 class _Search:
@@ -204,6 +205,34 @@ def _better(current, cands) -> tuple[Candidate | None, str]:
     return fallback or (None, "")
 
 
+def _forward(search, current):
+    """One forward step: the candidate taken, why, where its move came from, and every
+    candidate tried.  Changes to the model's structure come before coloured noise, which
+    would otherwise soak up a misfit a missing term makes: first the structural additions
+    the verdict proposes, then every other structural single addition (also when the data
+    do not reject ``current``: an addition the evidence strongly supports is taken), and
+    coloured noise (proposed, then on every trace with an analogue channel) only when no
+    structural addition is taken."""
+    proposed = search.proposed(current)
+    singles = [m for m in search.singles(current) if m not in proposed]
+    stages = (([m for m in proposed if not _noise(m)], "proposed by the verdict"),
+              ([m for m in singles if not _noise(m)], "every single addition tried"),
+              ([m for m in proposed if _noise(m)], "proposed by the verdict"),
+              ([m for m in singles if _noise(m)], "every single addition tried"))
+    tried = []
+    for moves, source in stages:
+        if moves:
+            tried += search.evaluate(moves, current, "add")
+            best, why = _better(current, tried)
+            if best is not None:
+                return best, why, source, tried
+    return None, "", "", tried
+
+
+def _noise(move) -> bool:
+    return all(t.startswith(NOISE) for t in move)
+
+
 def _removals(search, current, start_terms, last_move) -> Candidate:
     """Every term the search added before ``last_move``, and each of the terms of a move
     of several (an unknown load on every suspect trace) but its last, taken out while
@@ -227,19 +256,22 @@ def _removals(search, current, start_terms, last_move) -> Candidate:
 
 
 def search_model(session: Session, *, friction: str | None = None, seed: int = 0,
-                 max_fits: int = MAX_FITS, say=None) -> dict:
+                 max_fits: int = MAX_FITS, say=None, only_if_rejected: bool = False) -> dict:
     """The stepwise search on ``session`` (module docstring): every candidate fitted,
     its verdict, log evidence, the step that made it and why it was kept or dropped; the
     chosen model (its terms, ``[model]`` table and friction) and why; the adequate
     candidates the evidence does not tell from it (a dict ready for JSON).  ``friction``
-    given, Coulomb friction is not searched over."""
+    given, Coulomb friction is not searched over.  ``only_if_rejected``: the search ends
+    at the model it starts from when the data do not reject it (a plain ``fit``, which
+    searches only where the session's model is rejected; ``fit --compare`` tries every
+    single addition to it as well)."""
     return run_search(session, friction=friction, seed=seed, max_fits=max_fits,
-                      say=say).record
+                      say=say, only_if_rejected=only_if_rejected).record
 
 
 @x64
 def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
-               max_fits: int = MAX_FITS, say=None) -> Searched:
+               max_fits: int = MAX_FITS, say=None, only_if_rejected: bool = False) -> Searched:
     """:func:`search_model`'s record and the chosen candidate's fit."""
     say = say or (lambda text: None)
     refuse_reversed(session)
@@ -257,23 +289,18 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
     if not halt and current.adequacy is not None and current.adequacy.faulty_data:
         halt, stop = True, ("the data hold a bad reading (its verdict's first line), "
                             "which no addition to the model mends")
+    elif not halt and only_if_rejected and current.ok:
+        halt, stop = True, "the data do not reject the session's model"
     for _ in range(0 if halt else max_fits):  # each step fits a new candidate or stops
         if search.fits_left() <= 0:
             stop = f"the bound of {max_fits} fits was reached"
             break
-        moves, source = search.proposed(current), "proposed by the verdict"
-        tried = search.evaluate(moves, current, "add")
-        best, why = _better(current, tried)
-        if best is None and not current.ok:
-            rest = [m for m in search.singles(current) if m not in moves]
-            tried += search.evaluate(rest, current, "add")
-            best, why = _better(current, tried)
-            source = "every single addition tried"
+        best, why, source, tried = _forward(search, current)
         for c in tried:
             if c is not best and not c.why:
                 c.why = _dropped(current, c, best)
         if best is None:
-            stop = ("the data do not reject it and no proposed addition is clearly better"
+            stop = ("the data do not reject it and no single addition is clearly better"
                     if current.ok else "no addition improves on it")
             break
         best.why = f"{why} ({source})"
@@ -297,14 +324,14 @@ def _dropped(current, c, best) -> str:
 
 
 def _record(search, chosen, stop, session) -> dict:
+    ties = [c for c in search.order if c is not chosen and chosen.ok
+            and abs(c.log_evidence - chosen.log_evidence) <= TIE and c.ok]
     rows = []
     for c in search.order:
         row = c.row()
         row["why"] = c.why
         row["decision"] = "chosen" if c is chosen else "dropped"
         rows.append(row)
-    ties = [c for c in search.order if c is not chosen and chosen.ok
-            and abs(c.log_evidence - chosen.log_evidence) <= TIE and c.ok]
     table, friction = model_table(session, chosen.terms)
     if chosen.ok:
         reason = f"the data do not reject it; the search stopped: {stop}"
