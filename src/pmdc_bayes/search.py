@@ -17,9 +17,9 @@ until one the data do not reject gains enough; a candidate below it keeps its ve
   cannot determine (posterior as wide as the prior) is not taken over an adequate
   model;
 - **backward**: after each addition, every term the search added before it is taken
-  out again when the evidence does not support it (the smaller model's evidence within
-  :data:`REMOVE_MARGIN` of the larger's, and the data not rejecting it unless they
-  reject the larger too);
+  out again when the evidence does not strongly support it (the smaller model's
+  evidence within :data:`REMOVE_MARGIN`, the same margin as an addition's, of the
+  larger's, and the data not rejecting it unless they reject the larger too);
 - it stops when the data do not reject the model and no single addition is clearly
   better, when no step helps, or after :data:`MAX_FITS` fits.
 
@@ -67,7 +67,9 @@ __all__ = ["search_model", "run_search", "Fitted", "Searched", "nested_start", "
            "REMOVE_MARGIN", "TIE", "MAX_FITS"]
 
 ADD_MARGIN = 3.0  # log Bayes factor an addition must gain over an adequate model ("strong")
-REMOVE_MARGIN = 1.0  # a term whose removal costs less is not supported ("a bare mention")
+REMOVE_MARGIN = ADD_MARGIN  # a term stays only where the evidence strongly supports it,
+# as an addition is taken: a term taken early (a lag before the coloured noise it stood
+# in for) is not kept on weaker evidence than would have added it to the model it ends in
 TIE = 1.0  # adequate candidates this close in log evidence are reported side by side
 MAX_FITS = 32  # the search's bound on MAP fits
 
