@@ -214,10 +214,12 @@ def _forward(search, current):
     the verdict proposes, then every other structural single addition (also when the data
     do not reject ``current``: an addition the evidence strongly supports is taken), and
     coloured noise (proposed, then on every trace with an analogue channel) only when no
-    structural addition is taken."""
+    structural addition is taken; where the model holds coloured noise already, the same
+    on its other traces (one sensor logs them all) comes with the proposed structure."""
     proposed = search.proposed(current)
     singles = [m for m in search.singles(current) if m not in proposed]
-    stages = (([m for m in proposed if not _noise(m)], "proposed by the verdict"),
+    held = any(t.startswith(NOISE) for t in current.terms)  # noise on one sensor's others
+    stages = (([m for m in proposed if held or not _noise(m)], "proposed by the verdict"),
               ([m for m in singles if not _noise(m)], "every single addition tried"),
               ([m for m in proposed if _noise(m)], "proposed by the verdict"),
               ([m for m in singles if _noise(m)], "every single addition tried"))
