@@ -34,13 +34,11 @@ from _common import REPORT, replace_section
 from scipy import stats
 
 from pmdc_bayes.candidate import Candidate
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
 from pmdc_bayes.io.lattice import analogue_channels
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.search import ADD_MARGIN, run_search
 from pmdc_bayes.simulate.fuzz import fuzz_session
-from pmdc_bayes.terms import LOAD, NOISE, SHARED, label, nuisance_of, with_terms
+from pmdc_bayes.terms import LOAD, NOISE, SHARED, label, nuisance_of
 
 TITLE = "Model search on combined non-idealities"
 TERM = {"dead time": "dead_time", "speed lag": "speed_lag", "voltage drop": "voltage_drop",
@@ -80,9 +78,7 @@ def true_terms(session, truth: dict, keys) -> frozenset:
 
 def fit_terms(session, terms, seed: int) -> Candidate:
     """The model ``terms`` fitted in its own programs, scored as the search scores one."""
-    s = with_terms(session, terms)
-    cf = fit_seed(s)
-    cand = Candidate(terms, s, cf, build_model(s, cf), None, "truth")
+    cand = Candidate.of(session, terms, move="truth")
     cand.run(seed)
     return cand
 

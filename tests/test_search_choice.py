@@ -137,3 +137,20 @@ def test_an_adequate_model_is_kept_when_no_addition_gains_enough():
                                             DEAD: (-4.0, True), NOISY: (1.0, True)})
     best, _, _, tried = _forward(search, _Stub("ideal", 0.0, True))
     assert best is None and search.fitted == [LAG, DEAD, NOISY] and len(tried) == 3
+
+
+@pytest.mark.parametrize("overflows, faulty, adequate, only_if_rejected, expected", [
+    (True, False, True, True, "FIT_FAILED"),
+    (False, True, False, False, "FAULTY_DATA"),
+    (False, False, True, True, "ADEQUATE_START"),
+    (False, False, True, False, None),
+    (False, False, False, True, None),
+])
+def test_the_search_ends_at_its_start_for_a_named_reason(overflows, faulty, adequate,
+                                                          only_if_rejected, expected):
+    from pmdc_bayes.search import Stop, _first_stop
+
+    start = SimpleNamespace(fit=SimpleNamespace(overflows=overflows),
+                            adequacy=SimpleNamespace(faulty_data=faulty), ok=adequate)
+    stop = _first_stop(start, only_if_rejected)
+    assert stop is (None if expected is None else Stop[expected])

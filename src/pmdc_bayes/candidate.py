@@ -14,9 +14,11 @@ import numpy as np
 from .inference.adequacy import assess
 from .inference.fit import fit_map
 from .inference.identifiability import PRIOR_DOMINATED
+from .inference.objective import build_model
+from .inference.seed import fit_seed
 from .io.session import Session
 from .selection import laplace_log_evidence
-from .terms import label, ordered
+from .terms import label, ordered, with_terms
 
 __all__ = ["Candidate", "Fitted", "Searched", "nested_start"]
 
@@ -35,10 +37,12 @@ class Fitted:
 
 @dataclass(frozen=True)
 class Searched:
-    """The search's record (ready for JSON) and the chosen candidate's fit."""
+    """The search's record (ready for JSON), the chosen candidate's fit and why the
+    search stopped (a :class:`~.search.Stop`)."""
 
     record: dict
     chosen: Fitted
+    stop: object
 
 
 def _neutral(spec) -> float:
@@ -71,6 +75,14 @@ class Candidate:
         self.log_evidence = math.nan
         self.undetermined = ()
         self.why = ""
+
+    @classmethod
+    def of(cls, session: Session, terms, parent=None, move: str = "start") -> Candidate:
+        """The candidate of ``session`` with the model ``terms`` declares, its seed and
+        model built, not yet fitted (:meth:`run`)."""
+        s = with_terms(session, terms)
+        cf = fit_seed(s)
+        return cls(terms, s, cf, build_model(s, cf), parent, move)
 
     @property
     def adequacy(self):

@@ -285,7 +285,7 @@ def search_session(session_full: Session, *, holdout, friction, seed, say, compa
     without ``compare``, the data do not reject the session's model or its fit failed)
     and the chosen candidate's :class:`~.search.Fitted`, for :func:`fit_session` to go on
     from; ``clock`` times it as the stage ``model_search``."""
-    from .search import run_search
+    from .search import Stop, run_search
     from .terms import with_terms
 
     fitted = _held_out(session_full, holdout)
@@ -293,9 +293,7 @@ def search_session(session_full: Session, *, holdout, friction, seed, say, compa
         searched = run_search(fitted, friction=friction, seed=seed, say=say,
                               only_if_rejected=not compare)
     selection = searched.record
-    failed = searched.chosen.fit.overflows
-    if not compare and selection["fits"] == 1 and (
-            selection["candidates"][0]["verdict"] == "adequate" or failed):
+    if not compare and searched.stop in (Stop.ADEQUATE_START, Stop.FIT_FAILED):
         return session_full, None, searched.chosen
     return with_terms(session_full, selection["terms"]), selection, searched.chosen
 

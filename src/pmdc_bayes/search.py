@@ -39,32 +39,18 @@ them apart.
 
 from __future__ import annotations
 
+import enum
 import math
 
 from ._x64 import x64
 from .candidate import Candidate, Fitted, Searched, nested_start
-from .inference.coloured import COLOURED
-from .inference.levels import level_outliers
-from .inference.objective import build_model
-from .inference.seed import fit_seed, refuse_reversed
-from .inference.warmup import WarmUp
-from .io.lattice import analogue_channels
-from .io.session import NUISANCES, Session
-from .supersets import Supersets
-from .terms import (
-    LOAD,
-    NOISE,
-    SHARED,
-    label,
-    model_table,
-    nuisance_of,
-    ordered,
-    terms_of,
-    with_terms,
-)
+from .inference.seed import refuse_reversed
+from .io.session import Session
+from .search_state import SearchState
+from .terms import is_noise, label, model_table, ordered, terms_of
 
-__all__ = ["search_model", "run_search", "Fitted", "Searched", "nested_start", "ADD_MARGIN",
-           "REMOVE_MARGIN", "TIE", "MAX_FITS"]
+__all__ = ["search_model", "run_search", "Fitted", "Searched", "Stop", "nested_start",
+           "ADD_MARGIN", "REMOVE_MARGIN", "TIE", "MAX_FITS"]
 
 ADD_MARGIN = 3.0  # log Bayes factor an addition must gain over an adequate model ("strong")
 REMOVE_MARGIN = ADD_MARGIN  # a term stays only where the evidence strongly supports it,
@@ -74,112 +60,17 @@ TIE = 1.0  # adequate candidates this close in log evidence are reported side by
 MAX_FITS = 32  # the search's bound on MAP fits
 
 
-class _Search:
-    def __init__(self, session: Session, *, free_friction: bool, seed: int, max_fits: int,
-                 say):
-        self.session, self.seed, self.max_fits, self.say = session, seed, max_fits, say
-        self.free_friction = free_friction
-        self.done: dict[frozenset, Candidate] = {}
-        self.order: list[Candidate] = []
-        self.suspects = _suspect_traces(session)
-        self.supersets = Supersets(session, terms_of(session), free_friction=free_friction)
+class Stop(enum.Enum):
+    """Why the search stopped (its text, for the record's reason)."""
 
-    def fits_left(self) -> int:
-        return self.max_fits - len(self.order)
-
-    def evaluate(self, moves, parent, kind) -> list[Candidate]:
-        """The candidates ``parent.terms`` changed by each move (terms to add, or to take
-        out when ``kind`` is ``"remove"``), fitted in order within the bound; one fitted
-        before is not fitted again.  The next candidates' programs are made meanwhile."""
-        new, out = [], []
-        for move in moves:
-            terms = parent.terms - move if kind == "remove" else parent.terms | move
-            if terms in self.done:
-                out.append(self.done[terms])
-                continue
-            if len(new) >= self.fits_left():
-                break
-            s = with_terms(self.session, terms)
-            cf = fit_seed(s)
-            cand = Candidate(terms, s, cf, build_model(s, cf), parent,
-                              f"{'−' if kind == 'remove' else '+'} {label(move)}")
-            self.done[terms] = cand
-            new.append(cand)
-            out.append(cand)
-        programs = [self.supersets.for_model(c.terms, c.model) for c in new]
-        ahead = WarmUp.fits([c.model for c in new[1:]],
-                            kernels=[p is None for p in programs[1:]])
-        with ahead.stopped_on_error():
-            for cand, superset in zip(new, programs, strict=True):
-                cand.run(self.seed, superset)
-                self.order.append(cand)
-                self.say(f"model search: {label(cand.terms)}: log Z {cand.log_evidence:.1f}")
-        ahead.stop()
-        return out
-
-    def start(self, terms) -> Candidate:
-        s = with_terms(self.session, terms)
-        cf = fit_seed(s)
-        cand = Candidate(terms, s, cf, build_model(s, cf), None, "start")
-        self.done[terms] = cand
-        cand.run(self.seed)
-        self.order.append(cand)
-        self.say(f"model search: {label(terms)}: {cand.adequacy.verdict}, "
-                 f"log Z {cand.log_evidence:.1f}")
-        return cand
-
-    # -- what to try -------------------------------------------------------------------
-    def _moves_for(self, nuisance: str, trace: str | None) -> list[frozenset]:
-        if nuisance == "dead_time":
-            return [frozenset({SHARED}), frozenset({"dead_time"})] \
-                if len(self.session.traces) > 1 else [frozenset({"dead_time"})]
-        if nuisance == "unknown_load":
-            return [frozenset({LOAD + (trace or t) for t in
-                               ((trace,) if trace else self.suspects)})]
-        if nuisance == COLOURED:
-            return [frozenset({NOISE + t for t in ((trace,) if trace else
-                                                   set(analogue_channels(self.session).values()))})]
-        return [frozenset({nuisance})]
-
-    def allowed(self, move, held) -> bool:
-        if move & held or not move:
-            return False
-        if (SHARED in held and "dead_time" in move) or ("dead_time" in held and SHARED in move):
-            return False
-        if "coulomb" in move and not self.free_friction:
-            return False
-        keys = {nuisance_of(t) for t in move} - {"coulomb", COLOURED}
-        noisy = {t[len(NOISE):] for t in move if t.startswith(NOISE)}
-        if not noisy <= set(analogue_channels(self.session).values()):  # the move's traces
-            return False
-        return self.session.inert_nuisance(tuple(keys)) is None
-
-    def proposed(self, cand) -> list[frozenset]:
-        """The additions the verdict proposes, in its order; and where the candidate holds
-        coloured noise on some traces, the same on every other trace with an analogue
-        channel (one sensor logs them all; a trace whose correlated errors pass the
-        misfit check, a quiet one or one its response fills, would otherwise be read as
-        white)."""
-        pairs = [(p.nuisance, p.trace) for p in cand.adequacy.proposals]
-        moves = []
-        for nuisance, trace in pairs:
-            if nuisance in NUISANCES or nuisance == "coulomb":
-                moves += self._moves_for(nuisance, trace)
-        if any(t.startswith(NOISE) for t in cand.terms):
-            moves += [m - cand.terms for m in self._moves_for(COLOURED, None)]
-        return [m for m in dict.fromkeys(moves) if self.allowed(m, cand.terms)]
-
-    def singles(self, cand) -> list[frozenset]:
-        """Every single addition of the registry with something to act on."""
-        moves = [m for n in NUISANCES + ("coulomb",) for m in self._moves_for(n, None)]
-        return [m for m in dict.fromkeys(moves) if self.allowed(m, cand.terms)]
-
-
-def _suspect_traces(session: Session) -> tuple[str, ...]:
-    """The traces an unknown load goes on when the verdict names none: those settling off
-    the line the other traces' levels draw (model-free), else every driven trace."""
-    off = level_outliers(session)
-    return tuple(off) if off else tuple(t.name for t in session.traces)
+    FIT_FAILED = "its MAP fit failed, so there is nothing to build on"
+    FAULTY_DATA = ("the data hold a bad reading (its verdict's first line), which no "
+                   "addition to the model mends")
+    ADEQUATE_START = "the data do not reject the session's model"
+    NOTHING_BETTER = "the data do not reject it and no single addition is clearly better"
+    NO_GAIN = "no addition improves on it"
+    FITS = "the bound of {max_fits} fits was reached"
+    STEPS = "the bound of {max_fits} steps was reached"
 
 
 def _better(current, cands) -> tuple[Candidate | None, str]:
@@ -218,7 +109,7 @@ def _forward(search, current):
     on its other traces (one sensor logs them all) comes with the proposed structure."""
     proposed = search.proposed(current)
     singles = [m for m in search.singles(current) if m not in proposed]
-    held = any(t.startswith(NOISE) for t in current.terms)  # noise on one sensor's others
+    held = any(is_noise(t) for t in current.terms)  # noise on one sensor's others
     stages = (([m for m in proposed if held or not _noise(m)], "proposed by the verdict"),
               ([m for m in singles if not _noise(m)], "every single addition tried"),
               ([m for m in proposed if _noise(m)], "proposed by the verdict"),
@@ -234,7 +125,7 @@ def _forward(search, current):
 
 
 def _noise(move) -> bool:
-    return all(t.startswith(NOISE) for t in move)
+    return all(is_noise(t) for t in move)
 
 
 def _removals(search, current, start_terms, last_move) -> Candidate:
@@ -283,36 +174,40 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
         import dataclasses
 
         session = dataclasses.replace(session, friction=friction)
-    search = _Search(session, free_friction=friction is None, seed=seed, max_fits=max_fits,
+    search = SearchState(session, free_friction=friction is None, seed=seed, max_fits=max_fits,
                      say=say)
     start_terms = terms_of(session)
     current = search.start(start_terms)
     current.why = "the session's model" if start_terms else "the ideal motor"
-    halt = current.fit.overflows
-    stop = "its MAP fit failed, so there is nothing to build on" if halt else ""
-    if not halt and current.adequacy is not None and current.adequacy.faulty_data:
-        halt, stop = True, ("the data hold a bad reading (its verdict's first line), "
-                            "which no addition to the model mends")
-    elif not halt and only_if_rejected and current.ok:
-        halt, stop = True, "the data do not reject the session's model"
-    for _ in range(0 if halt else max_fits):  # each step fits a new candidate or stops
+    stop = _first_stop(current, only_if_rejected)
+    for _ in range(0 if stop else max_fits):  # each step fits a new candidate or stops
         if search.fits_left() <= 0:
-            stop = f"the bound of {max_fits} fits was reached"
+            stop = Stop.FITS
             break
         best, why, source, tried = _forward(search, current)
         for c in tried:
             if c is not best and not c.why:
                 c.why = _dropped(current, c, best)
         if best is None:
-            stop = ("the data do not reject it and no single addition is clearly better"
-                    if current.ok else "no addition improves on it")
+            stop = Stop.NOTHING_BETTER if current.ok else Stop.NO_GAIN
             break
         best.why = f"{why} ({source})"
         current = _removals(search, best, start_terms, best.terms - best.parent.terms)
-    stop = stop or f"the bound of {max_fits} steps was reached"
+    stop = stop or Stop.STEPS
     return Searched(_record(search, current, stop, session),
                     Fitted(current.session, current.cf, current.model, current.fit,
-                           current.adequacy))
+                           current.adequacy), stop)
+
+
+def _first_stop(start, only_if_rejected) -> Stop | None:
+    """Why the search ends at the model it starts from, if it does."""
+    if start.fit.overflows:
+        return Stop.FIT_FAILED
+    if start.adequacy is not None and start.adequacy.faulty_data:
+        return Stop.FAULTY_DATA
+    if only_if_rejected and start.ok:
+        return Stop.ADEQUATE_START
+    return None
 
 
 def _dropped(current, c, best) -> str:
@@ -337,13 +232,14 @@ def _record(search, chosen, stop, session) -> dict:
         row["decision"] = "chosen" if c is chosen else "dropped"
         rows.append(row)
     table, friction = model_table(session, chosen.terms)
+    why = stop.value.format(max_fits=search.max_fits)
     if chosen.ok:
-        reason = f"the data do not reject it; the search stopped: {stop}"
+        reason = f"the data do not reject it; the search stopped: {why}"
     elif chosen.fit.overflows:
-        reason = f"the search stopped at its start: {stop} ({chosen.fit.message})"
+        reason = f"the search stopped at its start: {why} ({chosen.fit.message})"
     else:
         reason = (f"the data reject every candidate tried; it has the highest evidence "
-                  f"reached, and its diagnosis says what is still missing ({stop})")
+                  f"reached, and its diagnosis says what is still missing ({why})")
     return {"search": True, "start": label(search.order[0].terms),
             "candidates": rows, "fits": len(search.order), "max_fits": search.max_fits,
             "recommended": label(chosen.terms), "terms": ordered(chosen.terms),
@@ -352,4 +248,5 @@ def _record(search, chosen, stop, session) -> dict:
             "coloured_traces": list(chosen.session.coloured_traces),
             "shared_dead_time": chosen.session.shared_dead_time,
             "friction": friction, "model": table, "reason": reason,
+            "stopped": stop.name.lower(),
             "equivalent": [label(c.terms) for c in ties]}

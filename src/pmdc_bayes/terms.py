@@ -16,7 +16,8 @@ import dataclasses
 from .io.lattice import analogue_channels
 from .io.session import NUISANCES, Session
 
-__all__ = ["terms_of", "with_terms", "model_table", "label", "nuisance_of", "term_of"]
+__all__ = ["terms_of", "with_terms", "model_table", "label", "nuisance_of", "term_of",
+           "is_noise"]
 
 SHARED = "dead_time:shared"
 LOAD = "unknown_load:"
@@ -27,6 +28,11 @@ PER_TRACE = (LOAD, NOISE)
 def nuisance_of(term: str) -> str:
     """The ``[model]`` key a term sets (``"coulomb"`` for Coulomb friction)."""
     return term.split(":", 1)[0]
+
+
+def is_noise(term: str) -> bool:
+    """Whether a term is coloured noise on a trace."""
+    return term.startswith(NOISE)
 
 
 def term_of(nuisance: str, trace: str | None = None) -> str:
@@ -67,7 +73,7 @@ def with_terms(session: Session, terms) -> Session:
     """``session`` with the model ``terms`` declares in place of its own (a load's part
     kept for the traces the session gave one)."""
     loaded = tuple(t[len(LOAD):] for t in ordered(terms) if t.startswith(LOAD))
-    coloured = tuple(t[len(NOISE):] for t in ordered(terms) if t.startswith(NOISE))
+    coloured = tuple(t[len(NOISE):] for t in ordered(terms) if is_noise(t))
     nuisances = {nuisance_of(t) for t in terms if t != "coulomb"}
     kinds = tuple((n, k) for n, k in session.load_kinds if n in loaded)
     return dataclasses.replace(
@@ -92,7 +98,7 @@ def model_table(session: Session, terms) -> tuple[dict, str]:
                 table.setdefault(key, {})[trace] = kinds.get(trace, "both")
             else:
                 table.setdefault(key, []).append(trace)
-        elif term.startswith(NOISE):
+        elif is_noise(term):
             table.setdefault(key, []).append(term[len(NOISE):])
         elif key == "current_limit" and session.current_limit_setting is not None:
             table[key] = float(session.current_limit_setting)
@@ -112,7 +118,7 @@ def label(terms) -> str:
     for t in ordered(terms):
         if t.startswith(LOAD):
             out.append(f"unknown load ({t[len(LOAD):]})")
-        elif t.startswith(NOISE):
+        elif is_noise(t):
             out.append(f"coloured noise ({t[len(NOISE):]})")
         else:
             out.append(_WORDS.get(t, t.replace("_", " ")))
