@@ -24,6 +24,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import to_device
 from ..io.lattice import analogue_channels
 
 __all__ = ["COLOURED", "PHI_PRIOR_SD", "ar_name", "ar_specs", "coloured_channels", "breaks",
@@ -96,7 +97,7 @@ def whiten(r, prev, rho):
 
 def channel_rho(model, theta) -> dict:
     """Per channel name its noise's lag-1 correlation at ``theta`` (0: white)."""
-    rho = np.asarray(model.noise_rho(model.switched(jnp.asarray(theta), model.data)))
+    rho = np.asarray(model.noise_rho(model.switched(to_device(theta), model.data)))
     return {c.name: float(r) for c, r in zip(model.channels, rho, strict=True)}
 
 

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
+from .._x64 import to_device
 from .diagnostics import az
 from .predictions import RESIDUAL_BATCH
 
@@ -64,11 +65,11 @@ def _pointwise(model, chain_log: np.ndarray, thin: int, rng) -> tuple:
     padded = np.concatenate([flat, np.repeat(flat[:1], m - n, axis=0)])
     ll = np.empty((n, observed.size))
     replicate = np.empty((n, observed.size), np.float32)
-    ahead = fn(jnp.asarray(padded[:_LL_BATCH]))
+    ahead = fn(to_device(padded[:_LL_BATCH]))
     for a in range(0, m, _LL_BATCH):
         outs = ahead
         if a + _LL_BATCH < m:  # dispatched now, computed while this batch is unpacked
-            ahead = fn(jnp.asarray(padded[a + _LL_BATCH:a + 2 * _LL_BATCH]))
+            ahead = fn(to_device(padded[a + _LL_BATCH:a + 2 * _LL_BATCH]))
         keep = min(_LL_BATCH, n - a)
         for (k, idx), end in zip(selection, ends, strict=True):
             # the channel's residuals, and σ² (one value per row of the output, so its

@@ -7,10 +7,9 @@ from __future__ import annotations
 import math
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
-from .._x64 import x64
+from .._x64 import to_device, x64
 
 __all__ = ["batch_log_posterior", "LogProb", "initial_walkers"]
 
@@ -50,7 +49,7 @@ class LogProb:
         vals = np.empty(m)
         for a in range(0, m, self.batch):
             try:
-                vals[a:a + self.batch] = np.asarray(self.fn(jnp.asarray(padded[a:a + self.batch])))
+                vals[a:a + self.batch] = np.asarray(self.fn(to_device(padded[a:a + self.batch])))
             except (ArithmeticError, ValueError, RuntimeError):  # a failed solve is -inf
                 vals[a:a + self.batch] = -np.inf
         vals = vals[:good.shape[0]]

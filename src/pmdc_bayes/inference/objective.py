@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._x64 import x64
+from .._x64 import to_device, x64
 from ..io.session import Session
 from ..paper.closed_form import ClosedForm
 from ..physics import motor
@@ -118,7 +118,7 @@ class SessionModel(RigEffects, Predictions, Pointwise):
         d["neutral"] = np.zeros(len(self.registry))
         if self.coloured:
             d["noise_ar"] = coloured_data(self)
-        return jax.tree_util.tree_map(jnp.asarray, d)
+        return jax.tree_util.tree_map(to_device, d)
 
     def _add(self, name, unit, n, s0, alpha=1.0) -> int:
         self.channels.append(Channel(name, unit, int(n), float(s0), float(alpha)))
@@ -153,10 +153,10 @@ class SessionModel(RigEffects, Predictions, Pointwise):
         full = {s.name: (float(values.get(s.name, s.prior.centre)) if s.transform == "identity"
                          else max(float(values.get(s.name) or 0.0), 1e-300))
                 for s in self.registry.specs}
-        return jnp.asarray(self.registry.to_theta(full))
+        return to_device(self.registry.to_theta(full))
 
     def theta_seed(self) -> jax.Array:
-        return jnp.asarray(self.registry.seed_theta())
+        return to_device(self.registry.seed_theta())
 
     # -- predictions and residuals -------------------------------------------------------
     def steady_prediction(self, p: Params, v, tl, drop=0.0):

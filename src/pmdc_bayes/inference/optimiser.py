@@ -36,7 +36,7 @@ import lineax as lx
 import numpy as np
 import optimistix as optx
 
-from .._x64 import x64
+from .._x64 import to_device, x64
 from .curvature import Terms, gauss_newton
 
 __all__ = ["ExactCurvature", "MarquardtDescent", "Stepper", "Step"]
@@ -182,8 +182,8 @@ class Stepper:
     @x64
     def step(self, at: Step) -> Step:
         """One optimistix step of the start at ``at`` (one evaluation of the objective)."""
-        y, leaves, done, result = self._step(jnp.asarray(at.y), at.state,
-                                             jnp.asarray(at.theta0), self.data)
+        y, leaves, done, result = self._step(to_device(at.y), at.state,
+                                             to_device(at.theta0), self.data)
         state = jax.tree_util.tree_unflatten(self._treedef, leaves)
         lp, grad, H, H_noise, ss, G = (np.asarray(x) for x in state.hessian_update_state)
         y = np.asarray(y)

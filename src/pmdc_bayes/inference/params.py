@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import to_device
 from ..io.session import LA_ASSUMED, Session
 
 __all__ = ["Prior", "ParamSpec", "Registry", "motor_registry",
@@ -131,7 +132,7 @@ class Registry:
 
     def values(self, theta) -> dict:
         """θ → ``{name: value}`` (SI), JAX-traceable: the one place θ becomes values."""
-        theta = jnp.asarray(theta)
+        theta = to_device(theta)
         return {n: self._value(theta, k) for k, n in enumerate(self.names)}
 
     def to_theta(self, values: dict) -> np.ndarray:

@@ -4,10 +4,9 @@ angles at a θ, for the adequacy checks, the residual tables and the report."""
 from __future__ import annotations
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
-from .._x64 import x64
+from .._x64 import to_device, x64
 
 __all__ = ["Predictions", "RESIDUAL_BATCH"]
 
@@ -48,7 +47,7 @@ class Predictions:
         name = "pointwise-residuals" if whitened or not self.coloured else "raw-residuals"
         fn = self.compiled(name, lambda: jax.jit(lambda ts, data: jax.lax.map(
             lambda t: self.padded_residuals(t, data=data, whitened=whitened), ts)))
-        return fn(jnp.asarray(thetas), self.data)
+        return fn(to_device(thetas), self.data)
 
     @x64
     def predict_draws(self, thetas) -> list:
@@ -100,5 +99,5 @@ class Predictions:
                          for k, x in zip(("current", "speed", "position"), (r[1], r[0], r[2]),
                                          strict=True)) + (flags,)
 
-        out = self.compiled("predict", lambda: jax.jit(run))(jnp.asarray(theta), self.data)
+        out = self.compiled("predict", lambda: jax.jit(run))(to_device(theta), self.data)
         return tuple(np.asarray(x) for x in out)

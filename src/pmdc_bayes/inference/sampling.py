@@ -20,12 +20,11 @@ import sys
 import time
 from dataclasses import dataclass
 
-import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
 from .. import _signals
-from .._x64 import x64
+from .._x64 import to_device, x64
 from .coordinates import Coordinates, exact_laplace
 from .diagnostics import (
     az,
@@ -135,7 +134,7 @@ def warm_up(model, theta, n_walkers: int | None = None) -> None:
     ``theta``."""
     _, _, batch = _layout(len(model.names), n_walkers)
     theta = np.asarray(theta, dtype=float)
-    _log_posterior_batch(model)(jnp.asarray(np.repeat(theta[None], batch, axis=0)))
+    _log_posterior_batch(model)(to_device(np.repeat(theta[None], batch, axis=0)))
 
 
 def _burn_in(tau, steps: int, adapted: int) -> int:

@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import to_device
 from ..io.session import Trace
 from .load import drag_cuts, with_drags
 
@@ -242,15 +243,15 @@ def stack_experiments(specs) -> Experiment:
         clock.append(seg_t0 + shift)
         shift += float(t[-1]) + 1.0
     return Experiment(
-        jnp.asarray(cat["t0"]), jnp.asarray(cat["len"]), jnp.asarray(cat["va"]),
-        jnp.asarray(cat["tl"]), jnp.asarray(cat["first"]),
-        jnp.asarray(cat["mode"].astype(np.int32)), jnp.asarray(cat["x0"]),
-        jnp.asarray(np.array(chunk_seg, dtype=np.int32)),
-        jnp.asarray(np.array(chunk_trace, dtype=np.int32)),
-        jnp.asarray(np.concatenate(taus)), jnp.asarray(np.concatenate(masks)),
-        jnp.asarray(np.concatenate(index)),
-        jnp.asarray(np.array([p[0].size for p in per_trace], dtype=np.int64)),
-        seg_clock=jnp.asarray(np.concatenate(clock)),
+        to_device(cat["t0"]), to_device(cat["len"]), to_device(cat["va"]),
+        to_device(cat["tl"]), to_device(cat["first"]),
+        to_device(cat["mode"].astype(np.int32)), to_device(cat["x0"]),
+        to_device(np.array(chunk_seg, dtype=np.int32)),
+        to_device(np.array(chunk_trace, dtype=np.int32)),
+        to_device(np.concatenate(taus)), to_device(np.concatenate(masks)),
+        to_device(np.concatenate(index)),
+        to_device(np.array([p[0].size for p in per_trace], dtype=np.int64)),
+        seg_clock=to_device(np.concatenate(clock)),
     )
 
 
