@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 import time
@@ -101,7 +102,8 @@ def run_one(seed: int, keys: tuple[str, ...] | None, root: Path) -> dict:
                                if c["name"] in found.record["equivalent"]])
         truth = true_terms(session, f.truth, keys)
         if rec["missing"] and truth != frozenset(found.record["terms"]):
-            best = max(found.record["candidates"], key=lambda c: c["log_evidence"])
+            best = max(found.record["candidates"], key=lambda c: (math.isfinite(c["log_evidence"]),
+                                                                 c["log_evidence"]))
             own = fit_terms(session, truth, seed)
             rec.update(truth=label(truth), truth_verdict=own.adequacy.verdict,
                        truth_gain=own.log_evidence - best["log_evidence"])

@@ -139,6 +139,20 @@ def test_an_adequate_model_is_kept_when_no_addition_gains_enough():
     assert best is None and search.fitted == [LAG, DEAD, NOISY] and len(tried) == 3
 
 
+def test_noise_on_one_sensor_s_other_traces_comes_with_the_proposed_structure():
+    """Where the model holds coloured noise on one trace, the same on another is tried
+    with the proposed structure, before every other single addition, and once."""
+    search = _Step([NOISY, LAG], [DROP], {NOISY: (50.0, False), LAG: (20.0, False),
+                                          DROP: (90.0, False)})
+    best, _, source, tried = _forward(search, _Stub(NOISE + "load", 0.0, False))
+    assert best.terms == NOISY and source == "proposed by the verdict"
+    assert search.fitted == [NOISY, LAG] and len(tried) == 2
+    search = _Step([NOISY, LAG], [DROP], {NOISY: (1.0, False), LAG: (-1.0, False),
+                                          DROP: (2.0, False)})
+    best, _, _, tried = _forward(search, _Stub(NOISE + "load", 0.0, False))
+    assert best is None and search.fitted == [NOISY, LAG, DROP] and len(tried) == 3
+
+
 @pytest.mark.parametrize("overflows, faulty, adequate, only_if_rejected, expected", [
     (True, False, True, True, "FIT_FAILED"),
     (False, True, False, False, "FAULTY_DATA"),

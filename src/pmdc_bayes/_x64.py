@@ -32,9 +32,9 @@ def x64(fn):
 
 
 def to_device(x) -> jax.Array:
-    """``x`` as a JAX array: a NumPy array or a number is transferred without a program
-    (its dtype kept, under the 64-bit mode of :func:`x64`); a JAX array or a tracer is
-    returned as it is."""
+    """``x`` as a JAX array: a NumPy array is transferred without a program (its dtype
+    kept, under the 64-bit mode of :func:`x64`; a Python number becomes a NumPy one, of
+    a strong type); a JAX array or a tracer is returned as it is."""
     if isinstance(x, jax.Array):
         return x
     return jax.device_put(np.asarray(x))

@@ -6,6 +6,7 @@ search hands on."""
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass
 
@@ -20,7 +21,20 @@ from .io.session import Session
 from .selection import laplace_log_evidence
 from .terms import label, ordered, with_terms
 
-__all__ = ["Candidate", "Fitted", "Searched", "nested_start"]
+__all__ = ["Candidate", "Fitted", "Searched", "Stop", "nested_start"]
+
+
+class Stop(enum.Enum):
+    """Why the search stopped (its text, for the record's reason)."""
+
+    FIT_FAILED = "its MAP fit failed, so there is nothing to build on"
+    FAULTY_DATA = ("the data hold a bad reading (its verdict's first line), which no "
+                   "addition to the model mends")
+    ADEQUATE_START = "the data do not reject the session's model"
+    NOTHING_BETTER = "the data do not reject it and no single addition is clearly better"
+    NO_GAIN = "no addition improves on it"
+    FITS = "the bound of {max_fits} fits was reached"
+    STEPS = "the bound of {max_fits} steps was reached"
 
 
 @dataclass(frozen=True)
@@ -38,11 +52,11 @@ class Fitted:
 @dataclass(frozen=True)
 class Searched:
     """The search's record (ready for JSON), the chosen candidate's fit and why the
-    search stopped (a :class:`~.search.Stop`)."""
+    search stopped."""
 
     record: dict
     chosen: Fitted
-    stop: object
+    stop: Stop
 
 
 def _neutral(spec) -> float:

@@ -11,6 +11,8 @@ until one the data do not reject gains enough; a candidate below it keeps its ve
   ``proposals``), then every other single addition of the registry (:mod:`.terms`)
   with something in the session to act on, then coloured noise (proposed, then on
   every analogue trace): noise would otherwise soak up the misfit of a missing term.
+  Where the model holds coloured noise already, the same noise on its other traces
+  comes with the proposed structure (one sensor logs them all).
   The best of a stage is taken when its evidence beats the current model's by more
   than :data:`ADD_MARGIN` ("strong"), or when the data reject the current model and
   not it while its evidence is no lower.  A candidate whose added parameters the data
@@ -20,8 +22,10 @@ until one the data do not reject gains enough; a candidate below it keeps its ve
   out again when the evidence does not strongly support it (the smaller model's
   evidence within :data:`REMOVE_MARGIN`, the same margin as an addition's, of the
   larger's, and the data not rejecting it unless they reject the larger too);
-- it stops when the data do not reject the model and no single addition is clearly
-  better, when no step helps, or after :data:`MAX_FITS` fits.
+- it stops (:class:`~.candidate.Stop`, named in the record) when the data do not
+  reject the model and no single addition is clearly better, when no step helps, after
+  :data:`MAX_FITS` fits; or at its start, when its fit fails, when the data hold a bad
+  reading no addition mends, or (a plain ``fit``) when the data do not reject it.
 
 The model the search starts from is fitted in its own programs (most sessions end
 there).  On a short session a further candidate without a costly solution (stick-slip,
@@ -39,11 +43,10 @@ them apart.
 
 from __future__ import annotations
 
-import enum
 import math
 
 from ._x64 import x64
-from .candidate import Candidate, Fitted, Searched, nested_start
+from .candidate import Candidate, Fitted, Searched, Stop, nested_start
 from .inference.seed import refuse_reversed
 from .io.session import Session
 from .search_state import SearchState
@@ -58,19 +61,6 @@ REMOVE_MARGIN = ADD_MARGIN  # a term stays only where the evidence strongly supp
 # in for) is not kept on weaker evidence than would have added it to the model it ends in
 TIE = 1.0  # adequate candidates this close in log evidence are reported side by side
 MAX_FITS = 32  # the search's bound on MAP fits
-
-
-class Stop(enum.Enum):
-    """Why the search stopped (its text, for the record's reason)."""
-
-    FIT_FAILED = "its MAP fit failed, so there is nothing to build on"
-    FAULTY_DATA = ("the data hold a bad reading (its verdict's first line), which no "
-                   "addition to the model mends")
-    ADEQUATE_START = "the data do not reject the session's model"
-    NOTHING_BETTER = "the data do not reject it and no single addition is clearly better"
-    NO_GAIN = "no addition improves on it"
-    FITS = "the bound of {max_fits} fits was reached"
-    STEPS = "the bound of {max_fits} steps was reached"
 
 
 def _better(current, cands) -> tuple[Candidate | None, str]:
@@ -112,7 +102,7 @@ def _forward(search, current):
     held = any(is_noise(t) for t in current.terms)  # noise on one sensor's others
     stages = (([m for m in proposed if held or not _noise(m)], "proposed by the verdict"),
               ([m for m in singles if not _noise(m)], "every single addition tried"),
-              ([m for m in proposed if _noise(m)], "proposed by the verdict"),
+              ([m for m in proposed if not held and _noise(m)], "proposed by the verdict"),
               ([m for m in singles if _noise(m)], "every single addition tried"))
     tried = []
     for moves, source in stages:
@@ -188,8 +178,9 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
         for c in tried:
             if c is not best and not c.why:
                 c.why = _dropped(current, c, best)
-        if best is None:
-            stop = Stop.NOTHING_BETTER if current.ok else Stop.NO_GAIN
+        if best is None:  # every addition tried, or the bound reached within the step
+            stop = Stop.FITS if search.fits_left() <= 0 else \
+                Stop.NOTHING_BETTER if current.ok else Stop.NO_GAIN
             break
         best.why = f"{why} ({source})"
         current = _removals(search, best, start_terms, best.terms - best.parent.terms)

@@ -19,10 +19,9 @@ from __future__ import annotations
 import copy
 import dataclasses
 
-import jax.numpy as jnp
 import numpy as np
 
-from .._x64 import x64
+from .._x64 import to_device, x64
 from ..physics.regimes import NO_LIMIT
 from ..physics.sensor import MIN_LAG
 from .fit import FitResult, fit_map
@@ -100,8 +99,8 @@ class Superset:
         view = copy.copy(sup)
         view.registry = registry
         view.prior_sd = np.where(off, 1.0, registry.prior_width_log())
-        view.data = dict(sup.data, off=jnp.asarray(off), neutral=jnp.asarray(neutral),
-                         prior_centre=jnp.asarray(centre), prior_scale=jnp.asarray(scale))
+        view.data = dict(sup.data, off=to_device(off), neutral=to_device(neutral),
+                         prior_centre=to_device(centre), prior_scale=to_device(scale))
         return view
 
     @x64

@@ -19,6 +19,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import to_device
 from ..io.drag import Drag
 
 __all__ = ["drag_torque", "with_drags", "curved_start", "curve_torque", "curve_tangent",
@@ -161,11 +162,11 @@ def with_drags(exp, drags):
     trace = np.asarray(exp.seg_trace)
     if any(d.constant or d.viscous for d in drags):
         tc, b = (np.array([float(d[k]) for d in drags]) for k in (0, 1))
-        exp = exp._replace(seg_b=jnp.asarray(b[trace]), seg_tc=jnp.asarray(tc[trace]))
+        exp = exp._replace(seg_b=to_device(b[trace]), seg_tc=to_device(tc[trace]))
     if any(d.curved for d in drags):
         q, kw, kt = curve_arrays(drags)
-        exp = exp._replace(seg_q=jnp.asarray(q[trace]), seg_kw=jnp.asarray(kw[trace]),
-                           seg_kt=jnp.asarray(kt[trace]))
+        exp = exp._replace(seg_q=to_device(q[trace]), seg_kw=to_device(kw[trace]),
+                           seg_kt=to_device(kt[trace]))
     return exp
 
 
