@@ -193,8 +193,12 @@ def main(argv=None) -> int:
     ap.add_argument("--start", type=int, default=0, help="first seed")
     ap.add_argument("--part", type=str, default="0/1",
                     help="K/N: run only every N-th session from the K-th (side by side)")
-    ap.add_argument("--log", type=Path, default=None, help="JSON lines of results (resumed)")
+    ap.add_argument("--log", type=Path, nargs="+", default=[],
+                    help="JSON lines of results (resumed; new results go to the first)")
     ap.add_argument("--no-report", action="store_true")
+    ap.add_argument("--logged-only", action="store_true",
+                    help="report the sessions already in --log (several logs: one per part, "
+                         "joined); run none")
     args = ap.parse_args(argv)
     part, parts = (int(x) for x in args.part.split("/"))
     seeds = range(args.start, args.start + args.n)
@@ -202,16 +206,18 @@ def main(argv=None) -> int:
         (s, None) for s in range(args.start, args.start + args.in_class)]
     jobs = jobs[part::parts]
     done = {}
-    if args.log and args.log.exists():
-        for line in args.log.read_text().splitlines():
+    for log in args.log:
+        for line in log.read_text().splitlines() if log.exists() else ():
             r = json.loads(line)
             done[(r["seed"], tuple(r["keys"]))] = r
+    if args.logged_only:
+        jobs = [j for j in jobs if (j[0], tuple(j[1] or ())) in done]
     records = []
     with tempfile.TemporaryDirectory() as tmp:
         for seed, keys in jobs:
             r = done.get((seed, tuple(keys or ()))) or run_one(seed, keys, Path(tmp))
             if (seed, tuple(keys or ())) not in done and args.log:
-                with args.log.open("a") as fh:
+                with args.log[0].open("a") as fh:
                     fh.write(json.dumps(r) + "\n")
             records.append(r)
             print(seed, keys, r["outcome"], r.get("terms"), r.get("verdict"), r.get("missing"),
