@@ -104,9 +104,14 @@ def run_one(seed: int, keys: tuple[str, ...] | None, root: Path) -> dict:
         if rec["missing"] and truth != frozenset(found.record["terms"]):
             best = max(found.record["candidates"], key=lambda c: (math.isfinite(c["log_evidence"]),
                                                                  c["log_evidence"]))
-            own = fit_terms(session, truth, seed)
-            rec.update(truth=label(truth), truth_verdict=own.adequacy.verdict,
-                       truth_gain=own.log_evidence - best["log_evidence"])
+            row = {frozenset(c["terms"]): c for c in found.record["candidates"]}.get(truth)
+            if row is not None and row["verdict"] != "not checked":  # the search fitted it
+                verdict, log_z = row["verdict"], row["log_evidence"]
+            else:
+                own = fit_terms(session, truth, seed)
+                verdict, log_z = own.adequacy.verdict, own.log_evidence
+            rec.update(truth=label(truth), truth_verdict=verdict,
+                       truth_gain=log_z - best["log_evidence"])
     except Exception as exc:  # noqa: BLE001 - every failure is a row of the table
         rec.update(outcome="error", why=f"{type(exc).__name__}: {exc}"[:300])
     return dict(rec, seconds=time.perf_counter() - t0)
