@@ -44,13 +44,13 @@ K = {K:.8g}
 B = {B:.8g}
 J = {J:.8g}
 [bench.Ra]
-sd = 0.05
+sd = {ra_sd:.4g}
 unit = "ohm"
 [[steady_table]]
 name = "steady"
 voltages = [3.0, 6.0, 9.0, 12.0]
-speed_sd = 0.5
-current_sd = 0.005
+speed_sd = {steady_speed:.4g}
+current_sd = {steady_current:.4g}
 [[trace]]
 name = "step"
 kind = "step"
@@ -60,18 +60,24 @@ voltage = [[0.0, 0.0], [0.01, 12.0]]
 initial = "rest"
 speed_unit = "rad/s"
 record_current = true
-speed_noise = 1.0
-current_noise = 0.01
+speed_noise = {speed_noise:.4g}
+current_noise = {current_noise:.4g}
 [rig]
 dead_time = {dead_time:.4g}
 voltage_drop = {drop:.4g}
 """
 
 
-def make_lot(folder: Path, seed: int, n: int, outlier: tuple[str, float] | None = None
-             ) -> dict:
+NOISE = {"ra_sd": 0.05, "steady_speed": 0.5, "steady_current": 0.005, "speed_noise": 1.0,
+         "current_noise": 0.01}
+POOR = 15.0  # a poor session's noise, in multiples of an ordinary one's
+
+
+def make_lot(folder: Path, seed: int, n: int, outlier: tuple[str, float] | None = None,
+             poor: int = 0) -> dict:
     """``n`` motors from the population, the last one ``outlier[1]`` spreads off in
-    ``outlier[0]`` where given; returns each motor's truth."""
+    ``outlier[0]`` where given, the first ``poor`` measured with :data:`POOR` times the
+    noise (their bench reading of Ra too); returns each motor's truth."""
     rng = np.random.default_rng(seed)
     truth = {}
     for k in range(n):
@@ -82,8 +88,9 @@ def make_lot(folder: Path, seed: int, n: int, outlier: tuple[str, float] | None 
             values[name] = MEDIAN[name] * float(np.exp(SPREAD[name] * spreads))
         session = folder / f"motor{k + 1:02d}"
         session.mkdir(parents=True)
+        noise = {key: v * (POOR if k < poor else 1.0) for key, v in NOISE.items()}
         plan = PLAN.format(seed=seed * 100 + k, k=k + 1, dead_time=rng.uniform(3e-4, 1.5e-3),
-                           drop=rng.uniform(0.2, 0.8), **values)
+                           drop=rng.uniform(0.2, 0.8), **values, **noise)
         (session / "plan.toml").write_text(plan, encoding="utf-8")
         simulate_session(session / "plan.toml", session, seed=seed * 100 + k)
         with (session / "session.toml").open("a", encoding="utf-8") as f:
@@ -98,16 +105,19 @@ def main(argv=None) -> int:
     ap.add_argument("--motors", type=int, default=12)
     ap.add_argument("--outlier", metavar="PARAM:SPREADS", type=_outlier,
                     help="the last motor of each lot this many spreads off in PARAM")
+    ap.add_argument("--poor", type=int, default=0,
+                    help=f"the first N motors of each lot measured with {POOR:g}× the noise")
     args = ap.parse_args(argv)
     caught, others, clean = 0, 0, 0
     hits = {"median": 0, "spread": 0}
     total, failed, flagged, walls = 0, 0, 0, []
+    pooled = {"n": 0, "narrower": 0, "covered": 0, "own_covered": 0, "left_out": 0}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         env_cache = {"PMDC_BAYES_CACHE": str(tmp / "cache")}
         for lot in range(args.lots):
             folder = tmp / f"lot{lot}"
-            truth = make_lot(folder, 500 + lot, args.motors, args.outlier)
+            truth = make_lot(folder, 500 + lot, args.motors, args.outlier, args.poor)
             out = tmp / f"runs{lot}"
             t0 = time.perf_counter()
             proc = subprocess.run([*cli_command(), "lot", str(folder), "--out", str(out),
@@ -128,6 +138,9 @@ def main(argv=None) -> int:
                 caught += odd in hit
                 others += sum(h != odd for h in hit)
                 clean += all(h == odd for h in hit)
+            for motor in doc["motors"]:
+                if motor["motor"] in sorted(truth)[:args.poor]:
+                    _count_pooled(pooled, motor, truth[motor["motor"]])
             line = []
             for p in NAMES:
                 pop = doc["population"][p]
@@ -149,7 +162,28 @@ def main(argv=None) -> int:
         print(f"\nthe {args.outlier[0]} outlier ({args.outlier[1]:+g} spreads) flagged in "
               f"{caught}/{args.lots} lots; other motors flagged: {others}; lots with no "
               f"other motor flagged: {clean}/{args.lots}")
+    if args.poor:
+        n = pooled["n"]
+        print(f"\npoorly measured motors' parameters: pooled 90 % interval narrower than "
+              f"the motor's own in {pooled['narrower']}/{n}; covering the truth "
+              f"{pooled['covered']}/{n} (its own: {pooled['own_covered']}/{n}); "
+              f"left out of the population: {pooled['left_out']}")
     return 0
+
+
+def _count_pooled(counts: dict, motor: dict, truth: dict) -> None:
+    """A poorly measured motor's pooled and own 90 % intervals against its truth."""
+    for p in NAMES:
+        v = motor["values"][p]
+        if v["pooled_interval"] is None:  # left out of the population
+            counts["left_out"] += 1
+            continue
+        lo, hi = v["pooled_interval"]
+        olo, ohi = v["own_interval"]
+        counts["n"] += 1
+        counts["narrower"] += (hi / lo) < (ohi / olo)
+        counts["covered"] += lo <= truth[p] <= hi
+        counts["own_covered"] += olo <= truth[p] <= ohi
 
 
 def _outlier(text: str) -> tuple[str, float]:

@@ -3,7 +3,9 @@ and the population stage's cost as the lot grows.
 
 1. ``pmdc-bayes lot`` on a folder of demo-shaped simulated motors (``benchmarks/lot.py``'s
    ``make_lot``), ``--no-mcmc`` or with MCMC, with 1 and then 2 local workers, the cache
-   warm (a first run fills it): wall time, motors per minute, the ratio, peak memory.
+   warm (a first run fills it): wall time, motors per minute, the ratio, peak memory;
+   with ``--sizes``, lots of other sizes (the first motors of the same folder) on 2
+   workers, warm: the whole command's cost per motor as the lot grows.
 2. The population stage alone (``inference.pooling.analyse_lot``) on simulated lots of
    50, 100 and 200 motors whose evidence is draws (reweighted) or Gaussians: seconds,
    seconds per motor.
@@ -12,6 +14,7 @@ Prints the tables and replaces the section ``## A production lot`` of
 ``reports/benchmarks.md`` (``--no-report`` to print only).
 
     python benchmarks/lot_population.py --motors 10
+    python benchmarks/lot_population.py --motors 100 --sizes 50
 """
 
 from __future__ import annotations
@@ -65,7 +68,17 @@ def stage_two() -> list[tuple]:
     return rows
 
 
-def stage_one(n: int, mcmc: bool) -> list[tuple]:
+def _first(folder: Path, lot: Path, k: int) -> Path:
+    """A lot of the first ``k`` motors of ``folder`` (links to their sessions)."""
+    lot.mkdir()
+    for session in sorted(folder.iterdir())[:k]:
+        (lot / session.name).symlink_to(session, target_is_directory=True)
+    return lot
+
+
+def stage_one(n: int, mcmc: bool, sizes=()) -> list[tuple]:
+    """The lot of ``n`` motors on 2 workers (filling the cache), 1 and 2 workers warm;
+    then the first ``k`` of them for each of ``sizes`` on 2 workers, warm."""
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -73,15 +86,20 @@ def stage_one(n: int, mcmc: bool) -> list[tuple]:
         env = {"PMDC_BAYES_CACHE": str(tmp / "cache")}
         flags = [] if mcmc else ["--no-mcmc"]
         walls = {}
-        for workers in (2, 1, 2):  # the first fills the cache
+
+        def measure(workers, lot, key):
             out = tmp / f"runs-{workers}-{len(walls)}"
-            cmd = [*cli_command(), "lot", str(tmp / "lot"), "--out", str(out), "--quiet",
+            cmd = [*cli_command(), "lot", str(lot), "--out", str(out), "--quiet",
                    "--workers", str(workers), *flags]
             m = run_measured(cmd, env=env, log=tmp / "log.txt")
             if m["returncode"] not in (0, 1, 3):
                 print((tmp / "log.txt").read_text()[-3000:], file=sys.stderr)
                 raise SystemExit(f"lot: exit {m['returncode']}")
-            walls[(workers, len(walls))] = m
+            walls[key] = m
+            print(key, f"{m['wall']:.1f} s", flush=True)
+
+        for workers in (2, 1, 2):  # the first fills the cache
+            measure(workers, tmp / "lot", (workers, len(walls)))
         for key, label in (((2, 0), "2 workers, cache cold"), ((1, 1), "1 worker, warm"),
                            ((2, 2), "2 workers, warm")):
             m = walls[key]
@@ -90,6 +108,16 @@ def stage_one(n: int, mcmc: bool) -> list[tuple]:
             print(rows[-1], flush=True)
         ratio = walls[(1, 1)]["wall"] / walls[(2, 2)]["wall"]
         rows.append(("ratio 1 / 2 workers, warm", "", n, f"{ratio:.2f}", "", ""))
+        for k in sorted(set(sizes) - {n}):
+            lot = _first(tmp / "lot", tmp / f"lot{k}", k) if k < n else None
+            if lot is None:
+                make_lot(lot := tmp / f"lot{k}", k)
+            measure(2, lot, ("size", k))
+        for k in sorted(set(sizes) | {n}):
+            m = walls[("size", k)] if k != n else walls[(2, 2)]
+            rows.append((f"lot of {k}, 2 workers, warm", "MCMC" if mcmc else "--no-mcmc", k,
+                         f"{m['wall']:.1f}", f"{60 * k / m['wall']:.2f}",
+                         f"{m['peak_mib']:.0f}"))
     return rows
 
 
@@ -97,9 +125,12 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--motors", type=int, default=10)
     ap.add_argument("--mcmc", action="store_true", help="each motor with its posterior")
+    ap.add_argument("--sizes", default="",
+                    help="also lots of these sizes (comma-separated) on 2 workers, warm")
     ap.add_argument("--no-report", action="store_true")
     args = ap.parse_args(argv)
-    first = stage_one(args.motors, args.mcmc)
+    sizes = [int(k) for k in args.sizes.split(",") if k]
+    first = stage_one(args.motors, args.mcmc, sizes)
     second = stage_two()
     if args.no_report:
         return 0

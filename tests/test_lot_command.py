@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import socket
 
 import pytest
 
@@ -85,3 +86,55 @@ def test_a_lot_on_two_dask_workers_pools_the_motors_that_passed(tmp_path, capsys
     assert (out / "population.nc").is_file() and (out / "lot.png").is_file()
     # an earlier lot is never replaced without --force
     assert main(["lot", str(lot / "m1"), "--out", str(out), "--no-mcmc"]) == 2
+
+
+def _lot(folder, gains):
+    for k, gain in enumerate(gains, start=1):
+        session = folder / f"m{k}"
+        session.mkdir(parents=True)
+        (session / "plan.toml").write_text(PLAN.format(K=gain), encoding="utf-8")
+        simulate_session(session / "plan.toml", session, seed=20 + k)
+    return folder
+
+
+def _refused_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.parametrize("address, says", [
+    ("tcp://127.0.0.1:{port}", "no scheduler answers there"),
+    ("127.0.0.1", "missing port"),
+    ("htp://127.0.0.1:8786", "unknown scheme 'htp'"),
+])
+def test_a_scheduler_address_that_cannot_serve_is_bad_input_before_any_fit(
+        tmp_path, capsys, address, says):
+    lot = _lot(tmp_path / "lot", (0.050, 0.051))
+    address = address.format(port=_refused_port())
+    out = tmp_path / "runs"
+    code = main(["lot", str(lot), "--out", str(out), "--no-mcmc", "--scheduler", address])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and f"--scheduler {address}" in err[0] and says in err[0], err
+    assert "drop --scheduler" in err[0]
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_a_lot_runs_on_an_existing_dask_cluster_given_by_its_address(tmp_path, capsys):
+    from dask.distributed import Client, LocalCluster
+
+    lot = _lot(tmp_path / "lot", (0.050, 0.051))
+    out = tmp_path / "runs"
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster, Client(cluster):
+        code = main(["lot", str(lot), "--out", str(out), "--no-mcmc",
+                     "--scheduler", cluster.scheduler_address])
+        ran = set(cluster.scheduler.task_prefixes)  # what this cluster was given to run
+    assert "fit_motor" in ran
+    assert code == 0, capsys.readouterr().err
+    with (out / "lot.csv").open(encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["motor"], r["status"]) for r in rows] == [("m1", "ok"), ("m2", "ok")]
+    assert json.loads((out / "lot.json").read_text(encoding="utf-8"))["population"]["K"]

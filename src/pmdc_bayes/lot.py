@@ -27,9 +27,10 @@ from ._errors import (
     UsageError,
 )
 
-__all__ = ["MotorRun", "fit_motor", "run_lot", "pooled_names", "status_name"]
+__all__ = ["MotorRun", "fit_motor", "run_lot", "reachable", "pooled_names", "status_name"]
 
 POOLED = ("Ra", "La", "K", "B", "J", "Tc")
+CONNECT_TIMEOUT = 20.0  # seconds to reach an existing scheduler
 
 
 @dataclass(frozen=True)
@@ -100,6 +101,35 @@ def pooled_names(motors) -> tuple:
     return tuple(out)
 
 
+def reachable(address: str) -> str:
+    """``address`` of a Dask scheduler, checked before a client is made of it: a
+    malformed address, or a TCP one where nothing accepts a connection, is the user's
+    mistake (:class:`UsageError`, one line)."""
+    import socket
+
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import backends
+
+    fix = ("give the address the scheduler prints (tcp://HOST:PORT), or drop --scheduler "
+           "for a local cluster")
+    try:
+        scheme, location = parse_address(address)
+        if scheme not in backends:
+            raise ValueError(f"unknown scheme {scheme!r}")
+        host, port = parse_host_port(location) if scheme == "tcp" else (None, None)
+    except (ValueError, TypeError) as exc:
+        raise UsageError(f"--scheduler {address}: not a Dask scheduler's address ({exc}); "
+                         f"{fix}") from None
+    if host is not None:
+        try:
+            socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
+        except OSError as exc:
+            raise UsageError(f"--scheduler {address}: no scheduler answers there "
+                             f"({exc.strerror or exc}); start one (dask scheduler) and "
+                             f"{fix}") from None
+    return address
+
+
 def run_lot(sessions, outs, *, workers: int | None = None, scheduler: str | None = None,
             mcmc: bool = True, seed: int = 0, force: bool = False, say=None) -> list[MotorRun]:
     """Fit every motor of ``sessions`` into its run directory of ``outs`` on a Dask
@@ -111,11 +141,12 @@ def run_lot(sessions, outs, *, workers: int | None = None, scheduler: str | None
     say = say or (lambda text: None)
     names = [Path(o).name for o in outs]
     if scheduler is not None:
-        client, cluster = Client(scheduler), None
+        client, cluster = Client(reachable(scheduler), timeout=CONNECT_TIMEOUT), None
     else:
         n = workers or usable_cores()
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               memory_limit=0, dashboard_address=None)
+                               memory_limit=0,  # the dashboard on any free port: two
+                               dashboard_address=":0")  # lots side by side, no warning
         client = Client(cluster)
     try:
         futures = {client.submit(fit_motor, Path(s), Path(o), name=name, mcmc=mcmc,
