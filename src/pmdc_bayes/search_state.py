@@ -54,19 +54,23 @@ class SearchState:
                             kernels=[p is None for p in programs[1:]])
         with ahead.stopped_on_error():
             for cand, superset in zip(new, programs, strict=True):
-                cand.run(self.seed, superset)
-                self.order.append(cand)
-                self.say(f"model search: {label(cand.terms)}: log Z {cand.log_evidence:.1f}")
+                self._fitted(cand, superset)
         ahead.stop()
         return out
 
     def start(self, terms) -> Candidate:
+        """The model the search starts from, fitted in its own programs and checked."""
         cand = Candidate.of(self.session, terms)
         self.done[terms] = cand
-        cand.run(self.seed)
+        return self._fitted(cand, None, verdict=True)
+
+    def _fitted(self, cand, superset, *, verdict: bool = False) -> Candidate:
+        """``cand`` fitted (in ``superset``'s programs where given), in the record's order,
+        and said; with its verdict where asked (which makes it)."""
+        cand.run(self.seed, superset)
         self.order.append(cand)
-        self.say(f"model search: {label(terms)}: {cand.adequacy.verdict}, "
-                 f"log Z {cand.log_evidence:.1f}")
+        said = f"{cand.adequacy.verdict}, " if verdict else ""
+        self.say(f"model search: {label(cand.terms)}: {said}log Z {cand.log_evidence:.1f}")
         return cand
 
     # -- what to try -------------------------------------------------------------------
