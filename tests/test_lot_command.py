@@ -106,7 +106,8 @@ def _refused_port() -> int:
 @pytest.mark.parametrize("address, says", [
     ("tcp://127.0.0.1:{port}", "no scheduler answers there"),
     ("127.0.0.1", "missing port"),
-    ("htp://127.0.0.1:8786", "unknown scheme 'htp'"),
+    ("htp://127.0.0.1:8786", "not htp://"),
+    ("tls://127.0.0.1:8786", "only tcp:// addresses"),
 ])
 def test_a_scheduler_address_that_cannot_serve_is_bad_input_before_any_fit(
         tmp_path, capsys, address, says):
@@ -138,3 +139,81 @@ def test_a_lot_runs_on_an_existing_dask_cluster_given_by_its_address(tmp_path, c
         rows = list(csv.DictReader(f))
     assert [(r["motor"], r["status"]) for r in rows] == [("m1", "ok"), ("m2", "ok")]
     assert json.loads((out / "lot.json").read_text(encoding="utf-8"))["population"]["K"]
+
+
+def test_a_scheduler_that_never_answers_is_bad_input_and_nothing_is_written(
+        tmp_path, capsys, monkeypatch):
+    import pmdc_bayes.lot as lot_module
+
+    monkeypatch.setattr(lot_module, "CONNECT_TIMEOUT", 0.5)
+    lot = _lot(tmp_path / "lot", (0.050, 0.051))
+    out = tmp_path / "runs"
+    with socket.socket() as silent:  # accepts a connection, never speaks Dask's protocol
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(4)
+        address = f"tcp://127.0.0.1:{silent.getsockname()[1]}"
+        code = main(["lot", str(lot), "--out", str(out), "--no-mcmc", "--scheduler", address])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "not a Dask scheduler" in err[0], err
+    assert not out.exists()
+
+
+def _refused(capsys, argv) -> str:
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    return err[0]
+
+
+def test_the_lots_folder_is_never_a_users_folder_or_a_sessions(tmp_path, capsys):
+    lot = _lot(tmp_path / "lot", (0.050, 0.051))
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "lot.json").write_text("the user's own", encoding="utf-8")
+    (tmp_path / "afile").write_text("x", encoding="utf-8")
+    for out, says in ((mine, "not a lot written by pmdc-bayes"),
+                      (lot, "--out holds the session"),
+                      (lot / "m1" / "runs", "--out lies inside the session"),
+                      (tmp_path / "afile" / "runs", "is a file")):
+        for command in ("lot", "fit"):
+            assert says in _refused(capsys, [command, str(lot), "--out", str(out),
+                                             "--no-mcmc"])
+    assert (mine / "lot.json").read_text(encoding="utf-8") == "the user's own"
+    assert sorted(p.name for p in mine.iterdir()) == ["lot.json"]
+    assert sorted(p.name for p in (lot / "m1").iterdir()) == \
+        sorted(p.name for p in (lot / "m2").iterdir())
+
+
+def test_an_earlier_lot_is_replaced_only_with_force_and_run_names_never_collide(tmp_path):
+    from pmdc_bayes._batch import claim_lot, lot_outs
+    from pmdc_bayes._errors import UsageError
+
+    sessions = []
+    for parent, name in (("x", "m1"), ("y", "m1"), ("z", "m1-2")):
+        (tmp_path / parent / name).mkdir(parents=True)
+        sessions.append(tmp_path / parent / name)
+    out = tmp_path / "runs"
+    outs = lot_outs(sessions, out, force=False)
+    assert len({o.name for o in outs}) == 3 and outs[0].name == "m1"
+    claim_lot(out)
+    (outs[0]).mkdir()  # a run left by an interrupted lot
+    with pytest.raises(UsageError, match="holds an earlier lot"):
+        lot_outs(sessions, out, force=False)
+    (outs[0] / "notes.txt").write_text("not a run", encoding="utf-8")
+    with pytest.raises(UsageError, match="not a pmdc-bayes run directory"):
+        lot_outs(sessions, out, force=True)  # --force replaces runs, nothing else
+
+
+def test_a_link_loop_a_session_named_twice_and_too_many_workers_are_bad_input(
+        tmp_path, capsys):
+    lot = _lot(tmp_path / "lot", (0.050, 0.051))
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)
+    out = str(tmp_path / "runs")
+    assert "leads back to itself" in _refused(capsys, ["lot", str(loop), str(lot / "m1"),
+                                                       "--out", out])
+    assert "named twice" in _refused(capsys, ["lot", str(lot / "m1" / "session.toml"),
+                                              str(lot / "m1"), "--out", out])
+    assert "usable cores" in _refused(capsys, ["lot", str(lot), "--out", out,
+                                               "--workers", "4096"])
+    assert not (tmp_path / "runs").exists()

@@ -14,13 +14,14 @@ from pathlib import Path
 
 from ._errors import UsageError
 from .io.bundled import passed_over, session_path
-from .rundir import is_run_dir
+from .rundir import check_replaceable, check_writable, is_run_dir
 
-__all__ = ["LotEntry", "expand_sessions", "bundled_note", "lot_outs", "lot_table", "write_lot",
-           "STATUS"]
+__all__ = ["LotEntry", "expand_sessions", "bundled_note", "lot_outs", "claim_lot", "is_lot_dir",
+           "lot_table", "write_lot", "STATUS", "LOT_MARKER"]
 
 STATUS = {0: "ok", 1: "failed gates", 2: "bad input", 3: "model inadequate"}
 _PARAMS = ("Ra", "La", "K", "B", "J", "Tc")
+LOT_MARKER = ".pmdc-bayes-lot"  # in a folder this tool claimed for a lot
 
 
 @dataclass
@@ -46,6 +47,8 @@ def expand_sessions(args, *, note=None) -> list[Path]:
     found = []
     for arg in args:
         p = session_path(arg)
+        if p.name == "session.toml" and p.is_file():  # the session is its folder
+            p = p.parent
         if note is not None and (local := passed_over(arg)) is not None:
             note(bundled_note(arg, local, p))
         if is_run_dir(p):
@@ -59,7 +62,13 @@ def expand_sessions(args, *, note=None) -> list[Path]:
             found += subs
         else:
             found.append(p)
-    resolved = [p.resolve() for p in found]
+    resolved = []
+    for p in found:
+        try:
+            resolved.append(p.resolve())
+        except (RuntimeError, OSError):  # a link that leads back to itself
+            raise UsageError(f"{p}: a link that leads back to itself; pass the session "
+                             "directory itself") from None
     twice = next((p for k, p in enumerate(resolved) if p in resolved[:k]), None)
     if twice is not None:
         raise UsageError(f"{twice}: named twice; give each session once")
@@ -79,23 +88,60 @@ def bundled_note(name: str, local: Path, used: Path) -> str:
 def lot_outs(paths: list[Path], out: Path | None, force: bool) -> list[Path | None]:
     """Each session's run directory under ``out`` (named after the session, ``-2``,
     ``-3`` ... for sessions of the same name); None each without ``out`` (the default
-    ``reports/<session>-<time>``).  Refuses an ``out`` that is a file, or holds a
-    ``lot.csv`` already (unless ``force``), before any fit."""
+    ``reports/<session>-<time>``).  Refuses, before any fit, an ``out`` that cannot be
+    written, that is a session or holds one or lies inside one, that holds files of the
+    user's (a folder other than an earlier lot), or an earlier lot or any run directory
+    it would replace unless ``force``."""
     if out is None:
         return [None] * len(paths)
+    if out.is_symlink() and not out.exists():
+        raise UsageError(f"{out}: a link to nothing; choose another --out")
     if out.exists() and not out.is_dir():
         raise UsageError(f"{out}: --out is a file; with several sessions --out is the "
                          "folder that gets one run per session")
-    if (out / "lot.csv").exists() and not force:
-        raise UsageError(f"{out / 'lot.csv'}: already exists; pass --force to replace the "
-                         "lot's runs and table, or choose another --out")
-    names: dict[str, int] = {}
+    check_writable(out)
+    where = out.resolve()
+    for p in paths:
+        session = p.resolve()
+        if where == session or session in where.parents or where in session.parents:
+            how = ("is" if where == session else "lies inside" if session in where.parents
+                   else "holds")
+            raise UsageError(f"{out}: --out {how} the session {p}; choose a folder apart "
+                             "from the sessions")
+    if out.is_dir() and any(out.iterdir()):
+        if not is_lot_dir(out):
+            raise UsageError(f"{out}: holds files that are not a lot written by pmdc-bayes; "
+                             "choose a new or empty folder for --out")
+        if not force:
+            raise UsageError(f"{out}: holds an earlier lot; pass --force to replace its runs "
+                             "and table, or choose another --out")
+    names: set[str] = set()
     outs = []
     for p in paths:
         name = p.resolve().name
-        names[name] = names.get(name, 0) + 1
-        outs.append(out / (name if names[name] == 1 else f"{name}-{names[name]}"))
+        k, unique = 1, name
+        while unique in names:
+            k += 1
+            unique = f"{name}-{k}"
+        names.add(unique)
+        outs.append(out / unique)
+    for o in outs:
+        check_replaceable(o, force)
     return outs
+
+
+def is_lot_dir(path: Path) -> bool:
+    """Whether ``path`` is a folder this tool claimed for a lot (its marker file)."""
+    return path.is_dir() and not path.is_symlink() and (path / LOT_MARKER).is_file()
+
+
+def claim_lot(out: Path | None) -> None:
+    """Make ``out`` (checked by :func:`lot_outs`) a lot's folder: created, marked as this
+    tool's, so that a later ``--force`` may replace what it holds and nothing else."""
+    if out is None:
+        return
+    out.mkdir(parents=True, exist_ok=True)
+    (out / LOT_MARKER).write_text("a lot's folder written by pmdc-bayes\n", encoding="utf-8")
 
 
 def _row(entry: LotEntry) -> dict:

@@ -34,7 +34,10 @@ def _seed(text: str) -> int:
 
 def _workers(text: str) -> int:
     """A number of workers: a whole number of at least 1."""
-    value = _seed(text)
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
     if value < 1:
         raise argparse.ArgumentTypeError("at least one worker is needed")
     return value

@@ -12,11 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ._batch import expand_sessions, lot_outs
+from ._batch import claim_lot, expand_sessions, lot_outs
 from ._errors import EXIT_FAILED, UsageError
-from .lot import pooled_names, run_lot, status_name
+from .lot import connect, pooled_names, run_lot, status_name
 
 __all__ = ["run_lot_command", "write_lot_files"]
+
+POPULATION_FILES = ("population.nc", "lot.png")  # written only where there is a population
 
 
 def _write(path: Path, write) -> None:
@@ -68,7 +70,10 @@ def write_lot_files(out: Path, runs, record, pop) -> list[Path]:
                       "run": r["run"]} for r in rows]
     paths.append(out / "lot.json")
     _write(paths[-1], lambda p: p.write_text(json.dumps(doc, indent=1), encoding="utf-8"))
-    if pop is not None:
+    if pop is None:  # an earlier lot's population is not this lot's
+        for name in POPULATION_FILES:
+            (out / name).unlink(missing_ok=True)
+    else:
         from .inference.correlation import correlations
         from .inference.diagnostics import az
         from .report.lot_figure import lot_figure
@@ -101,17 +106,24 @@ def run_lot_command(args, *, note=None) -> int:
     """Fit the lot, pool it, write its files; the exit code (module docstring of
     :mod:`.lot`)."""
     from . import cachedir
+    from ._cores import usable_cores
     from .inference.motor_evidence import subset
     from .inference.pooling import analyse_lot
 
     if args.scheduler and args.workers:
         raise UsageError("--workers sizes a local cluster; drop it with --scheduler")
+    if args.workers and args.workers > (cores := usable_cores()):
+        raise UsageError(f"--workers {args.workers}: this machine has {cores} usable cores "
+                         f"and each worker fits a motor on one; give at most {cores}, or "
+                         "--scheduler for a larger cluster")
     paths = expand_sessions(args.session, note=note)
     outs = lot_outs(paths, args.out, args.force)
+    client = connect(args.scheduler) if args.scheduler else None  # before anything is written
+    claim_lot(args.out)
     cachedir.enable()
     say = _say(args)
     say(f"fitting {len(paths)} motors")
-    runs = run_lot(paths, outs, workers=args.workers, scheduler=args.scheduler,
+    runs = run_lot(paths, outs, workers=args.workers, client=client,
                    mcmc=not args.no_mcmc, seed=args.seed, force=args.force, say=say)
     passed = [r for r in runs if r.status == 0 and r.evidence is not None]
     record = pop = None

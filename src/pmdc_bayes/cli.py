@@ -120,11 +120,12 @@ def _cmd_fit(args) -> int:
 def _fit_lot(args, paths) -> int:
     """Each session in turn, one's bad input not stopping the others; the lot's table
     at the end (and ``lot.csv`` in ``--out``); the largest exit code of the motors."""
-    from ._batch import LotEntry, lot_outs, lot_table, write_lot
+    from ._batch import LotEntry, claim_lot, lot_outs, lot_table, write_lot
 
     entries = []
-    for k, (path, out) in enumerate(zip(paths, lot_outs(paths, args.out, args.force),
-                                        strict=True)):
+    outs = lot_outs(paths, args.out, args.force)
+    claim_lot(args.out)
+    for k, (path, out) in enumerate(zip(paths, outs, strict=True)):
         if not args.quiet:
             print(f"== motor {k + 1} of {len(paths)}: {path}", flush=True)
         try:

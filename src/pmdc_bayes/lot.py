@@ -27,7 +27,8 @@ from ._errors import (
     UsageError,
 )
 
-__all__ = ["MotorRun", "fit_motor", "run_lot", "reachable", "pooled_names", "status_name"]
+__all__ = ["MotorRun", "fit_motor", "run_lot", "connect", "reachable", "pooled_names",
+           "status_name"]
 
 POOLED = ("Ra", "La", "K", "B", "J", "Tc")
 CONNECT_TIMEOUT = 20.0  # seconds to reach an existing scheduler
@@ -76,6 +77,11 @@ def fit_motor(session: Path, out: Path, *, name: str, mcmc: bool = True, seed: i
     except FitFailed as exc:
         return MotorRun(session, name, EXIT_FAILED, error=str(exc),
                         seconds=time.perf_counter() - t0)
+    except Exception as exc:  # noqa: BLE001  (a fault of the tool: this motor only)
+        log = cachedir.save_traceback()
+        return MotorRun(session, name, EXIT_INTERNAL,
+                        error=f"internal error ({type(exc).__name__}: {exc}); traceback "
+                              f"saved to {log}", seconds=time.perf_counter() - t0)
     status, errors = run_outcome(summary, advice=False)
     error = errors[0] if errors else ""
     evidence = None
@@ -102,54 +108,87 @@ def pooled_names(motors) -> tuple:
 
 
 def reachable(address: str) -> str:
-    """``address`` of a Dask scheduler, checked before a client is made of it: a
-    malformed address, or a TCP one where nothing accepts a connection, is the user's
-    mistake (:class:`UsageError`, one line)."""
+    """``address`` of a Dask scheduler, checked before a client is made of it: anything
+    but a TCP address (``tcp://HOST:PORT``), or one where nothing accepts a connection,
+    is the user's mistake (:class:`UsageError`, one line)."""
     import socket
 
     from distributed.comm.addressing import parse_address, parse_host_port
-    from distributed.comm.registry import backends
 
     fix = ("give the address the scheduler prints (tcp://HOST:PORT), or drop --scheduler "
            "for a local cluster")
     try:
         scheme, location = parse_address(address)
-        if scheme not in backends:
-            raise ValueError(f"unknown scheme {scheme!r}")
-        host, port = parse_host_port(location) if scheme == "tcp" else (None, None)
+        if scheme != "tcp":
+            raise ValueError(f"only tcp:// addresses are taken, not {scheme}://")
+        host, port = parse_host_port(location)
     except (ValueError, TypeError) as exc:
         raise UsageError(f"--scheduler {address}: not a Dask scheduler's address ({exc}); "
                          f"{fix}") from None
-    if host is not None:
-        try:
-            socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
-        except OSError as exc:
-            raise UsageError(f"--scheduler {address}: no scheduler answers there "
-                             f"({exc.strerror or exc}); start one (dask scheduler) and "
-                             f"{fix}") from None
+    try:
+        socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
+    except OSError as exc:
+        raise UsageError(f"--scheduler {address}: no scheduler answers there "
+                         f"({exc.strerror or exc}); start one (dask scheduler) and "
+                         f"{fix}") from None
     return address
 
 
+def connect(address: str):
+    """A client of the Dask scheduler at ``address``, or one line saying why there is
+    none (:class:`UsageError`): the address is checked first (:func:`reachable`), and as
+    a server there that does not speak Dask's protocol may never answer, the client is
+    made in a thread given twice :data:`CONNECT_TIMEOUT`."""
+    import threading
+
+    from dask.distributed import Client
+
+    reachable(address)
+    made: list = []
+
+    def connect():
+        try:
+            made.append(Client(address, timeout=CONNECT_TIMEOUT))
+        except Exception as exc:  # noqa: BLE001  (said below, in one line)
+            made.append(exc)
+
+    thread = threading.Thread(target=connect, daemon=True)
+    thread.start()
+    thread.join(2 * CONNECT_TIMEOUT)
+    if made and not isinstance(made[0], Exception):
+        return made[0]
+    why = f"{type(made[0]).__name__}: {made[0]}" if made else \
+        f"no answer in {2 * CONNECT_TIMEOUT:.0f} s"
+    raise UsageError(f"--scheduler {address}: not a Dask scheduler ({why}); give the "
+                     "address the scheduler prints (tcp://HOST:PORT), not its dashboard's, "
+                     "or drop --scheduler for a local cluster")
+
+
 def run_lot(sessions, outs, *, workers: int | None = None, scheduler: str | None = None,
-            mcmc: bool = True, seed: int = 0, force: bool = False, say=None) -> list[MotorRun]:
+            client=None, mcmc: bool = True, seed: int = 0, force: bool = False,
+            say=None) -> list[MotorRun]:
     """Fit every motor of ``sessions`` into its run directory of ``outs`` on a Dask
-    cluster, ``say(line)`` as each finishes; the motors in the order given."""
+    cluster (a local one of ``workers``, the one at ``scheduler``, or ``client``'s, which
+    is closed at the end), ``say(line)`` as each finishes; the motors in the order
+    given."""
     from dask.distributed import Client, LocalCluster, as_completed
 
     from ._cores import usable_cores
 
     say = say or (lambda text: None)
     names = [Path(o).name for o in outs]
-    if scheduler is not None:
-        client, cluster = Client(reachable(scheduler), timeout=CONNECT_TIMEOUT), None
-    else:
+    cluster = None
+    if client is None and scheduler is not None:
+        client = connect(scheduler)
+    elif client is None:
         n = workers or usable_cores()
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                memory_limit=0,  # the dashboard on any free port: two
                                dashboard_address=":0")  # lots side by side, no warning
         client = Client(cluster)
     try:
-        futures = {client.submit(fit_motor, Path(s), Path(o), name=name, mcmc=mcmc,
+        futures = {client.submit(fit_motor, Path(s).resolve(), Path(o).resolve(),
+                                 name=name, mcmc=mcmc,
                                  seed=seed, force=force, pure=False): k
                    for k, (s, o, name) in enumerate(zip(sessions, outs, names, strict=True))}
         done: list[MotorRun | None] = [None] * len(futures)
