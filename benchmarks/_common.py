@@ -18,25 +18,44 @@ REPORT = ROOT / "reports" / "benchmarks.md"
 
 def replace_section(path: Path, title: str, section: str) -> None:
     """Replace the ``## {title}`` section of the markdown file ``path`` (up to the next
-    ``## `` heading) with ``section``, or append it; other sections are kept and the
-    file is created if missing."""
+    ``## `` heading) with ``section``, or append it; its ``### `` subsections that
+    ``section`` does not write again (measurements of other runs) are kept after it,
+    other sections are kept and the file is created if missing."""
     text = path.read_text(encoding="utf-8") if path.exists() else "# Benchmarks\n"
     lines = text.splitlines()
     head = f"## {title}"
+    kept: list[str] = []
     try:
         start = next(k for k, line in enumerate(lines) if line.strip() == head)
         end = next((k for k in range(start + 1, len(lines)) if lines[k].startswith("## ")),
                    len(lines))
         before, after = lines[:start], lines[end:]
+        kept = _subsections(lines[start + 1:end], exclude=section.splitlines())
     except StopIteration:
         before, after = lines, []
     while before and not before[-1].strip():
         before.pop()
     new = [*before, "", *section.rstrip("\n").splitlines()]
+    if kept:
+        new += ["", *kept]
     if after:
         new += ["", *after]
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(new) + "\n", encoding="utf-8")
+
+
+def _subsections(lines: list[str], exclude: list[str]) -> list[str]:
+    """The ``### `` subsections of ``lines`` whose headings are not among ``exclude``."""
+    out: list[str] = []
+    keep = False
+    for line in lines:
+        if line.startswith("### "):
+            keep = line.strip() not in {e.strip() for e in exclude}
+        if keep:
+            out.append(line)
+    while out and not out[-1].strip():
+        out.pop()
+    return out
 
 
 def write_table_section(title: str, intro: str, header, align, rows) -> None:

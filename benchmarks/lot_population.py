@@ -134,7 +134,8 @@ def main(argv=None) -> int:
     second = stage_two()
     if args.no_report:
         return 0
-    intro = ("`python benchmarks/lot_population.py` ({stamp}). First table: `pmdc-bayes lot` "
+    command = " ".join(["python benchmarks/lot_population.py", *(argv or sys.argv[1:])])
+    intro = (f"`{command}` ({{stamp}}). First table: `pmdc-bayes lot` "
              f"on {args.motors} demo-shaped simulated motors (four traces, 10,204 samples, "
              "Coulomb friction; Ra, K, B, J and Tc each ±10 % around the demo's), a local "
              "Dask cluster of 1 or 2 workers on this 2-core machine, wall time of the whole "
