@@ -6,9 +6,13 @@ from __future__ import annotations
 import csv
 import json
 import socket
+from pathlib import Path
 
 import pytest
 
+from pmdc_bayes._batch import LOT_MARKER, claim_lot, lot_outs
+from pmdc_bayes._cores import usable_cores
+from pmdc_bayes._errors import UsageError
 from pmdc_bayes.cli import main
 from pmdc_bayes.simulate.session import simulate_session
 
@@ -54,6 +58,7 @@ current_noise = 0.01
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(usable_cores() < 2, reason="two workers need two usable cores")
 def test_a_lot_on_two_dask_workers_pools_the_motors_that_passed(tmp_path, capsys):
     lot = tmp_path / "lot"
     for k, gain in enumerate((0.050, 0.052, 0.049), start=1):
@@ -145,7 +150,7 @@ def test_a_scheduler_that_never_answers_is_bad_input_and_nothing_is_written(
         tmp_path, capsys, monkeypatch):
     import pmdc_bayes.lot as lot_module
 
-    monkeypatch.setattr(lot_module, "CONNECT_TIMEOUT", 0.5)
+    monkeypatch.setattr(lot_module, "connect_timeout", lambda: 0.5)
     lot = _lot(tmp_path / "lot", (0.050, 0.051))
     out = tmp_path / "runs"
     with socket.socket() as silent:  # accepts a connection, never speaks Dask's protocol
@@ -154,7 +159,7 @@ def test_a_scheduler_that_never_answers_is_bad_input_and_nothing_is_written(
         address = f"tcp://127.0.0.1:{silent.getsockname()[1]}"
         code = main(["lot", str(lot), "--out", str(out), "--no-mcmc", "--scheduler", address])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and "not a Dask scheduler" in err[0], err
+    assert code == 2 and len(err) == 1 and "no Dask scheduler answered" in err[0], err
     assert not out.exists()
 
 
@@ -182,26 +187,92 @@ def test_the_lots_folder_is_never_a_users_folder_or_a_sessions(tmp_path, capsys)
     assert sorted(p.name for p in mine.iterdir()) == ["lot.json"]
     assert sorted(p.name for p in (lot / "m1").iterdir()) == \
         sorted(p.name for p in (lot / "m2").iterdir())
+    assert not (lot / LOT_MARKER).exists() and not (lot / "lot.csv").exists()
+    other = _lot(tmp_path / "other", (0.05,)) / "m1"  # a session not of this lot
+    assert "lies inside the session" in _refused(
+        capsys, ["lot", str(lot), "--out", str(other / "runs"), "--no-mcmc"])
 
 
 def test_an_earlier_lot_is_replaced_only_with_force_and_run_names_never_collide(tmp_path):
-    from pmdc_bayes._batch import claim_lot, lot_outs
-    from pmdc_bayes._errors import UsageError
+    from pmdc_bayes.rundir import RUN_MARKER
 
     sessions = []
-    for parent, name in (("x", "m1"), ("y", "m1"), ("z", "m1-2")):
+    for parent, name in (("x", "m1"), ("y", "m1"), ("z", "m1-2"), ("w", "lot.csv"),
+                         ("v", "M1")):
         (tmp_path / parent / name).mkdir(parents=True)
         sessions.append(tmp_path / parent / name)
     out = tmp_path / "runs"
     outs = lot_outs(sessions, out, force=False)
-    assert len({o.name for o in outs}) == 3 and outs[0].name == "m1"
+    names = [o.name for o in outs]
+    assert len({n.casefold() for n in names}) == 5 and names[0] == "m1"
+    assert "lot.csv" not in names
     claim_lot(out)
-    (outs[0]).mkdir()  # a run left by an interrupted lot
+    assert lot_outs(sessions, out, force=False) == outs  # claimed, nothing in it yet
+    outs[0].mkdir()  # a run an earlier lot wrote
+    (outs[0] / RUN_MARKER).write_text("run\n", encoding="utf-8")
     with pytest.raises(UsageError, match="holds an earlier lot"):
         lot_outs(sessions, out, force=False)
-    (outs[0] / "notes.txt").write_text("not a run", encoding="utf-8")
+    assert lot_outs(sessions, out, force=True) == outs
+    (outs[1]).mkdir()
+    (outs[1] / "notes.txt").write_text("not a run", encoding="utf-8")
     with pytest.raises(UsageError, match="not a pmdc-bayes run directory"):
         lot_outs(sessions, out, force=True)  # --force replaces runs, nothing else
+
+
+def test_a_lot_written_before_the_marker_and_a_linked_folder_are_lots(tmp_path):
+    from pmdc_bayes.rundir import RUN_MARKER
+
+    sessions = [tmp_path / "s" / "m1"]
+    sessions[0].mkdir(parents=True)
+    old = tmp_path / "old"
+    (old / "m1").mkdir(parents=True)
+    (old / "m1" / RUN_MARKER).write_text("run\n", encoding="utf-8")
+    (old / "lot.csv").write_text("motor,session,status,exit_code\n", encoding="utf-8")
+    with pytest.raises(UsageError, match="holds an earlier lot"):
+        lot_outs(sessions, old, force=False)
+    assert lot_outs(sessions, old, force=True) == [old / "m1"]
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    link = tmp_path / "link"
+    link.symlink_to(scratch, target_is_directory=True)
+    for _ in range(2):  # the linked folder is the lot's, the second time too
+        assert lot_outs(sessions, link, force=True) == [link / "m1"]
+        claim_lot(link)
+        (link / "lot.csv").write_text("motor\n", encoding="utf-8")
+
+
+def test_an_earlier_lots_population_does_not_outlive_a_lot_without_one(tmp_path):
+    from pmdc_bayes._batch import LotEntry, write_lot
+    from pmdc_bayes._lot_command import write_lot_files
+    from pmdc_bayes.lot import MotorRun
+
+    out = tmp_path / "runs"
+    claim_lot(out)
+    for name in ("lot.json", "population.nc", "lot.png"):
+        (out / name).write_text("an earlier lot's", encoding="utf-8")
+    write_lot_files(out, [MotorRun(tmp_path / "m1", "m1", 2, error="bad input")], None, None)
+    assert json.loads((out / "lot.json").read_text(encoding="utf-8"))["population"] is None
+    assert not (out / "population.nc").exists() and not (out / "lot.png").exists()
+    (out / "lot.png").write_text("an earlier lot's", encoding="utf-8")
+    write_lot(out, [LotEntry(tmp_path / "m1", 2, error="bad input")])  # a plain fit's lot
+    assert sorted(p.name for p in out.iterdir()) == [LOT_MARKER, "lot.csv"]
+
+
+def test_a_workers_internal_error_is_its_motors_with_the_traceback_saved(
+        tmp_path, monkeypatch):
+    import pmdc_bayes.pipeline as pipeline
+    from pmdc_bayes.lot import fit_motor
+
+    monkeypatch.setenv("PMDC_BAYES_CACHE", str(tmp_path / "cache"))
+
+    def broken(*args, **kwargs):
+        raise ZeroDivisionError("a fault of the tool")
+
+    monkeypatch.setattr(pipeline, "run_fit", broken)
+    run = fit_motor(tmp_path / "m1", tmp_path / "runs" / "m1", name="m1", cache=False)
+    assert run.status == 4 and "ZeroDivisionError: a fault of the tool" in run.error
+    log = Path(run.error.rsplit("saved to ", 1)[1])
+    assert log.is_file() and "ZeroDivisionError" in log.read_text(encoding="utf-8")
 
 
 def test_a_link_loop_a_session_named_twice_and_too_many_workers_are_bad_input(
@@ -212,6 +283,8 @@ def test_a_link_loop_a_session_named_twice_and_too_many_workers_are_bad_input(
     out = str(tmp_path / "runs")
     assert "leads back to itself" in _refused(capsys, ["lot", str(loop), str(lot / "m1"),
                                                        "--out", out])
+    assert "leads back to itself" in _refused(capsys, ["lot", str(lot), "--out",
+                                                       str(loop / "runs")])
     assert "named twice" in _refused(capsys, ["lot", str(lot / "m1" / "session.toml"),
                                               str(lot / "m1"), "--out", out])
     assert "usable cores" in _refused(capsys, ["lot", str(lot), "--out", out,

@@ -7,6 +7,7 @@ its compiled programs; one line per motor, and a table of the lot (``lot.csv`` i
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import os
 from dataclasses import dataclass
@@ -17,11 +18,13 @@ from .io.bundled import passed_over, session_path
 from .rundir import check_replaceable, check_writable, is_run_dir
 
 __all__ = ["LotEntry", "expand_sessions", "bundled_note", "lot_outs", "claim_lot", "is_lot_dir",
-           "lot_table", "write_lot", "STATUS", "LOT_MARKER"]
+           "clear_lot_files", "resolved", "lot_table", "write_lot", "STATUS", "LOT_MARKER",
+           "LOT_FILES"]
 
 STATUS = {0: "ok", 1: "failed gates", 2: "bad input", 3: "model inadequate"}
 _PARAMS = ("Ra", "La", "K", "B", "J", "Tc")
 LOT_MARKER = ".pmdc-bayes-lot"  # in a folder this tool claimed for a lot
+LOT_FILES = ("lot.csv", "lot.json", "population.nc", "lot.png")  # a lot's own files
 
 
 @dataclass
@@ -62,14 +65,8 @@ def expand_sessions(args, *, note=None) -> list[Path]:
             found += subs
         else:
             found.append(p)
-    resolved = []
-    for p in found:
-        try:
-            resolved.append(p.resolve())
-        except (RuntimeError, OSError):  # a link that leads back to itself
-            raise UsageError(f"{p}: a link that leads back to itself; pass the session "
-                             "directory itself") from None
-    twice = next((p for k, p in enumerate(resolved) if p in resolved[:k]), None)
+    resolved_paths = [resolved(p) for p in found]
+    twice = next((p for k, p in enumerate(resolved_paths) if p in resolved_paths[:k]), None)
     if twice is not None:
         raise UsageError(f"{twice}: named twice; give each session once")
     return found
@@ -87,11 +84,12 @@ def bundled_note(name: str, local: Path, used: Path) -> str:
 
 def lot_outs(paths: list[Path], out: Path | None, force: bool) -> list[Path | None]:
     """Each session's run directory under ``out`` (named after the session, ``-2``,
-    ``-3`` ... for sessions of the same name); None each without ``out`` (the default
-    ``reports/<session>-<time>``).  Refuses, before any fit, an ``out`` that cannot be
-    written, that is a session or holds one or lies inside one, that holds files of the
-    user's (a folder other than an earlier lot), or an earlier lot or any run directory
-    it would replace unless ``force``."""
+    ``-3`` ... for sessions of the same name, never a name of the lot's own files);
+    None each without ``out`` (the default ``reports/<session>-<time>``).  Refuses,
+    before any fit, an ``out`` that cannot be written, that is a session, holds one of
+    the lot's or lies inside any, that holds files of the user's (a folder other than an
+    earlier lot), or an earlier lot or any run directory it would replace unless
+    ``force``."""
     if out is None:
         return [None] * len(paths)
     if out.is_symlink() and not out.exists():
@@ -100,39 +98,71 @@ def lot_outs(paths: list[Path], out: Path | None, force: bool) -> list[Path | No
         raise UsageError(f"{out}: --out is a file; with several sessions --out is the "
                          "folder that gets one run per session")
     check_writable(out)
-    where = out.resolve()
+    where = resolved(out)
+    inside = next((a for a in where.parents if (a / "session.toml").is_file()), None)
+    if inside is not None or (where / "session.toml").is_file():
+        raise UsageError(f"{out}: --out {'lies inside' if inside else 'is'} the session "
+                         f"{inside or where}; choose a folder apart from the sessions")
     for p in paths:
-        session = p.resolve()
-        if where == session or session in where.parents or where in session.parents:
-            how = ("is" if where == session else "lies inside" if session in where.parents
-                   else "holds")
-            raise UsageError(f"{out}: --out {how} the session {p}; choose a folder apart "
+        if where in resolved(p).parents:
+            raise UsageError(f"{out}: --out holds the session {p}; choose a folder apart "
                              "from the sessions")
-    if out.is_dir() and any(out.iterdir()):
+    if out.is_dir() and {e.name for e in out.iterdir()} - {LOT_MARKER}:
         if not is_lot_dir(out):
             raise UsageError(f"{out}: holds files that are not a lot written by pmdc-bayes; "
                              "choose a new or empty folder for --out")
         if not force:
             raise UsageError(f"{out}: holds an earlier lot; pass --force to replace its runs "
                              "and table, or choose another --out")
-    names: set[str] = set()
+    taken = {n.casefold() for n in (*LOT_FILES, LOT_MARKER)}
     outs = []
     for p in paths:
-        name = p.resolve().name
+        name = resolved(p).name
         k, unique = 1, name
-        while unique in names:
+        while unique.casefold() in taken:
             k += 1
             unique = f"{name}-{k}"
-        names.add(unique)
+        taken.add(unique.casefold())
         outs.append(out / unique)
     for o in outs:
         check_replaceable(o, force)
     return outs
 
 
+def resolved(path: Path) -> Path:
+    """``path`` with its links followed; a link that leads back to itself, on the way to
+    it or at it, is the user's to mend (:class:`UsageError`)."""
+    for p in (path, *path.parents):
+        try:
+            os.stat(p)
+        except FileNotFoundError:
+            continue
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                raise UsageError(f"{path}: {p} is a link that leads back to itself; give "
+                                 "the folder itself") from None
+    try:
+        return path.resolve()
+    except (RuntimeError, OSError):  # a loop Python meets before the file system does
+        raise UsageError(f"{path}: a link that leads back to itself; give the folder "
+                         "itself") from None
+
+
 def is_lot_dir(path: Path) -> bool:
-    """Whether ``path`` is a folder this tool claimed for a lot (its marker file)."""
-    return path.is_dir() and not path.is_symlink() and (path / LOT_MARKER).is_file()
+    """Whether ``path`` is a folder of a lot this tool wrote: its marker file, or (a lot
+    written before the marker) a ``lot.csv`` beside nothing but the lot's own files and
+    run directories."""
+    if not path.is_dir():
+        return False
+    if (path / LOT_MARKER).is_file():
+        return True
+    try:
+        with (path / "lot.csv").open(encoding="utf-8") as f:
+            header = f.readline()
+    except (OSError, UnicodeDecodeError):
+        return False
+    ours = header.startswith(("session,status,exit_code,", "motor,session,status,"))
+    return ours and all(e.name in LOT_FILES or is_run_dir(e) for e in path.iterdir())
 
 
 def claim_lot(out: Path | None) -> None:
@@ -142,6 +172,14 @@ def claim_lot(out: Path | None) -> None:
         return
     out.mkdir(parents=True, exist_ok=True)
     (out / LOT_MARKER).write_text("a lot's folder written by pmdc-bayes\n", encoding="utf-8")
+
+
+def clear_lot_files(out: Path, keep) -> None:
+    """Remove from the lot folder ``out`` the lot's own files not in ``keep`` (an earlier
+    lot's, which the one being written does not replace: its population, when this one
+    has none or is a plain ``fit`` of several sessions)."""
+    for name in set(LOT_FILES) - set(keep):
+        (out / name).unlink(missing_ok=True)
 
 
 def _row(entry: LotEntry) -> dict:
@@ -172,6 +210,7 @@ def write_lot(out: Path, entries: list[LotEntry]) -> Path:
     and sd in SI (posterior mean and sd, the MAP and its Laplace sd without a
     posterior); written whole (a temporary file renamed into place)."""
     out.mkdir(parents=True, exist_ok=True)
+    clear_lot_files(out, keep=("lot.csv",))
     rows = [_row(e) for e in entries]
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")

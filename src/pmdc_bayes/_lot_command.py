@@ -12,13 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ._batch import claim_lot, expand_sessions, lot_outs
+from ._batch import claim_lot, clear_lot_files, expand_sessions, lot_outs
 from ._errors import EXIT_FAILED, UsageError
 from .lot import connect, pooled_names, run_lot, status_name
 
 __all__ = ["run_lot_command", "write_lot_files"]
-
-POPULATION_FILES = ("population.nc", "lot.png")  # written only where there is a population
 
 
 def _write(path: Path, write) -> None:
@@ -71,8 +69,7 @@ def write_lot_files(out: Path, runs, record, pop) -> list[Path]:
     paths.append(out / "lot.json")
     _write(paths[-1], lambda p: p.write_text(json.dumps(doc, indent=1), encoding="utf-8"))
     if pop is None:  # an earlier lot's population is not this lot's
-        for name in POPULATION_FILES:
-            (out / name).unlink(missing_ok=True)
+        clear_lot_files(out, keep=("lot.csv", "lot.json"))
     else:
         from .inference.correlation import correlations
         from .inference.diagnostics import az

@@ -31,7 +31,7 @@ __all__ = ["MotorRun", "fit_motor", "run_lot", "connect", "reachable", "pooled_n
            "status_name"]
 
 POOLED = ("Ra", "La", "K", "B", "J", "Tc")
-CONNECT_TIMEOUT = 20.0  # seconds to reach an existing scheduler
+
 
 
 @dataclass(frozen=True)
@@ -71,6 +71,12 @@ def fit_motor(session: Path, out: Path, *, name: str, mcmc: bool = True, seed: i
         cachedir.enable()
     try:
         run, summary = run_fit(session, out=out, force=force, mcmc=mcmc, seed=seed)
+        status, errors = run_outcome(summary, advice=False)
+        evidence = None
+        if status == 0:
+            result = read_run(run)
+            names = [n for n in POOLED if n in result.model.registry]
+            evidence = dataclasses.replace(from_run(result, names), name=name)
     except (SessionError, UsageError) as exc:
         return MotorRun(session, name, EXIT_USAGE, error=str(exc),
                         seconds=time.perf_counter() - t0)
@@ -82,14 +88,7 @@ def fit_motor(session: Path, out: Path, *, name: str, mcmc: bool = True, seed: i
         return MotorRun(session, name, EXIT_INTERNAL,
                         error=f"internal error ({type(exc).__name__}: {exc}); traceback "
                               f"saved to {log}", seconds=time.perf_counter() - t0)
-    status, errors = run_outcome(summary, advice=False)
-    error = errors[0] if errors else ""
-    evidence = None
-    if status == 0:
-        result = read_run(run)
-        names = [n for n in POOLED if n in result.model.registry]
-        evidence = dataclasses.replace(from_run(result, names), name=name)
-    return MotorRun(session, name, status, Path(run), error, evidence,
+    return MotorRun(session, name, status, Path(run), errors[0] if errors else "", evidence,
                     time.perf_counter() - t0, summary)
 
 
@@ -117,6 +116,7 @@ def reachable(address: str) -> str:
 
     fix = ("give the address the scheduler prints (tcp://HOST:PORT), or drop --scheduler "
            "for a local cluster")
+    timeout = connect_timeout()
     try:
         scheme, location = parse_address(address)
         if scheme != "tcp":
@@ -126,7 +126,7 @@ def reachable(address: str) -> str:
         raise UsageError(f"--scheduler {address}: not a Dask scheduler's address ({exc}); "
                          f"{fix}") from None
     try:
-        socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
+        socket.create_connection((host, port), timeout=timeout).close()
     except OSError as exc:
         raise UsageError(f"--scheduler {address}: no scheduler answers there "
                          f"({exc.strerror or exc}); start one (dask scheduler) and "
@@ -134,32 +134,42 @@ def reachable(address: str) -> str:
     return address
 
 
+def connect_timeout() -> float:
+    """Seconds to reach a scheduler: Dask's own setting (``distributed.comm.timeouts.
+    connect``, 30 s unless configured)."""
+    import dask
+    from dask.utils import parse_timedelta
+
+    return float(parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), "s"))
+
+
 def connect(address: str):
     """A client of the Dask scheduler at ``address``, or one line saying why there is
     none (:class:`UsageError`): the address is checked first (:func:`reachable`), and as
     a server there that does not speak Dask's protocol may never answer, the client is
-    made in a thread given twice :data:`CONNECT_TIMEOUT`."""
+    made in a thread given twice :func:`connect_timeout`."""
     import threading
 
     from dask.distributed import Client
 
     reachable(address)
+    timeout = connect_timeout()
     made: list = []
 
     def connect():
         try:
-            made.append(Client(address, timeout=CONNECT_TIMEOUT))
+            made.append(Client(address, timeout=timeout))
         except Exception as exc:  # noqa: BLE001  (said below, in one line)
             made.append(exc)
 
     thread = threading.Thread(target=connect, daemon=True)
     thread.start()
-    thread.join(2 * CONNECT_TIMEOUT)
+    thread.join(2 * timeout)
     if made and not isinstance(made[0], Exception):
         return made[0]
     why = f"{type(made[0]).__name__}: {made[0]}" if made else \
-        f"no answer in {2 * CONNECT_TIMEOUT:.0f} s"
-    raise UsageError(f"--scheduler {address}: not a Dask scheduler ({why}); give the "
+        f"no Dask handshake within {2 * timeout:.0f} s"
+    raise UsageError(f"--scheduler {address}: no Dask scheduler answered ({why}); give the "
                      "address the scheduler prints (tcp://HOST:PORT), not its dashboard's, "
                      "or drop --scheduler for a local cluster")
 
@@ -187,8 +197,8 @@ def run_lot(sessions, outs, *, workers: int | None = None, scheduler: str | None
                                dashboard_address=":0")  # lots side by side, no warning
         client = Client(cluster)
     try:
-        futures = {client.submit(fit_motor, Path(s).resolve(), Path(o).resolve(),
-                                 name=name, mcmc=mcmc,
+        sessions = [Path(s).absolute() for s in sessions]  # as workers elsewhere see them
+        futures = {client.submit(fit_motor, s, Path(o).absolute(), name=name, mcmc=mcmc,
                                  seed=seed, force=force, pure=False): k
                    for k, (s, o, name) in enumerate(zip(sessions, outs, names, strict=True))}
         done: list[MotorRun | None] = [None] * len(futures)
