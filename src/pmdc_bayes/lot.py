@@ -33,7 +33,6 @@ __all__ = ["MotorRun", "fit_motor", "run_lot", "connect", "reachable", "pooled_n
 POOLED = ("Ra", "La", "K", "B", "J", "Tc")
 
 
-
 @dataclass(frozen=True)
 class MotorRun:
     """One motor of the lot: its session, exit status (as ``pmdc-bayes fit`` would
@@ -156,13 +155,13 @@ def connect(address: str):
     timeout = connect_timeout()
     made: list = []
 
-    def connect():
+    def make():
         try:
             made.append(Client(address, timeout=timeout))
         except Exception as exc:  # noqa: BLE001  (said below, in one line)
             made.append(exc)
 
-    thread = threading.Thread(target=connect, daemon=True)
+    thread = threading.Thread(target=make, daemon=True)
     thread.start()
     thread.join(2 * timeout)
     if made and not isinstance(made[0], Exception):
