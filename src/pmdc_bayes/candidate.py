@@ -60,15 +60,17 @@ class Searched:
 
 
 def _neutral(spec) -> float:
-    """A parameter's value that leaves the prediction as without it (SI): a drop, dead
-    time or offset of zero, a gain of one, a current limit far above its prior's centre,
-    a lag, load or Coulomb friction far below it."""
+    """A parameter's value that leaves the prediction as without it (SI): a dead time
+    or offset of zero, a gain of one, a current limit far above its prior's centre, a
+    drop, lag, load or Coulomb friction far below it (below its half-normal prior's
+    scale for a drop)."""
     if spec.transform == "identity":
         return float(spec.prior.centre)
     if spec.unit == "1":
         return 1.0
     width = 2.0 * spec.prior.width_in_log()
-    return float(spec.prior.centre * math.exp(width if spec.name == "Imax" else -width))
+    typical = spec.prior.centre or spec.prior.scale
+    return float(typical * math.exp(width if spec.name == "Imax" else -width))
 
 
 def nested_start(model, fit) -> np.ndarray:

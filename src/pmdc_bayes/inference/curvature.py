@@ -20,7 +20,7 @@ import numpy as np
 from .channels import entry_weights
 from .objective import NU0, integrated_log_likelihood, noise_weights
 
-__all__ = ["gauss_newton", "Terms"]
+__all__ = ["gauss_newton", "transform_curvature", "Terms"]
 
 
 def gauss_newton(model, theta, *, data=None):
@@ -74,6 +74,32 @@ def gauss_newton(model, theta, *, data=None):
     g = 2.0 * G
     H_noise = H - (g.T * coef) @ g
     return lp, grad, H, H_noise, ss, G
+
+
+def transform_curvature(model, terms) -> np.ndarray:
+    """Per parameter, the curvature of the negative log-posterior that the Gauss–Newton
+    matrix leaves out through the log transform of a parameter whose prior is Gaussian
+    in value (NumPy, added on the diagonal).
+
+    For ``θ = log v`` a residual's second derivative holds ``v·∂r/∂v = ∂r/∂θ`` besides
+    ``v²·∂²r/∂v²``, so the exact Hessian adds ``Σ r·∂r/∂θ``: the parameter's gradient of
+    the terms that read it in value (the channels, weighted as in :func:`gauss_newton`,
+    and its prior).  At the MAP that gradient is the log-Jacobian's, 1: beside the
+    data's curvature of a well-measured Ra nothing, but the whole curvature of a
+    half-normal quantity the data hold near zero (a voltage drop they do not see).
+    Under a log-normal prior (Gaussian in θ) the term is the prior's pull at the MAP,
+    which matters only for a parameter pressed far below its prior, where the posterior
+    is one-sided and the bound checks judge it; it is left out there.  A parameter
+    switched off has none."""
+    d = model.data
+    k = len(model.registry)
+    w = noise_weights(np.asarray(terms.ss), np.asarray(d["n_obs"]), np.asarray(d["s0"]))
+    data = w @ np.asarray(terms.G)
+    in_value = np.array([s.prior.kind == "normal" and s.transform == "log"
+                         for s in model.registry.specs])
+    p = np.asarray(model.prior_residuals(terms.theta))[:k]
+    dp = np.exp(np.where(in_value, terms.theta, 0.0)) / np.asarray(d["prior_scale"])
+    return np.where(in_value & ~np.asarray(d["off"]), data + p * dp, 0.0)
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._x64 import x64
-from .curvature import Terms
+from .curvature import Terms, transform_curvature
 from .multistart import MAX_STEPS, WINDOW, Outcome, maximise
 from .objective import SessionModel, noise_weights
 from .optimiser import Stepper
@@ -128,7 +128,8 @@ def _far_below(start, best: float) -> bool:
 
 @x64
 def laplace(model: SessionModel, theta, terms: Terms | None = None):
-    """Covariance in log space from the Gauss–Newton Hessian at ``theta``; ``(cov, H)``.
+    """Covariance in log space from the Gauss–Newton Hessian at ``theta`` and the
+    curvature of the log transforms (:func:`.curvature.transform_curvature`); ``(cov, H)``.
 
     Notes
     -----
@@ -141,12 +142,16 @@ def laplace(model: SessionModel, theta, terms: Terms | None = None):
     """
     if terms is None:
         terms = Stepper.of(model).terms(theta)
-    H = np.asarray(terms.H_noise)
+    H = np.asarray(terms.H_noise) + np.diag(transform_curvature(model, terms))
     if not np.all(np.isfinite(H)):  # the model overflows near θ: no curvature to invert
         return np.full(H.shape, np.nan), H
-    vals, vecs = np.linalg.eigh(0.5 * (H + H.T))
+    # inverted in the scale of its diagonal, so that a direction held loosely (a
+    # drop near zero, in log) is not floored by one held in seconds (a dead time)
+    diag = np.diag(H)
+    d = np.sqrt(np.where(diag > 0, diag, 1.0))
+    vals, vecs = np.linalg.eigh(0.5 * (H + H.T) / np.outer(d, d))
     vals = np.clip(vals, 1e-12 * max(vals.max(), 1e-300), None)
-    cov = (vecs / vals) @ vecs.T
+    cov = (vecs / vals) @ vecs.T / np.outer(d, d)
     return cov, H
 
 

@@ -24,6 +24,7 @@ __all__ = ["nuisance_specs", "coast_down_specs", "dead_time_name",
 
 DEAD_TIME_PRIOR = 0.05  # sd of a trace's dead time, as a share of the trace's length
 DROP_PRIOR = 0.1  # sd of the voltage drop, as a share of the session's largest voltage
+DROP_START = 0.1  # a drop's seed with no intercept to read it from, as a share of that sd
 LAG_PRIOR_SAMPLES = 3.0  # centre of a sensor lag's prior, in sample intervals
 LAG_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 LOAD_PRIOR_SHARE = 0.3  # centre of an unknown drag's prior, as a share of the motor's own
@@ -86,9 +87,10 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     """The rig's non-idealities the session asks to fit (``session.nuisances``):
 
     * ``voltage_drop`` — ``Vdrop`` (V), a constant drop at the brushes and driver
-      opposing the current (no current while the back-emf is within it); prior
-      normal, centre 0, sd :data:`DROP_PRIOR` × the largest voltage; seeded at
-      ``drop_seed``;
+      opposing the current (no current while the back-emf is within it), positive
+      (log-transformed: a drop below zero would drive the current); prior half-normal,
+      sd :data:`DROP_PRIOR` × the largest voltage; seeded at ``drop_seed``, or at
+      :data:`DROP_START` × that sd where the session gives no positive one;
     * ``dead_time`` — per trace ``dead_time_<trace>`` (s), or one ``dead_time`` for all
       traces (``session.shared_dead_time``), the delay between the logged command and
       the response; prior normal, centre 0, sd :data:`DEAD_TIME_PRIOR` × the trace's
@@ -122,15 +124,15 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     * ``coloured_noise`` — per analogue channel the lag-1 correlation of its noise
       (:func:`.coloured.ar_specs`).
 
-    The drop and the dead times are untransformed (they may be zero or of either sign).
-    The source resistance, the lags, the drags and the current limit are positive.
+    The dead times and the dead zone's widths are untransformed (they may be zero or of
+    either sign).  The drop, the source resistance, the lags, the drags and the current
+    limit are positive.
     """
     specs = _limit_specs(session)
     if "voltage_drop" in session.nuisances:
-        specs.append(ParamSpec("Vdrop", "V", "driver",
-                               Prior("normal", 0.0, DROP_PRIOR * _largest_voltage(session),
-                                     "nuisance"),
-                               float(drop_seed), transform="identity",
+        sd = DROP_PRIOR * _largest_voltage(session)
+        specs.append(ParamSpec("Vdrop", "V", "driver", Prior("normal", 0.0, sd, "nuisance"),
+                               float(drop_seed) if drop_seed > 0 else DROP_START * sd,
                                description="voltage drop at brushes and driver"))
     if "source_resistance" in session.nuisances:
         centre = SOURCE_PRIOR * session.Ra.value

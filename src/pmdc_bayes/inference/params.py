@@ -32,6 +32,7 @@ __all__ = ["Prior", "ParamSpec", "Registry", "motor_registry",
 PRIOR_FACTOR = 10.0  # one-sd width of the log-normal priors on K, B, J, Tc (a factor)
 BLOCKS = ("motor", "friction", "trace", "sensor", "driver")
 PRIOR_KINDS = ("normal", "lognormal")
+HALF_NORMAL_LOG_SD = float(np.pi / np.sqrt(8.0))  # sd of log|x| for a normal x of centre 0
 TRANSFORMS = ("log", "identity")
 
 
@@ -53,8 +54,11 @@ class Prior:
                              "finite, the scale positive")
 
     def width_in_log(self) -> float:
-        """The prior's sd in log space (linearised for a Gaussian in value)."""
-        return self.scale if self.kind == "lognormal" else self.scale / abs(self.centre)
+        """The prior's sd in log space: linearised for a Gaussian in value, and for one
+        centred on zero (a positive quantity's half-normal) that of its logarithm."""
+        if self.kind == "lognormal":
+            return self.scale
+        return self.scale / abs(self.centre) if self.centre else HALF_NORMAL_LOG_SD
 
 
 @dataclass(frozen=True)

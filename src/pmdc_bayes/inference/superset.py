@@ -35,7 +35,7 @@ SMALLEST = 1e-300  # a positive quantity taken as none at all (a resistance, dra
 def neutral_value(spec: ParamSpec) -> float:
     """The value (SI) at which a non-ideality's parameter predicts what the model
     without it does: no limit, no lag (the shortest the solution takes), a gain of one,
-    zero for a dead time, drop, dead zone or offset, and for a positive resistance,
+    zero for a dead time, dead zone or offset, and for a positive drop, resistance,
     drag or friction the smallest positive number."""
     if spec.name == "Imax":
         return NO_LIMIT
