@@ -146,11 +146,14 @@ def laplace(model: SessionModel, theta, terms: Terms | None = None):
     if not np.all(np.isfinite(H)):  # the model overflows near θ: no curvature to invert
         return np.full(H.shape, np.nan), H
     # inverted in the scale of its diagonal, so that a direction held loosely (a
-    # drop near zero, in log) is not floored by one held in seconds (a dead time)
+    # drop near zero, in log) is not floored by one held in seconds (a dead time); a
+    # matrix of unit diagonal has its eigenvalues to about n·ε of its largest, and only
+    # what lies below that (rounding, not curvature) is floored
     diag = np.diag(H)
     d = np.sqrt(np.where(diag > 0, diag, 1.0))
     vals, vecs = np.linalg.eigh(0.5 * (H + H.T) / np.outer(d, d))
-    vals = np.clip(vals, 1e-12 * max(vals.max(), 1e-300), None)
+    floor = len(vals) * np.finfo(float).eps
+    vals = np.clip(vals, floor * max(vals.max(), 1e-300), None)
     cov = (vecs / vals) @ vecs.T / np.outer(d, d)
     return cov, H
 
