@@ -290,3 +290,40 @@ def test_a_link_loop_a_session_named_twice_and_too_many_workers_are_bad_input(
     assert "usable cores" in _refused(capsys, ["lot", str(lot), "--out", out,
                                                "--workers", "4096"])
     assert not (tmp_path / "runs").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(usable_cores() < 2, reason="two workers need two usable cores")
+def test_a_lot_stopped_by_ctrl_c_says_one_line_and_leaves_only_whole_runs(tmp_path):
+    """Ctrl-C at a terminal reaches every process of the group, the workers too: the
+    command says it was interrupted, in one line, no worker's traceback or log, and
+    leaves no temporary folder of a motor whose worker it stopped mid-fit."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    lot = _lot(tmp_path / "lot", (0.050, 0.051, 0.049, 0.052))
+    out = tmp_path / "runs"
+    env = dict(os.environ, PMDC_BAYES_CACHE=str(tmp_path / "cache"))
+    proc = subprocess.Popen([sys.executable, "-m", "pmdc_bayes", "lot", str(lot), "--out",
+                             str(out), "--no-mcmc", "--workers", "2"], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        if out.is_dir() and any(p.name.startswith(".m") for p in out.iterdir()):
+            break  # a worker is writing a motor's run
+        time.sleep(0.1)
+    assert proc.poll() is None, proc.communicate()
+    os.killpg(proc.pid, signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr
+    assert stderr.strip().splitlines() == ["pmdc-bayes: interrupted (no partial output is "
+                                           "left)"], stderr
+    hidden = [p.name for p in out.iterdir() if p.name.startswith(".m")]
+    assert hidden == [], hidden
+    for run in out.iterdir():
+        if not run.name.startswith("."):
+            assert (run / "summary.json").is_file(), sorted(run.iterdir())

@@ -4,6 +4,7 @@ self-contained; interruptions and a full disk leave the earlier run as it was.""
 import errno
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -19,6 +20,7 @@ from pmdc_bayes.rundir import (
     changed_files,
     check_replaceable,
     copy_session,
+    sweep_unfinished,
     write_atomically,
 )
 
@@ -115,7 +117,7 @@ def test_an_interrupt_between_the_two_renames_puts_the_earlier_run_back(tmp_path
     monkeypatch.setattr(rundir.os, "replace", replace)
     with pytest.raises(KeyboardInterrupt):
         write_atomically(tmp_path / "run", _fill_with("new"), force=True)
-    assert calls[:2] == [".run.old", "run"]
+    assert calls[:2] == [".run.pmdc-replaced", "run"]
     assert _snapshot(tmp_path / "run") == before
     assert _debris(tmp_path, "run") == []
 
@@ -152,9 +154,54 @@ def test_a_failed_rewrite_leaves_the_earlier_run_and_no_debris(tmp_path, fault):
 def test_a_rewrite_after_a_crash_between_the_renames_still_works(tmp_path):
     run = tmp_path / "run"
     write_atomically(run, _fill_with("old"), force=False)
-    (tmp_path / ".run.old").mkdir()  # left by a power cut between the two renames
+    (tmp_path / ".run.pmdc-replaced").mkdir()  # left by a power cut between the renames
     write_atomically(run, _fill_with("new"), force=True)
     assert (run / "summary.json").read_text() == "new" and _debris(tmp_path, "run") == []
+
+
+_KILLED_MID_WRITE = """
+import os, sys
+from pathlib import Path
+from pmdc_bayes.rundir import write_atomically
+
+def fill(tmp):
+    (tmp / "summary.json").write_text("half")
+    if sys.argv[2] == "between":  # killed after the earlier run was moved aside
+        os.replace(Path(sys.argv[1]), Path(sys.argv[1]).with_name(".run.pmdc-replaced"))
+    os._exit(9)
+
+write_atomically(Path(sys.argv[1]), fill, force=True)
+"""
+
+
+@pytest.mark.parametrize("when", ["mid-fill", "between"])
+def test_what_a_killed_write_leaves_is_swept_and_nothing_of_the_users(tmp_path, when):
+    """A process killed while it wrote a run (a lot's worker stopped mid-fit) runs no
+    clean-up; the sweep removes what it was writing, puts back an earlier run it had
+    moved aside, and leaves alone the user's own folders, whatever their names and
+    contents, and what a live process is writing (while one writes, an earlier run set
+    aside may be its own, and stays)."""
+    run = tmp_path / "run"
+    write_atomically(run, _fill_with("earlier"), force=False)
+    before = _snapshot(run)
+    mine = [tmp_path / n for n in (".run.notes", ".run.abcdefgh", ".run.old", ".run2.x")]
+    for folder in mine:  # a backup of the run by the user, marker and all
+        shutil.copytree(run, folder)
+    live = tmp_path / f".run.pmdc-partial-{os.getpid()}-abcd1234"
+    if when == "mid-fill":
+        live.mkdir()
+    code = subprocess.run([sys.executable, "-c", _KILLED_MID_WRITE, str(run), when],
+                          check=False).returncode
+    assert code == 9
+    others = {p.name for p in mine} | ({live.name} if live.exists() else set())
+    left = set(_debris(tmp_path, "run")) - others
+    assert len(left) == (2 if when == "between" else 1), left  # the kill left debris
+    removed = sweep_unfinished(run)
+    assert len(removed) == 1 and removed[0].name.startswith(".run.pmdc-partial-")
+    assert _snapshot(run) == before
+    assert set(_debris(tmp_path, "run")) == others - {".run2.x"}
+    assert all(_snapshot(folder) == before for folder in mine)
+    assert sweep_unfinished(run) == [] and live.is_dir() == (when == "mid-fill")
 
 
 def test_the_session_copy_keeps_places_and_detects_changes(session_dir, tmp_path):

@@ -12,7 +12,9 @@ met).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import logging
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +28,7 @@ from ._errors import (
     SessionError,
     UsageError,
 )
+from .rundir import sweep_unfinished
 
 __all__ = ["MotorRun", "fit_motor", "run_lot", "connect", "reachable", "pooled_names",
            "status_name"]
@@ -173,6 +176,21 @@ def connect(address: str):
                      "or drop --scheduler for a local cluster")
 
 
+@contextlib.contextmanager
+def _quiet_dask(quiet: bool):
+    """Dask's loggers held to critical messages (then as they were) while a stopped lot's
+    workers are closed: their complaints about work cut short are not the user's."""
+    loggers = [logging.getLogger(n) for n in ("distributed", "tornado")] if quiet else []
+    levels = [log.level for log in loggers]
+    for log in loggers:
+        log.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        for log, level in zip(loggers, levels, strict=True):
+            log.setLevel(level)
+
+
 def run_lot(sessions, outs, *, workers: int | None = None, scheduler: str | None = None,
             client=None, mcmc: bool = True, seed: int = 0, force: bool = False,
             say=None) -> list[MotorRun]:
@@ -190,11 +208,12 @@ def run_lot(sessions, outs, *, workers: int | None = None, scheduler: str | None
     if client is None and scheduler is not None:
         client = connect(scheduler)
     elif client is None:
-        n = workers or usable_cores()
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               memory_limit=0,  # the dashboard on any free port: two
-                               dashboard_address=":0")  # lots side by side, no warning
+        cluster = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
+                               processes=True, memory_limit=0,  # the dashboard on any
+                               dashboard_address=":0",  # free port: two lots side by side
+                               preload=["pmdc_bayes._lot_worker"])
         client = Client(cluster)
+    futures, stopped = {}, True
     try:
         sessions = [Path(s).absolute() for s in sessions]  # as workers elsewhere see them
         futures = {client.submit(fit_motor, s, Path(o).absolute(), name=name, mcmc=mcmc,
@@ -211,8 +230,23 @@ def run_lot(sessions, outs, *, workers: int | None = None, scheduler: str | None
             done[k] = run
             say(f"motor {count} of {len(futures)}: {run.name}: {status_name(run.status)} "
                 f"({run.seconds:.0f} s){': ' + run.error if run.error else ''}")
+        stopped = False
         return done
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        with _quiet_dask(stopped):
+            _close(client, cluster, futures)
+        if cluster is not None:  # its workers are gone: a motor cut short left its folder
+            for out in outs:
+                sweep_unfinished(Path(out).absolute())
+
+
+def _close(client, cluster, futures) -> None:
+    """Cancel what is left and close the client and the local cluster (which stops its
+    workers), each step taken whatever the one before raised.  Dask's errors in closing
+    (a worker slow to stop, a scheduler gone) change nothing the lot has written, and do
+    not replace the lot's own outcome or interrupt."""
+    steps = [lambda: client.cancel(list(futures)), client.close]
+    steps += [cluster.close] if cluster is not None else []
+    for step in steps:
+        with contextlib.suppress(Exception):
+            step()

@@ -21,7 +21,8 @@ from ._errors import UsageError
 
 __all__ = ["versions", "default_out_dir", "RUN_MARKER", "SESSION_COPY", "is_run_dir",
            "check_replaceable", "write_atomically",
-           "default_mode", "copy_session", "changed_files", "check_writable", "write_model"]
+           "default_mode", "copy_session", "changed_files", "check_writable", "write_model",
+           "sweep_unfinished"]
 
 
 RUN_MARKER = ".pmdc-bayes-run"
@@ -185,7 +186,7 @@ def check_replaceable(out: Path, force: bool) -> None:
 def write_atomically(out: Path, fill, *, force: bool):
     check_replaceable(out, force)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    tmp = Path(tempfile.mkdtemp(prefix=f"{_partial_prefix(out)}{os.getpid()}-", dir=out.parent))
     try:
         (tmp / RUN_MARKER).write_text("a run directory written by pmdc-bayes fit\n")
         fill(tmp)
@@ -193,7 +194,7 @@ def write_atomically(out: Path, fill, *, force: bool):
         _signals.check()
         if out.exists():
             check_replaceable(out, force)
-            old = out.with_name(f".{out.name}.old")
+            old = _aside(out)
             shutil.rmtree(old, ignore_errors=True)
             os.replace(out, old)
             try:
@@ -215,6 +216,59 @@ def write_atomically(out: Path, fill, *, force: bool):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def _partial_prefix(out: Path) -> str:
+    """The start of the name of a run being written to ``out`` (then the writer's pid)."""
+    return f".{out.name}.pmdc-partial-"
+
+
+def _aside(out: Path) -> Path:
+    """Where an earlier run waits while its replacement is renamed into place."""
+    return out.with_name(f".{out.name}.pmdc-replaced")
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def sweep_unfinished(out: Path) -> list[Path]:
+    """Put right what a :func:`write_atomically` of ``out`` left when its process was
+    killed (a lot's worker stopped mid-fit), on this machine: the runs it was writing
+    removed where their writer (the pid in the name) is gone, and an earlier run it had
+    moved aside put back, or removed when ``out`` was replaced.  Touches only the names
+    that function gives; the paths removed."""
+    out = Path(out)
+    if not out.parent.is_dir():
+        return []
+    removed = []
+    prefix = _partial_prefix(out)
+    for entry in out.parent.iterdir():
+        pid = entry.name[len(prefix):].split("-", 1)[0]
+        if entry.name.startswith(prefix) and pid.isdigit() and not _alive(int(pid)) \
+                and entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry, ignore_errors=True)
+            removed.append(entry)
+    old = _aside(out)
+    writing = any(e.name.startswith(prefix) for e in out.parent.iterdir())
+    if old.is_dir() and not old.is_symlink() and not writing:  # no writer between renames
+        if out.exists() or out.is_symlink():
+            shutil.rmtree(old, ignore_errors=True)
+            removed.append(old)
+        else:
+            try:
+                os.replace(old, out)
+            except OSError:  # another process took the name meanwhile: leave both
+                pass
+    return removed
 
 
 _LIBRARIES = ("pmdc-bayes", "jax", "jaxlib", "diffrax", "optimistix", "emcee", "arviz", "numpy")
