@@ -11,12 +11,13 @@ import pytest
 from pmdc_bayes._x64 import x64
 from pmdc_bayes.inference.fit import fit_map
 from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.inference.params import ParamSpec, Prior, Registry
 from pmdc_bayes.inference.seed import fit_seed
 from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.rundir import SESSION_COPY, copy_session, write_model
 from pmdc_bayes.search import ADD_MARGIN, _better, nested_start, search_model
-from pmdc_bayes.selection import format_selection
+from pmdc_bayes.selection import format_selection, laplace_log_evidence
 from pmdc_bayes.simulate.bench import BenchMotor, bench_session
 from pmdc_bayes.simulate.cases import MOTOR, STEADY_VOLTAGES, STEPS, case_session
 from pmdc_bayes.terms import label, model_table, terms_of, with_terms
@@ -312,3 +313,31 @@ def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path, m
     # --no-search: the session's own (ideal) model, rejected, no search recorded
     _, plain = run_fit(session, out=tmp_path / "plain", mcmc=False, search=False)
     assert "model_selection" not in plain and plain["adequacy"]["verdict"] == "inadequate"
+
+
+@x64
+def test_a_half_normal_priors_evidence_counts_only_its_positive_half():
+    """With no data a candidate's evidence is its prior's mass, 1 (log 0), whatever the
+    prior's scale: a positive quantity fitted in log under a Gaussian prior in value
+    centred on zero (a voltage drop's half-normal) integrates over θ to one half of that
+    Gaussian, which the evidence must put back (without it: log Z ≈ −0.85)."""
+    import jax
+    import jax.numpy as jnp
+
+    for scale in (0.01, 1.2, 30.0):
+        spec = ParamSpec("Vdrop", "V", "driver", Prior("normal", 0.0, scale), seed=scale)
+        registry = Registry([spec])
+        centre, sd = registry.prior_arrays()
+
+        def log_prior(theta, registry=registry, centre=centre, sd=sd):
+            return registry.log_prior(theta, centre, sd)
+
+        mode = jnp.log(jnp.asarray([scale]))  # where θ − e^{2θ}/(2s²) peaks
+        assert float(jax.grad(log_prior)(mode)[0]) == pytest.approx(0.0, abs=1e-9)
+        cov = np.linalg.inv(-np.asarray(jax.hessian(log_prior)(mode)))
+        model = SimpleNamespace(registry=registry, data={"prior_scale": sd})
+        fit = SimpleNamespace(log_posterior=float(log_prior(mode)), cov_log=cov,
+                              overflows=False)
+        # the Laplace approximation of this skewed density, at its mode log s with
+        # curvature 2: log Z = −1/2 + log 2 + log(1/√2) = log 0.858
+        assert laplace_log_evidence(model, fit) == pytest.approx(np.log(0.858), abs=0.01)

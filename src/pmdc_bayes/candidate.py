@@ -60,10 +60,10 @@ class Searched:
 
 
 def _neutral(spec) -> float:
-    """A parameter's value that leaves the prediction as without it (SI): a dead time
-    or offset of zero, a gain of one, a current limit far above its prior's centre, a
-    drop, lag, load or Coulomb friction far below it (below its half-normal prior's
-    scale for a drop)."""
+    """A parameter's value that leaves the prediction as without it, or nearly (SI): a
+    dead time or offset of zero, a gain of one, a current limit far above its prior's
+    centre, a lag, load or Coulomb friction far below it, a drop at a quarter of its
+    half-normal prior's scale (a start whose gradient in log the fit can still follow)."""
     if spec.transform == "identity":
         return float(spec.prior.centre)
     if spec.unit == "1":
@@ -75,7 +75,8 @@ def _neutral(spec) -> float:
 
 def nested_start(model, fit) -> np.ndarray:
     """θ of ``model`` (its registry's order) at ``fit``'s MAP, every parameter ``fit`` lacks
-    at its neutral value: a start at which the larger model predicts what the smaller did."""
+    at its neutral value: a start at which the larger model predicts (nearly) what the
+    smaller did."""
     values = {s.name: fit.values[s.name] if s.name in fit.values else _neutral(s)
               for s in model.registry.specs}
     return np.asarray(model.theta(values), dtype=float)

@@ -20,8 +20,9 @@ def laplace_log_evidence(model, fit) -> float:
     """The Laplace approximation of ``log p(data | candidate)``: the log-posterior at the
     MAP with every prior normalised, plus ``½·log det(2π·Σ)`` of the Laplace covariance
     in the fit's coordinates.  The constants the log-posterior leaves out are the
-    channels' (the same data for every candidate) and the priors' (added here), so the
-    values of candidates of one session compare: their difference is a log Bayes
+    channels' (the same data for every candidate) and the priors' (added here: a
+    positive quantity's Gaussian prior in value renormalised over its positive values),
+    so the values of candidates of one session compare: their difference is a log Bayes
     factor.  Only as good as the Laplace approximation (not at a bound); where the fit
     spans several optima of nearly equal density, the MAP's own Laplace mass plus the
     others' (``fit.log_mass``), not the width of their mixture."""
@@ -33,7 +34,9 @@ def laplace_log_evidence(model, fit) -> float:
     sign, logdet = np.linalg.slogdet(cov)
     if sign <= 0:
         return float("nan")
-    return float(fit.log_posterior - np.sum(np.log(scale)) + 0.5 * logdet
+    positive = sum(s.prior.log_positive_mass() for s in model.registry.specs
+                   if s.transform == "log")
+    return float(fit.log_posterior - np.sum(np.log(scale)) - positive + 0.5 * logdet
                  + getattr(fit, "log_mass", 0.0))
 
 

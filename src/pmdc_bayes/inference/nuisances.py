@@ -24,7 +24,7 @@ __all__ = ["nuisance_specs", "coast_down_specs", "dead_time_name",
 
 DEAD_TIME_PRIOR = 0.05  # sd of a trace's dead time, as a share of the trace's length
 DROP_PRIOR = 0.1  # sd of the voltage drop, as a share of the session's largest voltage
-DROP_START = 0.1  # a drop's seed with no intercept to read it from, as a share of that sd
+DROP_START = 0.1  # a drop's least seed (no intercept, or a tiny one), as a share of that sd
 LAG_PRIOR_SAMPLES = 3.0  # centre of a sensor lag's prior, in sample intervals
 LAG_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 LOAD_PRIOR_SHARE = 0.3  # centre of an unknown drag's prior, as a share of the motor's own
@@ -132,7 +132,8 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     if "voltage_drop" in session.nuisances:
         sd = DROP_PRIOR * _largest_voltage(session)
         specs.append(ParamSpec("Vdrop", "V", "driver", Prior("normal", 0.0, sd, "nuisance"),
-                               float(drop_seed) if drop_seed > 0 else DROP_START * sd,
+                               max(float(drop_seed), DROP_START * sd),  # not where a
+                               # drop's effect, and so its gradient in log, vanishes
                                description="voltage drop at brushes and driver"))
     if "source_resistance" in session.nuisances:
         centre = SOURCE_PRIOR * session.Ra.value
@@ -162,8 +163,8 @@ def _dead_zone_specs(session: Session) -> list[ParamSpec]:
     """``Vdz_fwd``, ``Vdz_rev`` (V): how much of a positive (negative) command the driver
     does not put out (:func:`~pmdc_bayes.physics.motor.driver_output`), one for each sign
     the session commands.  Prior normal, centre 0, sd :data:`DROP_PRIOR` × the largest
-    voltage, as the voltage drop's (a negative width is a driver that adds to its
-    command)."""
+    voltage, the voltage drop's scale, but in value (a negative width is a driver that
+    adds to its command)."""
     if "dead_zone" not in session.nuisances:
         return []
     volts = np.array([float(v) for tr in session.traces for v in tr.voltage.values]

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import jax.numpy as jnp
 import numpy as np
+from scipy.stats import norm
 
 from .._x64 import to_device
 from ..io.session import LA_ASSUMED, Session
@@ -32,7 +33,10 @@ __all__ = ["Prior", "ParamSpec", "Registry", "motor_registry",
 PRIOR_FACTOR = 10.0  # one-sd width of the log-normal priors on K, B, J, Tc (a factor)
 BLOCKS = ("motor", "friction", "trace", "sensor", "driver")
 PRIOR_KINDS = ("normal", "lognormal")
-HALF_NORMAL_LOG_SD = float(np.pi / np.sqrt(8.0))  # sd of log|x| for a normal x of centre 0
+# a half-normal's Laplace width in θ = log(value): its log-density in θ, θ − e^{2θ}/(2s²),
+# has curvature 2 at its mode whatever its scale s; the width a posterior's Laplace sd is
+# compared with, when the data say nothing more
+HALF_NORMAL_LAPLACE_SD = float(1.0 / np.sqrt(2.0))
 TRANSFORMS = ("log", "identity")
 
 
@@ -55,10 +59,18 @@ class Prior:
 
     def width_in_log(self) -> float:
         """The prior's sd in log space: linearised for a Gaussian in value, and for one
-        centred on zero (a positive quantity's half-normal) that of its logarithm."""
+        centred on zero (a positive quantity's half-normal) its Laplace width there."""
         if self.kind == "lognormal":
             return self.scale
-        return self.scale / abs(self.centre) if self.centre else HALF_NORMAL_LOG_SD
+        return self.scale / abs(self.centre) if self.centre else HALF_NORMAL_LAPLACE_SD
+
+    def log_positive_mass(self) -> float:
+        """``log P(value > 0)`` under the prior: the normaliser a positive (log-fitted)
+        quantity's prior takes, since the fit's log-density integrates to this over θ
+        (log 1/2 for a half-normal; about zero for a bench value many sd above zero)."""
+        if self.kind == "lognormal":
+            return 0.0
+        return float(norm.logcdf(self.centre / self.scale))
 
 
 @dataclass(frozen=True)
