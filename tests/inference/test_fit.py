@@ -246,7 +246,7 @@ def test_the_evidence_of_several_optima_is_their_laplace_mass_not_their_spread()
 
     from pmdc_bayes.selection import laplace_log_evidence
 
-    model = SimpleNamespace(data={"prior_scale": np.ones(2)})
+    model = SimpleNamespace(data={"prior_scale": np.ones(2)}, registry=SimpleNamespace(specs=()))
     local = np.diag([1e-4, 1e-4])
     one = SimpleNamespace(cov_log=local, log_posterior=5.0, overflows=False)
     two = SimpleNamespace(cov_log=local + np.diag([100.0, 0.0]), cov_map=local,
@@ -274,3 +274,25 @@ def test_a_thin_curved_ridge_is_not_reported_as_a_point(tmp_path):
         i = list(fit.names).index(name)
         z = (np.log(fz.truth[name]) - fit.theta[i]) / np.sqrt(fit.cov_log[i, i])
         assert abs(z) < 2.576, (name, z)
+
+
+def test_the_laplace_inverse_keeps_directions_held_to_twenty_decades_apart():
+    """A dead time known to microseconds beside a drop known to a factor (curvatures
+    1e15 and 1): the covariance is the exact inverse, not the largest eigenvalue's
+    floor imposed on the loose directions; a direction of zero curvature comes out
+    wide and finite."""
+    from pmdc_bayes.inference.curvature import invert_curvature
+
+    rng = np.random.default_rng(3)
+    a = rng.standard_normal((5, 5))
+    unit = a @ a.T + 0.5 * np.eye(5)
+    d = np.diag(1.0 / np.sqrt(np.diag(unit)))
+    unit = d @ unit @ d  # unit diagonal, well conditioned
+    scale = np.array([3e7, 1.0, 4e-3, 1e-2, 2e4])
+    H = unit * np.outer(scale, scale)
+    exact = np.linalg.inv(unit) / np.outer(scale, scale)
+    np.testing.assert_allclose(invert_curvature(H), exact, rtol=1e-9)
+    flat = np.diag([1e15, 1.0, 0.0])
+    cov = invert_curvature(flat)
+    assert np.all(np.isfinite(cov)) and cov[2, 2] > 1e14 * cov[1, 1]
+    assert cov[0, 0] == pytest.approx(1e-15) and cov[1, 1] == pytest.approx(1.0)

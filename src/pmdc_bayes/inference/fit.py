@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._x64 import x64
-from .curvature import Terms, transform_curvature
+from .curvature import Terms, invert_curvature, transform_curvature
 from .multistart import MAX_STEPS, WINDOW, Outcome, maximise
 from .objective import SessionModel, noise_weights
 from .optimiser import Stepper
@@ -129,7 +129,8 @@ def _far_below(start, best: float) -> bool:
 @x64
 def laplace(model: SessionModel, theta, terms: Terms | None = None):
     """Covariance in log space from the Gauss–Newton Hessian at ``theta`` and the
-    curvature of the log transforms (:func:`.curvature.transform_curvature`); ``(cov, H)``.
+    curvature of the log transforms (:func:`.curvature.transform_curvature`), inverted
+    in the scale of its diagonal (:func:`.curvature.invert_curvature`); ``(cov, H)``.
 
     Notes
     -----
@@ -142,19 +143,10 @@ def laplace(model: SessionModel, theta, terms: Terms | None = None):
     """
     if terms is None:
         terms = Stepper.of(model).terms(theta)
-    H = np.asarray(terms.H_noise) + np.diag(transform_curvature(model, terms))
+    H = np.asarray(terms.H_noise) + np.diag(transform_curvature(model))
     if not np.all(np.isfinite(H)):  # the model overflows near θ: no curvature to invert
         return np.full(H.shape, np.nan), H
-    # inverted in the scale of its diagonal, so that a direction held loosely (a
-    # drop near zero, in log) is not floored by one held in seconds (a dead time); a
-    # matrix of unit diagonal has its eigenvalues to about n·ε of its largest, and only
-    # what lies below that (rounding, not curvature) is floored
-    diag = np.diag(H)
-    d = np.sqrt(np.where(diag > 0, diag, 1.0))
-    vals, vecs = np.linalg.eigh(0.5 * (H + H.T) / np.outer(d, d))
-    floor = len(vals) * np.finfo(float).eps
-    vals = np.clip(vals, floor * max(vals.max(), 1e-300), None)
-    cov = (vecs / vals) @ vecs.T / np.outer(d, d)
+    cov = invert_curvature(H)
     return cov, H
 
 
