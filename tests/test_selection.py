@@ -325,7 +325,7 @@ def test_a_half_normal_priors_evidence_counts_only_its_positive_half():
     import jax.numpy as jnp
 
     for scale in (0.01, 1.2, 30.0):
-        spec = ParamSpec("Vdrop", "V", "driver", Prior("normal", 0.0, scale), seed=scale)
+        spec = ParamSpec("Vdrop", "V", "driver", Prior("half_normal", 0.0, scale), seed=scale)
         registry = Registry([spec])
         centre, sd = registry.prior_arrays()
 

@@ -69,8 +69,7 @@ def _neutral(spec) -> float:
     if spec.unit == "1":
         return 1.0
     width = 2.0 * spec.prior.width_in_log()
-    typical = spec.prior.centre or spec.prior.scale
-    return float(typical * math.exp(width if spec.name == "Imax" else -width))
+    return float(spec.prior.typical * math.exp(width if spec.name == "Imax" else -width))
 
 
 def nested_start(model, fit) -> np.ndarray:

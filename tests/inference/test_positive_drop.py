@@ -13,6 +13,7 @@ import pytest
 from pmdc_bayes._x64 import x64
 from pmdc_bayes.inference.fit import fit_map, laplace
 from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.inference.params import HALF_NORMAL_LAPLACE_SD, ParamSpec, Prior
 from pmdc_bayes.inference.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.cases import case_session
@@ -60,6 +61,29 @@ voltage_drop = 0.7097
 @x64
 def _exact_hessian(model, theta):
     return np.asarray(jax.hessian(lambda t: -model.log_posterior(t))(jnp.asarray(theta)))
+
+
+def test_a_positive_quantity_centred_on_zero_is_a_half_normal_and_nothing_else():
+    """The half-normal is a prior kind of its own: centred on zero, fitted in log, its
+    width in log its Laplace one and half its mass below zero; a Gaussian centred on
+    zero for a log-fitted quantity, or a half-normal off zero or not in log, is refused
+    where it is declared."""
+    drop = Prior("half_normal", 0.0, 1.2)
+    assert drop.in_value and drop.typical == 1.2
+    assert drop.width_in_log() == HALF_NORMAL_LAPLACE_SD
+    assert drop.log_positive_mass() == pytest.approx(np.log(0.5))
+    ParamSpec("Vdrop", "V", "driver", drop, seed=0.1)
+    with pytest.raises(ValueError, match="centred on 0"):
+        Prior("half_normal", 0.5, 1.2)
+    with pytest.raises(ValueError, match="half-normal"):
+        ParamSpec("Vdrop", "V", "driver", Prior("normal", 0.0, 1.2), seed=0.1)
+    with pytest.raises(ValueError, match="half-normal"):
+        ParamSpec("Vdrop", "V", "driver", drop, seed=0.1, transform="identity")
+    bench = Prior("normal", 2.0, 0.1)  # a bench value many sd above zero
+    assert bench.typical == 2.0 and bench.width_in_log() == pytest.approx(0.05)
+    assert bench.log_positive_mass() == pytest.approx(0.0, abs=1e-12)
+    ParamSpec("Ra", "ohm", "motor", bench, seed=2.0)
+    ParamSpec("dead_time", "s", "driver", Prior("normal", 0.0, 1e-3), 0.0, transform="identity")
 
 
 @pytest.mark.slow

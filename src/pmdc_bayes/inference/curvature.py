@@ -109,7 +109,7 @@ def transform_curvature(model) -> np.ndarray:
     log-normal prior (Gaussian in θ) the term is the prior's pull at the MAP, which
     matters only for a parameter pressed far below its prior, where the posterior is
     one-sided and the bound checks judge it; it is left out there."""
-    in_value = np.array([s.prior.kind == "normal" and s.transform == "log"
+    in_value = np.array([s.prior.in_value and s.transform == "log"
                          for s in model.registry.specs])
     return np.where(in_value & ~np.asarray(model.data["off"]), 1.0, 0.0)
 

@@ -131,7 +131,7 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     specs = _limit_specs(session)
     if "voltage_drop" in session.nuisances:
         sd = DROP_PRIOR * _largest_voltage(session)
-        specs.append(ParamSpec("Vdrop", "V", "driver", Prior("normal", 0.0, sd, "nuisance"),
+        specs.append(ParamSpec("Vdrop", "V", "driver", Prior("half_normal", 0.0, sd, "nuisance"),
                                max(float(drop_seed), DROP_START * sd),  # not where a
                                # drop's effect, and so its gradient in log, vanishes
                                description="voltage drop at brushes and driver"))

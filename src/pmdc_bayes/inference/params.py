@@ -32,7 +32,7 @@ __all__ = ["Prior", "ParamSpec", "Registry", "motor_registry",
 
 PRIOR_FACTOR = 10.0  # one-sd width of the log-normal priors on K, B, J, Tc (a factor)
 BLOCKS = ("motor", "friction", "trace", "sensor", "driver")
-PRIOR_KINDS = ("normal", "lognormal")
+PRIOR_KINDS = ("normal", "lognormal", "half_normal")
 # a half-normal's Laplace width in θ = log(value): its log-density in θ, θ − e^{2θ}/(2s²),
 # has curvature 2 at its mode whatever its scale s; the width a posterior's Laplace sd is
 # compared with, when the data say nothing more
@@ -42,8 +42,14 @@ TRANSFORMS = ("log", "identity")
 
 @dataclass(frozen=True)
 class Prior:
-    """A prior: ``kind`` (``normal`` or ``lognormal``), ``centre`` (SI), ``scale`` (SI sd
-    for ``normal``, natural-log sd for ``lognormal``) and where it comes from."""
+    """A prior: ``kind``, ``centre`` (SI), ``scale`` and where it comes from.
+
+    - ``normal``: Gaussian in value, ``scale`` its SI sd (of a positive, log-fitted
+      quantity: renormalised over the positive values);
+    - ``lognormal``: Gaussian in the natural log, ``scale`` that log's sd;
+    - ``half_normal``: a positive quantity that may be as good as none (a voltage drop):
+      the positive half of a Gaussian in value centred on zero (``centre`` 0), ``scale``
+      its SI sd; fitted in log."""
 
     kind: str
     centre: float
@@ -56,13 +62,27 @@ class Prior:
         if not (np.isfinite(self.centre) and np.isfinite(self.scale) and self.scale > 0):
             raise ValueError(f"prior centre {self.centre!r} and scale {self.scale!r} must be "
                              "finite, the scale positive")
+        if self.kind == "half_normal" and self.centre != 0:
+            raise ValueError(f"a half-normal prior is centred on 0, not {self.centre!r}")
+
+    @property
+    def in_value(self) -> bool:
+        """Whether the prior is Gaussian in the value (not in its logarithm)."""
+        return self.kind != "lognormal"
+
+    @property
+    def typical(self) -> float:
+        """A typical value under the prior (SI): its centre, or a half-normal's scale."""
+        return self.scale if self.kind == "half_normal" else self.centre
 
     def width_in_log(self) -> float:
-        """The prior's sd in log space: linearised for a Gaussian in value, and for one
-        centred on zero (a positive quantity's half-normal) its Laplace width there."""
+        """The prior's sd in log space: linearised for a Gaussian in value, and for a
+        half-normal its Laplace width at its mode in log."""
         if self.kind == "lognormal":
             return self.scale
-        return self.scale / abs(self.centre) if self.centre else HALF_NORMAL_LAPLACE_SD
+        if self.kind == "half_normal":
+            return HALF_NORMAL_LAPLACE_SD
+        return self.scale / abs(self.centre)
 
     def log_positive_mass(self) -> float:
         """``log P(value > 0)`` under the prior: the normaliser a positive (log-fitted)
@@ -105,6 +125,11 @@ class ParamSpec:
         if self.transform not in TRANSFORMS:
             raise ValueError(f"parameter {self.name!r}: transform {self.transform!r}; use one "
                              f"of {TRANSFORMS}")
+        if (self.prior.kind == "half_normal") != (self.transform == "log"
+                                                  and self.prior.in_value
+                                                  and self.prior.centre == 0):
+            raise ValueError(f"parameter {self.name!r}: a positive quantity whose prior is "
+                             "centred on zero takes a half-normal prior, fitted in log")
         if self.transform == "log" and not self.seed > 0:
             raise ValueError(f"parameter {self.name!r}: a log-transformed parameter needs a "
                              f"positive seed, got {self.seed!r}")
@@ -168,8 +193,9 @@ class Registry:
     # -- priors --------------------------------------------------------------------------
     def prior_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Per parameter, the prior's centre and scale in the space it is Gaussian in:
-        value for ``normal``, log value for ``lognormal`` (passed to compiled code as data)."""
-        centre = np.array([s.prior.centre if s.prior.kind == "normal" else np.log(s.prior.centre)
+        value for ``normal`` and ``half_normal``, log value for ``lognormal`` (passed to
+        compiled code as data)."""
+        centre = np.array([s.prior.centre if s.prior.in_value else np.log(s.prior.centre)
                            for s in self.specs], dtype=float)
         scale = np.array([s.prior.scale for s in self.specs], dtype=float)
         return centre, scale
@@ -193,13 +219,13 @@ class Registry:
         """Standardised prior residuals, one per parameter (their half squared norm is the
         negative log-prior up to the log-Jacobian), for least squares."""
         theta = jnp.asarray(theta)
-        x = jnp.stack([self._value(theta, k) if s.prior.kind == "normal" else theta[k]
+        x = jnp.stack([self._value(theta, k) if s.prior.in_value else theta[k]
                        for k, s in enumerate(self.specs)])
         return (x - centre) / scale
 
     def log_jacobian(self, theta):
         """Σ θ over log-transformed parameters with a prior Gaussian in value."""
-        sel = np.array([s.prior.kind == "normal" and s.transform == "log" for s in self.specs])
+        sel = np.array([s.prior.in_value and s.transform == "log" for s in self.specs])
         return jnp.sum(jnp.where(sel, jnp.asarray(theta), 0.0))
 
     def log_prior(self, theta, centre, scale):
