@@ -70,11 +70,12 @@ def rig_table(rng, key: str | None, truth: dict, v: float, tau_m: float, names, 
 
 def _held(pairs, t: np.ndarray) -> np.ndarray:
     """A schedule's value at each sample time ``t`` (the last pair at or before it; a
-    pair within a millionth of a sample interval of a sample counts as at it, as the
-    times written to the CSV are rounded to ten digits)."""
+    pair within a thousandth of a sample interval of a sample counts as at it: the times
+    written to the CSV keep ten significant digits, so a sample late in a long trace
+    reads up to 5e-9 s before the switch the rig made at it)."""
     times = np.array([a for a, _ in pairs])
     values = np.array([b for _, b in pairs])
-    tol = 1e-6 * float(np.median(np.diff(t)))
+    tol = 1e-3 * float(np.median(np.diff(t)))
     return values[np.searchsorted(times, t + tol, side="right") - 1]
 
 
