@@ -45,7 +45,7 @@ import numpy as np  # noqa: E402
 from _common import REPORT, ROOT, cli_command, load_baseline, replace_section, run_measured  # noqa: E402
 from model_speed import _fmt_rate, _load, _machine, _measure, _per_trace_log_posterior  # noqa: E402
 
-from pmdc_bayes.inference.diagnostics import az  # noqa: E402
+from pmdc_bayes.inference.arviz_import import az  # noqa: E402
 from pmdc_bayes.inference.ensembles import ENSEMBLES  # noqa: E402
 from pmdc_bayes.inference.fit import fit_map  # noqa: E402
 from pmdc_bayes.inference.moves import SHARE_TRUSTED, LaplaceIndependenceMove, LaplaceMixture  # noqa: E402

@@ -124,8 +124,8 @@ def test_a_session_changed_in_memory_is_fitted_but_not_written_as_a_run(tmp_path
     import numpy as np
 
     from pmdc_bayes.api import _as_on_disk
-    from pmdc_bayes.inference.result import RunResult
     from pmdc_bayes.io.bundled import session_path
+    from pmdc_bayes.run import RunResult
 
     session = pmdc_bayes.load_session(session_path("demo"))
     assert _as_on_disk(session)

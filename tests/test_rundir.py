@@ -492,8 +492,8 @@ def test_fit_into_a_read_only_place_is_refused_before_the_fit(session_dir, tmp_p
 
 
 def test_a_run_record_gives_back_the_unknown_loads_and_their_parts(tmp_path):
-    from pmdc_bayes.inference.result import _with_nuisances
     from pmdc_bayes.io.loader import load_session
+    from pmdc_bayes.readback import _with_nuisances
 
     session = load_session("bench")
     info = {"nuisances": ["unknown_load"], "loaded_traces": ["step_6v"],
@@ -508,8 +508,8 @@ def test_a_run_record_gives_back_the_unknown_loads_and_their_parts(tmp_path):
 
 
 def test_a_run_record_gives_back_a_shared_dead_time(tmp_path):
-    from pmdc_bayes.inference.result import _with_nuisances
     from pmdc_bayes.io.loader import load_session
+    from pmdc_bayes.readback import _with_nuisances
 
     session = load_session("bench")
     assert session.shared_dead_time

@@ -283,8 +283,8 @@ def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path, m
     run's copy of session.toml; the report re-read from the run and a refit of the copy
     (without a search) use that model."""
     from pmdc_bayes import pipeline
-    from pmdc_bayes.inference.result import read_run
     from pmdc_bayes.pipeline import run_fit
+    from pmdc_bayes.readback import read_run
     from pmdc_bayes.simulate.session import simulate_session
 
     (tmp_path / "plan.toml").write_text(PLAN)

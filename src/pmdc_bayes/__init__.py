@@ -34,13 +34,13 @@ _LAZY = {
     "fit": ".api",
     "Session": ".io.session",
     "load_session": ".io.loader",
-    "RunResult": ".inference.result",
-    "read_run": ".inference.result",
+    "RunResult": ".run",
+    "read_run": ".readback",
     "fit_session": ".pipeline",
     "run_fit": ".pipeline",
     "simulate_session": ".simulate.session",
     "use_cache": ".cachedir",
-    "write_report": ".report",
+    "write_report": ".readback",
 }
 
 

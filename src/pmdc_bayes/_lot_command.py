@@ -71,8 +71,8 @@ def write_lot_files(out: Path, runs, record, pop) -> list[Path]:
     if pop is None:  # an earlier lot's population is not this lot's
         clear_lot_files(out, keep=("lot.csv", "lot.json"))
     else:
+        from .inference.arviz_import import az
         from .inference.correlation import correlations
-        from .inference.diagnostics import az
         from .report.lot_figure import lot_figure
 
         def chains(x):

@@ -9,11 +9,11 @@ import numpy as np
 
 from ._errors import SessionError, UsageError
 from .inference.cache import StageClock
-from .inference.result import RunResult
 from .io.bundled import session_path
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
 from .pipeline import SAMPLING_SECONDS, fit_session, model_left_open, search_session
+from .run import RunResult
 
 __all__ = ["fit"]
 

@@ -177,7 +177,7 @@ def _cmd_lot(args) -> int:
 
 
 def _cmd_report(args) -> int:
-    from .report import write_report
+    from .readback import write_report
 
     run_dir = Path(args.run_dir)
     if not (run_dir / "summary.json").is_file():
@@ -269,10 +269,11 @@ def run() -> None:
     coverage tool the exit is a normal one."""
     code = main()
     try:
-        render = sys.modules.get("pmdc_bayes.report._render")  # each imported when used
-        warmup = sys.modules.get("pmdc_bayes.inference.warmup")
-        if render is not None:  # figures queued are dropped, one being drawn finishes
-            render.shutdown()
+        warmup = sys.modules.get("pmdc_bayes.inference.warmup")  # imported when used
+        if "pmdc_bayes.report._render" in sys.modules:  # the drawing processes ran
+            from .report import stop_drawing
+
+            stop_drawing()  # figures queued are dropped, one being drawn finishes
         for thread in threading.enumerate() if warmup is not None and code == 0 else ():
             if thread.name == warmup.THREAD_NAME:
                 thread.join()

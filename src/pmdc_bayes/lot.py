@@ -65,8 +65,8 @@ def fit_motor(session: Path, out: Path, *, name: str, mcmc: bool = True, seed: i
     it passed, its evidence about every motor parameter it has."""
     from . import cachedir
     from .inference.motor_evidence import from_run
-    from .inference.result import read_run
     from .pipeline import run_fit
+    from .readback import read_run
 
     t0 = time.perf_counter()
     if cache:

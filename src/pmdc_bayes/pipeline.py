@@ -19,21 +19,13 @@ from .inference.cache import StageClock, announcing
 from .inference.fit import fit_map
 from .inference.identifiability import identifiability
 from .inference.objective import build_model
-from .inference.result import RunResult
 from .inference.seed import fit_seed, refuse_reversed
 from .inference.warmup import WarmUp
-from .io._jsonio import dumps
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
 from .paper.consistency import consistency_checks
-from .rundir import (
-    check_replaceable,
-    copy_session,
-    default_out_dir,
-    versions,
-    write_atomically,
-    write_model,
-)
+from .run import RunResult, write_run
+from .rundir import check_replaceable, default_out_dir, versions
 
 __all__ = ["fit_session", "run_fit", "search_session", "model_left_open", "write_run"]
 
@@ -249,9 +241,9 @@ def run_fit(session_path, *, out: Path | None = None, force: bool = False,
     name = session_full.name
     out = Path(out) if out is not None else default_out_dir(name)
     check_replaceable(out, force)
-    from .report._render import start
+    from .report import start_drawing
 
-    start()  # the processes that draw the report: they import matplotlib meanwhile
+    start_drawing()  # the processes that draw the report: they import matplotlib meanwhile
     selection = chosen = None
     clock = StageClock()
     if compare or (search and model_left_open(session_full, add, friction)):
@@ -296,27 +288,6 @@ def search_session(session_full: Session, *, holdout, friction, seed, say, compa
     if not compare and searched.stop in (Stop.ADEQUATE_START, Stop.FIT_FAILED):
         return session_full, None, searched.chosen
     return with_terms(session_full, selection["terms"]), selection, searched.chosen
-
-
-def write_run(result: RunResult, out: Path, *, force: bool = False) -> Path:
-    """Write a run directory (summary, posterior, report) atomically: everything is
-    built in a temporary sibling and renamed into place only when complete."""
-    from .report import report_stage
-
-    def fill(tmp: Path):
-        result.summary["session"]["files"] = copy_session(result.session_full, tmp)
-        chosen = result.summary.get("model_selection")
-        if chosen:
-            result.summary["session"]["copy_rewritten"] = write_model(
-                result.session_full, tmp, chosen["model"], chosen["friction"])
-        (tmp / "summary.json").write_text(dumps(result.summary))
-        if result.idata is not None:
-            # uncompressed: 0.4 s instead of 2.4 s for a demo-sized run, 30 % larger
-            result.idata.to_netcdf(tmp / "posterior.nc", compress=False)
-        report_stage(result, out, tmp)
-
-    write_atomically(Path(out), fill, force=force)
-    return Path(out)
 
 
 def _no_trace(session, name):

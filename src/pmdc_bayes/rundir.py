@@ -18,10 +18,11 @@ from pathlib import Path
 
 from . import _signals
 from ._errors import UsageError
+from .io.output import default_mode
 
 __all__ = ["versions", "default_out_dir", "RUN_MARKER", "SESSION_COPY", "is_run_dir",
            "check_replaceable", "write_atomically",
-           "default_mode", "copy_session", "changed_files", "check_writable", "write_model",
+           "copy_session", "changed_files", "check_writable", "write_model",
            "sweep_unfinished"]
 
 
@@ -146,14 +147,6 @@ def check_writable(out: Path, *, what: str = "choose another --out") -> None:
         os.rmdir(tempfile.mkdtemp(prefix=".pmdc-bayes-probe.", dir=base))
     except OSError as exc:
         raise UsageError(f"{out}: cannot write in {base} ({exc.strerror}); {what}") from None
-
-
-def default_mode(directory: bool = False) -> int:
-    """The mode a new file (0644 under the usual umask 022) or directory (0755) gets;
-    temporary files are created private, and take this mode when they become the run."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return (0o777 if directory else 0o666) & ~mask
 
 
 def _publish_modes(root: Path) -> None:

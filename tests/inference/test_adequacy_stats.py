@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.adequacy import fit_percent, systematic_misfit, whiteness
 from pmdc_bayes.inference.calibrate import ratio_p
 from pmdc_bayes.inference.onset import onset_shape
+from pmdc_bayes.inference.residual_stats import fit_percent, systematic_misfit, whiteness
 
 
 def test_white_noise_passes_and_a_slow_wave_fails_the_whiteness_test():

@@ -60,8 +60,8 @@ def test_a_trace_cut_before_it_settles_gives_no_steady_level():
 def test_a_no_load_speed_the_session_contradicts_fails_the_plausibility_check():
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.checks import plausibility_checks
     from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.inference.plausibility import plausibility_checks
     from pmdc_bayes.paper.closed_form import closed_form
 
     session = case_session()
@@ -89,8 +89,8 @@ def test_a_steady_readings_miss_is_read_on_its_priors_student_t():
 
     from scipy.optimize import brentq
 
-    from pmdc_bayes.inference.checks import plausibility_checks
     from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.inference.plausibility import plausibility_checks
     from pmdc_bayes.paper.closed_form import closed_form
     from pmdc_bayes.physics.motor import steady_state
 
@@ -125,8 +125,8 @@ def test_a_rotor_at_rest_where_the_model_holds_it_is_no_contradiction(volts):
     from pathlib import Path
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.checks import plausibility_checks
     from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.inference.plausibility import plausibility_checks
     from pmdc_bayes.io.session import SteadyTable
     from pmdc_bayes.paper.closed_form import closed_form
 
@@ -153,9 +153,9 @@ def test_a_level_read_off_an_angle_is_judged_on_the_angles_noise():
     import dataclasses
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.checks import plausibility_checks
     from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.io._position import speed_estimate
+    from pmdc_bayes.inference.plausibility import plausibility_checks
+    from pmdc_bayes.io.position import speed_estimate
     from pmdc_bayes.paper.closed_form import closed_form
     from pmdc_bayes.physics.motor import steady_state
 

@@ -8,7 +8,8 @@ import warnings
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.diagnostics import az, gates
+from pmdc_bayes.inference.arviz_import import az
+from pmdc_bayes.inference.diagnostics import gates
 from pmdc_bayes.inference.ensembles import r_hat_between
 from pmdc_bayes.inference.stopping import (
     CHECK,

@@ -211,10 +211,10 @@ def test_an_unreadable_csv_is_one_line(session_dir):
 
 def test_a_file_over_the_size_limit_is_refused_before_it_is_read(session_dir, monkeypatch):
     from pmdc_bayes._errors import SessionError
-    from pmdc_bayes.io import _text
+    from pmdc_bayes.io import text
     from pmdc_bayes.io.loader import load_session
 
-    monkeypatch.setattr(_text, "MAX_BYTES", 1000)
+    monkeypatch.setattr(text, "MAX_BYTES", 1000)
     with pytest.raises(SessionError, match=r"step.csv: the file is 0.00\d+ MB, more .* decimate"):
         load_session(session_dir)
 

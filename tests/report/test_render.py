@@ -75,7 +75,7 @@ def test_a_worker_that_dies_leaves_the_figure_to_this_process(fresh_pool, monkey
     monkeypatch.setenv(_render.WORKERS_ENV, "0")
     assert got == line_figure(120).png()
     monkeypatch.setenv(_render.WORKERS_ENV, "2")
-    assert _render.start() is None  # the broken pool is not used again
+    assert _render.start_drawing() is None  # the broken pool is not used again
     assert not line_figure(10).in_worker
 
 

@@ -10,10 +10,11 @@ import re
 import numpy as np
 import pytest
 
+from pmdc_bayes import write_report
 from pmdc_bayes.cli import main
 from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.pipeline import run_fit
-from pmdc_bayes.report import to_control, write_report
+from pmdc_bayes.report import to_control
 from pmdc_bayes.report.tables import TABLE_TITLES
 
 pytestmark = pytest.mark.slow
@@ -57,13 +58,14 @@ def _table_rows(md: str, title: str) -> list[list[str]]:
 def test_every_figure_of_the_report_goes_to_a_worker(demo_run, monkeypatch):
     """No figure of a full report falls back to this process (an artist that does not
     pickle would, silently, and cost the report its parallel drawing)."""
-    from pmdc_bayes.report._context import load_context
+    from pmdc_bayes.readback import read_run
+    from pmdc_bayes.report._context import context_from_result
     from pmdc_bayes.report._doc import Figure
     from pmdc_bayes.report._render import WORKERS_ENV
     from pmdc_bayes.report.build import build_sections
 
     monkeypatch.setenv(WORKERS_ENV, "2")
-    sections, _ = build_sections(load_context(demo_run))
+    sections, _ = build_sections(context_from_result(read_run(demo_run), demo_run))
     figures = [b for sec in sections for b in sec.blocks if isinstance(b, Figure)]
     assert len(figures) >= 8
     assert [f.name for f in figures if not f.png.in_worker] == []

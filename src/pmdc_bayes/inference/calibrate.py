@@ -26,7 +26,7 @@ from scipy.signal import lfilter
 from scipy.stats import chi2, norm
 
 __all__ = ["FAMILY_LEVEL", "REPLICATES", "Test", "session_rng", "logged_quantum",
-           "replicates", "tail_p", "holm", "ratio_p", "NOISE_LOG_SD"]
+           "replicates", "tail_p", "holm", "judged_alone", "ratio_p", "NOISE_LOG_SD"]
 
 FAMILY_LEVEL = 0.01  # chance of a false "inadequate" per session, over all its checks
 REPLICATES = 200  # bootstrap replicates per channel
@@ -137,3 +137,10 @@ def holm(p_values, level: float = FAMILY_LEVEL) -> np.ndarray:
             break
         out[k] = True
     return out
+
+
+def judged_alone(tests: list) -> list:
+    """The findings of ``tests`` judged as a family of their own (a check run alone)."""
+    reject = holm([t.p_value for t in tests], FAMILY_LEVEL)
+    return [type(t.finding)(**{**t.finding.__dict__, "p_value": t.p_value})
+            for t, r in zip(tests, reject, strict=True) if r and t.material]

@@ -9,25 +9,18 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import norm
 
-from .adequacy import BENCH_WARN_Z, Finding, _g
-from .calibrate import FAMILY_LEVEL, Test, holm, replicates, tail_p
+from .calibrate import Test, judged_alone, replicates, tail_p
+from .findings import Finding, sig3
 
-__all__ = ["bench_checks", "plausibility_checks", "search_checks", "rise_time", "step_time",
-           "step_start_check", "step_start_test"]
+__all__ = ["bench_checks", "search_checks", "step_start_check", "step_start_test"]
 
+BENCH_WARN_Z = 3.0  # a bench quantity this many bench sd away is worth a warning
 COLLAPSE = 0.1  # a bench quantity fitted below this fraction of its bench value
 PRIOR_PULL = 3.0  # a seeded parameter this many prior widths (log) from its seed
 COMPETING = 5.0  # another optimum within this many log-posterior units of the MAP
 START_SAMPLES = (2, 10)  # the window around a voltage step: samples before, after
 START_SHARE = 0.5  # the window holds at least this share of the channel's misfit
 START_COVER = 0.25  # the windows may cover at most this share of the samples
-
-
-def _judged(tests: list) -> list:
-    """The findings of ``tests`` judged as a family of their own (a check run alone)."""
-    reject = holm([t.p_value for t in tests], FAMILY_LEVEL)
-    return [type(t.finding)(**{**t.finding.__dict__, "p_value": t.p_value})
-            for t, r in zip(tests, reject, strict=True) if r and t.material]
 
 
 def _start_window(tr, r):
@@ -88,7 +81,7 @@ def step_start_test(tr, what: str, y, yhat, s0: float, *, sigma: float | None = 
 def step_start_check(tr, what: str, y, yhat, s0: float, **kw) -> list:
     """:func:`step_start_test` judged on its own at the family's level: a list of at
     most one failing :class:`~.adequacy.Finding`."""
-    return _judged(step_start_test(tr, what, y, yhat, s0, **kw))
+    return judged_alone(step_start_test(tr, what, y, yhat, s0, **kw))
 
 
 def bench_checks(model, fit) -> tuple[dict, list, list]:
@@ -107,7 +100,7 @@ def bench_checks(model, fit) -> tuple[dict, list, list]:
             z = (value - bench) / sd
         out[spec.name] = {"bench": bench, "bench_sd": sd, "fitted": value, "z": float(z),
                           "unit": spec.unit}
-        size = f"{_g(value)} {spec.unit} fitted against {_g(bench)} ± {_g(sd)} on the bench"
+        size = f"{sig3(value)} {spec.unit} fitted against {sig3(bench)} ± {sig3(sd)} on the bench"
         p = float(2 * norm.sf(abs(z)))
         if value < COLLAPSE * bench:
             tests.append(Test(Finding("plausibility", spec.name, "fail", size,
@@ -132,47 +125,6 @@ def bench_checks(model, fit) -> tuple[dict, list, list]:
                                  f"{np.exp(abs(pull) * spec.prior.scale):.3g} from its seed, "
                                  "far outside the range its prior expects"))
     return out, found, tests
-
-
-def step_time(trace) -> float:
-    """Time of the trace's largest voltage change (its first sample when it starts from
-    rest under a constant voltage)."""
-    v, t = trace.voltage.values, trace.voltage.times
-    if v.size < 2:
-        return float(trace.time[0])
-    k = int(np.argmax(np.abs(np.diff(v)))) + 1
-    return float(max(t[k], trace.time[0]))
-
-
-def rise_time(t, y, t_step, level: float = 0.632) -> float | None:
-    """Time after ``t_step`` for ``y`` (smoothed by a moving average long enough to
-    quiet its noise) to cover ``level`` of its change from
-    the value at the step to the mean of its last tenth; None without a clear change."""
-    from .noise import noise_scale
-
-    t, y = np.asarray(t, float), np.asarray(y, float)
-    span = float(np.max(y) - np.min(y))
-    # average enough samples that the noise left is a small share of the span
-    need = (3 * noise_scale(y) / max(0.02 * span, 1e-300)) ** 2 if span > 0 else 1.0
-    w = int(min(max(y.size // 200, np.ceil(need), 1), max(1, y.size // 20)))
-    ys = np.convolve(y, np.ones(w) / w, mode="same") if w > 1 else y
-    before = ys[t <= t_step]
-    y0 = float(before[-1]) if before.size else float(ys[0])
-    yf = float(np.mean(y[-max(3, y.size // 10):]))
-    if not abs(yf - y0) > 0.2 * span or span == 0:
-        return None
-    s = (ys - y0) / (yf - y0)
-    after = np.nonzero((t > t_step) & (s >= level))[0]
-    return float(t[after[0]] - t_step) if after.size else None
-
-
-def plausibility_checks(model, fit, preds, rng=None) -> tuple[dict, list]:
-    """:func:`~.plausibility.plausibility_tests` judged as a family of their own: the
-    figures and the findings."""
-    from .plausibility import plausibility_tests
-
-    out, found, tests = plausibility_tests(model, fit, preds, rng)
-    return out, found + _judged(tests)
 
 
 def search_checks(fit) -> list:

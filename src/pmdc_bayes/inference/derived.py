@@ -66,7 +66,8 @@ def derived_quantities(draws_si: dict[str, np.ndarray], *, voltage: float) -> di
         equal-length 1-D arrays, e.g. :meth:`pmdc_bayes.inference.sampling.Posterior.draws_si`.
     voltage : armature voltage (V) for the no-load and stall quantities.
     """
-    from .diagnostics import HDI_PROB, az  # ArviZ is imported only when there are draws
+    from .arviz_import import az  # ArviZ is imported only when there are draws
+    from .diagnostics import HDI_PROB
 
     out = {}
     for name, (unit, x) in derived_draws(draws_si, voltage=voltage).items():

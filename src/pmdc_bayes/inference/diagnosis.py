@@ -22,10 +22,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.lattice import analogue_channels
-from .checks import step_time
 from .diagnosis_levels import level_rules
 from .noise import noise_scale
-from .onset import departure, onset_shape
+from .onset import departure, onset_shape, step_time
 from .proposals import Proposal, has, said
 
 __all__ = ["diagnose", "Proposal"]

@@ -10,14 +10,10 @@ import warnings
 
 import numpy as np
 
-with warnings.catch_warnings():
-    # ArviZ 0.23 emits a once-a-day FutureWarning on import announcing its 1.0
-    # refactor; the project pins arviz<0.24, so the notice does not concern users.
-    warnings.filterwarnings("ignore", message=r"\s*ArviZ is undergoing", category=FutureWarning)
-    import arviz as az
+from .arviz_import import az
 
 __all__ = ["R_HAT_MAX", "ESS_MIN", "summarize", "gates", "compare_laplace", "widest_direction",
-           "loo_compare", "format_loo", "az"]
+           "loo_compare", "format_loo"]
 
 HDI_PROB = 0.94
 LAPLACE_TOLERANCE = 0.2

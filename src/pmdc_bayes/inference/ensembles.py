@@ -18,7 +18,7 @@ from concurrent.futures import ThreadPoolExecutor
 import emcee
 import numpy as np
 
-from .diagnostics import az
+from .arviz_import import az
 
 __all__ = ["Ensembles", "r_hat_between", "ENSEMBLES"]
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Finding", "MATERIAL_FRACTION"]
+__all__ = ["Finding", "MATERIAL_FRACTION", "sig3"]
 
 MATERIAL_FRACTION = 0.015  # a systematic misfit that matters, as a fraction of the span
 
@@ -23,3 +23,8 @@ class Finding:
     message: str
     suggestion: str = ""
     p_value: float | None = None
+
+
+def sig3(x: float) -> str:
+    """``x`` to three significant figures, as a finding's message shows a figure."""
+    return f"{x:.3g}"

@@ -10,7 +10,7 @@ import numpy as np
 import xarray as xr
 
 from .._x64 import to_device
-from .diagnostics import az
+from .arviz_import import az
 from .predictions import RESIDUAL_BATCH
 
 __all__ = ["to_inference_data", "lumped", "LL_DRAWS"]

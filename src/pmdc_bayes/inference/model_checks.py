@@ -9,7 +9,7 @@ import numpy as np
 
 from ..io.units import display_unit
 from ..physics.limited import PHASES
-from .adequacy import Finding
+from .findings import Finding
 
 __all__ = ["bound_checks", "solver_checks", "drag_checks", "BOUND_Z", "CURVE_REACH"]
 

@@ -100,7 +100,7 @@ def subset(m: MotorEvidence, names) -> MotorEvidence:
 
 
 def from_run(result, names) -> MotorEvidence:
-    """The evidence of a :class:`~.result.RunResult` about ``names``: its posterior draws
+    """The evidence of a :class:`~pmdc_bayes.run.RunResult` about ``names``: its posterior draws
     when it has them, else its MAP and Laplace covariance (from the summary for a run
     read back from disk)."""
     reg = result.model.registry

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["departure", "onset_shape"]
+__all__ = ["departure", "onset_shape", "rise_time", "step_time"]
 
 CONSECUTIVE = 3  # samples in a row beyond the threshold that count as having left rest
 
@@ -104,3 +104,35 @@ def departure(t, y, t_step, threshold) -> float | None:
     run = np.convolve(out.astype(int), np.ones(CONSECUTIVE, int), mode="valid")
     k = np.nonzero(run == CONSECUTIVE)[0]
     return float(t[k[0]] - t_step) if k.size else None
+
+
+def step_time(trace) -> float:
+    """Time of the trace's largest voltage change (its first sample when it starts from
+    rest under a constant voltage)."""
+    v, t = trace.voltage.values, trace.voltage.times
+    if v.size < 2:
+        return float(trace.time[0])
+    k = int(np.argmax(np.abs(np.diff(v)))) + 1
+    return float(max(t[k], trace.time[0]))
+
+
+def rise_time(t, y, t_step, level: float = 0.632) -> float | None:
+    """Time after ``t_step`` for ``y`` (smoothed by a moving average long enough to
+    quiet its noise) to cover ``level`` of its change from
+    the value at the step to the mean of its last tenth; None without a clear change."""
+    from .noise import noise_scale
+
+    t, y = np.asarray(t, float), np.asarray(y, float)
+    span = float(np.max(y) - np.min(y))
+    # average enough samples that the noise left is a small share of the span
+    need = (3 * noise_scale(y) / max(0.02 * span, 1e-300)) ** 2 if span > 0 else 1.0
+    w = int(min(max(y.size // 200, np.ceil(need), 1), max(1, y.size // 20)))
+    ys = np.convolve(y, np.ones(w) / w, mode="same") if w > 1 else y
+    before = ys[t <= t_step]
+    y0 = float(before[-1]) if before.size else float(ys[0])
+    yf = float(np.mean(y[-max(3, y.size // 10):]))
+    if not abs(yf - y0) > 0.2 * span or span == 0:
+        return None
+    s = (ys - y0) / (yf - y0)
+    after = np.nonzero((t > t_step) & (s >= level))[0]
+    return float(t[after[0]] - t_step) if after.size else None

@@ -9,18 +9,18 @@ import numpy as np
 from scipy.stats import norm
 from scipy.stats import t as student_t
 
-from ..io._position import speed_estimate, speed_window
+from ..io.position import speed_estimate, speed_window
 from ..physics import motor
-from .adequacy import Finding, _g
-from .calibrate import Test, logged_quantum, replicates, session_rng, tail_p
-from .checks import rise_time, step_time
+from .calibrate import Test, judged_alone, logged_quantum, replicates, session_rng, tail_p
 from .coloured import channel_rho, mean_se_factor
+from .findings import Finding, sig3
 from .levels import level_se, unloaded_levels
 from .noise import quantum, run_fraction
 from .nuisances import DEAD_ZONE_NAMES
 from .objective import NU0
+from .onset import rise_time, step_time
 
-__all__ = ["plausibility_tests", "rise_eligible"]
+__all__ = ["plausibility_tests", "plausibility_checks", "rise_eligible"]
 
 
 def _as_logged(trace, w):
@@ -126,8 +126,8 @@ def _rise_test(model, k, tr, w, noise_sd, s0, rng, rises, rho) -> list:
     pv = tail_p(np.log(obs), reps, side="two", floor=dt / (np.sqrt(6.0) * mod))
     rises[tr.name] = {"observed": obs, "model": mod, "ratio": mod / obs, "p_value": pv}
     return [Test(Finding("plausibility", f"{tr.name}: speed", "fail", f"x{mod / obs:.2g}",
-                         f"the model rises to 63 % in {_g(mod)} s where the data take "
-                         f"{_g(obs)} s"), pv)]
+                         f"the model rises to 63 % in {sig3(mod)} s where the data take "
+                         f"{sig3(obs)} s"), pv)]
 
 
 def _peak_test(tr, ia, noise_sd, s0, rng, rho=0.0) -> list:
@@ -147,8 +147,8 @@ def _peak_test(tr, ia, noise_sd, s0, rng, rho=0.0) -> list:
     step = float(np.max(np.abs(np.diff(np.abs(ia[max(j - 1, 0):j + 2]))), initial=0.0))
     pv = tail_p(np.log(obs), reps, side="lower", floor=step / (np.sqrt(6.0) * peak))
     return [Test(Finding("plausibility", name, "fail", f"x{peak / obs:.2g}",
-                         f"the model's current peaks at {_g(peak)} A but the logged current "
-                         f"never passes {_g(obs)} A"), pv, peak > obs)]
+                         f"the model's current peaks at {sig3(peak)} A but the logged current "
+                         f"never passes {sig3(obs)} A"), pv, peak > obs)]
 
 
 def _no_load_speed(model, p: dict, v: float) -> float:
@@ -280,7 +280,7 @@ def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
     ratio = w_mod / w_obs if w_obs else 0.0
     return [Test(Finding("plausibility", "no-load speed", "fail",
                          f"x{ratio:.{_digits(ratio, 1.0)}g}" if w_obs else "logged 0",
-                         f"the model's no-load speed at {_g(float(v))} V is {w_mod:.{d}g} "
+                         f"the model's no-load speed at {sig3(float(v))} V is {w_mod:.{d}g} "
                          f"rad/s where the session settles at {float(w_obs):.{d}g} rad/s"),
                  pv)]
 
@@ -293,3 +293,8 @@ def _digits(*values: float) -> int:
     return digits
 
 
+def plausibility_checks(model, fit, preds, rng=None) -> tuple[dict, list]:
+    """:func:`plausibility_tests` judged as a family of their own: the
+    figures and the findings."""
+    out, found, tests = plausibility_tests(model, fit, preds, rng)
+    return out, found + judged_alone(tests)

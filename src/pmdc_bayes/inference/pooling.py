@@ -94,7 +94,7 @@ def outlier_p_values(pop: Population, *, seed: int = 0) -> OutlierTest:
     likelihood, or, for a motor the reweighting cannot leave out (its weights too
     uneven, Pareto k̂ above :data:`PARETO_K`; the :data:`MAX_REFITS` of them with the
     smallest p-values), the population fitted again without it."""
-    from .diagnostics import az
+    from .arviz_import import az
 
     loglik = pop.log_likelihoods
     n = pop.mu.shape[0]
@@ -154,7 +154,7 @@ def _interval(x) -> list[float]:
 
 def _loo(pop: Population) -> np.ndarray:
     """Per motor, its PSIS-LOO log predictive density under the population."""
-    from .diagnostics import az
+    from .arviz_import import az
 
     loglik = pop.log_likelihoods
     with warnings.catch_warnings():  # a poor tail only blurs the comparison

@@ -16,7 +16,8 @@ import math
 
 import numpy as np
 
-from .diagnostics import ESS_MIN, R_HAT_MAX, az
+from .arviz_import import az
+from .diagnostics import ESS_MIN, R_HAT_MAX
 from .ensembles import r_hat_between
 
 __all__ = ["TAU_RTOL", "CHECK", "TRUST_TAU", "Stop", "gate_shortfall", "next_gate_check",

@@ -21,6 +21,7 @@ from .coloured import innovation_scale
 from .findings import MATERIAL_FRACTION, Finding
 from .glitches import outlier_test
 from .noise import noise_scale
+from .residual_stats import fit_percent, systematic_misfit, whiteness
 
 __all__ = ["channel_tests", "slow_ratio", "autocorrelation", "MATERIAL_FRACTION",
            "ANTI_CORRELATION"]
@@ -70,7 +71,6 @@ def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, tim
     innovations, which are white at the fitted level ``sigma``, against the model-free
     level an AR(1) noise's innovations have; ``time`` (the readings' times) and
     ``unit`` place an outlying reading in the report (:func:`outlier_test`)."""
-    from .adequacy import fit_percent, systematic_misfit, whiteness
 
     y, yhat = np.asarray(y, float), np.asarray(yhat, float)
     r = y - yhat

@@ -37,7 +37,7 @@ from .._errors import SessionError
 from ._cells import MISSING
 from ._key_values import key_value_rows
 from ._rows import SEPARATOR_NAMES, Columns, read_rows
-from ._text import read_text
+from .text import read_text
 
 __all__ = ["read_columns", "Columns", "MISSING"]
 

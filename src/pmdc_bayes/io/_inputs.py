@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._position import edges_flag
-from ._toml import Table as _Table
-from ._toml import describe as _describe
+from .position import edges_flag
 from .session import Schedule
+from .toml_tables import Table as _Table
+from .toml_tables import describe as _describe
 from .units import to_si
 
 __all__ = ["schedule", "duty_scale", "duty_to_volts", "DUTY_UNITS"]

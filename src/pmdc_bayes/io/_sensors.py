@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._toml import Table
+from .toml_tables import Table
 from .units import to_si
 
 __all__ = ["UNIT_KINDS", "KEYS", "VOLTS", "speed_si", "current_si", "check_unused", "physical"]

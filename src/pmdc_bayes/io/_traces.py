@@ -13,7 +13,9 @@ from . import _sensors as sensors
 from ._csv import read_columns
 from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
 from ._missing import MISSABLE, without_missing, without_repeats
-from ._position import (
+from ._units_row import check_units_row
+from .drag import check_curve_reach, read_drag
+from .position import (
     angle_si,
     edge_angles,
     edges_flag,
@@ -21,11 +23,9 @@ from ._position import (
     unwrap_position,
     unwrap_time,
 )
-from ._toml import Table as _Table
-from ._toml import describe as _describe
-from ._units_row import check_units_row
-from .drag import check_curve_reach, read_drag
 from .session import COAST_DOWN, Schedule, Trace
+from .toml_tables import Table as _Table
+from .toml_tables import describe as _describe
 from .units import to_si
 
 __all__ = ["read_traces"]
@@ -214,7 +214,7 @@ def _trace(t: _Table, root: Path) -> Trace:
                   "initial", "counts_per_rev", "time_wrap", "edges", "drag",
                   "supply_voltage", "pwm_full_scale", "position_wrap", "sample_rate",
                   *sensors.KEYS))
-    # an angle in counts is 2π/counts_per_rev each, known per trace (_position.angle_si)
+    # an angle in counts is 2π/counts_per_rev each, known per trace (position.angle_si)
     name, kind = t.string("name"), t.string("kind")
     u = t.units(_UNIT_KINDS, extra={"position": ("counts",), "voltage": (*DUTY_UNITS, "pwm"),
                                     "speed": sensors.VOLTS, "current": sensors.VOLTS})

@@ -8,7 +8,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._toml import Table, describe
+from .toml_tables import Table, describe
 from .units import from_si
 
 __all__ = ["Drag", "NO_DRAG", "read_drag", "check_curve_reach"]

@@ -19,9 +19,6 @@ import numpy as np
 from .._errors import SessionError
 from . import gear
 from ._csv import read_columns
-from ._text import read_text
-from ._toml import Table as _Table
-from ._toml import describe as _describe
 from ._traces import read_traces
 from ._units_row import check_units_row
 from .bundled import BUNDLED, session_path
@@ -38,6 +35,9 @@ from .session import (
     SteadyTable,
     StepReading,
 )
+from .text import read_text
+from .toml_tables import Table as _Table
+from .toml_tables import describe as _describe
 from .units import to_si
 
 __all__ = ["load_session"]

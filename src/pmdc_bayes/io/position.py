@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import SessionError
-from ._toml import Table
-from ._toml import describe as _describe
+from .toml_tables import Table
+from .toml_tables import describe as _describe
 from .units import to_si
 
 __all__ = ["unwrap_time", "unwrap_position", "angle_si", "edge_angles", "speed_estimate",

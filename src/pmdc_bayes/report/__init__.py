@@ -7,10 +7,11 @@ processes that draw the figures do, see :mod:`._render`) does not import the res
 
 from .._lazy import lazy_names
 
-__all__ = ["write_report", "report_stage", "controller_model", "to_control"]
+__all__ = ["write_report_for", "report_stage", "start_drawing", "stop_drawing",
+           "controller_model", "to_control"]
 
-_LAZY = {"write_report": ".write", "report_stage": ".write", "controller_model": ".export",
-         "to_control": ".export"}
+_LAZY = {"write_report_for": ".write", "report_stage": ".write", "start_drawing": "._render",
+         "stop_drawing": "._render", "controller_model": ".export", "to_control": ".export"}
 
 
 __getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())

@@ -1,6 +1,6 @@
 """Everything a report needs from a finished run, loaded once.
 
-The report is built from a :class:`~pmdc_bayes.inference.result.RunResult`: the one a
+The report is built from a :class:`~pmdc_bayes.run.RunResult`: the one a
 run just produced, or one read back from a run directory (``summary.json``,
 ``posterior.nc`` and the session at the path the summary records).
 """
@@ -9,18 +9,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._x64 import x64
 from ..inference.objective import SessionModel, build_model
-from ..inference.result import RunResult, read_run
 from ..io.session import Session
 from ..paper.closed_form import ClosedForm
 from ._view import FigureView, TracePrediction
 from .predictive import predict_traces
 
-__all__ = ["ReportContext", "load_context", "context_from_result", "N_PREDICTIVE_DRAWS"]
+if TYPE_CHECKING:
+    from ..run import RunResult
+
+__all__ = ["ReportContext", "context_from_result", "N_PREDICTIVE_DRAWS"]
 
 N_PREDICTIVE_DRAWS = 100  # posterior draws simulated for the predictive bands
 
@@ -86,8 +89,3 @@ def context_from_result(result: RunResult, run_dir) -> ReportContext:
         cf_applicable=bool(cf.applicable), run_dir=Path(run_dir),
         session_full=result.session_full, cf=cf, model=model, idata=result.idata,
         predictions=preds, holdout=holdout)
-
-
-def load_context(run_dir) -> ReportContext:
-    """Read a run directory and compute the simulations the report shows."""
-    return context_from_result(read_run(run_dir), run_dir)

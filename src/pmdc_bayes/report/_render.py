@@ -25,7 +25,7 @@ import threading
 
 from .._cores import usable_cores
 
-__all__ = ["Drawing", "draw", "later", "start", "shutdown", "workers", "report_rc",
+__all__ = ["Drawing", "draw", "later", "start_drawing", "stop_drawing", "workers", "report_rc",
            "WORKERS_ENV"]
 
 WORKERS_ENV = "PMDC_BAYES_DRAW_WORKERS"
@@ -81,7 +81,7 @@ def _forget_pool() -> None:
 os.register_at_fork(after_in_child=_forget_pool)
 
 
-def start():
+def start_drawing():
     """Start the pool (idempotent) and return it, or None when figures are drawn
     in-process: also in a process that :mod:`multiprocessing` started (a daemonic one
     may not have children, and one that ends by ``os._exit`` would leave a pool it
@@ -136,7 +136,7 @@ def _spawn(n: int):
     return pool
 
 
-def shutdown(wait: bool = True) -> None:
+def stop_drawing(wait: bool = True) -> None:
     """Stop the workers, once the figures they have begun are drawn (``wait=False``:
     at once, dropping what is queued); a later figure starts a new pool."""
     global _pool
@@ -186,7 +186,7 @@ class Drawing:
     def __init__(self, local, worker=None, payload=None):
         self._local = local
         self._future, self._png = None, None
-        pool = start() if worker is not None else None
+        pool = start_drawing() if worker is not None else None
         if pool is None:
             return
         try:

@@ -1,56 +1,39 @@
 """Writing the report of a finished run: ``report.html``, ``report.md``,
 ``figures/*.png`` and ``controller.json`` in the run directory.
 
-:func:`write_report` regenerates everything from ``summary.json``, ``posterior.nc``
-(optional: without it the posterior parts are skipped and the report says so) and the
-run's own copy of the session.  Matplotlib is used here only, with the Agg backend.
+:func:`write_report_for` writes them from a run's record, the one a run just produced
+or one :func:`pmdc_bayes.readback.read_run` read back from its directory.  Matplotlib is
+used here only, with the Agg backend.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import tempfile
 from pathlib import Path
 
 from .._errors import UsageError
 from .._x64 import x64
 from ..inference.cache import StageClock
-from ..io._jsonio import dumps
-from ..rundir import default_mode
-from ._context import context_from_result, load_context
+from ..io.output import dumps, write_whole
+from ._context import context_from_result
 from ._doc import Figure
 from .build import CONTROLLER_FILE, build_sections
 from .html import render_html
 from .markdown import render_markdown
 
-__all__ = ["write_report", "report_stage"]
+__all__ = ["write_report_for", "report_stage"]
 
 FIGURES = "figures"
-
-
-def _write(path: Path, data: bytes | str) -> None:
-    """Write via a temporary file in the same directory and ``os.replace``."""
-    raw = data.encode("utf-8") if isinstance(data, str) else data
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(raw)
-        os.chmod(tmp, default_mode())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _built(ctx):
     """The sections and the controller model, with every figure's PNG bytes in place
     (the figures are drawn in worker processes while the tables are built, see
     :mod:`._render`; a failure drops the figures still waiting)."""
-    from ._render import start
+    from ._render import start_drawing
 
-    start()
+    start_drawing()
     sections, model = build_sections(ctx)
     pending = [(sec, i) for sec in sections for i, block in enumerate(sec.blocks)
                if isinstance(block, Figure) and not isinstance(block.png, bytes)]
@@ -84,23 +67,20 @@ def _figures(sections):
 
 
 @x64
-def write_report(run_dir, *, result=None, into=None, say=None) -> dict[str, Path]:
+def write_report_for(result, run_dir, *, into=None, say=None) -> dict[str, Path]:
     """Write the report of a run; return the paths written.
 
     Parameters
     ----------
-    run_dir : the run directory (read when ``result`` is not given; named in the report).
-    result : the run's :class:`~pmdc_bayes.inference.result.RunResult`, when in memory.
+    result : the run's :class:`~pmdc_bayes.run.RunResult`.
+    run_dir : the run directory (named in the report).
     into : where to write (default ``run_dir``), e.g. a run directory still being built.
     say : called with a line as each stage starts (None: silent).
 
     Keys of the result: ``html``, ``markdown``, ``controller`` and ``figures`` (a list).
-    Raises :class:`pmdc_bayes.UsageError` when ``run_dir`` holds no usable run.
     """
     say = say or (lambda text: None)
-    if result is None:
-        say(f"reading {run_dir}: summary.json, its copy of the session, posterior.nc")
-    ctx = load_context(run_dir) if result is None else context_from_result(result, run_dir)
+    ctx = context_from_result(result, run_dir)
     dest = Path(run_dir if into is None else into)
     say("drawing the figures and building the tables")
     sections, model = _built(ctx)
@@ -115,13 +95,13 @@ def write_report(run_dir, *, result=None, into=None, say=None) -> dict[str, Path
     figs = []
     for fig in _figures(sections):
         path = figdir / f"{fig.name}.png"
-        _write(path, fig.png)
+        write_whole(path, fig.png)
         figs.append(path)
     paths = {"html": dest / "report.html", "markdown": dest / "report.md",
              "controller": dest / CONTROLLER_FILE, "figures": figs}
-    _write(paths["controller"], json.dumps(model, indent=2))
-    _write(paths["markdown"], render_markdown(title, sections, figdir=FIGURES))
-    _write(paths["html"], render_html(title, sections))
+    write_whole(paths["controller"], json.dumps(model, indent=2))
+    write_whole(paths["markdown"], render_markdown(title, sections, figdir=FIGURES))
+    write_whole(paths["html"], render_html(title, sections))
     return paths
 
 
@@ -132,7 +112,7 @@ def report_stage(result, run_dir, into) -> dict[str, Path]:
     ``report`` and ``total``) and rewrite ``summary.json`` there."""
     clock = StageClock()
     with clock.stage("report"):
-        paths = write_report(run_dir, result=result, into=into)
+        paths = write_report_for(result, run_dir, into=into)
     diag = result.summary.setdefault("diagnostics", {})
     for key, times in (("wall_s", clock.wall), ("compile_s", clock.compile)):
         record = diag.setdefault(key, {})
@@ -140,5 +120,5 @@ def report_stage(result, run_dir, into) -> dict[str, Path]:
         record["total"] = record.get("total", 0.0) - record.get("report", 0.0) \
             + times["report"]
         record["report"] = times["report"]
-    _write(Path(into) / "summary.json", dumps(result.summary))
+    write_whole(Path(into) / "summary.json", dumps(result.summary))
     return paths

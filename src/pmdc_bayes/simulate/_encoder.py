@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io._position import speed_estimate
+from ..io.position import speed_estimate
 
 __all__ = ["ENCODER_OUTPUTS", "counted_angle", "edge_times", "encoder_trace_parts", "EDGE_FINE"]
 

@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import SessionError
-from ..io._text import read_text
-from ..io._toml import REQUIRED, Table
 from ..io.drag import NO_DRAG, Drag, read_drag
 from ..io.session import FRICTION_MODELS
+from ..io.text import read_text
+from ..io.toml_tables import REQUIRED, Table
 from ..io.units import unit_factor
 from .rig import RigSpec, check_encoder, check_rig
 
