@@ -2,10 +2,6 @@ import os
 import shutil
 import tempfile
 
-import jax
-
-jax.config.update("jax_enable_x64", True)
-
 # Commands run by the tests (in this process or as subprocesses) keep their compiled
 # programs in a cache of this test run, never in the user's home directory; it is
 # removed when the run ends.
