@@ -2,6 +2,9 @@ import os
 import shutil
 import tempfile
 
+import jax
+import pytest
+
 # Commands run by the tests (in this process or as subprocesses) keep their compiled
 # programs in a cache of this test run, never in the user's home directory; it is
 # removed when the run ends.
@@ -9,6 +12,16 @@ _TEST_CACHE = None
 if "PMDC_BAYES_CACHE" not in os.environ:
     _TEST_CACHE = tempfile.mkdtemp(prefix="pmdc-bayes-test-cache-")
     os.environ["PMDC_BAYES_CACHE"] = _TEST_CACHE
+
+
+@pytest.fixture
+def jax_x64():
+    """JAX's 64-bit mode for a test that computes with the package's internals itself, as
+    the package does inside its own 64-bit context.  The suite leaves the mode off, as a
+    caller's process has it, so that an entry point of the package that forgets to
+    switch it on fails its tests."""
+    with jax.enable_x64(True):
+        yield
 
 
 def pytest_sessionfinish(session, exitstatus):
@@ -22,7 +35,6 @@ import math  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-import pytest  # noqa: E402
 
 # The synthetic step in step.csv: 0 -> 6 V at t = 0.1 s, first-order speed response.
 STEP_TAU = 0.2  # s

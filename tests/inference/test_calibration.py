@@ -13,9 +13,7 @@ correlated), so the binomial band is, if anything, a little narrow; the check is
 still a strong one: a posterior ~2x too narrow covers ~55 %, far outside the band.
 """
 
-import jax
 
-jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402

@@ -56,7 +56,7 @@ def test_demo_map_beats_closed_form_b_bias(demo_fit):
 
 
 @pytest.mark.slow
-def test_demo_gradient_of_objective_matches_finite_differences(demo_fit):
+def test_demo_gradient_of_objective_matches_finite_differences(demo_fit, jax_x64):
     s, model, fit = demo_fit
     theta = np.asarray(fit.theta) + 0.01
     f = jax.jit(model.log_posterior)

@@ -49,7 +49,7 @@ def test_the_kernel_computes_in_64_bits_for_a_caller_in_32(demo_model):
     the same log-posterior as inside the package's 64-bit context."""
     theta = np.asarray(x64(demo_model.theta_seed)())
     inside = x64(Stepper.of(demo_model).terms)(theta)
-    with jax.enable_x64(False):  # the suite's own setting is on: a caller's is off
+    with jax.enable_x64(False):  # a caller's setting, whatever the suite's
         t = Stepper.of(demo_model).terms(theta)
         assert not jax.config.jax_enable_x64
     assert t.H.dtype == np.float64 and t.lp == inside.lp

@@ -13,9 +13,7 @@ that one of them fails by chance, if the z-scores were exactly N(0, 1), is about
 (``SEED_BASE`` + the motor's row).
 """
 
-import jax
 
-jax.config.update("jax_enable_x64", True)
 
 import re  # noqa: E402
 

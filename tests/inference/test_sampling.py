@@ -2,10 +2,6 @@
 gates, recovery of a known motor, the ArviZ record and LOO, derived quantities, and a
 negative control (an unidentifiable parameter must fail the gates)."""
 
-import jax
-
-jax.config.update("jax_enable_x64", True)
-
 import math  # noqa: E402
 import re  # noqa: E402
 import subprocess  # noqa: E402
@@ -13,6 +9,7 @@ import sys  # noqa: E402
 import types  # noqa: E402
 import warnings  # noqa: E402
 
+import jax
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
@@ -225,6 +222,7 @@ def test_the_log_posterior_runs_in_64_bits_in_every_sampler_thread():
         return jnp.sum(thetas, axis=1)
 
     walkers = np.array([[1.0 + 1e-12, 2.0], [3.0, 4.0]])
+    before = jax.config.jax_enable_x64
     jax.config.update("jax_enable_x64", False)  # as a caller may have it
     try:
         log_prob = _LogProb(record, 2, [True, True])
@@ -233,7 +231,7 @@ def test_the_log_posterior_runs_in_64_bits_in_every_sampler_thread():
         worker.join()
         assert not jax.config.jax_enable_x64
     finally:
-        jax.config.update("jax_enable_x64", True)
+        jax.config.update("jax_enable_x64", before)
     assert seen[0] == jnp.float64 and seen[1][0] == 3.0 + 1e-12
 
 
