@@ -11,6 +11,9 @@ from pmdc_bayes.physics.angle import since_first_sample
 from pmdc_bayes.physics.experiment import stack_experiments
 from pmdc_bayes.physics.solution import Params, simulate_padded
 
+# the tests call the physics directly, as the package calls it inside its 64-bit context
+pytestmark = pytest.mark.usefixtures("jax_x64")
+
 P = Params(8.5, 0.0056, 0.062, 4.5e-5, 5.9e-4, 0.0025)
 
 

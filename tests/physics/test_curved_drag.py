@@ -24,6 +24,9 @@ from pmdc_bayes.physics.load import (
 from pmdc_bayes.physics.solution import Params, simulate_padded
 from pmdc_bayes.simulate.bench import BenchMotor, integrate, steady_point
 
+# the tests call the physics directly, as the package calls it inside its 64-bit context
+pytestmark = pytest.mark.usefixtures("jax_x64")
+
 MOTOR = dict(Ra=8.5, La=5.6e-3, K=0.062, B=4.5e-5, J=5.9e-4)
 FAN = Drag(quadratic=1e-6, curve=((0.0, 0.0), (100.0, 3e-3), (300.0, 1.5e-2)))
 T = np.arange(0.0, 2.5, 1e-3)

@@ -13,6 +13,9 @@ from pmdc_bayes.physics.angle import since_first_sample
 from pmdc_bayes.physics.experiment import stack_experiments
 from pmdc_bayes.physics.solution import Params, simulate_padded
 
+# the tests call the physics directly, as the package calls it inside its 64-bit context
+pytestmark = pytest.mark.usefixtures("jax_x64")
+
 P = Params(Ra=2.0, La=2e-3, K=0.05, B=1e-5, J=2e-5, Tc=2e-3)
 T = np.arange(0.0, 0.2, 1e-3)
 # the first trace steps twice 20 ms apart (far from settled); the second logs a

@@ -14,6 +14,9 @@ from pmdc_bayes.inference.nuisances import NO_LIMIT
 from pmdc_bayes.physics.angle import since_first_sample
 from pmdc_bayes.physics.solution import Params, make_experiment, simulate_padded
 
+# the tests call the physics directly, as the package calls it inside its 64-bit context
+pytestmark = pytest.mark.usefixtures("jax_x64")
+
 P = Params(Ra=2.0, La=2e-3, K=0.05, B=2e-5, J=2e-5, Tc=2e-3)
 T = np.linspace(0.0, 1.5, 1501)
 # Up from rest, then reversed: the rotor is clamped on the way up, braked against the

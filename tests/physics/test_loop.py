@@ -9,6 +9,9 @@ from pmdc_bayes._headline import pi_loop_text
 from pmdc_bayes.cli import main
 from pmdc_bayes.physics.loop import pi_loop, pi_margins
 
+# the tests call the physics directly, as the package calls it inside its 64-bit context
+pytestmark = pytest.mark.usefixtures("jax_x64")
+
 control = pytest.importorskip("control")
 
 MOTOR = {"Ra": 8.5, "La": 5.6e-3, "K": 0.062, "B": 4.5e-5, "J": 5.9e-4}

@@ -25,6 +25,9 @@ from pmdc_bayes.physics.solution import (
     steady_state,
 )
 
+# the tests call the physics directly, as the package calls it inside its 64-bit context
+pytestmark = pytest.mark.usefixtures("jax_x64")
+
 P = Params(8.5, 5.621e-3, 0.062, 5.663e-5, 5.902e-4, 0.0)
 PC = P._replace(Tc=2.5e-3)
 

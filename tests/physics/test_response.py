@@ -9,6 +9,9 @@ import pytest
 from pmdc_bayes.physics.motor import tf_full
 from pmdc_bayes.physics.response import frequency_response, poles, step_response
 
+# the tests call the physics directly, as the package calls it inside its 64-bit context
+pytestmark = pytest.mark.usefixtures("jax_x64")
+
 control = pytest.importorskip("control")
 
 CASES = {

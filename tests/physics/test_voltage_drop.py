@@ -13,6 +13,9 @@ from pmdc_bayes._x64 import x64
 from pmdc_bayes.physics.solution import Params, make_experiment, simulate_padded
 from pmdc_bayes.simulate.bench import BenchMotor, integrate
 
+# the tests call the physics directly, as the package calls it inside its 64-bit context
+pytestmark = pytest.mark.usefixtures("jax_x64")
+
 MOTOR = dict(Ra=2.0, La=2e-3, K=0.05, B=2e-5, J=2e-5)
 T = np.arange(0.0, 0.6, 5e-4)
 # 12 V, braked at 0 V, 6 V, then reversed to −3 V
