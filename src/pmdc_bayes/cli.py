@@ -270,10 +270,8 @@ def run() -> None:
     code = main()
     try:
         warmup = sys.modules.get("pmdc_bayes.inference.warmup")  # imported when used
-        if "pmdc_bayes.report._render" in sys.modules:  # the drawing processes ran
-            from .report import stop_drawing
-
-            stop_drawing()  # figures queued are dropped, one being drawn finishes
+        if "pmdc_bayes.report._render" in sys.modules:  # figures queued are dropped, one
+            sys.modules["pmdc_bayes.report"].stop_drawing()  # being drawn finishes
         for thread in threading.enumerate() if warmup is not None and code == 0 else ():
             if thread.name == warmup.THREAD_NAME:
                 thread.join()

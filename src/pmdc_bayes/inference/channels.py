@@ -26,15 +26,16 @@ from collections.abc import Callable
 import jax.numpy as jnp
 import numpy as np
 
+from ..io.readings import steady_points
 from ..io.session import Session
 from ..physics import motor
 from ..physics.angle import since_first_sample
-from ..physics.experiment import Experiment, steady_points
+from ..physics.experiment import Experiment
 from ..physics.sensor import coast_down_reading, pole
 from ..physics.solution import simulate_padded
 from .coloured import COLOURED, breaks, previous_index
 from .noise import effective_fraction, noise_scale, typical_level
-from .nuisances import initial_speed_name, position_offset_name
+from .trace_states import initial_speed_name, position_offset_name
 
 __all__ = ["Block", "TraceBlock", "CoastDownBlock", "SteadyBlock", "StepReadingBlock", "blocks_for",
            "resting_counts",
@@ -180,7 +181,7 @@ class TraceBlock(Block):
 
 class SteadyBlock(Block):
     """Steady speeds and currents: operating points, steady-table rows and the step
-    readings' final speeds (:func:`~pmdc_bayes.physics.experiment.steady_points`),
+    readings' final speeds (:func:`~pmdc_bayes.io.readings.steady_points`),
     predicted by the steady state; noise scale 1 % of the typical reading."""
 
     key = "steady"

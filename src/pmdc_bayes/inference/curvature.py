@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .channels import entry_weights
-from .objective import NU0, integrated_log_likelihood, noise_weights
+from .noise import NU0, integrated_log_likelihood, noise_weights
 
 __all__ = ["gauss_newton", "transform_curvature", "invert_curvature", "Terms"]
 

@@ -20,7 +20,9 @@ import numpy as np
 from .._x64 import x64
 from .curvature import Terms, invert_curvature, transform_curvature
 from .multistart import MAX_STEPS, WINDOW, Outcome, maximise
-from .objective import SessionModel, noise_weights
+from .noise import noise_weights
+from .objective import SessionModel
+from .optima import distinct_optima
 from .optimiser import Stepper
 
 __all__ = ["FitResult", "fit_map", "laplace"]
@@ -29,8 +31,6 @@ N_STARTS = 8
 START_SPREAD = 0.3
 ABANDON_AFTER = 20  # accepted steps after which a start far below the best stops
 RELEVANT = 10.0
-SAME_DISTANCE = 1.0  # Laplace sds (Mahalanobis) within which two finals are one optimum
-DIP = 1.0  # log-posterior units: a smaller dip between two finals is no valley
 MODE_SHARE = 0.01  # a distinct optimum this dense relative to the MAP joins its spread
 WIDE_SPREAD = 1.0  # least log spread of the starts over the prior's range
 
@@ -172,39 +172,6 @@ def fit_map(model: SessionModel, *, theta0=None, n_starts: int = N_STARTS, seed:
     return _finish(model, states, origins, stepper.terms)
 
 
-def _modes(thetas, logp, ok, cov, evaluate) -> tuple[list[int], list[int]]:
-    """The distinct optima the starts reached: their indices (best first), and for each
-    start the index of the optimum it reached (-1 for one that did not converge).
-
-    Two finals are one optimum when they lie within 1e-3 in θ with log-posteriors within
-    1e-6 (relative), within :data:`SAME_DISTANCE` Laplace standard deviations of each
-    other (Mahalanobis distance under the MAP's covariance ``cov``), or on one ridge: the
-    log-posterior (``evaluate(θ).lp``) nowhere on the segment between them dips more
-    than :data:`DIP` below the lower of the two.  A distinct optimum is one a valley
-    separates from the MAP's.
-    """
-    order = [int(i) for i in np.argsort(-logp) if np.isfinite(logp[i]) and ok[i]]
-    prec = _precision(cov)
-
-    def same(i, j):
-        d = thetas[i] - thetas[j]
-        gap, dlp = np.max(np.abs(d)), abs(logp[i] - logp[j])
-        if gap < 1e-3 and dlp < 1e-6 * max(1.0, abs(logp[j])):
-            return True
-        if float(d @ prec @ d) < SAME_DISTANCE**2:
-            return True
-        floor = min(logp[i], logp[j]) - DIP
-        return all(evaluate(thetas[j] + f * d).lp >= floor for f in (0.25, 0.5, 0.75))
-
-    modes: list[int] = []
-    label = [-1] * len(logp)
-    for i in order:
-        label[i] = next((j for j in modes if same(i, j)), i)
-        if label[i] == i:
-            modes.append(i)
-    return modes, label
-
-
 def _mixture(model, states, spanned, logp, best, cov) -> tuple[np.ndarray, float]:
     """The covariance of the mixture of the Laplace approximations at the distinct optima
     ``spanned``, each weighted by its Laplace mass ``exp(Δ log p)·√(det Σ_k / det Σ_MAP)``,
@@ -233,13 +200,6 @@ def _mixture(model, states, spanned, logp, best, cov) -> tuple[np.ndarray, float
     return mix, log_mass
 
 
-def _precision(cov) -> np.ndarray:
-    if not np.all(np.isfinite(cov)):
-        return np.zeros_like(cov)
-    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
-    return (vecs / np.clip(vals, 1e-300, None)) @ vecs.T
-
-
 def _finish(model, states, origins, evaluate) -> FitResult:
     thetas = np.array([st.theta for st in states])
     logp = np.array([st.lp if np.isfinite(st.lp) else -np.inf for st in states])
@@ -248,7 +208,7 @@ def _finish(model, states, origins, evaluate) -> FitResult:
     theta = thetas[best]
     terms = states[best].terms
     cov, _ = laplace(model, theta, terms)
-    modes, label = _modes(thetas, logp, ok, cov, evaluate)
+    modes, label = distinct_optima(thetas, logp, ok, cov, evaluate)
     spanned = [i for i in modes if logp[best] - logp[i] <= -np.log(MODE_SHARE)]
     cov_map, log_mass = None, 0.0
     if len(spanned) > 1 and best in spanned:

@@ -1,15 +1,19 @@
-"""Noise bookkeeping for the objective: model-free noise levels and channel records."""
+"""Noise bookkeeping for the objective: model-free noise levels, channel records, and a
+channel's likelihood and weight with its noise level integrated out."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from ..io.lattice import quantum
 
 __all__ = ["Channel", "noise_scale", "typical_level", "quantum", "effective_fraction",
-           "quanta_passed", "run_fraction", "NU0"]
+           "quanta_passed", "run_fraction", "integrated_log_likelihood", "noise_weights",
+           "NU0"]
 
 NU0 = 2.0  # pseudo-observations of each channel's inverse-gamma noise prior
 
@@ -105,3 +109,19 @@ def typical_level(x, mask) -> float:
     """Mean absolute value of the masked entries (1 when there are none)."""
     vals = np.abs(np.asarray(x)[np.asarray(mask)])
     return float(np.mean(vals)) if vals.size else 1.0
+
+
+def integrated_log_likelihood(ss, n, s0):
+    """Per channel ``−(n_c + ν0)/2 · log(ν0·s0_c² + SS_c)``: the Gaussian likelihood of a
+    channel's ``n_c`` residuals with sum of squares ``SS_c``, its noise level integrated
+    out (0 for a channel without observations).  Works on JAX or NumPy arrays."""
+    xp = jnp if isinstance(ss, jax.Array) else np
+    return xp.where(n > 0, -0.5 * (n + NU0) * xp.log(NU0 * s0**2 + ss), 0.0)
+
+
+def noise_weights(ss, n, s0):
+    """Per channel ``w_c = (n_c + ν0)/(ν0·s0_c² + SS_c)``: ``1/σ_c²`` at the posterior
+    mode of the noise level, and the channel's weight in the log-likelihood's gradient
+    (0 for a channel without observations)."""
+    xp = jnp if isinstance(ss, jax.Array) else np
+    return xp.where(n > 0, (n + NU0) / (NU0 * s0**2 + ss), 0.0)

@@ -1,10 +1,8 @@
-"""The rig's non-idealities and coast-downs as fitted parameters: their registry
-entries.
+"""The rig's non-idealities as fitted parameters: their registry entries.
 
-``nuisance_specs`` lists what ``[model]`` (``session.nuisances``) asks for;
-``coast_down_specs`` the initial speed of each coast-down, ``position_specs`` the
-angle each position trace starts at.  :class:`~.effects.RigEffects` applies them in
-the prediction.
+``nuisance_specs`` lists what ``[model]`` (``session.nuisances``) asks for (a trace's own
+starting state is in :mod:`.trace_states`).  :class:`~.effects.RigEffects` applies them
+in the prediction.
 """
 
 from __future__ import annotations
@@ -14,11 +12,9 @@ import numpy as np
 from ..io.session import Session
 from ..physics.regimes import NO_LIMIT
 from .coloured import ar_specs
-from .noise import noise_scale
-from .params import ParamSpec, Prior
+from .params import ParamSpec, Prior, identifier
 
-__all__ = ["nuisance_specs", "coast_down_specs", "dead_time_name",
-           "initial_speed_name", "load_names", "position_specs", "position_offset_name",
+__all__ = ["nuisance_specs", "dead_time_name", "load_names",
            "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES", "LAG_PRIOR_FACTOR",
            "NO_LIMIT", "DEAD_ZONE_NAMES"]
 
@@ -39,19 +35,15 @@ CALIBRATION = {"speed_gain": ("speed", "gain"), "speed_offset": ("speed", "offse
                "current_gain": ("current", "gain"), "current_offset": ("current", "offset")}
 
 
-def _identifier(text: str) -> str:
-    return "".join(c if c.isalnum() else "_" for c in text)
-
-
 def dead_time_name(trace_name: str, shared: bool = False) -> str:
     """The parameter name of a trace's dead time: ``dead_time`` when the session's
     traces share one (``session.shared_dead_time``)."""
-    return "dead_time" if shared else f"dead_time_{_identifier(trace_name)}"
+    return "dead_time" if shared else f"dead_time_{identifier(trace_name)}"
 
 
 def load_names(trace_name: str) -> tuple[str, str]:
     """The parameter names of a trace's unknown drag: constant (N·m), viscous."""
-    return f"load_{_identifier(trace_name)}", f"drag_{_identifier(trace_name)}"
+    return f"load_{identifier(trace_name)}", f"drag_{identifier(trace_name)}"
 
 
 def _load_specs(session: Session, b_seed: float) -> list[ParamSpec]:
@@ -247,55 +239,4 @@ def _calibration_specs(session: Session) -> list[ParamSpec]:
                                    Prior("normal", 0.0, OFFSET_PRIOR * top, "nuisance"), 0.0,
                                    transform="identity",
                                    description=f"offset of the {channel} sensor"))
-    return specs
-
-
-def initial_speed_name(trace_name: str) -> str:
-    """The parameter name of a coast-down's speed at its first sample."""
-    return f"initial_speed_{_identifier(trace_name)}"
-
-
-def coast_down_specs(session: Session) -> list[ParamSpec]:
-    """Per coast-down trace, ``initial_speed_<trace>`` (rad/s): the speed at its first
-    sample, fitted rather than read off one noisy sample.  Prior normal, centred on the
-    median of the first three samples, sd 10 % of it plus ten times the trace's
-    model-free noise level (the data decide it)."""
-    specs = []
-    for tr in session.coast_downs:
-        w0 = float(np.median(tr.speed[:3]))
-        sd = 0.1 * abs(w0) + 10.0 * noise_scale(tr.speed)
-        specs.append(ParamSpec(initial_speed_name(tr.name), "rad/s", "trace",
-                               Prior("normal", w0, sd, "first samples"), w0,
-                               transform="identity",
-                               description=f"speed at the start of coast-down {tr.name!r}",
-                               trace=tr.name))
-    return specs
-
-
-def position_offset_name(trace_name: str) -> str:
-    """The parameter name of a position trace's angle at its first sample."""
-    return f"position_offset_{_identifier(trace_name)}"
-
-
-def position_specs(session: Session) -> list[ParamSpec]:
-    """Per trace with an angle, ``position_offset_<trace>`` (rad): the sensor's reading
-    at the trace's first sample (the angle is otherwise only known up to it).  Prior
-    normal, centred on the first reading (for an encoder trace starting at rest before
-    its first edge, half a count before that edge), sd one count plus ten times the
-    angle's model-free noise level."""
-    specs = []
-    for tr in session.traces:
-        if tr.position is None:
-            continue
-        ok = np.isfinite(tr.position)
-        y = tr.position[ok]
-        first = float(y[0])
-        if not ok[0]:
-            first -= 0.5 * tr.encoder_step * float(np.sign(y[1] - y[0]) if y.size > 1 else 1.0)
-        sd = tr.encoder_step + 10.0 * noise_scale(y)
-        specs.append(ParamSpec(position_offset_name(tr.name), "rad", "trace",
-                               Prior("normal", first, sd, "first reading"), first,
-                               transform="identity",
-                               description=f"angle read at the start of trace {tr.name!r}",
-                               trace=tr.name))
     return specs

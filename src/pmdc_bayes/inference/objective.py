@@ -27,43 +27,27 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._x64 import to_device, x64
+from ..io.readings import steady_points
 from ..io.session import Session
 from ..paper.closed_form import ClosedForm
 from ..physics import motor
-from ..physics.experiment import steady_points
 from ..physics.solution import Params, experiment_from_traces, real_modes
 from . import cache as _cache
 from .channels import SteadyBlock, blocks_for, entry_weights
 from .coloured import PREFIX as AR_PREFIX
 from .coloured import coloured_data, noise_rho, start_residuals, whiten
 from .effects import RigEffects
-from .noise import NU0, Channel, noise_scale
-from .nuisances import coast_down_specs, nuisance_specs, position_specs
+from .noise import NU0, Channel, integrated_log_likelihood, noise_scale
+from .nuisances import nuisance_specs
 from .params import PRIOR_FACTOR, Registry, motor_registry
 from .pointwise import Pointwise
 from .predictions import Predictions
 from .seed import drop_seed, motor_seed
+from .trace_states import coast_down_specs, position_specs
 
-__all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale",
-           "integrated_log_likelihood", "noise_weights"]
+__all__ = ["SessionModel", "build_model", "NU0", "PRIOR_FACTOR", "noise_scale"]
 
 BATCH_CHUNK = 4  # parameter vectors evaluated together inside a batch (see benchmarks/)
-
-
-def integrated_log_likelihood(ss, n, s0):
-    """Per channel ``−(n_c + ν0)/2 · log(ν0·s0_c² + SS_c)``: the Gaussian likelihood of a
-    channel's ``n_c`` residuals with sum of squares ``SS_c``, its noise level integrated
-    out (0 for a channel without observations).  Works on JAX or NumPy arrays."""
-    xp = jnp if isinstance(ss, jax.Array) else np
-    return xp.where(n > 0, -0.5 * (n + NU0) * xp.log(NU0 * s0**2 + ss), 0.0)
-
-
-def noise_weights(ss, n, s0):
-    """Per channel ``w_c = (n_c + ν0)/(ν0·s0_c² + SS_c)``: ``1/σ_c²`` at the posterior
-    mode of the noise level, and the channel's weight in the log-likelihood's gradient
-    (0 for a channel without observations)."""
-    xp = jnp if isinstance(ss, jax.Array) else np
-    return xp.where(n > 0, (n + NU0) / (NU0 * s0**2 + ss), 0.0)
 
 
 class SessionModel(RigEffects, Predictions, Pointwise):

@@ -27,7 +27,7 @@ from scipy.stats import norm
 from .._x64 import to_device
 from ..io.session import LA_ASSUMED, Session
 
-__all__ = ["Prior", "ParamSpec", "Registry", "motor_registry",
+__all__ = ["Prior", "ParamSpec", "Registry", "motor_registry", "identifier",
            "PRIOR_FACTOR", "BLOCKS"]
 
 PRIOR_FACTOR = 10.0  # one-sd width of the log-normal priors on K, B, J, Tc (a factor)
@@ -267,3 +267,9 @@ def motor_registry(session: Session, seed: dict, *, coulomb: bool) -> Registry:
         specs.append(ParamSpec("Tc", "N*m", "friction", _lognormal(seed["Tc"], "seed"),
                                seed["Tc"], description="Coulomb friction torque"))
     return Registry(specs)
+
+
+def identifier(text: str) -> str:
+    """``text`` (a trace's name) as part of a parameter's name: every character that is
+    not a letter or a digit an underscore."""
+    return "".join(c if c.isalnum() else "_" for c in text)

@@ -10,7 +10,8 @@ from ..io.session import LA_ASSUMED
 from ..paper.changes import responses
 from ..paper.closed_form import ClosedForm, closed_form, j_from_tau, read_time_constant
 from ..physics.motor import gain
-from .levels import reversed_speed, settled, unloaded_levels, voltage_intercept
+from .levels import settled, unloaded_levels, voltage_intercept
+from .reversal import reversed_speed
 
 __all__ = ["fit_seed", "refuse_reversed", "seed_from_data", "motor_seed", "drop_seed",
            "FRICTION_SHARE"]
@@ -21,7 +22,7 @@ AT_REST = 0.02  # a steady level below this share of the largest is the motor at
 
 def refuse_reversed(session) -> None:
     """Raise :class:`~pmdc_bayes.SessionError` where the session's speed turns against
-    its voltage (:func:`~.levels.reversed_speed`): no motor does that, and a fit would
+    its voltage (:func:`~.reversal.reversed_speed`): no motor does that, and a fit would
     take the wiring for noise.  Checked once per session, before its first fit."""
     backwards = reversed_speed(session)
     if backwards is not None:
@@ -199,7 +200,7 @@ def motor_seed(cf: ClosedForm, session, steady: dict) -> dict:
     is replaced by a rough magnitude: K from the steady speeds, B from a mechanical time
     constant ten times the electrical damping's, J from a 0.1 s time constant.  Tc is a
     third of the friction torque B·ω at the fastest steady point (``steady`` as
-    :func:`pmdc_bayes.physics.experiment.steady_points` gives it).
+    :func:`pmdc_bayes.io.readings.steady_points` gives it).
     """
     K, B, J = cf.K, cf.B, cf.J
     Ra = session.Ra.value

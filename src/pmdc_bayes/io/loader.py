@@ -9,7 +9,6 @@ or line, what is wrong and how to fix it.  The format is described in
 from __future__ import annotations
 
 import json
-import math
 import re
 import tomllib
 from pathlib import Path
@@ -19,6 +18,7 @@ import numpy as np
 from .._errors import SessionError
 from . import gear
 from ._csv import read_columns
+from ._model_table import read_model_table
 from ._traces import read_traces
 from ._units_row import check_units_row
 from .bundled import BUNDLED, session_path
@@ -27,8 +27,6 @@ from .session import (
     LA_ASSUMED,
     LA_PRIOR_LOG_SD,
     LA_TIME_CONSTANT,
-    LOAD_KINDS,
-    NUISANCES,
     Measurement,
     OperatingPoint,
     Session,
@@ -145,74 +143,6 @@ def _step_reading(t: _Table) -> StepReading:
     return reading
 
 
-def _limit_setting(mt) -> float | None:
-    """``[model] current_limit``: true (fitted, its level unknown), false, or the
-    driver's setting in A (fitted, the prior centred on it)."""
-    value = mt.data.get("current_limit", False)
-    if isinstance(value, bool):
-        return None
-    if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        mt.fail("current_limit", f"expected true, false or the driver's limit in A (> 0), "
-                f"got {_describe(value)}; write e.g. current_limit = 2.5")
-    return float(value)
-
-
-def _shared_dead_time(mt) -> bool:
-    """``[model] dead_time``: true or ``"per_trace"`` (one per driven trace), ``"shared"``
-    (one for all of them: the same driver and logger), or false; whether it is shared."""
-    value = mt.data.get("dead_time", False)
-    if isinstance(value, bool) or value == "per_trace":
-        return False
-    if value != "shared":
-        mt.fail("dead_time", f"expected true, false, \"per_trace\" or \"shared\", got "
-                f"{_describe(value)}; write e.g. dead_time = \"shared\"")
-    return True
-
-
-def _loaded_traces(mt: _Table, traces) -> tuple[tuple[str, ...], tuple[tuple[str, str], ...]]:
-    """``[model] unknown_load``: true (every driven trace), false, a list of names of
-    driven traces, or a table of such names to the parts of the drag to fit
-    (:data:`LOAD_KINDS`: ``{ step_9v = "viscous" }``); the names given (empty for true
-    or false) and, for a table, each name's kind."""
-    value = mt.data.get("unknown_load", False)
-    if isinstance(value, bool):
-        return (), ()
-    names = [t.name for t in traces]
-    if isinstance(value, dict) and value:
-        for name, kind in value.items():
-            if name not in names:
-                mt.fail(f"unknown_load.{name}", f"names no driven trace (of "
-                        f"{', '.join(map(repr, names))}); use a trace's name")
-            if kind not in LOAD_KINDS:
-                mt.fail(f"unknown_load.{name}", f"expected one of {', '.join(LOAD_KINDS)}, "
-                        f"got {_describe(kind)}; write e.g. {name} = \"viscous\"")
-        return tuple(value), tuple(value.items())
-    if (not isinstance(value, list) or not value
-            or not all(isinstance(v, str) and v in names for v in value)):
-        example = f"[{names[0]!r}]" if names else "true"
-        mt.fail("unknown_load", f"expected true, false, a list of driven trace names "
-                f"(of {', '.join(map(repr, names))}) or a table of them to \"constant\", "
-                f"\"viscous\" or \"both\", got {_describe(value)}; write e.g. "
-                f"unknown_load = {example}")
-    return tuple(dict.fromkeys(value)), ()
-
-
-def _coloured_traces(mt: _Table, traces) -> tuple[str, ...]:
-    """``[model] coloured_noise``: true (every trace), false, or a list of trace names
-    (driven traces and coast-downs)."""
-    value = mt.data.get("coloured_noise", False)
-    if isinstance(value, bool):
-        return ()
-    names = [t.name for t in traces]
-    if (not isinstance(value, list) or not value
-            or not all(isinstance(v, str) and v in names for v in value)):
-        example = f"[{names[0]!r}]" if names else "true"
-        mt.fail("coloured_noise", f"expected true, false or a list of trace names (of "
-                f"{', '.join(map(repr, names))}), got {_describe(value)}; write e.g. "
-                f"coloured_noise = {example}")
-    return tuple(dict.fromkeys(value))
-
-
 def _truth(path: Path) -> dict | None:
     if not path.is_file():
         return None
@@ -298,33 +228,20 @@ def load_session(path) -> Session:
                 cf.fail("K_decimals", f"expected a whole number >= 0, got {_describe(d)}; "
                         "write e.g. K_decimals = 3")
             options["K_decimals"] = d
-    nuisances, loaded, kinds, limit_setting, shared, coloured = (), (), (), None, False, ()
     mt = top.table("model", required=False)
     traces, coast_downs = read_traces(top, root)
     _unique(traces + coast_downs, "trace", toml)
     traces = tuple(gear.motor_shaft_trace(t, ratio) for t in traces)
     coast_downs = tuple(gear.motor_shaft_trace(t, ratio) for t in coast_downs)
-    if mt is not None:
-        mt.check_keys(NUISANCES)
-        loaded, kinds = _loaded_traces(mt, traces)
-        limit_setting = _limit_setting(mt)
-        shared = _shared_dead_time(mt)
-        coloured = _coloured_traces(mt, traces + coast_downs)
-        for key in NUISANCES:
-            flag = mt.data.get(key, False)
-            if key not in ("unknown_load", "current_limit", "dead_time", "coloured_noise") \
-                    and not isinstance(flag, bool):
-                mt.fail(key, f"expected true or false, got {_describe(flag)}; write e.g. "
-                        f"{key} = true")
-        nuisances = tuple(k for k in NUISANCES if mt.data.get(k, False))
+    model = read_model_table(mt, traces, coast_downs)
     session = Session(
         name=root.name,
-        nuisances=nuisances,
-        loaded_traces=loaded,
-        load_kinds=kinds,
-        shared_dead_time=shared,
-        coloured_traces=coloured,
-        current_limit_setting=limit_setting,
+        nuisances=model.nuisances,
+        loaded_traces=model.loaded_traces,
+        load_kinds=model.load_kinds,
+        shared_dead_time=model.shared_dead_time,
+        coloured_traces=model.coloured_traces,
+        current_limit_setting=model.current_limit_setting,
         bench={k: m for k, m in measured.items() if k not in ("Ra", "La")},
         root=root,
         motor=motor.string("name"),

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .drag import NO_DRAG, Drag
+from .readings import Measurement, OperatingPoint, SteadyTable, StepReading
 
 __all__ = [
     "COAST_DOWN",
@@ -42,69 +43,6 @@ COAST_DOWN = "coast-down"  # the trace kind of a run-down with the armature open
 LA_TIME_CONSTANT = 1e-3  # s: La/Ra assumed when La was not measured ...
 LA_PRIOR_LOG_SD = float(np.log(10.0)) / 2  # ... give or take a factor 10 at 2 sd (log)
 LA_ASSUMED = "not measured: La/Ra = 1 ms, a factor 10 either way at 2 sd"
-
-
-@dataclass(frozen=True)
-class Measurement:
-    """A direct bench measurement (SI value and one-standard-deviation uncertainty).
-
-    ``unit`` is the unit the user wrote, kept for display only.  An La the user did
-    not measure is :data:`LA_ASSUMED` in ``source``, ``sd`` then a log-scale width.
-    """
-
-    value: float
-    sd: float
-    unit: str
-    source: str = ""
-
-
-@dataclass(frozen=True)
-class OperatingPoint:
-    """A steady operating point, e.g. the chopper point of equation (20).
-
-    Attributes: ``supply_voltage`` (V), ``duty`` (1, in (0, 1]), ``current`` (A, or
-    None if not measured), ``speed`` (rad/s), ``load_torque`` (N·m).  The mean armature
-    voltage is ``duty * supply_voltage``.
-    """
-
-    name: str
-    supply_voltage: float
-    duty: float
-    current: float | None
-    speed: float
-    load_torque: float = 0.0
-
-    @property
-    def voltage(self) -> float:
-        """Mean armature voltage d·Vs (V)."""
-        return self.duty * self.supply_voltage
-
-
-@dataclass(frozen=True)
-class SteadyTable:
-    """Steady-state points: voltage (V), speed (rad/s), current (A or None), load (N·m)."""
-
-    name: str
-    file: Path
-    voltage: np.ndarray
-    speed: np.ndarray
-    current: np.ndarray | None
-    load_torque: np.ndarray
-
-
-@dataclass(frozen=True)
-class StepReading:
-    """A step response read off a plot when no trace was logged (the paper's Figure 4).
-
-    ``voltage`` (V) applied from ``initial_speed`` (rad/s), settling at ``final_speed``
-    (rad/s), with the 63.2 % time constant ``tau`` (s).
-    """
-
-    name: str
-    voltage: float
-    final_speed: float
-    tau: float
-    initial_speed: float = 0.0
 
 
 @dataclass(frozen=True)

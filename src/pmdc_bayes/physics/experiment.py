@@ -26,7 +26,6 @@ __all__ = [
     "experiment_from_trace",
     "experiment_from_traces",
     "with_drags",
-    "steady_points",
 ]
 
 INITIAL_MODES = {"rest": 0, "steady": 1, "given": 2}
@@ -286,28 +285,3 @@ def experiment_from_traces(traces) -> Experiment:
     drags (``Trace.drag``) per segment when any trace has one."""
     return with_drags(stack_experiments([_trace_spec(tr) for tr in traces]),
                       [tr.drag for tr in traces])
-
-
-def steady_points(session) -> dict:
-    """Every steady reading of a session as arrays (SI): voltage ``v``, load ``tl``,
-    speed ``w``, current ``i`` (0 where not logged) and which speeds and currents are
-    observed (``w_mask``, ``i_mask``): operating points, steady-table rows, then step
-    readings (their final speed)."""
-    v, tl, w, i, wm, im = [], [], [], [], [], []
-    for op in session.operating_points:
-        v.append(op.voltage), tl.append(op.load_torque), w.append(op.speed)
-        i.append(op.current if op.current is not None else 0.0)
-        wm.append(True), im.append(op.current is not None)
-    for tab in session.steady_tables:
-        for k in range(tab.voltage.size):
-            v.append(tab.voltage[k]), tl.append(tab.load_torque[k]), w.append(tab.speed[k])
-            has_i = tab.current is not None
-            i.append(tab.current[k] if has_i else 0.0)
-            wm.append(True), im.append(has_i)
-    for s in session.step_readings:
-        v.append(s.voltage), tl.append(0.0), w.append(s.final_speed), i.append(0.0)
-        wm.append(True), im.append(False)
-    arr = {k: np.asarray(x, dtype=float) for k, x in dict(v=v, tl=tl, w=w, i=i).items()}
-    arr["w_mask"] = np.asarray(wm, dtype=bool)
-    arr["i_mask"] = np.asarray(im, dtype=bool)
-    return arr

@@ -35,20 +35,9 @@ from .motor import state_space
 from .propagator import real_modes
 from .regimes import NO_LIMIT, clamped_steady
 
-__all__ = [
-    "Params",
-    "Experiment",
-    "experiment_from_trace",
-    "experiment_from_traces",
-    "stack_experiments",
-    "make_experiment",
-    "steady_state",
-    "simulate",
-    "simulate_padded",
-    "real_modes",
-    "system_matrices",
-    "initial_state",
-]
+__all__ = ["Params", "Experiment", "experiment_from_trace", "experiment_from_traces",
+           "stack_experiments", "make_experiment", "steady_state", "simulate",
+           "simulate_padded", "real_modes", "system_matrices", "initial_state"]
 
 
 class Params(NamedTuple):

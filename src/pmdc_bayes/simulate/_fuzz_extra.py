@@ -9,9 +9,9 @@ import re
 
 import numpy as np
 
+from ._text import csv_text, inline, number
 from .plan import Plan, TraceSpec
 from .rig import rig_steady, rig_trace
-from .session import _csv, _f, _inline
 
 __all__ = ["NON_IDEALITIES", "rig_table", "log_voltage_column", "add_step_reading",
            "STEP_READING_SD"]
@@ -91,7 +91,7 @@ def log_voltage_column(files: dict[str, str], plan: Plan, name: str) -> dict[str
     cols = {h: data[:, k] for k, h in enumerate(header)}
     cols["va"] = _held(spec.voltage, t)
     out = dict(files)
-    out[f"{name}.csv"] = _csv(cols)
+    out[f"{name}.csv"] = csv_text(cols)
     lines = files["session.toml"].split("\n")
     start = lines.index(f'name = "{name}"')
     end = next((k for k in range(start, len(lines)) if not lines[k].strip()), len(lines))
@@ -134,8 +134,8 @@ def add_step_reading(files: dict[str, str], plan: Plan, seed: int) -> dict[str, 
     tau = _tau_63(plan, v, tau_m) * (1 + STEP_READING_SD * z[0])
     speed = float(w[0]) * (1 + STEP_READING_SD * z[1])
     units = {"voltage": '"V"', "final_speed": '"rad/s"', "tau": '"s"'}
-    block = ["", "[[step_reading]]", 'name = "plot"', f"voltage = {_f(v)}",
-             f"final_speed = {_f(speed)}", f"tau = {_f(tau)}", f"units = {_inline(units)}"]
+    block = ["", "[[step_reading]]", 'name = "plot"', f"voltage = {number(v)}",
+             f"final_speed = {number(speed)}", f"tau = {number(tau)}", f"units = {inline(units)}"]
     text = files["session.toml"].rstrip("\n").split("\n")
     first = next((k for k, x in enumerate(text) if re.fullmatch(r"\[\[trace\]\]", x)),
                  len(text))

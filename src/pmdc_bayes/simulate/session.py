@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import os
-import zlib
 from pathlib import Path
 
 import jax
@@ -26,12 +25,13 @@ from scipy.signal import lfilter
 
 from .._errors import SessionError
 from .._x64 import x64
-from ..inference.nuisances import initial_speed_name
+from ..inference.trace_states import initial_speed_name
 from ..io.units import from_si, to_si
 from ..physics import motor
 from ..physics.experiment import stack_experiments, with_drags
 from ..physics.load import drag_cuts
 from ..physics.solution import Params, simulate
+from ._text import csv_text, drag_entry, inline, number, pairs, stream, string
 from ._write import HEADER, check_out, write_session_files
 from .coast import ideal_coast_down, rig_coast_down
 from .plan import COAST_DOWN, Plan, TraceSpec, check_plan, load_plan
@@ -42,17 +42,6 @@ __all__ = ["simulate_session", "load_plan", "render_session", "true_steady", "tr
 
 _simulate = jax.jit(simulate, static_argnames="coulomb")  # compiled once per trace layout
 _BENCH_KIND = {"Ra": "resistance", "La": "inductance"}
-
-
-def _stream(seed: int, section: str, name: str, n: int = 1):
-    """``n`` independent generators for one plan item, keyed by its section and name.
-
-    Equivalent to a child of ``SeedSequence(seed).spawn(...)`` whose spawn key is a
-    hash of the item's name instead of its position.
-    """
-    key = zlib.crc32(f"{section}:{name}".encode())
-    children = np.random.SeedSequence(seed, spawn_key=(key,)).spawn(n)
-    return [np.random.default_rng(c) for c in children]
 
 
 def _params(truth: dict) -> Params:
@@ -94,19 +83,6 @@ def true_trace(truth: dict, spec: TraceSpec):
     return t, np.asarray(ia)[index], np.asarray(w)[index]
 
 
-def _drag_entry(tr: TraceSpec) -> str:
-    """A trace's known load as ``session.toml`` declares it: the coefficients SI, the
-    curve's speeds in the trace's speed unit and its torques in N·m."""
-    d = tr.drag
-    parts = [f"{k} = {_f(v)}" for k, v in (("constant", d.constant), ("viscous", d.viscous),
-                                            ("quadratic", d.quadratic)) if v]
-    if d.curve:
-        points = ", ".join(f"[{_f(from_si(w, 'speed', tr.speed_unit))}, {_f(t)}]"
-                           for w, t in d.curve)
-        parts.append(f"curve = [{points}]")
-    return "{ " + ", ".join(parts) + " }"
-
-
 def _quantise(x: np.ndarray, q: float) -> np.ndarray:
     """Round to the nearest multiple of ``q`` (no rounding when ``q`` is 0)."""
     return x if q == 0 else np.round(x / q) * q
@@ -130,7 +106,7 @@ def sample_trace(truth: dict, spec: TraceSpec, seed: int, rig=None) -> dict[str,
     else:
         true = rig_trace(truth, rig, spec)
     t = true["time"]
-    speed_rng, current_rng = _stream(seed, "trace", spec.name, 2)
+    speed_rng, current_rng = stream(seed, "trace", spec.name, 2)
     out = {"time": t}
     if spec.encoder is not None:
         out.update({k: true[k] for k in ("speed", "position", "direction")
@@ -155,28 +131,6 @@ def _steady(plan: Plan, va, tl):
     return rig_steady(plan.truth, plan.rig, va, tl)
 
 
-def _f(x) -> str:
-    """The fixed number format of every generated file (``-0`` written as ``0``)."""
-    return format(float(x) + 0.0, ".10g")
-
-
-def _s(text: str) -> str:
-    return json.dumps(text, ensure_ascii=False)  # a valid TOML basic string
-
-
-def _csv(columns: dict[str, np.ndarray]) -> str:
-    rows = zip(*columns.values(), strict=True)
-    return "\n".join([",".join(columns), *(",".join(map(_f, r)) for r in rows)]) + "\n"
-
-
-def _pairs(pairs) -> str:
-    return "[" + ", ".join(f"[{_f(a)}, {_f(b)}]" for a, b in pairs) + "]"
-
-
-def _inline(table: dict[str, str]) -> str:
-    return "{ " + ", ".join(f"{k} = {v}" for k, v in table.items()) + " }"
-
-
 @x64
 def render_session(plan: Plan, seed: int) -> dict[str, str]:
     """The generated files, name -> text: ``session.toml``, ``truth.json`` and the CSVs."""
@@ -185,16 +139,16 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
     out = [f"{HEADER} from {origin} (seed {seed}).",
            "# SIMULATED data, not measurements; the true parameters are in truth.json.",
            "# Do not edit: change the plan and regenerate with --force.", "",
-           "[motor]", f"name = {_s(plan.motor)}", f"friction = {_s(plan.friction)}"]
+           "[motor]", f"name = {string(plan.motor)}", f"friction = {string(plan.friction)}"]
     for b in plan.bench:
         kind = _BENCH_KIND[b.key]
-        (rng,) = _stream(seed, "bench", b.key)
+        (rng,) = stream(seed, "bench", b.key)
         value = truth[b.key] + to_si(b.sd, kind, b.unit) * rng.standard_normal()
         if value <= 0:
             raise SessionError(plan.source, f"the drawn bench value {value:g} is not positive; "
                                "reduce sd", where=f"bench.{b.key}.sd")
-        out += ["", f"[bench.{b.key}]", f"value = {_f(from_si(value, kind, b.unit))}",
-                f"unit = {_s(b.unit)}", f"sd = {_f(b.sd)}",
+        out += ["", f"[bench.{b.key}]", f"value = {number(from_si(value, kind, b.unit))}",
+                f"unit = {string(b.unit)}", f"sd = {number(b.sd)}",
                 'source = "simulated: true value + N(0, sd)"']
     for op in plan.operating_points:
         ia, w = (float(np.squeeze(v)) for v in _steady(plan, op.duty * op.supply_voltage,
@@ -203,19 +157,19 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
             raise SessionError(plan.source, "the motor does not turn at this point; raise "
                                "the voltage or lower the load",
                                where=f"operating_point[{op.name!r}]")
-        rng_w, rng_i = _stream(seed, "operating_point", op.name, 2)
+        rng_w, rng_i = stream(seed, "operating_point", op.name, 2)
         units = {"supply_voltage": '"V"', "current": '"A"', "speed": '"rad/s"',
                  "load_torque": '"N*m"'}
-        out += ["", "[[operating_point]]", f"name = {_s(op.name)}",
-                f"supply_voltage = {_f(op.supply_voltage)}", f"duty = {_f(op.duty)}",
-                f"current = {_f(ia + op.current_sd * rng_i.standard_normal())}",
-                f"speed = {_f(w + op.speed_sd * rng_w.standard_normal())}",
-                f"load_torque = {_f(op.load_torque)}", f"units = {_inline(units)}"]
+        out += ["", "[[operating_point]]", f"name = {string(op.name)}",
+                f"supply_voltage = {number(op.supply_voltage)}", f"duty = {number(op.duty)}",
+                f"current = {number(ia + op.current_sd * rng_i.standard_normal())}",
+                f"speed = {number(w + op.speed_sd * rng_w.standard_normal())}",
+                f"load_torque = {number(op.load_torque)}", f"units = {inline(units)}"]
     for tab in plan.steady_tables:
         va = np.asarray(tab.voltages)
         tl = np.asarray(tab.load_torques) if tab.load_torques else np.zeros_like(va)
         ia, w = _steady(plan, va, tl)
-        rng_w, rng_i = _stream(seed, "steady_table", tab.name, 2)
+        rng_w, rng_i = stream(seed, "steady_table", tab.name, 2)
         cols = {"Va": va, "w": w + tab.speed_sd * rng_w.standard_normal(va.size)}
         roles = {"voltage": '"Va"', "speed": '"w"'}
         units = {"voltage": '"V"', "speed": '"rad/s"'}
@@ -225,14 +179,14 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
         if tab.load_torques:
             cols["TL"] = tl
             roles["load_torque"], units["load_torque"] = '"TL"', '"N*m"'
-        files[f"{tab.name}.csv"] = _csv(cols)
-        out += ["", "[[steady_table]]", f"name = {_s(tab.name)}",
-                f"file = {_s(tab.name + '.csv')}", f"columns = {_inline(roles)}",
-                f"units = {_inline(units)}"]
+        files[f"{tab.name}.csv"] = csv_text(cols)
+        out += ["", "[[steady_table]]", f"name = {string(tab.name)}",
+                f"file = {string(tab.name + '.csv')}", f"columns = {inline(roles)}",
+                f"units = {inline(units)}"]
     for tr in plan.traces:
         data = sample_trace(truth, tr, seed, plan.rig)
         cols, roles, extra = _trace_columns(tr, data)
-        units = {"time": '"s"', "speed": _s(tr.speed_unit), "current": '"A"',
+        units = {"time": '"s"', "speed": string(tr.speed_unit), "current": '"A"',
                  "voltage": '"V"', "load_torque": '"N*m"'}
         if "position" in data:
             units["position"] = '"counts"'
@@ -240,29 +194,29 @@ def render_session(plan: Plan, seed: int) -> dict[str, str]:
                     f"{tr.current_quantum:g} A")
         if tr.kind == COAST_DOWN:
             units = {k: units[k] for k in ("time", "speed")}
-            currents = f"the armature opened at {_f(tr.initial[1])} rad/s"
-        files[f"{tr.name}.csv"] = _csv(cols)
+            currents = f"the armature opened at {number(tr.initial[1])} rad/s"
+        files[f"{tr.name}.csv"] = csv_text(cols)
         out += ["", f"# {tr.rate:g} Hz for {tr.duration:g} s ({tr.time.size} samples); "
                 f"speed noise sd {tr.speed_noise:g} rad/s"
                 + (f" (AR(1), lag-1 correlation {tr.speed_noise_correlation:g})"
                    if tr.speed_noise_correlation else "")
                 + f", quantum {tr.speed_quantum:g} rad/s; "
                 f"{currents}; sensor delay {tr.delay:g} s.",
-                "[[trace]]", f"name = {_s(tr.name)}", f"kind = {_s(tr.kind)}",
-                f"file = {_s(tr.name + '.csv')}", f"columns = {_inline(roles)}",
-                f"units = {_inline(units)}", *extra]
+                "[[trace]]", f"name = {string(tr.name)}", f"kind = {string(tr.kind)}",
+                f"file = {string(tr.name + '.csv')}", f"columns = {inline(roles)}",
+                f"units = {inline(units)}", *extra]
         if tr.kind == COAST_DOWN:  # its table says no more: the armature is open
             continue
-        out.append(f"voltage = {_pairs(tr.voltage)}")
+        out.append(f"voltage = {pairs(tr.voltage)}")
         if tr.drag.nonzero:
-            out.append(f"drag = {_drag_entry(tr)}")
+            out.append(f"drag = {drag_entry(tr)}")
         if tr.load_torque is not None:
-            out.append(f"load_torque = {_pairs(tr.load_torque)}")
+            out.append(f"load_torque = {pairs(tr.load_torque)}")
         if isinstance(tr.initial, str):
-            out.append(f"initial = {_s(tr.initial)}")
+            out.append(f"initial = {string(tr.initial)}")
         else:
             ia0, w0 = tr.initial[0], from_si(tr.initial[1], "speed", tr.speed_unit)
-            out.append(f"initial = {{ current = {_f(ia0)}, speed = {_f(w0)} }}")
+            out.append(f"initial = {{ current = {number(ia0)}, speed = {number(w0)} }}")
     if plan.rig is not None:
         out[1] = "# SIMULATED data on a rig (see [rig] of the plan); the true values of the " \
             "motor and the rig are in truth.json."
