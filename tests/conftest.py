@@ -14,6 +14,16 @@ if "PMDC_BAYES_CACHE" not in os.environ:
     os.environ["PMDC_BAYES_CACHE"] = _TEST_CACHE
 
 
+@pytest.fixture(autouse=True)
+def _x64_off_as_a_caller_has_it():
+    """Every test starts with JAX's 64-bit mode off, as a caller's process has it: a
+    command run in-process switches it on for its own process, and must not leave it on
+    for the tests after it."""
+    jax.config.update("jax_enable_x64", False)
+    yield
+    jax.config.update("jax_enable_x64", False)
+
+
 @pytest.fixture
 def jax_x64():
     """JAX's 64-bit mode for a test that computes with the package's internals itself, as

@@ -64,7 +64,7 @@ def test_the_viscous_readings_are_the_four_state_matrix_exponential(lags):
     np.testing.assert_allclose(w, ref[:, 3], atol=1e-12 * np.abs(ref[:, 3]).max())
 
 
-def test_a_lag_on_one_of_the_motor_s_own_time_constants_stays_exact_with_finite_gradients():
+def test_a_lag_on_one_of_the_motor_s_own_time_constants_stays_exact_with_finite_gradients(jax_x64):
     """Where −1/τs is an eigenvalue of A the resolvent is singular; there the reading is
     exactly that of a lag six parts in 10⁵ shorter (the documented move)."""
     fast, slow = -1.0 / _eigenvalues(P)
@@ -85,7 +85,7 @@ def test_a_lag_on_one_of_the_motor_s_own_time_constants_stays_exact_with_finite_
         assert np.all(np.isfinite(np.asarray(grad)))
 
 
-def test_the_lag_s_derivative_stays_accurate_close_to_an_eigenvalue():
+def test_the_lag_s_derivative_stays_accurate_close_to_an_eigenvalue(jax_x64):
     """Just outside the window where the lag is moved off an eigenvalue, the resolvent's
     derivative keeps its digits."""
     slow = -1.0 / _eigenvalues(P)[1]
@@ -139,7 +139,7 @@ def test_a_coast_down_is_read_through_the_lag_until_and_after_it_stops(tc):
     assert np.abs(got - ref).max() < 1e-6 * w0
 
 
-def test_a_vanishing_lag_passes_the_signal_through_with_finite_gradients():
+def test_a_vanishing_lag_passes_the_signal_through_with_finite_gradients(jax_x64):
     ia0, w0 = _read(P, T, VT, VV, None)
     ia, w = _read(P, T, VT, VV, (1e-300, 1e-300))
     # (a lag is taken as at least 1e-12 s: the reading trails by that much)
