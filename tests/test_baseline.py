@@ -61,11 +61,12 @@ def setup(tmp_path_factory, baseline):
     session = load_session(simulate_session(_plan(), tmp_path_factory.mktemp("s") / "sess"))
     cf = closed_form(session)
     model = build_model(session, cf)
-    theta0 = np.asarray(model.theta(session.truth))
-    rng = np.random.default_rng(0)
-    thetas = [theta0] + [theta0 + 0.01 * rng.standard_normal(theta0.size) for _ in range(2)]
     lp = jax.jit(model.log_posterior)  # one compilation; log-likelihood = posterior − prior
     with jax.enable_x64(True):  # the model's own methods, called as the package calls them
+        theta0 = np.asarray(model.theta(session.truth))
+        rng = np.random.default_rng(0)
+        thetas = [theta0] + [theta0 + 0.01 * rng.standard_normal(theta0.size)
+                             for _ in range(2)]
         exact = {"lp": [float(lp(th)) for th in thetas],
                  "prior": [float(model.log_prior(th)) for th in thetas]}
     exact["ll"] = [p - q for p, q in zip(exact["lp"], exact["prior"], strict=True)]

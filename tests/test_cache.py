@@ -190,7 +190,8 @@ def test_threads_that_reach_a_new_program_together_make_it_once(on_disk, request
 
     def call(k):
         start.wait()
-        out[k] = np.asarray(fn(jnp.arange(5.0) + 0.0))
+        with jax.enable_x64(True):  # per thread, as the package's callers switch it on
+            out[k] = np.asarray(fn(jnp.arange(5.0) + 0.0))
 
     workers = [threading.Thread(target=call, args=(k,)) for k in range(4)]
     for w in workers:

@@ -92,7 +92,7 @@ def test_previous_readings_skip_a_missed_one_and_restart_each_record():
     assert prev.tolist() == [-1, 0, -1, -1, -1, 3, -1, 6]
 
 
-def test_start_residual_is_the_whitening_jacobian_and_smooth_at_zero():
+def test_start_residual_is_the_whitening_jacobian_and_smooth_at_zero(jax_x64):
     rho = jnp.asarray([0.0, 1e-5, 0.5, -0.9, 0.99])
     r = np.asarray(start_residuals(rho, jnp.full(5, 3.0)))
     np.testing.assert_allclose(-0.5 * r**2, 1.5 * np.log1p(-np.asarray(rho) ** 2),

@@ -75,7 +75,7 @@ def test_the_model_is_left_to_the_search_only_when_nothing_declares_it():
     assert not model_left_open(with_terms(demo, {"dead_time"}), (), None)
 
 
-def test_a_nested_start_is_the_parent_with_the_additions_neutral():
+def test_a_nested_start_is_the_parent_with_the_additions_neutral(jax_x64):
     session = case_session(None, seed=2)
     parent = build_model(session, fit_seed(session))
     child_session = with_terms(session, {"dead_time", "speed_lag", "current_limit",

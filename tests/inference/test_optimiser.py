@@ -137,7 +137,7 @@ def test_a_crawl_along_a_narrow_curved_valley_stops_within_the_resolution():
 def test_two_finals_are_one_optimum_unless_a_valley_separates_them():
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.fit import _modes
+    from pmdc_bayes.inference.optima import distinct_optima
 
     cov = np.diag([1e-4, 1e-4])  # narrow Laplace widths: the finals are many sds apart
     thetas = np.array([[1.0, 0.0], [-1.0, 0.0]])
@@ -150,12 +150,12 @@ def test_two_finals_are_one_optimum_unless_a_valley_separates_them():
         return SimpleNamespace(lp=-50.0 * theta[1] ** 2)
 
     logp = np.array([0.0, -0.1])
-    modes, label = _modes(thetas, logp, ok, cov, well)
+    modes, label = distinct_optima(thetas, logp, ok, cov, well)
     assert modes == [0, 1] and label == [0, 1]
-    modes, label = _modes(thetas, logp, ok, cov, ridge)
+    modes, label = distinct_optima(thetas, logp, ok, cov, ridge)
     assert modes == [0] and label == [0, 0]
     # a start that did not converge belongs to no optimum
-    modes, label = _modes(thetas, logp, np.array([True, False]), cov, well)
+    modes, label = distinct_optima(thetas, logp, np.array([True, False]), cov, well)
     assert modes == [0] and label == [0, -1]
 
 
@@ -257,7 +257,7 @@ def test_every_accepted_step_raises_the_exact_log_posterior(demo_model):
     (s,) = ms.maximise(Stepper.of(demo_model), [theta])
     assert s.converged, s.stopped
     assert len(s.history) > 3 and np.all(np.diff(s.history) > 0)
-    assert s.lp == pytest.approx(float(x64(demo_model.log_posterior)(jnp.asarray(s.theta))),
+    assert s.lp == pytest.approx(float(x64(demo_model.log_posterior)(np.asarray(s.theta))),
                                  rel=1e-12)
 
 

@@ -286,7 +286,7 @@ def test_recovers_the_truth_and_passes_the_gates(tiny):
     assert adapted >= PILOT
 
 
-def test_inference_data_groups_and_loo(tiny):
+def test_inference_data_groups_and_loo(tiny, jax_x64):
     model, fit = tiny
     post = sample_posterior(model, fit, seed=2, ll_draws=200, **QUICK)
     idata = post.idata
@@ -401,7 +401,8 @@ def test_derived_quantities_by_hand():
 # Negative control
 
 
-def test_unidentifiable_friction_gives_up_and_fails_the_gates(tmp_path, monkeypatch):
+def test_unidentifiable_friction_gives_up_and_fails_the_gates(tmp_path, monkeypatch,
+                                                             jax_x64):
     """One operating point cannot split the friction torque between B·ω and Tc: with a
     flat prior on B the posterior is a long curved ridge in (log B, log Tc) that the
     ensemble cannot cross in a short run: the steps the rule projects exceed the budget
