@@ -124,7 +124,7 @@ def run_one(seed: int, misspecified: str | None, root: Path, mcmc: bool = False,
         a = assess(model, fit, cf)
     except Exception as exc:  # noqa: BLE001
         return dict(rec, outcome="error", why=f"{type(exc).__name__}: {exc}"[:300])
-    fails = sorted({x.check for x in a.findings if x.severity == "fail"})
+    fails = sorted({str(x.check) for x in a.findings if x.failed})
     rec = dict(rec, outcome="fitted", verdict=a.verdict, fails=fails,
                z=laplace_z(model, fit, f.truth), z_per_reading=per_reading_z(model, fit, f.truth))
     if mcmc and a.verdict == "adequate":

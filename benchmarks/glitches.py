@@ -91,7 +91,7 @@ def run_one(seed: int, kind: str, size: float, run: int = 1) -> dict:
         except Exception as exc:  # noqa: BLE001 - every failure is a row
             return {"seed": seed, "kind": kind, "outcome": "error",
                     "why": f"{type(exc).__name__}: {exc}"[:300], **where}
-    fails = sorted({f.check for f in a.findings if f.severity == "fail"})
+    fails = sorted({str(f.check) for f in a.findings if f.failed})
     return {"seed": seed, "kind": kind, "outcome": a.verdict, "fails": fails,
             "faulty_data": a.faulty_data, **where}
 

@@ -14,6 +14,7 @@ from scipy.integrate import solve_ivp
 
 from pmdc_bayes._errors import SessionError
 from pmdc_bayes.io.bundled import bundled_session_dir
+from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.physics import motor
 from pmdc_bayes.simulate.session import simulate_session
@@ -161,7 +162,7 @@ def test_a_coulomb_run_down_rejects_the_viscous_model(tmp_path):
     session = load_session(_speed_only_with_coast(tmp_path, tc=2e-3))
     res = fit_session(session, mcmc=False)  # the session's friction: viscous
     assert res.adequacy.verdict == "inadequate"
-    assert any(f.where == "run_down: speed" and f.severity == "fail"
+    assert any(f.where == ChannelId("run_down", "speed") and f.severity == "fail"
                for f in res.adequacy.findings)
     res = fit_session(session, mcmc=False, friction="coulomb")
     fit = res.fit

@@ -20,6 +20,7 @@ from pmdc_bayes.inference.fit import fit_map
 from pmdc_bayes.inference.noise import NU0
 from pmdc_bayes.inference.objective import build_model
 from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.io.session import Session
 from pmdc_bayes.search import search_model
@@ -123,7 +124,7 @@ def test_the_whitened_likelihood_is_the_ar1_density_written_out(tmp_path):
     model = build_model(session, fit_seed(session))
     names = list(model.names)
     theta = np.asarray(model.theta_seed()).copy()
-    rhos = {"step: speed": 0.7, "step: current": -0.4}
+    rhos = {ChannelId("step", "speed"): 0.7, ChannelId("step", "current"): -0.4}
     for channel, rho in rhos.items():
         theta[names.index(ar_name(channel))] = np.arctanh(rho)
     theta = jnp.asarray(theta)
@@ -139,7 +140,7 @@ def test_the_whitened_likelihood_is_the_ar1_density_written_out(tmp_path):
         r, m, chan = next((r, m, k) for r, m, k in raw
                           if np.any(np.asarray(m) & (np.asarray(k) == c)[:, None]))
         r = np.asarray(r)[np.asarray(m) & (np.asarray(chan) == c)[:, None]]
-        rho = rhos.get(ch.name, 0.0)
+        rho = rhos.get(ch.id, 0.0)
         runs = [r[:150], r[150:]]  # either side of the missed reading (its row left out)
         q, logdet = 0.0, 0.0
         for e in runs:
@@ -180,8 +181,8 @@ def test_a_filtering_sensor_is_rejected_as_white_and_fitted_as_coloured(tmp_path
     model = build_model(s, cf)
     fit = fit_map(model)
     assert assess(model, fit, cf).verdict == "adequate"
-    phi = fit.values[ar_name("steps: speed")]
-    assert abs(phi - np.arctanh(RHO)) < 3 * fit.sd[ar_name("steps: speed")]
+    phi = fit.values[ar_name(ChannelId("steps", "speed"))]
+    assert abs(phi - np.arctanh(RHO)) < 3 * fit.sd[ar_name(ChannelId("steps", "speed"))]
     assert abs(fit.values["K"] - 0.05) < 3 * fit.sd["K"]
 
 
@@ -209,7 +210,8 @@ def test_coloured_noise_names_its_traces_and_refuses_others(tmp_path):
     session = Session.from_arrays(Ra=(2.0, 0.05), traces={"a": trace(), "b": trace()},
                                   model={"coloured_noise": ["b"]})
     model = build_model(session, fit_seed(session))
-    assert [n for n in model.names if n.startswith("noise_ar")] == [ar_name("b: speed")]
+    ar = [n for n in model.names if n.startswith("noise_ar")]
+    assert ar == [ar_name(ChannelId("b", "speed"))]
     assert terms_of(session) == {"coloured_noise:b"}
     assert model_table(session, terms_of(session))[0] == {"coloured_noise": ["b"]}
     with pytest.raises(SessionError, match="coloured_noise"):
@@ -242,7 +244,7 @@ def test_a_quantised_channels_row_records_white_noise():
     rng = np.random.default_rng(2)
     yhat = np.linspace(0.0, 50.0, 400)
     y = 0.5 * np.round((yhat + 0.2 * rng.standard_normal(400)) / 0.5)
-    row, _, _ = channel_tests("t: speed", y, yhat, None, 0.2, 0.2, rng, quantum=0.5)
+    row, _, _ = channel_tests(ChannelId("t", "speed"), y, yhat, None, 0.2, 0.2, rng, quantum=0.5)
     assert row["noise_correlation"] == 0.0
 
 

@@ -14,11 +14,15 @@ from pmdc_bayes._headline import (
     pi_loop_text,
 )
 
-CHANNELS = {
-    "step_12v97: speed": {"fit_percent_closed_form": 96.44, "fit_percent_map": 99.21},
-    "step_12v97: current": {"fit_percent_closed_form": 95.7, "fit_percent_map": 97.5},
-    "coast: speed": {"fit_percent_closed_form": None, "fit_percent_map": 91.04},
-    "steady: speed": {"rms_miss_fraction": 0.002},  # a steady channel: no fit %
+CHANNELS = {  # as summary.json holds them: by their text, each row naming its trace and signal
+    "step_12v97: speed": {"trace": "step_12v97", "signal": "speed",
+                          "fit_percent_closed_form": 96.44, "fit_percent_map": 99.21},
+    "step_12v97: current": {"trace": "step_12v97", "signal": "current",
+                            "fit_percent_closed_form": 95.7, "fit_percent_map": 97.5},
+    "coast: speed": {"trace": "coast", "signal": "speed", "fit_percent_closed_form": None,
+                     "fit_percent_map": 91.04},
+    "steady: speed": {"trace": "steady", "signal": "speed",
+                      "rms_miss_fraction": 0.002},  # a steady channel: no fit %
 }
 
 
@@ -37,6 +41,13 @@ def test_the_fit_table_has_one_row_per_trace_closed_form_beside_map():
                       "current: MAP")
     assert rows == [("step_12v97", "96.4", "99.2", "95.7", "97.5"),
                     ("coast", "—", "91.0", "", "")]
+    # a trace named with ": " is the row's name whole, its signal the column's
+    named = {"run: 2: speed": {"trace": "run: 2", "signal": "speed",
+                               "fit_percent_closed_form": 90.0, "fit_percent_map": 99.0}}
+    summary = _summary()
+    summary["adequacy"]["channels"] = named
+    assert fit_table(summary) == (("trace", "speed: closed form", "speed: MAP"),
+                                  [("run: 2", "90.0", "99.0")])
 
 
 def test_what_the_data_cannot_determine_is_said_also_when_nothing():

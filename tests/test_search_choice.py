@@ -20,14 +20,14 @@ class _Stub:
     def __init__(self, name, log_evidence, adequate, converged=True, undetermined=()):
         self.terms = frozenset({name})
         self.log_evidence = log_evidence
-        self.fit = SimpleNamespace(status="converged" if converged else "max_steps")
+        self.fit = SimpleNamespace(ok=converged)
         self.undetermined = undetermined
         self._adequate, self.asked = adequate, 0
 
     @property
     def ok(self):
         self.asked += 1
-        return self._adequate and self.fit.status == "converged" \
+        return self._adequate and self.fit.ok \
             and math.isfinite(self.log_evidence)
 
 
@@ -36,7 +36,7 @@ def _eager(current, cands):
     each group in order of evidence."""
     for c in sorted(cands, key=lambda c: (-c.ok, -c.log_evidence if
                                           math.isfinite(c.log_evidence) else math.inf)):
-        if c.fit.status != "converged" or not math.isfinite(c.log_evidence):
+        if not c.fit.ok or not math.isfinite(c.log_evidence):
             continue
         gain = c.log_evidence - current.log_evidence
         if current.ok and (c.undetermined or not c.ok):

@@ -104,7 +104,7 @@ def test_a_nested_start_is_the_parent_with_the_additions_neutral(jax_x64):
 def _cand(name, ok, z, undetermined=()):
     return SimpleNamespace(terms=frozenset({name}) if name else frozenset(), ok=ok,
                            log_evidence=z, undetermined=undetermined,
-                           fit=SimpleNamespace(status="converged"))
+                           fit=SimpleNamespace(ok=True))
 
 
 def test_an_addition_is_taken_only_when_the_evidence_or_the_verdict_calls_for_it():
@@ -138,7 +138,7 @@ def test_each_term_of_a_move_of_several_is_taken_out_where_the_evidence_allows()
 
     def cand(terms):
         return SimpleNamespace(terms=terms, ok=True, log_evidence=evidence[terms], why="",
-                               fit=SimpleNamespace(status="converged"), move="")
+                               fit=SimpleNamespace(ok=True), move="")
 
     class Search:
         done = {both: cand(both)}

@@ -11,6 +11,7 @@ from pmdc_bayes.inference.adequacy import assess
 from pmdc_bayes.inference.fit import fit_map
 from pmdc_bayes.inference.objective import build_model
 from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.session import simulate_session
 
@@ -62,7 +63,7 @@ def _verdict(tmp_path, rig, nuisances):
 def test_a_step_half_a_sample_off_fails_the_check_and_a_dead_time_mends_it(tmp_path):
     ideal = _verdict(tmp_path / "a", "dead_time = 0.0005", ())
     starts = [f for f in ideal.findings if f.check == "step start"]
-    assert "step_12v: current" in {f.where for f in starts}, ideal.findings
+    assert ChannelId("step_12v", "current") in {f.where for f in starts}, ideal.findings
     assert any("--add dead-time" in line for line in ideal.diagnosis)
     fitted = _verdict(tmp_path / "b", "dead_time = 0.0005", ("dead_time",))
     assert fitted.verdict == "adequate", fitted.findings

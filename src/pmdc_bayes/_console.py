@@ -9,6 +9,7 @@ from __future__ import annotations
 from ._errors import EXIT_FAILED, EXIT_INADEQUATE
 from ._format import row_format
 from ._headline import headline_text, pi_loop_text, spread_text
+from .inference.findings import Severity
 from .io.units import display_unit
 
 __all__ = ["print_fit", "print_adequacy", "gate_failure_text", "run_outcome"]
@@ -17,7 +18,7 @@ __all__ = ["print_fit", "print_adequacy", "gate_failure_text", "run_outcome"]
 def print_adequacy(adequacy: dict) -> bool:
     """The verdict, before any number; for an inadequate model, what failed and what
     the pattern suggests.  Returns whether the model is adequate."""
-    fails = [f for f in adequacy["findings"] if f["severity"] == "fail"]
+    fails = [f for f in adequacy["findings"] if Severity(f["severity"]) is Severity.FAIL]
     if not fails:
         n = len(adequacy["findings"])
         print("Model adequate: the data do not reject the fitted model"
@@ -108,7 +109,8 @@ def run_outcome(summary: dict, *, allow_unconverged: bool = False,
         errors.append(f"the fit did not converge: {summary['fit']['message']}")
         status = EXIT_FAILED
     adequacy = summary["adequacy"]
-    first = next((f for f in adequacy["findings"] if f["severity"] == "fail"), None)
+    first = next((f for f in adequacy["findings"] if Severity(f["severity"]) is Severity.FAIL),
+                 None)
     if first is not None:
         hint = next(iter(adequacy.get("diagnosis") or []), "")
         hint = f"; likely: {hint}" if hint and adequacy.get("proposals") else ""

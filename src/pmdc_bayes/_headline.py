@@ -12,6 +12,7 @@ import html
 import math
 
 from ._format import off_by, row_format, spread_format
+from .inference.findings import Verdict
 from .io.units import display_unit
 
 __all__ = ["headline_rows", "fit_table", "fit_lines", "determinability", "pi_loop_text",
@@ -25,8 +26,7 @@ EVERYTHING_DETERMINED = ("The data determine every parameter: no weakly constrai
 
 
 def _verdict(summary: dict) -> str:
-    adequacy = summary.get("adequacy", {})
-    if adequacy.get("verdict", "adequate") == "adequate":
+    if Verdict.of(summary) is Verdict.ADEQUATE:
         return "model adequate: the data do not reject the fitted model"
     return "MODEL INADEQUATE: the data reject the fitted model; the values below are " \
            "conditional on it"
@@ -60,18 +60,22 @@ def _percent(x) -> str:
     return f"{x:.1f}" if x is not None and math.isfinite(x) else "—"
 
 
-def fit_table(summary: dict) -> tuple[tuple, list[tuple]]:
-    """The fit % (MATLAB's compare) of each trace's channels, closed form and MAP side
-    by side: ``(header, rows)``, one row per trace (channels named ``"trace: what"``),
-    cells already strings; no rows without per-channel statistics."""
+def _fit_cells(summary: dict) -> tuple[list[str], dict[str, dict]]:
+    """The signals, and per trace per signal its fit % cells (closed form, MAP)."""
     traces: dict[str, dict] = {}
     for name, c in summary.get("adequacy", {}).get("channels", {}).items():
         if c.get("fit_percent_map") is None:
             continue
-        trace, _, what = name.rpartition(": ")
-        traces.setdefault(trace or name, {})[what or "signal"] = (
+        traces.setdefault(c.get("trace", name), {})[c.get("signal", "signal")] = (
             _percent(c.get("fit_percent_closed_form")), _percent(c["fit_percent_map"]))
-    kinds = list(dict.fromkeys(w for chans in traces.values() for w in chans))
+    return list(dict.fromkeys(w for chans in traces.values() for w in chans)), traces
+
+
+def fit_table(summary: dict) -> tuple[tuple, list[tuple]]:
+    """The fit % (MATLAB's compare) of each trace's channels, closed form and MAP side
+    by side: ``(header, rows)``, one row per trace, cells already strings; no rows
+    without per-channel statistics."""
+    kinds, traces = _fit_cells(summary)
     header = ("trace", *(f"{w}: {m}" for w in kinds for m in ("closed form", "MAP")))
     rows = [(trace, *(x for w in kinds for x in chans.get(w, ("", ""))))
             for trace, chans in traces.items()]
@@ -89,8 +93,8 @@ def determinability(summary: dict) -> list[str]:
 
 def fit_lines(summary: dict) -> list[str]:
     """:func:`fit_table` as indented lines for a terminal, ``"  trace: speed 96.4 → 99.2"``."""
-    header, rows = fit_table(summary)
-    kinds = [h.split(": ")[0] for h in header[1::2]]
+    kinds, _ = _fit_cells(summary)
+    _, rows = fit_table(summary)
     return [f"  {r[0]}: " + ", ".join(f"{w} {cf} → {m}" for w, cf, m
                                       in zip(kinds, r[1::2], r[2::2], strict=True) if m)
             for r in rows]

@@ -110,7 +110,7 @@ class Candidate:
 
     @property
     def ok(self) -> bool:
-        return self.adequacy.ok and self.fit.status == "converged" \
+        return self.adequacy.ok and self.fit.ok \
             and math.isfinite(self.log_evidence)
 
     def run(self, seed: int, superset=None) -> None:
@@ -136,8 +136,8 @@ class Candidate:
         return {"name": label(self.terms), "terms": ordered(self.terms),
                 "n_params": len(self.model.names), "move": self.move,
                 "parent": None if parent is None else label(parent.terms),
-                "verdict": "not checked" if verdict is None else verdict.verdict,
-                "converged": fit.status == "converged",
+                "verdict": "not checked" if verdict is None else str(verdict.verdict),
+                "converged": fit.ok,
                 "log_posterior": float(fit.log_posterior), "log_evidence": self.log_evidence,
                 "delta_log_evidence": None if parent is None
                 else self.log_evidence - parent.log_evidence,

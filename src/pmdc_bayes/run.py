@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ._errors import UsageError
+from .inference.findings import Verdict
 from .inference.fit import FitResult
 from .inference.objective import SessionModel
 from .io.output import dumps
@@ -59,7 +60,7 @@ class RunResult:
     @property
     def adequate(self) -> bool:
         """Whether the data do not reject the fitted model (True for old runs)."""
-        return self.summary.get("adequacy", {}).get("verdict", "adequate") == "adequate"
+        return Verdict.of(self.summary) is Verdict.ADEQUATE
 
     @property
     def has_posterior(self) -> bool:

@@ -72,7 +72,7 @@ def _better(current, cands) -> tuple[Candidate | None, str]:
     candidates are checked for adequacy in order of evidence, only as far as the choice
     needs."""
     fallback = None
-    for c in sorted((c for c in cands if c.fit.status == "converged"
+    for c in sorted((c for c in cands if c.fit.ok
                      and math.isfinite(c.log_evidence)), key=lambda c: -c.log_evidence):
         gain = c.log_evidence - current.log_evidence
         if gain <= ADD_MARGIN and (current.ok or gain < 0):
@@ -130,7 +130,7 @@ def _removals(search, current, start_terms, last_move) -> Candidate:
         drop = [frozenset({t}) for t in ordered(current.terms - start_terms - kept)]
         for smaller in search.evaluate(drop, current, "remove"):
             loss = current.log_evidence - smaller.log_evidence
-            if smaller.fit.status == "converged" and loss < REMOVE_MARGIN \
+            if smaller.fit.ok and loss < REMOVE_MARGIN \
                     and (smaller.ok or not current.ok):
                 search.done[current.terms].why = (f"{smaller.move[2:]} not supported "
                                                   f"(log Z {-loss:+.1f} without it)")
@@ -203,7 +203,7 @@ def _first_stop(start, only_if_rejected) -> Stop | None:
 
 def _dropped(current, c, best) -> str:
     """Why an addition was not taken."""
-    if c.fit.status != "converged":
+    if not c.fit.ok:
         return "the fit did not converge"
     gain = c.log_evidence - current.log_evidence
     if current.ok and c.undetermined and gain > ADD_MARGIN:

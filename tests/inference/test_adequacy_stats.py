@@ -6,6 +6,7 @@ import pytest
 from pmdc_bayes.inference.calibrate import ratio_p
 from pmdc_bayes.inference.onset import onset_shape
 from pmdc_bayes.inference.residual_stats import fit_percent, systematic_misfit, whiteness
+from pmdc_bayes.io.channel import ChannelId
 
 
 def test_white_noise_passes_and_a_slow_wave_fails_the_whiteness_test():
@@ -128,7 +129,7 @@ def test_a_misfit_at_the_steps_start_fails_and_noise_or_a_slow_misfit_does_not()
     late = np.where(t >= 0.1 + 1e-3, 1.0 - np.exp(-(t - 0.1 - 1e-3) / 2e-3), 0.0)
     y = exact + 0.002 * rng.standard_normal(t.size)
     (found,) = step_start_check(tr, "current", y, late, 0.002)  # one sample late
-    assert found.severity == "fail" and found.where == "s: current"
+    assert found.severity == "fail" and found.where == ChannelId("s", "current")
     assert "--add dead-time" in found.message
     assert step_start_check(tr, "current", y, exact, 0.002) == []  # noise only
     # colored noise (a slow wave) as large: spread over the trace, not at the step

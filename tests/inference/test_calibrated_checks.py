@@ -10,6 +10,7 @@ import pytest
 from pmdc_bayes.inference.calibrate import holm, logged_quantum, tail_p
 from pmdc_bayes.inference.proposals import Proposal, has
 from pmdc_bayes.inference.trace_checks import channel_tests
+from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.io.session import NUISANCES
 
 LEVEL = 0.05
@@ -33,7 +34,7 @@ def _p_values(quantum, sigma, misfit=0.0):
         if quantum:
             y = quantum * np.round(y / quantum)
         s0 = max(float(np.std(np.diff(y, 2)) / np.sqrt(6)), quantum / np.sqrt(12))
-        row, _, _ = channel_tests("t: speed", y, yhat, None, s0,
+        row, _, _ = channel_tests(ChannelId("t", "speed"), y, yhat, None, s0,
                                   float(np.sqrt(np.mean((y - yhat) ** 2))), rng,
                                   quantum=quantum)
         out.append((row["systematic_p"], row["anti_correlation_p"], row["whiteness"]["p_value"]))

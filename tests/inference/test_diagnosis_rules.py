@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
+from pmdc_bayes.inference.findings import Check, Finding, Severity
 from pmdc_bayes.inference.levels import friction_offset, level_outliers, voltage_intercept
 from pmdc_bayes.inference.onset import departure
+from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.simulate.bench import BenchMotor, bench_session
 from pmdc_bayes.simulate.cases import MOTOR, STEPS, case_session
 
@@ -99,7 +101,7 @@ def test_a_steady_readings_miss_is_read_on_its_priors_student_t():
     preds = [(np.asarray(tr.current), np.asarray(tr.speed)) for tr in session.traces]
     table = session.steady_tables[0]
     v, top = float(table.voltage[-1]), float(table.speed[-1])
-    (ch,) = [c for c in model.channels if c.name == "steady: speed"]
+    (ch,) = [c for c in model.channels if c.id == ChannelId("steady", "speed")]
     truth = dict(session.truth)
 
     def model_speed(k):
@@ -109,7 +111,7 @@ def test_a_steady_readings_miss_is_read_on_its_priors_student_t():
     for misses in (5.0, 40.0):  # the model's speed below the reading by this many s0
         k = brentq(lambda k, m=misses: top - model_speed(k) - m * ch.s0,
                    truth["K"], 3 * truth["K"])
-        fit = SimpleNamespace(values=dict(truth, K=k), noise_sd={ch.name: 50 * ch.s0})
+        fit = SimpleNamespace(values=dict(truth, K=k), noise_sd={ch.id: 50 * ch.s0})
         out, found = plausibility_checks(model, fit, preds)
         assert out["no_load_speed"]["logged_speed"] == pytest.approx(top, rel=1e-12)
         verdicts[misses] = [f.severity for f in found if f.where == "no-load speed"]
@@ -198,7 +200,7 @@ def test_a_driven_trace_whose_speed_never_leaves_its_noise_is_named():
     off, on = session.traces
     rng = np.random.default_rng(3)
     blocked = dataclasses.replace(on, speed=off.speed + 0.01 * rng.standard_normal(off.n))
-    model = SimpleNamespace(channels=[Channel(f"{tr.name}: speed", "rad/s", tr.n,
+    model = SimpleNamespace(channels=[Channel(ChannelId(tr.name, "speed"), "rad/s", tr.n,
                                               noise_scale(tr.speed)) for tr in (off, on)])
     assert _still(model, off) == []  # nothing applied, nothing expected
     assert _still(model, on) == []  # it turns
@@ -213,7 +215,6 @@ def test_a_resistance_above_the_bench_proposes_a_source_resistance_and_a_drop():
     from types import SimpleNamespace
 
     from pmdc_bayes.inference.diagnosis import diagnose
-    from pmdc_bayes.inference.model_checks import Finding
     from pmdc_bayes.inference.objective import build_model
     from pmdc_bayes.paper.closed_form import closed_form
 
@@ -222,9 +223,38 @@ def test_a_resistance_above_the_bench_proposes_a_source_resistance_and_a_drop():
     truth = dict(session.truth)
     preds = [(np.asarray(tr.current), np.asarray(tr.speed)) for tr in session.traces]
     fit = SimpleNamespace(values=dict(truth, Ra=1.3 * truth["Ra"]))
-    conflict = Finding("bench conflict", "Ra", "fail", "+5 sd", "Ra is 5 sd above the bench")
+    conflict = Finding(Check.BENCH_CONFLICT, "Ra", Severity.FAIL, "+5 sd",
+                       "Ra is 5 sd above the bench")
     _, proposals = diagnose(model, fit, preds, [conflict])
     assert {p.nuisance for p in proposals} >= {"source_resistance", "voltage_drop"}
+
+
+def test_a_step_start_on_a_trace_named_with_a_colon_proposes_for_that_trace():
+    """A finding names its channel by trace and signal, not by text: a trace whose name
+    holds ": " gets the dead time proposed for it, and the lag of the signal that
+    missed the step's start."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.diagnosis import diagnose
+    from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.inference.proposals import Proposal
+    from pmdc_bayes.paper.closed_form import closed_form
+
+    session = case_session()
+    first = session.traces[0]
+    assert first.current is not None
+    renamed = dataclasses.replace(first, name="run: 12 V")
+    session = dataclasses.replace(session, traces=(renamed, *session.traces[1:]))
+    model = build_model(session, closed_form(session))
+    preds = [(np.asarray(tr.current), np.asarray(tr.speed)) for tr in session.traces]
+    fit = SimpleNamespace(values=dict(session.truth))
+    start = Finding(Check.STEP_START, ChannelId("run: 12 V", "current"), Severity.FAIL,
+                    "x9 elsewhere", "the model misses the start of the voltage steps")
+    said, proposals = diagnose(model, fit, preds, [start])
+    assert Proposal("dead_time", "run: 12 V") in proposals, said
+    assert Proposal("current_lag") in proposals, said
+    assert any(line.startswith("run: 12 V: the model misses the start") for line in said)
 
 
 def test_a_quantised_levels_mean_is_read_with_the_quantisers_bias():
@@ -243,7 +273,7 @@ def test_a_quantised_levels_mean_is_read_with_the_quantisers_bias():
         true = 500.0 + rng.uniform(0, q)
         readings = q * np.round((true + 0.25 * q * rng.standard_normal(n)) / q)
         tr = SimpleNamespace(name="t", speed=readings, speed_logged=True)
-        se = _end_speed_se(tr, n, {"t: speed": float(np.std(readings))}, {}, {})
+        se = _end_speed_se(tr, n, {ChannelId("t", "speed"): float(np.std(readings))}, {}, {})
         misses += abs(np.mean(readings) - true) / se > 2.576
         ses.append(se)
     assert misses / trials < 0.03

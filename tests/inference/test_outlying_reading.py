@@ -13,6 +13,7 @@ from scipy.signal import lfilter
 
 from pmdc_bayes.inference.glitches import outlier_test
 from pmdc_bayes.inference.trace_checks import MATERIAL_FRACTION
+from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.simulate.fuzz import fuzz_session
 
 N = 1500
@@ -21,7 +22,7 @@ SIGNAL = 100.0 * (1.0 - np.exp(-T / 0.2))  # a step response, span about 100
 
 
 def _p(y, yhat=SIGNAL, u=None, **kw):
-    return outlier_test("tr: speed", y - yhat, float(np.ptp(y)), u=u, time=T, **kw)
+    return outlier_test(ChannelId("tr", "speed"), y - yhat, float(np.ptp(y)), u=u, time=T, **kw)
 
 
 @pytest.mark.parametrize("rho", [0.0, 0.8], ids=["white", "AR(1) 0.8"])
@@ -70,7 +71,7 @@ def test_a_short_run_of_bad_readings_is_one_glitch(length):
     # the same run with a sensor so quiet that its noise never moves the readings
     flat = np.full(N, 57.0)
     flat[900:900 + length] = 65535.0
-    assert outlier_test("tr: speed", flat - 57.0, 200.0, time=T).material
+    assert outlier_test(ChannelId("tr", "speed"), flat - 57.0, 200.0, time=T).material
 
 
 def test_a_run_longer_than_a_glitch_or_a_late_start_is_not_one():
@@ -121,26 +122,28 @@ def test_a_quantised_reading_is_not_a_glitch():
     # quantiser's resolution, no bad reading
     y = np.full(N, 57.256)
     y[700] -= 0.6736
-    t = outlier_test("tr: speed", y - 57.25, 200.0, time=T, quantum=0.6736)
+    t = outlier_test(ChannelId("tr", "speed"), y - 57.25, 200.0, time=T, quantum=0.6736)
     assert t.p_value < 1e-6 and not t.material
     y[700] = 65535.0
-    assert outlier_test("tr: speed", y - 57.25, 200.0, time=T, quantum=0.6736).material
+    assert outlier_test(ChannelId("tr", "speed"), y - 57.25, 200.0, time=T, quantum=0.6736).material
 
 
 def test_a_bad_reading_alone_is_the_data_s_fault():
     """A bad reading alone is the data's fault; beside a systematic misfit it may be the
     model's (a model far off the data leaves single readings far off too: a current
     limit's plateau at a trace's start), and the verdict stays the model's."""
-    from pmdc_bayes.inference.adequacy import Adequacy, Finding
+    from pmdc_bayes.inference.adequacy import Adequacy, Finding, Verdict
+    from pmdc_bayes.inference.findings import Check, Severity
 
-    glitch = Finding("outlying reading", "tr: speed", "fail", "+6.6e4 rad/s", "a glitch")
-    misfit = Finding("systematic misfit", "tr: speed", "fail", "3 %", "a misfit")
-    assert Adequacy("inadequate", (glitch,)).faulty_data
-    assert not Adequacy("inadequate", (glitch, misfit)).faulty_data
-    assert not Adequacy("inadequate", (misfit,)).faulty_data
-    warned = Finding("outlying reading", "tr: speed", "warn", "", "")
-    assert not Adequacy("inadequate", (misfit, warned)).faulty_data
-    assert not Adequacy("adequate").faulty_data
+    where, bad = ChannelId("tr", "speed"), Verdict.INADEQUATE
+    glitch = Finding(Check.OUTLYING_READING, where, Severity.FAIL, "+6.6e4 rad/s", "a glitch")
+    misfit = Finding(Check.SYSTEMATIC_MISFIT, where, Severity.FAIL, "3 %", "a misfit")
+    assert Adequacy(bad, (glitch,)).faulty_data
+    assert not Adequacy(bad, (glitch, misfit)).faulty_data
+    assert not Adequacy(bad, (misfit,)).faulty_data
+    warned = Finding(Check.OUTLYING_READING, where, Severity.WARN, "", "")
+    assert not Adequacy(bad, (misfit, warned)).faulty_data
+    assert not Adequacy(Verdict.ADEQUATE).faulty_data
 
 
 def _fit_with_cell(root, text, out):

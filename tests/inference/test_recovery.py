@@ -29,6 +29,7 @@ from recovery_cases import (  # noqa: E402
 
 from pmdc_bayes.inference.fit import fit_map  # noqa: E402
 from pmdc_bayes.inference.objective import build_model  # noqa: E402
+from pmdc_bayes.io.channel import ChannelId  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.pipeline import trace_rms  # noqa: E402
@@ -112,7 +113,7 @@ def test_wrong_logged_voltage_shows_in_that_traces_residuals(tmp_path):
     # 10 V, and the conflict goes to the steady table, whose integrated noise level
     # rises from ~1.4 rad/s (the simulated 0.67 rad/s, pulled up by the prior scale
     # s0 = 1 % of the typical speed) to ~80 rad/s, and to the capture's speed (~4.5x).
-    good_sd, bad_sd = (fits[k].noise_sd["steady: speed"] for k in ("good", "bad"))
+    good_sd, bad_sd = (fits[k].noise_sd[ChannelId("steady", "speed")] for k in ("good", "bad"))
     assert good_sd < 3.0 * steady_speed_sd, fits["good"].noise_sd
     assert bad_sd > 20.0 * good_sd, fits["bad"].noise_sd
 

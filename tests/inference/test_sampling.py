@@ -30,6 +30,7 @@ from pmdc_bayes.inference.sampling import (  # noqa: E402
     summarize,
 )
 from pmdc_bayes.inference.stopping import stop_message  # noqa: E402
+from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.paper.closed_form import ClosedForm, closed_form  # noqa: E402
 from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
@@ -333,7 +334,7 @@ def test_inference_data_groups_and_loo(tiny, jax_x64):
     rep = idata.posterior_predictive["step_speed"]
     assert rep.dims == ("chain", "draw", "step_speed_time")
     resid = (rep - idata.observed_data["step_speed"]).values
-    sd_noise = fit.noise_sd["step: speed"]
+    sd_noise = fit.noise_sd[ChannelId("step", "speed")]
     assert 0.8 * np.sqrt(2) * sd_noise < resid.std() < 1.25 * np.sqrt(2) * sd_noise
     with warnings.catch_warnings():
         # PSIS may warn that some Pareto k are high on so short a chain; LOO must still run.

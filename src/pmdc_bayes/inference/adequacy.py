@@ -31,26 +31,27 @@ model lacks (``proposals``).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from .._x64 import x64
+from ..io.channel import STEADY, ChannelId
 from .calibrate import FAMILY_LEVEL, holm, logged_quantum, session_rng
 from .channels import CoastDownBlock
 from .checks import bench_checks, search_checks, step_start_test
 from .coloured import channel_rho
 from .diagnosis import diagnose
-from .findings import Finding
+from .findings import Check, Finding, Severity, Verdict
 from .model_checks import bound_checks, drag_checks, solver_checks
 from .plausibility import plausibility_tests
 from .residual_stats import fit_percent, systematic_misfit, whiteness
 from .trace_checks import channel_tests
 
-__all__ = ["Finding", "Adequacy", "assess", "whiteness", "fit_percent", "systematic_misfit",
-           "DATA_FAULTS"]
+__all__ = ["Finding", "Verdict", "Adequacy", "assess", "whiteness", "fit_percent",
+           "systematic_misfit", "DATA_FAULTS"]
 
-DATA_FAULTS = frozenset({"outlying reading"})  # checks that fail the data, not the model
+DATA_FAULTS = frozenset({Check.OUTLYING_READING})  # checks that fail the data, not the model
 NOTHING_TO_ADD = ("nothing: the check that fails finds a bad reading in the data, not a part "
                   "the model lacks; mend the reading and fit again")
 STEADY_MATERIAL = 0.03  # steady readings missed by 3 % of the largest reading (rms)
@@ -58,13 +59,13 @@ STEADY_MATERIAL = 0.03  # steady readings missed by 3 % of the largest reading (
 
 @dataclass(frozen=True)
 class Adequacy:
-    """The verdict (``"adequate"`` or ``"inadequate"``), the findings behind it, the
+    """The :class:`Verdict`, the findings behind it, the
     per-channel figures, the diagnosis in words and ``proposals``, the non-idealities
     the diagnosis proposes to add (:class:`~.diagnosis.Proposal`, most specific first);
     ``level`` is the family-wise false-alarm level of the verdict, ``tests`` every
     statistical check that ran, with its p-value and whether the family rejected it."""
 
-    verdict: str
+    verdict: Verdict
     findings: tuple = ()
     channels: dict = field(default_factory=dict)
     bench: dict = field(default_factory=dict)
@@ -76,7 +77,7 @@ class Adequacy:
 
     @property
     def ok(self) -> bool:
-        return self.verdict == "adequate"
+        return self.verdict is Verdict.ADEQUATE
 
     @property
     def faulty_data(self) -> bool:
@@ -86,7 +87,7 @@ class Adequacy:
         return _data_fault(self.findings)
 
     def failures(self) -> list[Finding]:
-        return [f for f in self.findings if f.severity == "fail"]
+        return [f for f in self.findings if f.failed]
 
     def headline(self) -> str:
         """One line for the top of the CLI's output and the report."""
@@ -99,8 +100,8 @@ class Adequacy:
         return f"MODEL INADEQUATE: {f.where}: {f.message}{more}."
 
     def as_json(self) -> dict:
-        return {"verdict": self.verdict, "family_level": self.level,
-                "findings": [asdict(f) for f in self.findings],
+        return {"verdict": str(self.verdict), "family_level": self.level,
+                "findings": [f.as_json() for f in self.findings],
                 "diagnosis": list(self.diagnosis),
                 "proposals": [asdict(p) for p in self.proposals],
                 "tests": list(self.tests), "channels": self.channels,
@@ -110,7 +111,7 @@ class Adequacy:
 # -- the statistics --------------------------------------------------------------------
 def _data_fault(findings) -> bool:
     """Whether some check fails and every one that does is one of :data:`DATA_FAULTS`."""
-    fails = [f.check for f in findings if f.severity == "fail"]
+    fails = [f.check for f in findings if f.failed]
     return bool(fails) and all(c in DATA_FAULTS for c in fails)
 
 
@@ -124,7 +125,7 @@ def _steady_channel(name, unit, y, yhat) -> tuple[dict, list]:
            "largest_miss_fraction": float(np.max(rel)) if rel.size else 0.0}
     found = []
     if rms > STEADY_MATERIAL:
-        found.append(Finding("steady miss", name, "warn",
+        found.append(Finding(Check.STEADY_MISS, name, Severity.WARN,
                              f"rms miss {100 * rms:.2g} % of the largest reading",
                              f"the model misses the steady readings by {100 * rms:.2g} % of "
                              "the largest reading (rms; not tested: the readings carry no "
@@ -139,10 +140,10 @@ def _judge(tests: list, key: str) -> tuple[list, list]:
     found, record = [], []
     for t, r in zip(tests, reject, strict=True):
         f = t.finding
-        record.append({"family": key, "check": f.check, "where": f.where,
+        record.append({"family": key, "check": str(f.check), "where": str(f.where),
                        "p_value": t.p_value, "material": t.material, "rejected": bool(r)})
         if r and t.material:
-            found.append(type(f)(**{**asdict(f), "p_value": t.p_value}))
+            found.append(replace(f, p_value=t.p_value))
     return found, record
 
 
@@ -161,17 +162,17 @@ def assess(model, fit, closed_form=None) -> Adequacy:
             preds_cf = model.predict(theta_cf)  # Tc ≈ 0: the viscous motor, one program
         except (ValueError, FloatingPointError):
             preds_cf = None
-    by_name = {c.name: c for c in model.channels}
+    by_id = {c.id: c for c in model.channels}
     rho = channel_rho(model, fit.theta)
 
-    def channel(name, y, yhat, ycf, u, quantum, time=None):
-        ch = by_name[name]
-        sigma = float(fit.noise_sd.get(name, ch.s0))
-        row, f, w = channel_tests(name, y, yhat, u, ch.s0, sigma, rng, quantum=quantum,
-                                  rho=float(rho[name]), time=time, unit=ch.unit)
+    def channel(cid, y, yhat, ycf, u, quantum, time=None):
+        ch = by_id[cid]
+        sigma = float(fit.noise_sd.get(cid, ch.s0))
+        row, f, w = channel_tests(cid, y, yhat, u, ch.s0, sigma, rng, quantum=quantum,
+                                  rho=float(rho[cid]), time=time, unit=ch.unit)
         row["unit"] = ch.unit
         row["fit_percent_closed_form"] = None if ycf is None else fit_percent(y, ycf)
-        channels[name] = row
+        channels[str(cid)] = {"trace": cid.trace, "signal": cid.signal, **row}
         fails.extend(f)
         warns.extend(w)
         return sigma
@@ -186,20 +187,20 @@ def assess(model, fit, closed_form=None) -> Adequacy:
                 continue
             y, yhat = np.asarray(y), np.asarray(yhat)
             quantum = logged_quantum(y)
-            sigma = channel(f"{tr.name}: {what}", y, yhat,
-                            None if ycf is None else np.asarray(ycf), u, quantum, tr.time)
+            cid = ChannelId(tr.name, what)
+            sigma = channel(cid, y, yhat, None if ycf is None else np.asarray(ycf), u,
+                            quantum, tr.time)
             # a fitted dead time takes up a step's timing
             if "dead_time" not in session.nuisances:
-                fails += step_start_test(tr, what, y, yhat, by_name[f"{tr.name}: {what}"].s0,
-                                         sigma=sigma, rng=rng, quantum=quantum,
-                                         rho=rho[f"{tr.name}: {what}"])
-    for name, y, yhat in _coast_down_pairs(model, fit):
-        channel(name, y, yhat, None, None, logged_quantum(y))
-    for name, y, yhat, q in _position_pairs(model, fit):
-        channel(name, y, yhat, None, None, q)
-    for name, y, yhat in _steady_pairs(model, fit):
-        row, found = _steady_channel(name, by_name[name].unit, y, yhat)
-        channels[name] = row
+                fails += step_start_test(tr, what, y, yhat, by_id[cid].s0, sigma=sigma,
+                                         rng=rng, quantum=quantum, rho=rho[cid])
+    for cid, y, yhat in _coast_down_pairs(model, fit):
+        channel(cid, y, yhat, None, None, logged_quantum(y))
+    for cid, y, yhat, q in _position_pairs(model, fit):
+        channel(cid, y, yhat, None, None, q)
+    for cid, y, yhat in _steady_pairs(model, fit):
+        row, found = _steady_channel(cid, by_id[cid].unit, y, yhat)
+        channels[str(cid)] = {"trace": cid.trace, "signal": cid.signal, **row}
         findings += found
     bench, found, tests = bench_checks(model, fit)
     findings += found
@@ -210,15 +211,15 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     failed, record = _judge(fails, "verdict")
     warned, record_w = _judge(warns, "warnings")
     findings += failed + warned
-    failing = {f.where for f in findings if f.severity == "fail"}
-    findings = [f for f in findings if f.severity == "fail" or f.where not in failing]
+    failing = {f.where for f in findings if f.failed}
+    findings = [f for f in findings if f.failed or f.where not in failing]
     findings += search_checks(fit)
     findings += solver_checks(model, fit)
     findings += drag_checks(model)
     findings += bound_checks(model, fit)
-    findings.sort(key=lambda f: f.severity != "fail")
-    verdict = "inadequate" if any(f.severity == "fail" for f in findings) else "adequate"
-    if verdict == "adequate":
+    findings.sort(key=lambda f: not f.failed)
+    verdict = Verdict.INADEQUATE if any(f.failed for f in findings) else Verdict.ADEQUATE
+    if verdict is Verdict.ADEQUATE:
         diagnosis, proposals = (), ()
     elif _data_fault(findings):
         diagnosis, proposals = (NOTHING_TO_ADD,), ()
@@ -229,40 +230,40 @@ def assess(model, fit, closed_form=None) -> Adequacy:
 
 
 def _coast_down_pairs(model, fit):
-    """(channel name, observed, predicted) for each coast-down's speed."""
+    """(channel, observed, predicted) for each coast-down's speed."""
     out = []
     for block in model.blocks:
         if isinstance(block, CoastDownBlock):
             d = model.data[block.key]
             r = np.asarray(block.residuals(model, np.asarray(fit.theta), d)[0])
             for k, tr in enumerate(model.session.coast_downs):
-                out.append((f"{tr.name}: speed", tr.speed, tr.speed - r[k, :tr.n]))
+                out.append((ChannelId(tr.name, "speed"), tr.speed, tr.speed - r[k, :tr.n]))
     return out
 
 
 def _position_pairs(model, fit):
-    """(channel name, observed, predicted, encoder count) for each trace's angle, where
+    """(channel, observed, predicted, encoder count) for each trace's angle, where
     read (from the compiled prediction the trace channels use)."""
     out = []
     angles = model.predict_angles(np.asarray(fit.theta)) if model.exp is not None else []
     for tr, angle in zip(model.session.traces, angles, strict=True):
         if tr.position is not None:
             ok = np.isfinite(tr.position)
-            out.append((f"{tr.name}: position", tr.position[ok], np.asarray(angle)[ok],
+            out.append((ChannelId(tr.name, "position"), tr.position[ok], np.asarray(angle)[ok],
                         float(tr.encoder_step or 0.0)))
     return out
 
 
 def _steady_pairs(model, fit):
-    """(channel name, observed, predicted) for the steady speeds and currents."""
+    """(channel, observed, predicted) for the steady speeds and currents."""
     st = model.steady
     theta = np.asarray(fit.theta)
     p = type(model.params(theta))(*(float(x) for x in model.circuit(theta)))  # on the host
     v = np.asarray(model.driven(theta, st["v"]), dtype=float)
     w, i = model.steady_prediction(p, v, st["tl"], float(model.drop(theta)))
     out = []
-    for name, obs, pred, mask in (("steady: speed", st["w"], w, st["w_mask"]),
-                                  ("steady: current", st["i"], i, st["i_mask"])):
+    for cid, obs, pred, mask in ((ChannelId(STEADY, "speed"), st["w"], w, st["w_mask"]),
+                                 (ChannelId(STEADY, "current"), st["i"], i, st["i_mask"])):
         if np.any(mask):
-            out.append((name, np.asarray(obs)[mask], np.asarray(pred)[mask]))
+            out.append((cid, np.asarray(obs)[mask], np.asarray(pred)[mask]))
     return out

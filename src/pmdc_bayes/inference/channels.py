@@ -26,6 +26,7 @@ from collections.abc import Callable
 import jax.numpy as jnp
 import numpy as np
 
+from ..io.channel import STEADY, STEP_READINGS, ChannelId
 from ..io.readings import steady_points
 from ..io.session import Session
 from ..physics import motor
@@ -37,13 +38,12 @@ from .coloured import COLOURED, breaks, previous_index
 from .noise import effective_fraction, noise_scale, typical_level
 from .trace_states import initial_speed_name, position_offset_name
 
-__all__ = ["Block", "TraceBlock", "CoastDownBlock", "SteadyBlock", "StepReadingBlock", "blocks_for",
-           "resting_counts",
-           "STEADY_RELATIVE_NOISE"]
+__all__ = ["Block", "TraceBlock", "CoastDownBlock", "SteadyBlock", "StepReadingBlock",
+           "blocks_for", "resting_counts", "STEADY_RELATIVE_NOISE"]
 
 STEADY_RELATIVE_NOISE = 0.01
 
-AddChannel = Callable[..., int]  # (name, unit, n, s0[, alpha]) -> channel index
+AddChannel = Callable[..., int]  # (ChannelId, unit, n, s0[, alpha]) -> channel index
 
 
 class Block:
@@ -118,7 +118,7 @@ class TraceBlock(Block):
                 ok = np.isfinite(y)
                 if what == "position":
                     ok &= ~resting_counts(tr)
-                chans[what].append(add(f"{tr.name}: {what}", unit, int(ok.sum()),
+                chans[what].append(add(ChannelId(tr.name, what), unit, int(ok.sum()),
                                        noise_scale(y[ok]), effective_fraction(y[ok])))
                 values[what].append(np.where(ok, y, 0.0))
                 seen[what].append(ok)
@@ -189,9 +189,9 @@ class SteadyBlock(Block):
     def __init__(self, session: Session, add: AddChannel):
         st = steady_points(session)
         self.points = st
-        cw = add("steady: speed", "rad/s", int(st["w_mask"].sum()),
+        cw = add(ChannelId(STEADY, "speed"), "rad/s", int(st["w_mask"].sum()),
                  STEADY_RELATIVE_NOISE * typical_level(st["w"], st["w_mask"]))
-        ci = add("steady: current", "A", int(st["i_mask"].sum()),
+        ci = add(ChannelId(STEADY, "current"), "A", int(st["i_mask"].sum()),
                  STEADY_RELATIVE_NOISE * typical_level(st["i"], st["i_mask"]))
         n = st["v"].size
         self._data = dict(st, w_ch=np.full(n, cw), i_ch=np.full(n, ci))
@@ -220,7 +220,7 @@ class StepReadingBlock(Block):
     def __init__(self, session: Session, add: AddChannel):
         taus = np.asarray([s.tau for s in session.step_readings], dtype=float)
         level = float(taus.mean()) if taus.size else 1.0
-        c = add("step readings: tau", "s", taus.size, STEADY_RELATIVE_NOISE * level)
+        c = add(ChannelId(STEP_READINGS, "tau"), "s", taus.size, STEADY_RELATIVE_NOISE * level)
         self._data = {"tau": taus, "mask": np.ones(taus.size, bool),
                       "ch": np.full(taus.size, c)}
 
@@ -253,7 +253,7 @@ class CoastDownBlock(Block):
         for k, tr in enumerate(traces):
             t[k, :tr.n], y[k, :tr.n], mask[k, :tr.n] = tr.time - tr.time[0], tr.speed, True
             t[k, tr.n:] = t[k, tr.n - 1]
-            ch.append(add(f"{tr.name}: speed", "rad/s", tr.n, noise_scale(tr.speed),
+            ch.append(add(ChannelId(tr.name, "speed"), "rad/s", tr.n, noise_scale(tr.speed),
                           effective_fraction(tr.speed)))
         self._data = {"t": t, "speed": y, "mask": mask, "ch": np.asarray(ch)}
         if COLOURED in session.nuisances:

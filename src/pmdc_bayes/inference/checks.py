@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import norm
 
+from ..io.channel import ChannelId
 from .calibrate import Test, judged_alone, replicates, tail_p
-from .findings import Finding, sig3
+from .findings import Check, Finding, Severity, sig3
 
 __all__ = ["bench_checks", "search_checks", "step_start_check", "step_start_test"]
 
@@ -68,7 +69,8 @@ def step_start_test(tr, what: str, y, yhat, s0: float, *, sigma: float | None = 
     n = int(window.sum())
     excess, total = float(np.sum(r[window] ** 2)) - n * s0**2, float(np.sum(r**2)) - r.size * s0**2
     share = excess / total if total > 0 else 0.0
-    finding = Finding("step start", f"{tr.name}: {what}", "fail", f"x{ratio:.3g} elsewhere",
+    finding = Finding(Check.STEP_START, ChannelId(tr.name, what), Severity.FAIL,
+                      f"x{ratio:.3g} elsewhere",
                       f"the model misses the start of the voltage steps ({100 * share:.0f} % "
                       f"of the misfit in {n} samples around them; mean square x{ratio:.3g} "
                       "elsewhere): the step is earlier or later than the model takes it (a "
@@ -103,16 +105,18 @@ def bench_checks(model, fit) -> tuple[dict, list, list]:
         size = f"{sig3(value)} {spec.unit} fitted against {sig3(bench)} ± {sig3(sd)} on the bench"
         p = float(2 * norm.sf(abs(z)))
         if value < COLLAPSE * bench:
-            tests.append(Test(Finding("plausibility", spec.name, "fail", size,
+            tests.append(Test(Finding(Check.PLAUSIBILITY, spec.name, Severity.FAIL, size,
                                       f"{spec.description or spec.name} collapses toward "
                                       f"zero ({size})"), p))
             continue
-        tests.append(Test(Finding("bench conflict", spec.name, "fail", f"{z:+.1f} bench sd",
+        tests.append(Test(Finding(Check.BENCH_CONFLICT, spec.name, Severity.FAIL,
+                                  f"{z:+.1f} bench sd",
                                   f"the fit puts {spec.name} {abs(z):.0f} bench sd "
                                   f"{'above' if z > 0 else 'below'} the bench value ({size})"),
                           p))
         if abs(z) > BENCH_WARN_Z:
-            found.append(Finding("bench conflict", spec.name, "warn", f"{z:+.1f} bench sd",
+            found.append(Finding(Check.BENCH_CONFLICT, spec.name, Severity.WARN,
+                                 f"{z:+.1f} bench sd",
                                  f"{spec.name} is {abs(z):.1f} bench sd from the bench value",
                                  p_value=p))
     for spec in model.registry.specs:
@@ -120,7 +124,8 @@ def bench_checks(model, fit) -> tuple[dict, list, list]:
             continue
         pull = (np.log(fit.values[spec.name]) - np.log(spec.prior.centre)) / spec.prior.scale
         if abs(pull) > PRIOR_PULL:
-            found.append(Finding("plausibility", spec.name, "warn", f"{pull:+.1f} prior widths",
+            found.append(Finding(Check.PLAUSIBILITY, spec.name, Severity.WARN,
+                                 f"{pull:+.1f} prior widths",
                                  f"{spec.name} ended a factor "
                                  f"{np.exp(abs(pull) * spec.prior.scale):.3g} from its seed, "
                                  "far outside the range its prior expects"))
@@ -135,7 +140,7 @@ def search_checks(fit) -> list:
     close = [g for g in fit.mode_gaps if g < COMPETING]
     if not close:
         return []
-    return [Finding("global search", "MAP", "warn", f"{len(close) + 1} optima",
+    return [Finding(Check.GLOBAL_SEARCH, "MAP", Severity.WARN, f"{len(close) + 1} optima",
                     f"the starts reached {len(close)} other optimum/optima within "
                     f"{min(close):.2g} log-posterior units of the MAP: the posterior may "
                     "have more than one mode")]

@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._x64 import to_device
+from ..io.channel import ChannelId
 from ..io.lattice import analogue_channels
 
 __all__ = ["COLOURED", "PHI_PRIOR_SD", "ar_name", "ar_specs", "coloured_channels", "breaks",
@@ -36,12 +37,12 @@ PHI_PRIOR_SD = 1.5  # sd of atanh ρ: ρ = 0.9 at 1 sd, 0.99 at 1.8 sd
 PREFIX = "noise_ar_"
 
 
-def ar_name(channel: str) -> str:
-    """The parameter of a channel's lag-1 correlation, from the channel's name."""
-    return PREFIX + "".join(c if c.isalnum() else "_" for c in channel).replace("__", "_")
+def ar_name(channel: ChannelId) -> str:
+    """The parameter of a channel's lag-1 correlation, named after the channel."""
+    return PREFIX + "".join(c if c.isalnum() else "_" for c in str(channel)).replace("__", "_")
 
 
-def coloured_channels(session) -> list[str]:
+def coloured_channels(session) -> list[ChannelId]:
     """The channels whose noise the session fits as coloured: the analogue ones of the
     traces ``coloured_noise`` names (``Session.coloured_noise_traces``)."""
     traces = set(session.coloured_noise_traces())
@@ -96,9 +97,10 @@ def whiten(r, prev, rho):
 
 
 def channel_rho(model, theta) -> dict:
-    """Per channel name its noise's lag-1 correlation at ``theta`` (0: white)."""
+    """Per channel (:class:`~pmdc_bayes.io.channel.ChannelId`) its noise's lag-1
+    correlation at ``theta`` (0: white)."""
     rho = np.asarray(model.noise_rho(model.switched(to_device(theta), model.data)))
-    return {c.name: float(r) for c, r in zip(model.channels, rho, strict=True)}
+    return {c.id: float(r) for c, r in zip(model.channels, rho, strict=True)}
 
 
 def mean_se_factor(rho: float, n: int | None = None) -> float:
@@ -138,7 +140,7 @@ def coloured_data(model) -> dict:
     parameter in θ (−1: white) and its number of starts (readings without a previous
     one), which the whitening's Jacobian counts."""
     names = list(model.registry.names)
-    param = np.array([names.index(ar_name(c.name)) if ar_name(c.name) in names else -1
+    param = np.array([names.index(ar_name(c.id)) if ar_name(c.id) in names else -1
                       for c in model.channels], dtype=np.int64)
     starts = np.zeros(len(model.channels))
     for b in model.blocks:

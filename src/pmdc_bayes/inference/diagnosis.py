@@ -21,8 +21,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io.channel import ChannelId
 from ..io.lattice import analogue_channels
 from .diagnosis_levels import level_rules
+from .findings import Check
 from .noise import noise_scale
 from .onset import departure, onset_shape, step_time
 from .proposals import Proposal, has, said
@@ -118,9 +120,10 @@ def _flat_top(tr, ia):
 def _finding_rules(model, fit, findings, already=()):
     out = []
     la, ra = model.registry["La"].prior, model.registry["Ra"].prior
-    limited = any("current-limited" in text for text in already)  # explains a slow start
-    if (la.source == "bench" and not limited and any(f.where == "La" and f.severity == "fail"
-                                     for f in findings)):
+    limited = any(p.nuisance == "current_limit"  # a current limit explains a slow start
+                  for text in already for p in getattr(text, "proposals", ()))
+    if (la.source == "bench" and not limited and any(f.where == "La" and f.failed
+                                                     for f in findings)):
         fitted = fit.values["La"] / fit.values["Ra"]
         bench = la.centre / ra.centre
         current = any(tr.current is not None for tr in model.session.traces)
@@ -134,9 +137,10 @@ def _finding_rules(model, fit, findings, already=()):
                             Proposal("dead_time"), Proposal("speed_lag"),
                             *((Proposal("current_lag"),) if current else ())))
     for f in findings:
-        if f.severity != "fail":
+        if not f.failed:
             continue
-        if f.check == "systematic misfit" and f.where in analogue_channels(model.session):
+        channel = f.where if isinstance(f.where, ChannelId) else None
+        if f.check is Check.SYSTEMATIC_MISFIT and f.where in analogue_channels(model.session):
             out.append(said(f"{f.where}: the residual wanders slowly: a response the model "
                             "lacks, or a sensor whose noise is correlated from one sample to "
                             "the next (a filter, an average, a tachometer's ripple); fit that "
@@ -144,30 +148,31 @@ def _finding_rules(model, fit, findings, already=()):
                             "[model]), which the evidence weighs against what the rest of "
                             "this diagnosis proposes",
                             Proposal("coloured_noise", analogue_channels(model.session)[f.where])))
-        if f.check == "physical bound":
+        if f.check is Check.PHYSICAL_BOUND:
             out.append(f"{f.where} at its bound: {f.suggestion}")
-        if f.check == "solver":
+        if f.check is Check.SOLVER:
             out.append(f"{f.where}: the solution's limit, not necessarily the model's: "
                        f"{f.suggestion}")
-        if f.check == "step start":
-            sensor = f.where.rsplit(": ", 1)[-1]
-            out.append(said(f"{f.where.split(':')[0]}: the model misses the start of the voltage "
+        if f.check is Check.STEP_START and channel is not None:
+            sensor = channel.signal
+            out.append(said(f"{channel.trace}: the model misses the start of the voltage "
                        "steps: the steps are earlier or later than the session says (a "
                        "logged voltage column, a trigger offset, a dead time): --add "
                        f"dead-time; or the {sensor} sensor lags: --add {sensor}-lag",
-                            Proposal("dead_time", f.where.split(":")[0]),
+                            Proposal("dead_time", channel.trace),
                             Proposal(f"{sensor}_lag")))
-        if f.check == "residual whiteness" and f.where.endswith("current"):
+        whiteness = f.check is Check.RESIDUAL_WHITENESS and channel is not None
+        if whiteness and channel.signal == "current":
             out.append(f"{f.where}: {f.message}: a ripple near half the sampling rate (a "
                        "PWM ripple aliased by the sampling) rather than white noise; filter "
                        "the current before sampling it, or average each sample over whole "
                        "PWM periods")
-        if f.check == "residual whiteness" and f.where.endswith("speed"):
+        if whiteness and channel.signal == "speed":
             out.append(f"{f.where}: {f.message}: a speed differenced from encoder counts or a "
                        "quantised position; log the encoder's count as the position "
                        "(columns.position, or edges = true) instead, or average over "
                        "more samples")
-        if f.where == "Ra" and f.check in ("bench conflict", "plausibility"):
+        if f.where == "Ra" and f.check in (Check.BENCH_CONFLICT, Check.PLAUSIBILITY):
             if fit.values["Ra"] > model.registry["Ra"].prior.centre:
                 out.append(said("the fitted resistance exceeds the bench Ra: a supply source "
                            "resistance, leads or a driver in the loop, or a constant drop "
@@ -180,7 +185,7 @@ def _finding_rules(model, fit, findings, already=()):
                 out.append("the fitted resistance is far below the bench Ra: the ideal motor "
                            "is absorbing something it lacks (a current limit, a voltage "
                            "drop, a lag); see the trace findings")
-        if (f.where in ("K", "J", "B") and f.check == "bench conflict"
+        if (f.where in ("K", "J", "B") and f.check is Check.BENCH_CONFLICT
                 and "speed_gain" not in model.session.nuisances
                 and any(tr.speed_logged for tr in model.session.traces)):
             out.append(said(f"the fit puts {f.where} off its bench value: a speed sensor whose "
@@ -194,7 +199,7 @@ def _finding_rules(model, fit, findings, already=()):
 def _noise(model, tr, what, y) -> float:
     """The channel's model-free noise level; for a speed estimated from an angle (no
     speed channel), that of the estimate."""
-    s0 = {c.name: c.s0 for c in model.channels}.get(f"{tr.name}: {what}")
+    s0 = {c.id: c.s0 for c in model.channels}.get(ChannelId(tr.name, what))
     return s0 if s0 is not None else noise_scale(np.asarray(y))
 
 

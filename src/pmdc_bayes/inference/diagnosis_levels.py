@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io.channel import STEADY, ChannelId
+from .findings import NO_LOAD_SPEED
 from .levels import (
     LEVEL_MISS,
     direction_intercepts,
@@ -110,8 +112,9 @@ def level_rules(model, fit, preds, findings):
                         "zero speed: a friction torque that does not grow with speed (Coulomb "
                         "friction); fit with --friction coulomb", Proposal(COULOMB)))
     elif (icpt and "Vdrop" in model.registry and any(
-            f.where.startswith("steady") or f.where == "no-load speed"
-            for f in findings if f.severity == "fail")):
+            f.where in (ChannelId(STEADY, "speed"), ChannelId(STEADY, "current"),
+                        NO_LOAD_SPEED)
+            for f in findings if f.failed)):
         out.append("the steady levels miss the model even with a fitted voltage drop "
                    f"({float(fit.values['Vdrop']):.3g} V): the session's steady numbers "
                    "disagree with each other or with the traces (see the consistency "

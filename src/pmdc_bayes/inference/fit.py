@@ -13,6 +13,7 @@ minimum unnoticed, and the distinct optima they reach are counted.
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,7 +26,7 @@ from .objective import SessionModel
 from .optima import distinct_optima
 from .optimiser import Stepper
 
-__all__ = ["FitResult", "fit_map", "laplace"]
+__all__ = ["FitStatus", "FitResult", "fit_map", "laplace"]
 
 N_STARTS = 8
 START_SPREAD = 0.3
@@ -33,6 +34,13 @@ ABANDON_AFTER = 20  # accepted steps after which a start far below the best stop
 RELEVANT = 10.0
 MODE_SHARE = 0.01  # a distinct optimum this dense relative to the MAP joins its spread
 WIDE_SPREAD = 1.0  # least log spread of the starts over the prior's range
+
+
+class FitStatus(enum.StrEnum):
+    """Whether the MAP fit found an optimum it can stand by."""
+
+    CONVERGED = "converged"
+    FAILED = "failed"
 
 
 @dataclass(frozen=True)
@@ -44,18 +52,19 @@ class FitResult:
     theta : MAP in log space.
     values, sd : MAP and Laplace standard deviation per parameter (SI).
     cov_log : Laplace covariance in log space; ``corr`` its correlation matrix.
-    status : ``"converged"`` or ``"failed"``; ``message`` says why in words.
+    status : :class:`FitStatus`; ``message`` says why in words.
     starts : per start, where it began, its final log-posterior and whether it agreed
         with the best.
     n_modes : how many distinct optima the starts reached (the best is the MAP);
         ``mode_gaps`` how far below the MAP's log-posterior each of the others is.
-    weights : per-channel 1/σ² at the MAP; ``noise_sd`` the matching σ.
+    weights : per-channel 1/σ² at the MAP; ``noise_sd`` the matching σ by
+        :class:`~pmdc_bayes.io.channel.ChannelId`.
     iterations : optimistix steps (evaluations) of the best start.
     cov_map : the Laplace covariance of the MAP's own curvature, when ``cov_log`` spans
         several optima of nearly equal density (their mixture's); None otherwise.
     log_mass : the log of those optima's Laplace mass relative to the MAP's (0 for one).
     outcome : how the best start ended (:class:`~pmdc_bayes.inference.multistart.Outcome`); at
-        its step limit (``Outcome.MAX_STEPS``) the fit has ``status`` ``"failed"`` and
+        its step limit (``Outcome.MAX_STEPS``) the fit has ``status`` ``FitStatus.FAILED`` and
         its ``message`` says so first.
     """
 
@@ -66,7 +75,7 @@ class FitResult:
     cov_log: np.ndarray
     corr: np.ndarray
     log_posterior: float
-    status: str
+    status: FitStatus
     message: str
     starts: list = field(default_factory=list)
     weights: np.ndarray | None = None
@@ -80,7 +89,7 @@ class FitResult:
 
     @property
     def ok(self) -> bool:
-        return self.status == "converged"
+        return self.status is FitStatus.CONVERGED
 
     @property
     def overflows(self) -> bool:
@@ -226,7 +235,7 @@ def _finish(model, states, origins, evaluate) -> FitResult:
     values = dict(zip(model.names, map(float, vals), strict=True))
     sd = dict(zip(model.names, map(float, model.registry.sd_values(theta, sd_log)),
                   strict=True))
-    noise = {c.name: float(1.0 / np.sqrt(w[k])) for k, c in enumerate(model.channels) if c.n > 0}
+    noise = {c.id: float(1.0 / np.sqrt(w[k])) for k, c in enumerate(model.channels) if c.n > 0}
     reasons = []
     if not np.isfinite(logp[best]):
         reasons.append("no start reached a finite log-posterior (the model cannot "
@@ -241,7 +250,7 @@ def _finish(model, states, origins, evaluate) -> FitResult:
                        "overflow near it (check the magnitudes the session gives, such as a "
                        "known load's coefficients and curve)")
 
-    status = "failed" if reasons else "converged"
+    status = FitStatus.FAILED if reasons else FitStatus.CONVERGED
     n_agree = int(agree.sum())
     n_wide = sum(o == "over the prior's range" for o in origins)
     found = (f"{len(modes)} distinct optimum" if len(modes) == 1

@@ -9,7 +9,7 @@ import numpy as np
 from scipy.stats import t as student_t
 
 from .calibrate import Test
-from .findings import MATERIAL_FRACTION, Finding
+from .findings import MATERIAL_FRACTION, Check, Finding, Severity
 
 __all__ = ["outlier_test", "EDGE_FRACTION", "OUTLIER_WINDOW", "BURST"]
 
@@ -49,7 +49,7 @@ def _run_contrasts(r, ok, near, length):
     return c, use, z, np.maximum(3.0, count / (length + 1.0))
 
 
-def outlier_test(name, r, span, *, u=None, time=None, unit="", quantum=0.0) -> Test | None:
+def outlier_test(channel, r, span, *, u=None, time=None, unit="", quantum=0.0) -> Test | None:
     """Whether a reading, or a run of up to :data:`BURST` readings, jumps off its
     neighbours and back more than the noise allows.
 
@@ -116,7 +116,7 @@ def outlier_test(name, r, span, *, u=None, time=None, unit="", quantum=0.0) -> T
         fix = "leave those cells empty (missed readings) and fit again"
     how = (f"{times:.2g} times the sd of such a jump in the noise around it"
            if np.isfinite(times) else "where the readings around it do not move at all")
-    return Test(Finding("outlying reading", name, "fail",
+    return Test(Finding(Check.OUTLYING_READING, channel, Severity.FAIL,
                         f"{off}, {times:.2g} noise sd" if np.isfinite(times) else off,
                         f"{what}, {how} (a glitch: a dropped, saturated or corrupted "
                         f"reading); {fix}"), p, material)

@@ -101,9 +101,8 @@ def _coords(model, names) -> dict:
     traces = {tr.name for tr in model.session.traces}
     for nm, ch, (k, idx) in zip(names, model.channels, model.observation_selection(),
                                 strict=True):
-        trace_name, _, what = ch.name.rpartition(": ")
-        dim = f"{nm}_time" if t is not None and k < 3 and trace_name in traces \
-            and what in ("speed", "current", "position") else f"{nm}_dim"
+        dim = f"{nm}_time" if t is not None and k < 3 and ch.id.trace in traces \
+            and ch.id.signal in ("speed", "current", "position") else f"{nm}_dim"
         dims[nm] = [dim]
         coords[dim] = t[idx] if dim.endswith("_time") else np.arange(idx.size)
     return coords, dims

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..io.units import display_unit
 from ..physics.limited import PHASES
-from .findings import Finding
+from .findings import Check, Finding, Severity
 
 __all__ = ["bound_checks", "solver_checks", "drag_checks", "BOUND_Z", "CURVE_REACH"]
 
@@ -27,7 +27,7 @@ def solver_checks(model, fit) -> list:
         if not starts.size:
             continue
         out.append(Finding(
-            "solver", tr.name, "fail", f"{starts.size} segment(s)",
+            Check.SOLVER, tr.name, Severity.FAIL, f"{starts.size} segment(s)",
             f"{tr.name}: between input changes the motor changes regime more than "
             f"{PHASES} times (first in the segment from t = {starts[0]:.6g} s: the current "
             "ringing through zero under a voltage drop, or a rotor sticking and slipping "
@@ -48,7 +48,7 @@ def drag_checks(model) -> list:
         last, top = tr.drag.curve[-1][0], float(np.nanmax(np.abs(tr.speed)))
         if top > CURVE_REACH * last:
             out.append(Finding(
-                "known load", tr.name, "warn", f"{top / last:.3g}x its last point",
+                Check.KNOWN_LOAD, tr.name, Severity.WARN, f"{top / last:.3g}x its last point",
                 f"{tr.name}: the speed reaches {top:.4g} rad/s, {top / last:.3g} times the "
                 f"last point of its drag curve ({last:.4g} rad/s); beyond it the drag is "
                 "its last slope extended, which nothing measured: the fit there rests on "
@@ -73,7 +73,8 @@ def bound_checks(model, fit) -> list:
         if z < -BOUND_Z and sd_log[k] > 0.8 * width[k]:
             value = float(np.exp(fit.theta[k]))
             out.append(Finding(
-                "physical bound", spec.name, "fail", f"{-z:.2g} prior sd below its centre",
+                Check.PHYSICAL_BOUND, spec.name, Severity.FAIL,
+                f"{-z:.2g} prior sd below its centre",
                 f"{spec.name} is pressed against zero: the fit puts it at {value:.3g} "
                 f"{display_unit(spec.unit)}, {-z:.2g} prior sd below its prior's centre "
                 f"({np.exp(centre[k]):.3g}), where only the prior holds it: the data want "

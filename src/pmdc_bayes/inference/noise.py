@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..io.channel import ChannelId
 from ..io.lattice import quantum
 
 __all__ = ["Channel", "noise_scale", "typical_level", "quantum", "effective_fraction",
@@ -98,11 +99,16 @@ def quanta_passed(y: np.ndarray, q: float) -> int:
 class Channel:
     """A group of observations sharing one unknown noise level."""
 
-    name: str
+    id: ChannelId
     unit: str
     n: int
     s0: float
     alpha: float = 1.0  # share of the n readings with independent errors (effective_fraction)
+
+    @property
+    def name(self) -> str:
+        """The channel's name for people, ``"<trace>: <signal>"``."""
+        return str(self.id)
 
 
 def typical_level(x, mask) -> float:

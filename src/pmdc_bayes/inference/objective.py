@@ -104,8 +104,8 @@ class SessionModel(RigEffects, Predictions, Pointwise):
             d["noise_ar"] = coloured_data(self)
         return jax.tree_util.tree_map(to_device, d)
 
-    def _add(self, name, unit, n, s0, alpha=1.0) -> int:
-        self.channels.append(Channel(name, unit, int(n), float(s0), float(alpha)))
+    def _add(self, cid, unit, n, s0, alpha=1.0) -> int:
+        self.channels.append(Channel(cid, unit, int(n), float(s0), float(alpha)))
         return len(self.channels) - 1
 
     def structure_key(self) -> tuple:

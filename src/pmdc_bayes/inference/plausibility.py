@@ -9,11 +9,12 @@ import numpy as np
 from scipy.stats import norm
 from scipy.stats import t as student_t
 
+from ..io.channel import STEADY, ChannelId
 from ..io.position import speed_estimate, speed_window
 from ..physics import motor
 from .calibrate import Test, judged_alone, logged_quantum, replicates, session_rng, tail_p
 from .coloured import channel_rho, mean_se_factor
-from .findings import Finding, sig3
+from .findings import NO_LOAD_SPEED, Check, Finding, Severity, sig3
 from .levels import level_se, unloaded_levels
 from .noise import quantum, run_fraction
 from .nuisances import DEAD_ZONE_NAMES
@@ -34,9 +35,8 @@ def _as_logged(trace, w):
     t = np.asarray(trace.time, dtype=float)
     w = np.asarray(w, dtype=float)
     angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
-    read = np.isfinite(trace.position)
-    return speed_estimate(t, np.where(read, angle, np.nan),
-                          speed_window(t, trace.position))
+    angle = np.where(np.isfinite(trace.position), angle, np.nan)
+    return speed_estimate(t, angle, speed_window(t, trace.position))
 
 
 def rise_eligible(trace) -> bool:
@@ -80,7 +80,7 @@ def plausibility_tests(model, fit, preds, rng=None) -> tuple[dict, list, list]:
     rng = session_rng(session) if rng is None else rng
     p = fit.values
     noise_sd = getattr(fit, "noise_sd", {})
-    s0 = {c.name: c.s0 for c in model.channels}
+    s0 = {c.id: c.s0 for c in model.channels}
     rho = channel_rho(model, fit.theta) if hasattr(fit, "theta") else {}
     out, found, tests = {}, [], []
     logged = [float(np.max(np.abs(tr.current))) for tr in session.traces
@@ -102,7 +102,7 @@ def plausibility_tests(model, fit, preds, rng=None) -> tuple[dict, list, list]:
         if rise_eligible(tr):
             tests += _rise_test(model, k, tr, w, noise_sd, s0, rng, rises, rho)
         if tr.current is not None:
-            tests += _peak_test(tr, ia, noise_sd, s0, rng, rho.get(f"{tr.name}: current", 0.0))
+            tests += _peak_test(tr, ia, noise_sd, s0, rng, rho)
     out["rise_time"] = rises
     return out, found, tests
 
@@ -116,7 +116,7 @@ def _rise_test(model, k, tr, w, noise_sd, s0, rng, rises, rho) -> list:
                                                                 t_step)
     if obs is None or mod is None or not (obs > 0 and mod > 0):
         return []
-    name = f"{tr.name}: {'speed' if tr.speed_logged or tr.position is None else 'position'}"
+    name = ChannelId(tr.name, "speed" if tr.speed_logged or tr.position is None else "position")
     sigma = float(noise_sd.get(name, s0.get(name, 0.0)))
     quantum = logged_quantum(tr.speed) if tr.speed_logged else 0.0
     reps = [rise_time(tr.time, row, t_step) for row in
@@ -125,16 +125,16 @@ def _rise_test(model, k, tr, w, noise_sd, s0, rng, rises, rho) -> list:
     dt = float(np.median(np.diff(tr.time)))
     pv = tail_p(np.log(obs), reps, side="two", floor=dt / (np.sqrt(6.0) * mod))
     rises[tr.name] = {"observed": obs, "model": mod, "ratio": mod / obs, "p_value": pv}
-    return [Test(Finding("plausibility", f"{tr.name}: speed", "fail", f"x{mod / obs:.2g}",
-                         f"the model rises to 63 % in {sig3(mod)} s where the data take "
-                         f"{sig3(obs)} s"), pv)]
+    return [Test(Finding(Check.PLAUSIBILITY, ChannelId(tr.name, "speed"), Severity.FAIL,
+                         f"x{mod / obs:.2g}", f"the model rises to 63 % in {sig3(mod)} s "
+                         f"where the data take {sig3(obs)} s"), pv)]
 
 
-def _peak_test(tr, ia, noise_sd, s0, rng, rho=0.0) -> list:
+def _peak_test(tr, ia, noise_sd, s0, rng, rho) -> list:
     """The largest logged |current| against its distribution on replicates of the MAP:
     a model whose current peaks where the data's never reach (one-sided); a sample's
     change at the model's peak bounds the resolution."""
-    name = f"{tr.name}: current"
+    name = ChannelId(tr.name, "current")
     sigma = float(noise_sd.get(name, s0.get(name, 0.0)))
     quantum = logged_quantum(tr.current)
     obs, peak = float(np.max(np.abs(tr.current))), float(np.max(np.abs(ia)))
@@ -142,11 +142,11 @@ def _peak_test(tr, ia, noise_sd, s0, rng, rho=0.0) -> list:
         return []
     reps = np.concatenate([np.log(np.max(np.abs(b), axis=1)) for b in
                            replicates(ia, sigma, rng, quantum=quantum,
-                                      origin=float(tr.current[0]), rho=rho)])
+                                      origin=float(tr.current[0]), rho=rho.get(name, 0.0))])
     j = int(np.argmax(np.abs(ia)))
     step = float(np.max(np.abs(np.diff(np.abs(ia[max(j - 1, 0):j + 2]))), initial=0.0))
     pv = tail_p(np.log(obs), reps, side="lower", floor=step / (np.sqrt(6.0) * peak))
-    return [Test(Finding("plausibility", name, "fail", f"x{peak / obs:.2g}",
+    return [Test(Finding(Check.PLAUSIBILITY, name, Severity.FAIL, f"x{peak / obs:.2g}",
                          f"the model's current peaks at {sig3(peak)} A but the logged current "
                          f"never passes {sig3(obs)} A"), pv, peak > obs)]
 
@@ -205,11 +205,11 @@ def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict, rho: dict) -> float:
     window's length.  A coloured speed's (``rho``, :mod:`.coloured`) averages away
     more slowly."""
     if tr.speed_logged:
-        name = f"{tr.name}: speed"
+        name = ChannelId(tr.name, "speed")
         sd = float(noise_sd.get(name, s0.get(name, 0.0))) * mean_se_factor(rho.get(name, 0.0))
         independent = max(1.0, n * run_fraction(np.asarray(tr.speed)[-n:]))
         return float(np.hypot(sd / np.sqrt(independent), _quantiser_bias_sd(tr.speed, sd)))
-    name = f"{tr.name}: position"
+    name = ChannelId(tr.name, "position")
     span = float(tr.time[-1] - tr.time[-n])
     sd = float(noise_sd.get(name, s0.get(name, 0.0)))
     return np.sqrt(2.0) * sd / span if span > 0 else 0.0
@@ -256,7 +256,7 @@ def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
         # is ν0 pseudo-readings at s0, so marginally its miss is Student's t with ν0
         # degrees at scale s0; the other readings' scatter about the model is not the
         # reference (a model that misses every reading would raise its own yardstick)
-        expected, se = w_mod, s0.get("steady: speed", 0.0)
+        expected, se = w_mod, s0.get(ChannelId(STEADY, "speed"), 0.0)
         dof = NU0
     else:
         k = [t.name for t in model.session.traces].index(names[j])
@@ -278,7 +278,7 @@ def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
     out["no_load_speed"]["p_value"] = pv
     d = _digits(w_mod, float(w_obs))
     ratio = w_mod / w_obs if w_obs else 0.0
-    return [Test(Finding("plausibility", "no-load speed", "fail",
+    return [Test(Finding(Check.PLAUSIBILITY, NO_LOAD_SPEED, Severity.FAIL,
                          f"x{ratio:.{_digits(ratio, 1.0)}g}" if w_obs else "logged 0",
                          f"the model's no-load speed at {sig3(float(v))} V is {w_mod:.{d}g} "
                          f"rad/s where the session settles at {float(w_obs):.{d}g} rad/s"),

@@ -18,7 +18,7 @@ from scipy.stats import norm
 
 from .calibrate import Test, ratio_p, replicates, tail_p
 from .coloured import innovation_scale
-from .findings import MATERIAL_FRACTION, Finding
+from .findings import MATERIAL_FRACTION, Check, Finding, Severity
 from .glitches import outlier_test
 from .noise import noise_scale
 from .residual_stats import fit_percent, systematic_misfit, whiteness
@@ -57,14 +57,10 @@ def autocorrelation(r, lags: int):
     return rho, q
 
 
-def _finding(check, name, severity, size, message):
-
-    return Finding(check, name, severity, size, message)
-
-
-def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, time=None,
+def channel_tests(channel, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, time=None,
                   unit=""):
-    """The figures of one trace channel (a row of the report's table) and its tests.
+    """The figures of one trace channel (:class:`~pmdc_bayes.io.channel.ChannelId`; a row
+    of the report's table) and its tests.
     ``quantum`` is the resolution the channel was logged at (0: not quantised); on a
     quantised channel every statistic is calibrated by the bootstrap.  A channel whose
     noise is coloured (lag-1 correlation ``rho``, :mod:`.coloured`) is checked on its
@@ -75,7 +71,7 @@ def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, tim
     y, yhat = np.asarray(y, float), np.asarray(yhat, float)
     r = y - yhat
     span = float(np.max(y) - np.min(y)) or float(np.max(np.abs(y))) or 1.0
-    glitch = outlier_test(name, r, span, u=u, time=time, unit=unit, quantum=quantum)
+    glitch = outlier_test(channel, r, span, u=u, time=time, unit=unit, quantum=quantum)
     if rho != 0.0:
         r = np.concatenate([[np.sqrt(1.0 - rho * rho) * r[0]], r[1:] - rho * r[:-1]])
         s0 = s0 * innovation_scale(rho)
@@ -116,12 +112,12 @@ def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, tim
     size = (f"noise sd {sigma:.3g} fitted against {s0:.3g} from the data "
             f"(x{inflation:.3g}); systematic misfit {100 * sys_rms / span:.2g} % of the span; "
             f"fit {row['fit_percent_map']:.1f} %")
-    fails = [Test(_finding("systematic misfit", name, "fail", size,
+    fails = [Test(Finding(Check.SYSTEMATIC_MISFIT, channel, Severity.FAIL, size,
                            f"the model misses the data systematically "
                            f"({100 * sys_rms / span:.2g} % of the span; its noise sd is "
                            f"x{inflation:.3g} the data's own)"),
                   p_slow, sys_rms / span > MATERIAL_FRACTION),
-             Test(_finding("residual whiteness", name, "fail",
+             Test(Finding(Check.RESIDUAL_WHITENESS, channel, Severity.FAIL,
                            f"lag-1 autocorrelation {white['rho1']:.2f}",
                            f"the noise is strongly anti-correlated (lag-1 autocorrelation "
                            f"{white['rho1']:.2f}), so it is not the white noise the "
@@ -129,14 +125,14 @@ def channel_tests(name, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, tim
     if glitch is not None:
         fails.append(glitch)
         row["outlier_p"] = glitch.p_value
-    warns = [Test(_finding("residual whiteness", name, "warn", size,
+    warns = [Test(Finding(Check.RESIDUAL_WHITENESS, channel, Severity.WARN, size,
                            "the residuals are not white but the misfit is small; "
                            "intervals may be somewhat optimistic"), p_white),
-             Test(_finding("noise inflation", name, "warn", f"x{inflation:.3g}",
+             Test(Finding(Check.NOISE_INFLATION, channel, Severity.WARN, f"x{inflation:.3g}",
                            f"the fitted noise sd is x{inflation:.3g} the data's own: part of "
                            "the misfit is taken for noise"), p_infl)]
     if p_xcorr is not None:
-        warns.append(Test(_finding("input correlation", name, "warn",
+        warns.append(Test(Finding(Check.INPUT_CORRELATION, channel, Severity.WARN,
                                    f"{white['input_xcorr']:.2f}",
                                    "the residuals follow the input: part of its effect is "
                                    "not modelled"), p_xcorr))

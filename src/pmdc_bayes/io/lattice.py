@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .channel import ChannelId
+
 __all__ = ["quantum", "analogue", "analogue_channels"]
 
 
@@ -32,7 +34,7 @@ def analogue(y) -> bool:
     return y.size > 2 and quantum(y) == 0.0
 
 
-def analogue_channels(session) -> dict[str, str]:
+def analogue_channels(session) -> dict[ChannelId, str]:
     """Every channel ``coloured_noise`` may give a correlation, to its trace: each driven
     trace's logged speed and current, each coast-down's speed, where analogue."""
     out = {}
@@ -40,7 +42,7 @@ def analogue_channels(session) -> dict[str, str]:
         for what, y in (("speed", tr.speed if tr.speed_logged else None),
                         ("current", tr.current)):
             if y is not None and analogue(y):
-                out[f"{tr.name}: {what}"] = tr.name
-    out.update({f"{tr.name}: speed": tr.name for tr in session.coast_downs
+                out[ChannelId(tr.name, what)] = tr.name
+    out.update({ChannelId(tr.name, "speed"): tr.name for tr in session.coast_downs
                 if analogue(tr.speed)})
     return out

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .._format import row_format
+from ..inference.findings import Severity
 from ..io.units import display_unit
 from ._doc import Bullets, Paragraph, Section, Table, fmt
 
@@ -24,8 +25,8 @@ def adequacy_section(ctx) -> Section | None:
     if not a:
         return None
     sec = Section("Model adequacy")
-    fails = [f for f in a["findings"] if f["severity"] == "fail"]
-    warns = [f for f in a["findings"] if f["severity"] != "fail"]
+    fails = [f for f in a["findings"] if Severity(f["severity"]) is Severity.FAIL]
+    warns = [f for f in a["findings"] if Severity(f["severity"]) is not Severity.FAIL]
     if fails:
         sec.add(Paragraph("VERDICT: MODEL INADEQUATE. The data reject the fitted model; "
                           "the numbers in this report describe a misfit. What failed (each "

@@ -6,6 +6,7 @@ import re
 
 import numpy as np
 
+from ..inference.findings import Verdict
 from ._doc import Bullets, Figure, Paragraph, Section, Table, fmt
 from ._render import later
 from ._view import METHODS
@@ -46,7 +47,7 @@ def _glance(ctx) -> Section:
 
     s = ctx.summary
     sec = Section("At a glance")
-    adequate = s.get("adequacy", {}).get("verdict", "adequate") == "adequate"
+    adequate = Verdict.of(s) is Verdict.ADEQUATE
     sec.add(Paragraph(
         ("Model adequate: the data do not reject the fitted model." if adequate else
          "MODEL INADEQUATE: the data reject the fitted model; every number below is "
@@ -107,7 +108,7 @@ def _published(ctx):
 
 def _parameters(ctx) -> Section:
     sec = Section("Parameters")
-    if ctx.summary.get("adequacy", {}).get("verdict") == "inadequate":
+    if Verdict.of(ctx.summary) is Verdict.INADEQUATE:
         sec.add(Paragraph(CONDITIONAL))
     sec.add(parameter_table(ctx))
     sec.add(Figure("forest", "Every parameter on a common relative scale: closed form, MAP ± 2 "

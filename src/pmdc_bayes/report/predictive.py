@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..inference.objective import noise_scale
+from ..io.channel import ChannelId
 from ._view import BAND, METHODS, TracePrediction, _measured, trace_channels
 
 __all__ = ["TracePrediction", "predict_traces", "trace_channels", "BAND", "METHODS"]
@@ -38,7 +39,7 @@ def predict_traces(model, values: dict, draws, noise_sd: dict, *, seed: int = 0,
     model : a :class:`pmdc_bayes.inference.objective.SessionModel`.
     values : ``{"closed_form": {...}, "map": {...}}`` SI parameter values by name.
     draws : ``(N, P)`` SI posterior draws in ``model.names`` order, or None.
-    noise_sd : fitted noise sd per channel name (``"<trace>: speed"``); a trace
+    noise_sd : fitted noise sd per channel, by its text (``"<trace>: speed"``); a trace
         without one (held out of the fit) gets the model-free estimate from its data.
     seed : seeds the simulated measurement noise of the predictive.
     """
@@ -60,7 +61,7 @@ def predict_traces(model, values: dict, draws, noise_sd: dict, *, seed: int = 0,
     out = []
     for k, tr in enumerate(model.session.traces):
         channels = trace_channels(tr)
-        noise = {c: float(noise_sd.get(f"{tr.name}: {c}")
+        noise = {c: float(noise_sd.get(str(ChannelId(tr.name, c)))
                           or noise_scale(_finite(_measured(tr, c))))
                  for c in channels}
         sims = {m: {"current": r[k][0], "speed": r[k][1], "position": r[k][2]}
