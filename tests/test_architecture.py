@@ -1,7 +1,8 @@
 """The dependency rule of docs/architecture.md holds in the code: the contracts of
 ``pyproject.toml`` (import-linter: the layers, private modules, no import cycle among a
 package's modules, the simulators beside the stages) are kept, and every module of the
-package sits in a layer or beside them, so that a new one cannot escape the rule."""
+package sits in a layer or beside them, so that a new one cannot escape the rule; and
+no module grows past the size of one concern."""
 
 import tomllib
 from pathlib import Path
@@ -11,6 +12,7 @@ from importlinter.cli import lint_imports
 import pmdc_bayes
 
 CONFIG = Path(__file__).resolve().parents[1] / "pyproject.toml"
+MAX_LINES = 300
 
 
 def test_the_import_contracts_are_kept():
@@ -27,3 +29,11 @@ def test_every_module_of_the_package_is_in_a_layer_or_beside_them():
            for p in Path(pmdc_bayes.__file__).parent.iterdir()
            if (p.suffix == ".py" and p.stem != "__init__") or (p / "__init__.py").is_file()}
     assert top - named == set()
+
+
+def test_no_module_of_the_package_is_over_300_lines():
+    """A module holds one concern: past 300 lines it holds more, and is split."""
+    root = Path(pmdc_bayes.__file__).parent
+    long = {str(p.relative_to(root)): n for p in root.rglob("*.py")
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_LINES}
+    assert long == {}

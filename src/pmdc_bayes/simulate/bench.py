@@ -9,9 +9,8 @@ is integrated with :func:`scipy.integrate.solve_ivp` (LSODA, ``rtol=1e-8``), ind
 of :mod:`pmdc_bayes.physics`, with the non-idealities of real benches switched on one by
 one in :class:`BenchMotor`: dead time, sensor lag, brush drop, supply source
 resistance, a current-limited driver, undeclared load, speed-sensor gain error and an
-encoder-based speed estimate.  Because
-the session declares only the ideal inputs, a fit of the package's model to such a
-session is misspecified in a known way.
+encoder-based speed estimate.  Because the session declares only the ideal inputs, a
+fit of the package's model to such a session is misspecified in a known way.
 
 Smoothing: ``sign(ω)`` is ``tanh(ω/ω_eps)`` with ``ω_eps`` = 1e-3 × the no-load speed at
 the largest voltage of the session, blended with static friction so that a motor at rest
@@ -38,7 +37,6 @@ from ._encoder import EDGE_FINE, encoder_trace_parts
 from ._lsoda import integrate
 
 __all__ = ["BenchMotor", "StepSpec", "bench_session", "steady_point", "integrate"]
-
 
 
 @dataclass(frozen=True)
@@ -269,16 +267,9 @@ def bench_session(motor: BenchMotor, steps: Sequence[StepSpec], *, seed: int = 0
     name : str
         Session name.
 
-    Returns
-    -------
-    Session
-        With ``truth`` = the true ``Ra, La, K, B, J, Tc``; traces declare only the
-        commanded voltage and the declared load.
-
-    Raises
-    ------
-    ValueError
-        For duplicate trace names, ``extra_load`` naming no trace, or a bad step.
+    Returns the :class:`Session`, with ``truth`` the true ``Ra, La, K, B, J, Tc``; its
+    traces declare only the commanded voltage and the declared load.  Raises
+    ``ValueError`` for duplicate trace names, ``extra_load`` naming no trace, or a bad step.
     """
     m, steps = motor, tuple(steps)
     names = [s.name for s in steps]
