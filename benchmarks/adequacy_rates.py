@@ -33,10 +33,10 @@ import numpy as np
 from _common import REPORT, replace_section
 
 from pmdc_bayes._errors import SessionError
-from pmdc_bayes.inference.adequacy import assess
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.bench import bench_session
 from pmdc_bayes.simulate.cases import CASES, SPEED_ONLY, case_session, random_motor

@@ -3,7 +3,7 @@
 The same motor model, equations (5)–(6) with viscous friction, integrated with
 ``scipy.integrate.solve_ivp`` (LSODA, rtol 1e-6, atol 1e-8, the analytic Jacobian
 given, the integration restarted at every input breakpoint so that no step straddles
-a jump), and the same log-posterior as :mod:`pmdc_bayes.inference.objective`, written in plain
+a jump), and the same log-posterior as :mod:`pmdc_bayes.inference.model.objective`, written in plain
 NumPy: the same channels (each trace's speed and current, the steady speeds, the
 steady currents, the step readings' time constants), each channel's noise integrated
 out, ``−(n_c + ν0)/2 · log(ν0·s0_c² + SS_c)`` with ν0 = 2 and the same data-derived

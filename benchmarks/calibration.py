@@ -40,11 +40,11 @@ from _common import REPORT, replace_section
 from scipy import stats
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference.adequacy import assess
-from pmdc_bayes.inference.fit import fit_map, laplace
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.optimiser import Stepper
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.fit.joint import fit_map, laplace
+from pmdc_bayes.inference.fit.optimiser import Stepper
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import NON_IDEALITIES, fuzz_session
 
@@ -90,7 +90,7 @@ def mcmc_z(model, fit, truth: dict, seed: int) -> tuple[dict[str, float], bool]:
     ``Φ⁻¹(share of draws below the truth)``, so that a central interval of level L covers
     the truth when |z| ≤ Φ⁻¹(½ + L/2) as for the Laplace z; and whether the sampler's
     gates passed."""
-    from pmdc_bayes.inference.sampling import gates, sample_posterior, summarize
+    from pmdc_bayes.inference.sampling.posterior import gates, sample_posterior, summarize
 
     post = sample_posterior(model, fit, seed=seed, progress=False)
     draws = post.draws_si()

@@ -25,10 +25,10 @@ from pathlib import Path
 from _common import REPORT, replace_section
 from calibration import coverage_rows, laplace_z
 
-from pmdc_bayes.inference.adequacy import assess
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.search import run_search
 from pmdc_bayes.simulate.fuzz import fuzz_session

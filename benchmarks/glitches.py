@@ -25,11 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from pmdc_bayes.inference.adequacy import assess
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.noise import noise_scale
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.model.noise import noise_scale
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import fuzz_plan, fuzz_session
 

@@ -44,11 +44,12 @@ import jax.numpy as jnp
 import numpy as np
 from _common import ROOT, cli_command, run_measured, write_table_section
 
-from pmdc_bayes.inference import cache, ensembles
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.sampling import _log_posterior_batch, sample_posterior
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference import _runtime as cache
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
+from pmdc_bayes.inference.sampling import ensembles
+from pmdc_bayes.inference.sampling.posterior import _log_posterior_batch, sample_posterior
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.session import simulate_session
 
@@ -196,7 +197,7 @@ def main(argv=None) -> int:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        cache.enable(tmp / "cache-in-process")
+        cache.enable_cache(tmp / "cache-in-process")
         session = load_session(ROOT / "data" / "demo")
         model = build_model(session, fit_seed(session))
         fit = fit_map(model)

@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from pmdc_bayes.inference.motor_evidence import motor_evidence
-from pmdc_bayes.inference.pooling import analyse_lot
+from pmdc_bayes.inference.population.motor_evidence import motor_evidence
+from pmdc_bayes.inference.population.pooling import analyse_lot
 
 NAMES = ("K", "B", "J", "Ra")
 MU = np.log([0.05, 2e-5, 2e-5, 2.0])
@@ -61,7 +61,7 @@ def main(argv=None) -> int:
     ap.add_argument("--lots", type=int, default=20)
     ap.add_argument("--motors", type=int, default=24)
     args = ap.parse_args(argv)
-    from pmdc_bayes.inference.correlation import correlations
+    from pmdc_bayes.inference.model.correlation import correlations
 
     for label, corr in (("independent", np.eye(4)), ("correlated", correlated())):
         fitted = flagged = 0

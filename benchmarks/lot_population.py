@@ -6,7 +6,7 @@ and the population stage's cost as the lot grows.
    warm (a first run fills it): wall time, motors per minute, the ratio, peak memory;
    with ``--sizes``, lots of other sizes (the first motors of the same folder) on 2
    workers, warm: the whole command's cost per motor as the lot grows.
-2. The population stage alone (``inference.pooling.analyse_lot``) on simulated lots of
+2. The population stage alone (``inference.population.pooling.analyse_lot``) on simulated lots of
    50, 100 and 200 motors whose evidence is draws (reweighted) or Gaussians: seconds,
    seconds per motor.
 
@@ -29,8 +29,8 @@ import numpy as np
 from _common import cli_command, run_measured, write_table_section
 from lot import make_lot
 
-from pmdc_bayes.inference.motor_evidence import motor_evidence
-from pmdc_bayes.inference.pooling import analyse_lot
+from pmdc_bayes.inference.population.motor_evidence import motor_evidence
+from pmdc_bayes.inference.population.pooling import analyse_lot
 
 SECTION = "A production lot"
 NAMES = ("K", "B", "J", "Ra")
@@ -142,7 +142,7 @@ def main(argv=None) -> int:
              "command (cluster start, fits, population stage, files) and the peak resident "
              "memory GNU time reports for it (the largest of the command and the processes "
              "it waited for).  Second table: the population stage alone "
-             "(`inference.pooling.analyse_lot`: the independent and the correlated "
+             "(`inference.population.pooling.analyse_lot`: the independent and the correlated "
              "population sampled and compared, outliers tested, pooled values) on "
              "simulated lots of 4 parameters, each motor's evidence "
              "4,000 posterior draws (thinned to 200 and reweighted) or its Gaussian.")

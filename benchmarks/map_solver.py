@@ -30,10 +30,10 @@ WARM_REPS = 3
 def _one(path: str) -> dict:
     import numpy as np
 
-    from pmdc_bayes.inference import cache
-    from pmdc_bayes.inference.fit import fit_map
-    from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.inference.seed import fit_seed
+    from pmdc_bayes.inference import _runtime as cache
+    from pmdc_bayes.inference.fit.joint import fit_map
+    from pmdc_bayes.inference.model.objective import build_model
+    from pmdc_bayes.inference.model.seed import fit_seed
     from pmdc_bayes.io.loader import load_session
 
     session = load_session(path)

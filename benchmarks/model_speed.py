@@ -40,7 +40,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 from _common import replace_section  # noqa: E402  (benchmarks/ is on sys.path)
 
-from pmdc_bayes.inference.objective import NU0, build_model  # noqa: E402
+from pmdc_bayes.inference.model.objective import NU0, build_model  # noqa: E402
 from pmdc_bayes.io.bundled import bundled_session_dir  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402

@@ -22,8 +22,8 @@ import numpy as np
 from _common import REPORT, replace_section
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.io.session import NUISANCES, Drag

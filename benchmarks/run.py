@@ -45,12 +45,20 @@ import numpy as np  # noqa: E402
 from _common import REPORT, ROOT, cli_command, load_baseline, replace_section, run_measured  # noqa: E402
 from model_speed import _fmt_rate, _load, _machine, _measure, _per_trace_log_posterior  # noqa: E402
 
-from pmdc_bayes.inference.arviz_import import az  # noqa: E402
-from pmdc_bayes.inference.ensembles import ENSEMBLES  # noqa: E402
-from pmdc_bayes.inference.fit import fit_map  # noqa: E402
-from pmdc_bayes.inference.moves import SHARE_TRUSTED, LaplaceIndependenceMove, LaplaceMixture  # noqa: E402
-from pmdc_bayes.inference.objective import build_model  # noqa: E402
-from pmdc_bayes.inference.sampling import default_moves, sample_posterior, to_inference_data  # noqa: E402
+from pmdc_bayes.inference.fit.joint import fit_map  # noqa: E402
+from pmdc_bayes.inference.model.objective import build_model  # noqa: E402
+from pmdc_bayes.inference.sampling.arviz_import import az  # noqa: E402
+from pmdc_bayes.inference.sampling.ensembles import ENSEMBLES  # noqa: E402
+from pmdc_bayes.inference.sampling.moves import (  # noqa: E402
+    SHARE_TRUSTED,
+    LaplaceIndependenceMove,
+    LaplaceMixture,
+)
+from pmdc_bayes.inference.sampling.posterior import (  # noqa: E402
+    default_moves,
+    sample_posterior,
+    to_inference_data,
+)
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.io.session import Measurement, Schedule, Session, Trace  # noqa: E402
 from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402

@@ -4,7 +4,7 @@ For each seed, a fuzzed in-class session (:func:`pmdc_bayes.simulate.fuzz.fuzz_s
 the bench simulator) is fitted (``fit_seed``, ``build_model``, ``fit_map``) and its
 posterior sampled twice with the default stopping rule and step budget: with every
 parameter moving in θ (log for a positive quantity: ``coordinates.CLEARLY = inf``) and
-with the coordinates :mod:`pmdc_bayes.inference.coordinates` chooses by the
+with the coordinates :mod:`pmdc_bayes.inference.sampling.coordinates` chooses by the
 log-posterior's own curvature at the MAP (``exact_laplace``): θ, value or the motor's
 constants (the same run, not repeated, where it chooses θ).  Per run:
 how the sampler stopped, its steps, the largest autocorrelation time and its parameter,
@@ -29,12 +29,12 @@ from _common import write_table_section
 from scipy import stats
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference import coordinates
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.logprob import LogProb, batch_log_posterior
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.sampling import gates, sample_posterior, summarize
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
+from pmdc_bayes.inference.sampling import coordinates
+from pmdc_bayes.inference.sampling.logprob import LogProb, batch_log_posterior
+from pmdc_bayes.inference.sampling.posterior import gates, sample_posterior, summarize
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import fuzz_session
 

@@ -147,6 +147,6 @@ def _release_compiled_programs():
     """Drop the compiled programs of a test module after it: hundreds of them kept in one
     process exhaust the compiler's memory on a 2-core CI machine."""
     yield
-    from pmdc_bayes.inference import cache
+    from pmdc_bayes.inference import _runtime as cache
 
     cache.release()

@@ -11,7 +11,7 @@ import jax
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pmdc_bayes.inference.objective import build_model  # noqa: E402
+from pmdc_bayes.inference.model.objective import build_model  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.simulate.session import simulate_session  # noqa: E402

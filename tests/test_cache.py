@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from pmdc_bayes import cachedir, cli
-from pmdc_bayes.inference import cache
+from pmdc_bayes.inference import _runtime as cache
 
 
 @pytest.fixture

@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference.adequacy import assess
-from pmdc_bayes.inference.coloured import ar_name, previous_index, start_residuals
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.noise import NU0
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.model.coloured import ar_name, previous_index, start_residuals
+from pmdc_bayes.inference.model.noise import NU0
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.io.session import Session
@@ -239,7 +239,7 @@ def test_the_simulators_coloured_speed_noise_has_its_correlation_and_sd(tmp_path
 
 
 def test_a_quantised_channels_row_records_white_noise():
-    from pmdc_bayes.inference.trace_checks import channel_tests
+    from pmdc_bayes.inference.adequacy.trace_checks import channel_tests
 
     rng = np.random.default_rng(2)
     yhat = np.linspace(0.0, 50.0, 400)

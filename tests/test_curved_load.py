@@ -15,7 +15,7 @@ import pytest
 from conftest import replace_once
 
 from pmdc_bayes._errors import SessionError
-from pmdc_bayes.inference.model_checks import drag_checks
+from pmdc_bayes.inference.adequacy.model_checks import drag_checks
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.io.session import Drag
 from pmdc_bayes.simulate.session import simulate_session
@@ -156,7 +156,7 @@ def test_a_record_of_no_drag_and_a_speed_only_session_whose_traces_all_carry_one
     import numpy as np
 
     import pmdc_bayes
-    from pmdc_bayes.inference.seed import fit_seed
+    from pmdc_bayes.inference.model.seed import fit_seed
 
     t = np.linspace(0.0, 1.0, 201)
     w = 100 * (1 - np.exp(-np.maximum(t - 0.1, 0.0) / 0.1))

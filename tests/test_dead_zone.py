@@ -10,13 +10,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.adequacy import assess
-from pmdc_bayes.inference.diagnosis_levels import _asymmetry_rule
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.levels import direction_intercepts
-from pmdc_bayes.inference.nuisances import nuisance_specs
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.adequacy.diagnosis_levels import _asymmetry_rule
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.model.levels import direction_intercepts
+from pmdc_bayes.inference.model.nuisances import nuisance_specs
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.physics.motor import driver_output
 from pmdc_bayes.search import ADD_MARGIN, search_model
@@ -159,7 +159,7 @@ def test_a_levels_standard_error_holds_when_a_filter_colours_the_readings(rho):
     ``level_se`` gives is within 20 % of the means' own scatter (read as white, a
     filter at ρ = 0.9 made it 16 times too small, and the two directions' intercepts
     differ by 'many standard errors' on a symmetric driver)."""
-    from pmdc_bayes.inference.levels import level_se
+    from pmdc_bayes.inference.model.levels import level_se
 
     rng = np.random.default_rng(7)
     n, means, ses = 300, [], []
@@ -178,7 +178,7 @@ def test_a_levels_standard_error_is_not_coloured_by_a_drift_or_a_quantiser():
     """White readings on a slow drift (what `settled` lets pass) and a quantised level
     that crosses one step: the white error, not an AR(1) one from the drift or the
     step read as correlation (which made it ~170 times too large)."""
-    from pmdc_bayes.inference.levels import level_se
+    from pmdc_bayes.inference.model.levels import level_se
 
     rng = np.random.default_rng(3)
     drift = 100.0 + np.linspace(0.0, 0.5, 300) + rng.standard_normal(300)

@@ -9,7 +9,7 @@ from __future__ import annotations
 from ._errors import EXIT_FAILED, EXIT_INADEQUATE
 from ._format import row_format
 from ._headline import headline_text, pi_loop_text, spread_text
-from .inference.findings import Severity
+from .inference.adequacy.findings import Severity
 from .io.units import display_unit
 
 __all__ = ["print_fit", "print_adequacy", "gate_failure_text", "run_outcome"]

@@ -12,7 +12,7 @@ import html
 import math
 
 from ._format import off_by, row_format, spread_format
-from .inference.findings import Verdict
+from .inference.adequacy.findings import Verdict
 from .io.units import display_unit
 
 __all__ = ["headline_rows", "fit_table", "fit_lines", "determinability", "pi_loop_text",

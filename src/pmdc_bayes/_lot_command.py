@@ -71,8 +71,8 @@ def write_lot_files(out: Path, runs, record, pop) -> list[Path]:
     if pop is None:  # an earlier lot's population is not this lot's
         clear_lot_files(out, keep=("lot.csv", "lot.json"))
     else:
-        from .inference.arviz_import import az
-        from .inference.correlation import correlations
+        from .inference.model.correlation import correlations
+        from .inference.sampling.arviz_import import az
         from .report.lot_figure import lot_figure
 
         def chains(x):
@@ -104,8 +104,8 @@ def run_lot_command(args, *, note=None) -> int:
     :mod:`.lot`)."""
     from . import cachedir
     from ._cores import usable_cores
-    from .inference.motor_evidence import subset
-    from .inference.pooling import analyse_lot
+    from .inference.population.motor_evidence import subset
+    from .inference.population.pooling import analyse_lot
 
     if args.scheduler and args.workers:
         raise UsageError("--workers sizes a local cluster; drop it with --scheduler")

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 
 from ._errors import SessionError, UsageError
-from .inference.cache import StageClock
+from .inference import StageClock
 from .io.bundled import session_path
 from .io.loader import load_session
 from .io.session import NUISANCES, Session

@@ -43,10 +43,10 @@ def enable() -> bool:
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    from .inference import cache
+    from .inference import enable_cache
 
     try:
-        cache.enable(location())
+        enable_cache(location())
     except OSError:
         return False
     return True
@@ -67,10 +67,10 @@ def use_cache(path=None) -> Path:
     cache directory, a process-wide JAX setting, and nothing else (JAX's 64-bit mode is
     left as it is).  Raises ``OSError`` when the directory cannot be created.
     """
-    from .inference import cache
+    from .inference import enable_cache
 
     root = location() if path is None else Path(path)
-    cache.enable(root)
+    enable_cache(root)
     return root
 
 

@@ -12,11 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .inference.adequacy import assess
-from .inference.fit import fit_map
-from .inference.identifiability import PRIOR_DOMINATED
-from .inference.objective import build_model
-from .inference.seed import fit_seed
+from .inference.adequacy.assess import assess
+from .inference.fit.identifiability import PRIOR_DOMINATED
+from .inference.fit.joint import fit_map
+from .inference.model.objective import build_model
+from .inference.model.seed import fit_seed
 from .io.session import Session
 from .selection import laplace_log_evidence
 from .terms import label, ordered, with_terms
@@ -102,7 +102,7 @@ class Candidate:
 
     @property
     def adequacy(self):
-        """The verdict on the candidate (:func:`~.inference.adequacy.assess`), made when
+        """The verdict on the candidate (:func:`~.inference.adequacy.assess.assess`), made when
         first asked for: the search asks only of the candidates its choice turns on."""
         if self._adequacy is None:
             self._adequacy = assess(self.model, self.fit, self.cf)
@@ -115,7 +115,7 @@ class Candidate:
 
     def run(self, seed: int, superset=None) -> None:
         """Fit, check and score the candidate; in ``superset``'s compiled programs (a
-        :class:`~.inference.superset.Superset` that covers it) when given."""
+        :class:`~.inference.fit.superset.Superset` that covers it) when given."""
         starts = [] if self.parent is None else [nested_start(self.model, self.parent.fit)]
         if superset is None:
             self.fit = fit_map(self.model, seed=seed, alternatives=starts)

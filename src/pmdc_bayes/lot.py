@@ -1,6 +1,6 @@
 """A production lot (``pmdc-bayes lot``): each motor's session fitted on its own, on a
 Dask cluster (a local one of one worker per core by default, or an existing one), then
-the lot as a population (:mod:`.inference.pooling`) where the command runs.
+the lot as a population (:mod:`.inference.population.pooling`) where the command runs.
 
 A motor is fitted by :func:`fit_motor` in a worker process, which keeps compiled
 programs in the shared disk cache so that the motors after the first of a session
@@ -64,7 +64,7 @@ def fit_motor(session: Path, out: Path, *, name: str, mcmc: bool = True, seed: i
     """Fit one motor's session into ``out`` (in a worker process): its status and, when
     it passed, its evidence about every motor parameter it has."""
     from . import cachedir
-    from .inference.motor_evidence import from_run
+    from .inference.population.motor_evidence import from_run
     from .pipeline import run_fit
     from .readback import read_run
 

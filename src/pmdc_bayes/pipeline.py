@@ -14,12 +14,12 @@ import numpy as np
 from . import posterior_stage as _stage
 from ._errors import FitFailed, UsageError
 from ._x64 import x64
-from .inference.adequacy import assess
-from .inference.cache import StageClock, announcing
-from .inference.fit import fit_map
-from .inference.identifiability import identifiability
-from .inference.objective import build_model
-from .inference.seed import fit_seed, refuse_reversed
+from .inference import StageClock, announcing
+from .inference.adequacy.assess import assess
+from .inference.fit.identifiability import identifiability
+from .inference.fit.joint import fit_map
+from .inference.model.objective import build_model
+from .inference.model.seed import fit_seed, refuse_reversed
 from .inference.warmup import WarmUp
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
@@ -70,7 +70,7 @@ def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | Non
     run's result.  ``say``, when given, is called with a line as each stage starts.
     ``fitted`` (a :class:`~.search.Fitted` of this session's model, as the model search
     leaves it) stands for the closed form, MAP and adequacy stages; ``clock``, the
-    :class:`~.inference.cache.StageClock` that timed the search, goes on timing.
+    :class:`~.inference.StageClock` that timed the search, goes on timing.
     The sampler stops by its rule or its step budget (the same on any machine);
     ``max_sampling_seconds``, when given, also bounds its wall time (default None: no
     bound); a posterior stopped by either fails its gates with the reason.

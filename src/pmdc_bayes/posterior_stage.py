@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .inference.fit import fit_map
-from .inference.objective import build_model
+from .inference.fit.joint import fit_map
+from .inference.model.objective import build_model
 
 __all__ = ["posterior_stage", "compare_friction", "reference_voltage"]
 
@@ -22,9 +22,9 @@ def reference_voltage(session) -> float:
 
 
 def posterior_stage(model, fit, *, seed, progress, max_seconds=None):
-    from .inference.derived import derived_quantities
-    from .inference.diagnostics import widest_direction
-    from .inference.sampling import compare_laplace, gates, sample_posterior, summarize
+    from .inference.sampling.derived import derived_quantities
+    from .inference.sampling.diagnostics import widest_direction
+    from .inference.sampling.posterior import compare_laplace, gates, sample_posterior, summarize
 
     post = sample_posterior(model, fit, seed=seed, progress=progress, max_seconds=max_seconds)
     summ = summarize(post)
@@ -53,7 +53,7 @@ def posterior_stage(model, fit, *, seed, progress, max_seconds=None):
 
 def compare_friction(session, cf, model, post, *, seed, progress, max_seconds=None):
     """LOO of the viscous and viscous + Coulomb models on the same session."""
-    from .inference.sampling import loo_compare, sample_posterior
+    from .inference.sampling.posterior import loo_compare, sample_posterior
 
     other = build_model(session, cf, coulomb=not model.coulomb)
     other_post = sample_posterior(other, fit_map(other, seed=seed), seed=seed,

@@ -11,8 +11,8 @@ import numpy as np
 
 from ._errors import UsageError
 from ._x64 import x64
-from .inference.objective import build_model
-from .inference.seed import fit_seed
+from .inference.model.objective import build_model
+from .inference.model.seed import fit_seed
 from .io.loader import load_session
 from .io.session import DEAD_TIMES, LOAD_KINDS, NUISANCES
 from .run import RunResult
@@ -102,7 +102,7 @@ def _read_posterior(run_dir: Path, names) -> tuple:
     path = run_dir / "posterior.nc"
     if not path.is_file():
         return None, None
-    from .inference.arviz_import import az
+    from .inference.sampling.arviz_import import az
 
     try:
         idata = az.from_netcdf(path)

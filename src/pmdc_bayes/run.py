@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from ._errors import UsageError
-from .inference.findings import Verdict
-from .inference.fit import FitResult
-from .inference.objective import SessionModel
+from .inference.adequacy.findings import Verdict
+from .inference.fit.joint import FitResult
+from .inference.model.objective import SessionModel
 from .io.output import dumps
 from .io.session import Session
 from .paper.closed_form import ClosedForm

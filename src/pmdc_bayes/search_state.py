@@ -6,8 +6,8 @@ candidates' programs made in background threads while the one before is fitted."
 from __future__ import annotations
 
 from .candidate import Candidate
-from .inference.coloured import COLOURED
-from .inference.levels import level_outliers
+from .inference.model.coloured import COLOURED
+from .inference.model.levels import level_outliers
 from .inference.warmup import WarmUp
 from .io.lattice import analogue_channels
 from .io.session import NUISANCES, Session

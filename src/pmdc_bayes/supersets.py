@@ -1,5 +1,5 @@
 """The superset models the search fits its candidates in
-(:class:`~.inference.superset.Superset`): one per *family* of candidates, made when the
+(:class:`~.inference.fit.superset.Superset`): one per *family* of candidates, made when the
 first candidate of that family is fitted.
 
 A family holds every non-ideality the search may reach from the session (its
@@ -33,11 +33,11 @@ kept in the compile cache for the next run.
 
 from __future__ import annotations
 
-from .inference.coloured import COLOURED
-from .inference.nuisances import dead_time_name, nuisance_specs
-from .inference.objective import build_model
-from .inference.seed import fit_seed
-from .inference.superset import Superset, extended
+from .inference.fit.superset import Superset, extended
+from .inference.model.coloured import COLOURED
+from .inference.model.nuisances import dead_time_name, nuisance_specs
+from .inference.model.objective import build_model
+from .inference.model.seed import fit_seed
 from .io.lattice import analogue_channels
 from .io.session import NUISANCES, Session
 from .terms import LOAD, NOISE, SHARED, nuisance_of, with_terms

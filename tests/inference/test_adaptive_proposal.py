@@ -6,10 +6,10 @@ gives them more of the steps."""
 import emcee
 import numpy as np
 
-from pmdc_bayes.inference.ensembles import Ensembles
-from pmdc_bayes.inference.moves import SHARE, SHARE_TRUSTED, LaplaceMixture
-from pmdc_bayes.inference.sampling import LaplaceIndependenceMove
-from pmdc_bayes.inference.stopping import stop_message
+from pmdc_bayes.inference.sampling.ensembles import Ensembles
+from pmdc_bayes.inference.sampling.moves import SHARE, SHARE_TRUSTED, LaplaceMixture
+from pmdc_bayes.inference.sampling.posterior import LaplaceIndependenceMove
+from pmdc_bayes.inference.sampling.stopping import stop_message
 
 SD = np.array([5.0, 1.0, 1.0])  # the target: 5 times wider along the first axis
 

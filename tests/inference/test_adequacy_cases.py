@@ -11,10 +11,10 @@ out "adequate" (the false-alarm rate is measured over many of them in the slow t
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.adequacy import assess
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.simulate.bench import bench_session
 from pmdc_bayes.simulate.cases import CASES, SPEED_ONLY, case_session, random_motor
 
@@ -124,7 +124,7 @@ def test_a_trace_counting_the_other_way_is_refused_before_the_fit():
     import dataclasses
 
     from pmdc_bayes._errors import SessionError
-    from pmdc_bayes.inference.seed import refuse_reversed
+    from pmdc_bayes.inference.model.seed import refuse_reversed
 
     session = case_session()
     traces = tuple(dataclasses.replace(tr, speed=-tr.speed)

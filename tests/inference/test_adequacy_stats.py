@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.calibrate import ratio_p
-from pmdc_bayes.inference.onset import onset_shape
-from pmdc_bayes.inference.residual_stats import fit_percent, systematic_misfit, whiteness
+from pmdc_bayes.inference.adequacy.calibrate import ratio_p
+from pmdc_bayes.inference.adequacy.onset import onset_shape
+from pmdc_bayes.inference.adequacy.residual_stats import fit_percent, systematic_misfit, whiteness
 from pmdc_bayes.io.channel import ChannelId
 
 
@@ -100,7 +100,7 @@ def test_onset_shape_stays_finite_and_quiet_on_short_noisy_rises(seed):
 def test_only_optima_close_to_the_map_raise_a_search_warning():
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.checks import search_checks
+    from pmdc_bayes.inference.adequacy.checks import search_checks
 
     assert search_checks(SimpleNamespace(mode_gaps=())) == []
     assert search_checks(SimpleNamespace(mode_gaps=(40.0, 900.0))) == []
@@ -120,7 +120,7 @@ def _step_trace(n=400, h=1e-3, t_step=0.1):
 
 
 def test_a_misfit_at_the_steps_start_fails_and_noise_or_a_slow_misfit_does_not():
-    from pmdc_bayes.inference.checks import step_start_check
+    from pmdc_bayes.inference.adequacy.checks import step_start_check
 
     tr = _step_trace()
     rng = np.random.default_rng(0)

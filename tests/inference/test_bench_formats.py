@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from pmdc_bayes._errors import SessionError
-from pmdc_bayes.inference.levels import unloaded_levels
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.model.levels import unloaded_levels
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.io.session import Schedule, Trace
 from pmdc_bayes.paper.changes import RESPONSE_SHARE, plateaus, responses
@@ -300,9 +300,9 @@ def test_a_noisy_logged_voltage_does_not_fail_the_no_load_speed(tmp_path):
     model's mean speed at the end follows the mean of the column's noise there.  Without
     that in the test's error the no-load speed failed on a 0.1 % miss (four of these
     eight sessions at p below 1e-4, one at 1e-15)."""
-    from pmdc_bayes.inference.adequacy import assess
-    from pmdc_bayes.inference.fit import fit_map
-    from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.inference.adequacy.assess import assess
+    from pmdc_bayes.inference.fit.joint import fit_map
+    from pmdc_bayes.inference.model.objective import build_model
 
     p_values = []
     for seed in range(8):

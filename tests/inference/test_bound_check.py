@@ -6,9 +6,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from pmdc_bayes.inference.model_checks import BOUND_Z, bound_checks
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.adequacy.model_checks import BOUND_Z, bound_checks
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 
 

@@ -1,5 +1,5 @@
 """The adequacy checks' thresholds come from their statistics' distributions under the
-fitted model (:mod:`pmdc_bayes.inference.calibrate`), the diagnosis proposes only what
+fitted model (:mod:`pmdc_bayes.inference.adequacy.calibrate`), the diagnosis proposes only what
 the model lacks, and a source resistance cannot go negative."""
 
 import dataclasses
@@ -7,9 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.calibrate import holm, logged_quantum, tail_p
-from pmdc_bayes.inference.proposals import Proposal, has
-from pmdc_bayes.inference.trace_checks import channel_tests
+from pmdc_bayes.inference.adequacy.calibrate import holm, logged_quantum, tail_p
+from pmdc_bayes.inference.adequacy.proposals import Proposal, has
+from pmdc_bayes.inference.adequacy.trace_checks import channel_tests
 from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.io.session import NUISANCES
 
@@ -88,7 +88,7 @@ def test_a_proposal_the_model_already_fits_is_recognised():
 
 
 def test_a_source_resistance_is_positive_and_none_stays_within_its_prior():
-    from pmdc_bayes.inference.nuisances import nuisance_specs
+    from pmdc_bayes.inference.model.nuisances import nuisance_specs
     from pmdc_bayes.simulate.cases import case_session
 
     session = dataclasses.replace(case_session(), nuisances=("source_resistance",))
@@ -99,7 +99,7 @@ def test_a_source_resistance_is_positive_and_none_stays_within_its_prior():
 
 
 def test_the_rise_time_is_not_read_on_a_load_change_at_constant_voltage():
-    from pmdc_bayes.inference.plausibility import rise_eligible
+    from pmdc_bayes.inference.adequacy.plausibility import rise_eligible
     from pmdc_bayes.io.session import Schedule
     from pmdc_bayes.simulate.cases import case_session
 
@@ -114,10 +114,10 @@ def test_the_rise_time_is_not_read_on_a_load_change_at_constant_voltage():
 
 @pytest.mark.slow
 def test_a_misspecified_bench_is_flagged_with_its_p_value_and_no_proposal_the_model_has():
-    from pmdc_bayes.inference.adequacy import assess
-    from pmdc_bayes.inference.fit import fit_map
-    from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.inference.seed import fit_seed
+    from pmdc_bayes.inference.adequacy.assess import assess
+    from pmdc_bayes.inference.fit.joint import fit_map
+    from pmdc_bayes.inference.model.objective import build_model
+    from pmdc_bayes.inference.model.seed import fit_seed
     from pmdc_bayes.simulate.cases import case_session
 
     session = dataclasses.replace(case_session("unknown load"),

@@ -20,9 +20,9 @@ import pytest  # noqa: E402
 from recovery_cases import Motor, plan_for  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from pmdc_bayes.inference.fit import fit_map  # noqa: E402
-from pmdc_bayes.inference.objective import build_model  # noqa: E402
-from pmdc_bayes.inference.sampling import sample_posterior  # noqa: E402
+from pmdc_bayes.inference.fit.joint import fit_map  # noqa: E402
+from pmdc_bayes.inference.model.objective import build_model  # noqa: E402
+from pmdc_bayes.inference.sampling.posterior import sample_posterior  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
@@ -148,8 +148,8 @@ NARROWED = 0.6
 
 @pytest.fixture(scope="module")
 def fuzzed_fits(tmp_path_factory):
-    from pmdc_bayes.inference.adequacy import assess
-    from pmdc_bayes.inference.seed import fit_seed
+    from pmdc_bayes.inference.adequacy.assess import assess
+    from pmdc_bayes.inference.model.seed import fit_seed
     from pmdc_bayes.simulate.fuzz import fuzz_session
 
     root = tmp_path_factory.mktemp("fuzzed")

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pmdc_bayes.inference.coordinates import Coordinates, MotorConstants
-from pmdc_bayes.inference.moves import default_moves
-from pmdc_bayes.inference.params import ParamSpec, Prior, Registry
+from pmdc_bayes.inference.model.params import ParamSpec, Prior, Registry
+from pmdc_bayes.inference.sampling.coordinates import Coordinates, MotorConstants
+from pmdc_bayes.inference.sampling.moves import default_moves
 
 
 def test_the_density_in_value_is_the_density_of_the_value():
@@ -108,10 +108,10 @@ def test_a_weakly_identified_coulomb_torque_is_sampled_to_the_gates(tmp_path):
     towards zero.  Moving in log, the ensemble gave up after 12,250 steps (τ of Tc about 460,
     the gates projected at 67,000 steps); in value it passes the gates within the
     budget, and each motor parameter's truth lies in its 99 % interval."""
-    from pmdc_bayes.inference.fit import fit_map
-    from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.inference.sampling import Stop, gates, sample_posterior, summarize
-    from pmdc_bayes.inference.seed import fit_seed
+    from pmdc_bayes.inference.fit.joint import fit_map
+    from pmdc_bayes.inference.model.objective import build_model
+    from pmdc_bayes.inference.model.seed import fit_seed
+    from pmdc_bayes.inference.sampling.posterior import Stop, gates, sample_posterior, summarize
     from pmdc_bayes.io.loader import load_session
     from pmdc_bayes.simulate.fuzz import fuzz_session
 
@@ -216,10 +216,10 @@ def test_a_speed_only_step_from_steady_is_sampled_to_the_gates(tmp_path):
     projected at 20,700 steps); in the motor's constants τ is about 11 and the gates
     pass, the truths of Ra and of the curve's K, B and J inside their 99 % intervals
     (La is set by its bench reading, which the fuzzer drew 2.7 sd off its truth)."""
-    from pmdc_bayes.inference.fit import fit_map
-    from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.inference.sampling import Stop, gates, sample_posterior, summarize
-    from pmdc_bayes.inference.seed import fit_seed
+    from pmdc_bayes.inference.fit.joint import fit_map
+    from pmdc_bayes.inference.model.objective import build_model
+    from pmdc_bayes.inference.model.seed import fit_seed
+    from pmdc_bayes.inference.sampling.posterior import Stop, gates, sample_posterior, summarize
     from pmdc_bayes.io.loader import load_session
     from pmdc_bayes.simulate.fuzz import fuzz_session
 

@@ -5,7 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from pmdc_bayes.inference.correlation import cholesky_corr, correlations, lkj_log_prior, n_pairs
+from pmdc_bayes.inference.model.correlation import (
+    cholesky_corr,
+    correlations,
+    lkj_log_prior,
+    n_pairs,
+)
 
 
 def test_any_numbers_give_a_positive_definite_matrix_with_a_unit_diagonal():

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.findings import Check, Finding, Severity
-from pmdc_bayes.inference.levels import friction_offset, level_outliers, voltage_intercept
-from pmdc_bayes.inference.onset import departure
+from pmdc_bayes.inference.adequacy.findings import Check, Finding, Severity
+from pmdc_bayes.inference.adequacy.onset import departure
+from pmdc_bayes.inference.model.levels import friction_offset, level_outliers, voltage_intercept
 from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.simulate.bench import BenchMotor, bench_session
 from pmdc_bayes.simulate.cases import MOTOR, STEPS, case_session
@@ -48,7 +48,7 @@ def test_departure_finds_when_a_signal_leaves_rest():
 
 
 def test_a_trace_cut_before_it_settles_gives_no_steady_level():
-    from pmdc_bayes.inference.levels import settled, unloaded_levels
+    from pmdc_bayes.inference.model.levels import settled, unloaded_levels
 
     t = np.linspace(0, 1, 500)
     assert not settled(1 - np.exp(-t / 0.5))
@@ -62,8 +62,8 @@ def test_a_trace_cut_before_it_settles_gives_no_steady_level():
 def test_a_no_load_speed_the_session_contradicts_fails_the_plausibility_check():
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.inference.plausibility import plausibility_checks
+    from pmdc_bayes.inference.adequacy.plausibility import plausibility_checks
+    from pmdc_bayes.inference.model.objective import build_model
     from pmdc_bayes.paper.closed_form import closed_form
 
     session = case_session()
@@ -91,8 +91,8 @@ def test_a_steady_readings_miss_is_read_on_its_priors_student_t():
 
     from scipy.optimize import brentq
 
-    from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.inference.plausibility import plausibility_checks
+    from pmdc_bayes.inference.adequacy.plausibility import plausibility_checks
+    from pmdc_bayes.inference.model.objective import build_model
     from pmdc_bayes.paper.closed_form import closed_form
     from pmdc_bayes.physics.motor import steady_state
 
@@ -127,8 +127,8 @@ def test_a_rotor_at_rest_where_the_model_holds_it_is_no_contradiction(volts):
     from pathlib import Path
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.inference.plausibility import plausibility_checks
+    from pmdc_bayes.inference.adequacy.plausibility import plausibility_checks
+    from pmdc_bayes.inference.model.objective import build_model
     from pmdc_bayes.io.session import SteadyTable
     from pmdc_bayes.paper.closed_form import closed_form
 
@@ -155,8 +155,8 @@ def test_a_level_read_off_an_angle_is_judged_on_the_angles_noise():
     import dataclasses
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.inference.plausibility import plausibility_checks
+    from pmdc_bayes.inference.adequacy.plausibility import plausibility_checks
+    from pmdc_bayes.inference.model.objective import build_model
     from pmdc_bayes.io.position import speed_estimate
     from pmdc_bayes.paper.closed_form import closed_form
     from pmdc_bayes.physics.motor import steady_state
@@ -191,8 +191,8 @@ def test_a_driven_trace_whose_speed_never_leaves_its_noise_is_named():
     import dataclasses
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.diagnosis import _still
-    from pmdc_bayes.inference.noise import Channel, noise_scale
+    from pmdc_bayes.inference.adequacy.diagnosis import _still
+    from pmdc_bayes.inference.model.noise import Channel, noise_scale
     from pmdc_bayes.simulate.bench import StepSpec
 
     session = bench_session(BenchMotor(**MOTOR), [StepSpec("off", 0.0, 0.12, 2e-4),
@@ -214,8 +214,8 @@ def test_a_resistance_above_the_bench_proposes_a_source_resistance_and_a_drop():
     evidence chooses (a drop was explained as a source resistance, with K 36 sd off)."""
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.diagnosis import diagnose
-    from pmdc_bayes.inference.objective import build_model
+    from pmdc_bayes.inference.adequacy.diagnosis import diagnose
+    from pmdc_bayes.inference.model.objective import build_model
     from pmdc_bayes.paper.closed_form import closed_form
 
     session = case_session()
@@ -236,9 +236,9 @@ def test_a_step_start_on_a_trace_named_with_a_colon_proposes_for_that_trace():
     import dataclasses
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.diagnosis import diagnose
-    from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.inference.proposals import Proposal
+    from pmdc_bayes.inference.adequacy.diagnosis import diagnose
+    from pmdc_bayes.inference.adequacy.proposals import Proposal
+    from pmdc_bayes.inference.model.objective import build_model
     from pmdc_bayes.paper.closed_form import closed_form
 
     session = case_session()
@@ -265,7 +265,7 @@ def test_a_quantised_levels_mean_is_read_with_the_quantisers_bias():
     it should (it was judged on the noise over √n alone and rejected a fitting model)."""
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.plausibility import _end_speed_se
+    from pmdc_bayes.inference.adequacy.plausibility import _end_speed_se
 
     rng = np.random.default_rng(7)
     q, n, misses, trials, ses = 4.73, 500, 0, 300, []
@@ -285,8 +285,8 @@ def test_the_models_no_load_speed_carries_the_fits_uncertainty():
     spread of the no-load speed over draws from the Laplace approximation."""
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.inference.plausibility import _no_load_speed, _no_load_speed_sd
+    from pmdc_bayes.inference.adequacy.plausibility import _no_load_speed, _no_load_speed_sd
+    from pmdc_bayes.inference.model.objective import build_model
     from pmdc_bayes.paper.closed_form import closed_form
 
     session = case_session()

@@ -6,8 +6,8 @@ import types
 import emcee
 import numpy as np
 
-from pmdc_bayes.inference.diagnostics import gates
-from pmdc_bayes.inference.ensembles import Ensembles, r_hat_between
+from pmdc_bayes.inference.sampling.diagnostics import gates
+from pmdc_bayes.inference.sampling.ensembles import Ensembles, r_hat_between
 
 
 def _gauss(x):

@@ -8,9 +8,9 @@ import jax
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.identifiability import identifiability
-from pmdc_bayes.inference.objective import build_model
+from pmdc_bayes.inference.fit.identifiability import identifiability
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.model.objective import build_model
 from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.paper.closed_form import closed_form
@@ -135,7 +135,7 @@ def _traced(kernel) -> list[int]:
 def test_fit_compiles_once_per_session_structure(demo_fit):
     import dataclasses
 
-    from pmdc_bayes.inference import cache as _cache
+    from pmdc_bayes.inference import _runtime as _cache
 
     s, model, fit = demo_fit
     rng = np.random.default_rng(0)
@@ -216,7 +216,7 @@ def test_optima_of_nearly_equal_density_span_the_uncertainty():
     MAP's curvature alone; one far less probable is left out."""
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference import fit as fitmod
+    from pmdc_bayes.inference.fit import joint as fitmod
 
     local = np.diag([1e-4, 1e-4])
     states = [SimpleNamespace(theta=np.array([0.0, 0.0]), terms=None),
@@ -262,7 +262,7 @@ def test_a_thin_curved_ridge_is_not_reported_as_a_point(tmp_path):
     in a million along a curved ridge on which the starts stop at optima of equal
     density far apart.  The MAP's curvature alone put K 200 sd from the truth; the
     central 99 % interval spanning the optima covers K, B and J."""
-    from pmdc_bayes.inference.seed import fit_seed
+    from pmdc_bayes.inference.model.seed import fit_seed
     from pmdc_bayes.simulate.fuzz import fuzz_session
 
     fz = fuzz_session(61, out=tmp_path / "s61")
@@ -281,7 +281,7 @@ def test_the_laplace_inverse_keeps_directions_held_to_twenty_decades_apart():
     1e15 and 1): the covariance is the exact inverse, not the largest eigenvalue's
     floor imposed on the loose directions; a direction of zero curvature comes out
     wide and finite."""
-    from pmdc_bayes.inference.curvature import invert_curvature
+    from pmdc_bayes.inference.fit.curvature import invert_curvature
 
     rng = np.random.default_rng(3)
     a = rng.standard_normal((5, 5))

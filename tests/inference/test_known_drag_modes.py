@@ -9,9 +9,9 @@ import jax
 import numpy as np
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.sampling import _log_posterior_batch
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
+from pmdc_bayes.inference.sampling.posterior import _log_posterior_batch
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.io.session import Drag
 from pmdc_bayes.physics.propagator import real_modes

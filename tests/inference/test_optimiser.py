@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference import multistart as ms
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.objective import NU0, build_model
-from pmdc_bayes.inference.optimiser import Stepper
+from pmdc_bayes.inference.fit import multistart as ms
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.fit.optimiser import Stepper
+from pmdc_bayes.inference.model.objective import NU0, build_model
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.paper.closed_form import closed_form
 
@@ -137,7 +137,7 @@ def test_a_crawl_along_a_narrow_curved_valley_stops_within_the_resolution():
 def test_two_finals_are_one_optimum_unless_a_valley_separates_them():
     from types import SimpleNamespace
 
-    from pmdc_bayes.inference.optima import distinct_optima
+    from pmdc_bayes.inference.fit.optima import distinct_optima
 
     cov = np.diag([1e-4, 1e-4])  # narrow Laplace widths: the finals are many sds apart
     thetas = np.array([[1.0, 0.0], [-1.0, 0.0]])
@@ -190,7 +190,7 @@ def test_a_map_whose_start_ends_at_its_step_limit_fails_and_says_so_first(demo_m
     same fit converges."""
     import functools
 
-    from pmdc_bayes.inference import fit as fit_module
+    from pmdc_bayes.inference.fit import joint as fit_module
 
     low = functools.partial(ms.maximise, max_steps=3, best_max_steps=3)
     monkeypatch.setattr(fit_module, "maximise", low)
@@ -232,7 +232,7 @@ def test_the_solver_is_an_optimistix_minimiser_that_its_own_driver_runs_to_the_t
     host's) climbs the valley to the same top as the starts stepped from the host."""
     import optimistix as optx
 
-    from pmdc_bayes.inference import optimiser
+    from pmdc_bayes.inference.fit import optimiser
 
     stepper = _rosenbrock()
     (hosted,) = ms.maximise(stepper, [np.array([-1.2, 1.0])])
@@ -268,7 +268,7 @@ def test_a_start_the_solver_stops_with_an_error_ends_in_optimistix_words(monkeyp
 
     import optimistix as optx
 
-    from pmdc_bayes.inference import optimiser
+    from pmdc_bayes.inference.fit import optimiser
 
     code = int(np.asarray(optx.RESULTS.nonlinear_divergence._value))
     words = optx.RESULTS[optx.RESULTS.nonlinear_divergence]

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from pmdc_bayes.inference.glitches import outlier_test
-from pmdc_bayes.inference.trace_checks import MATERIAL_FRACTION
+from pmdc_bayes.inference.adequacy.glitches import outlier_test
+from pmdc_bayes.inference.adequacy.trace_checks import MATERIAL_FRACTION
 from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.simulate.fuzz import fuzz_session
 
@@ -132,8 +132,8 @@ def test_a_bad_reading_alone_is_the_data_s_fault():
     """A bad reading alone is the data's fault; beside a systematic misfit it may be the
     model's (a model far off the data leaves single readings far off too: a current
     limit's plateau at a trace's start), and the verdict stays the model's."""
-    from pmdc_bayes.inference.adequacy import Adequacy, Finding, Verdict
-    from pmdc_bayes.inference.findings import Check, Severity
+    from pmdc_bayes.inference.adequacy.assess import Adequacy, Finding, Verdict
+    from pmdc_bayes.inference.adequacy.findings import Check, Severity
 
     where, bad = ChannelId("tr", "speed"), Verdict.INADEQUATE
     glitch = Finding(Check.OUTLYING_READING, where, Severity.FAIL, "+6.6e4 rad/s", "a glitch")

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.motor_evidence import motor_evidence, subset
-from pmdc_bayes.inference.pooling import analyse_lot, holm
-from pmdc_bayes.inference.population import MIN_ESS, fit_population
+from pmdc_bayes.inference.population.hierarchical import MIN_ESS, fit_population
+from pmdc_bayes.inference.population.motor_evidence import motor_evidence, subset
+from pmdc_bayes.inference.population.pooling import analyse_lot, holm
 
 NAMES = ("K", "B", "J", "Ra")
 MU = np.log([0.05, 2e-5, 2e-5, 2.0])
@@ -114,7 +114,7 @@ def test_a_motor_off_in_one_parameter_is_flagged_in_a_small_lot(n, spreads):
 def test_a_far_motor_is_judged_against_the_lot_refitted_without_it_once(monkeypatch):
     """The record says which motors were judged against a refit, and the population
     without the flagged motor is that refit, not fitted a second time."""
-    from pmdc_bayes.inference import pooling
+    from pmdc_bayes.inference.population import pooling
 
     fits = []
 
@@ -232,7 +232,7 @@ def test_a_motor_off_the_lots_correlation_is_flagged_though_each_value_is_ordina
 
 
 def test_the_log_posterior_stays_defined_far_out_in_the_correlation():
-    from pmdc_bayes.inference.population import _log_posterior
+    from pmdc_bayes.inference.population.hierarchical import _log_posterior
 
     _, motors = _lot(1, n=8)
     fn = _log_posterior(motors, [True] * 8, correlated=True)

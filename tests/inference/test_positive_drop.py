@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference.fit import fit_map, laplace
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.params import HALF_NORMAL_LAPLACE_SD, ParamSpec, Prior
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.fit.joint import fit_map, laplace
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.params import HALF_NORMAL_LAPLACE_SD, ParamSpec, Prior
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.cases import case_session
 from pmdc_bayes.simulate.session import simulate_session

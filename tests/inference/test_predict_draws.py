@@ -3,8 +3,8 @@ pointwise log-likelihood) and equal the one-θ prediction at each draw."""
 
 import numpy as np
 
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 
 

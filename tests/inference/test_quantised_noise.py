@@ -5,7 +5,7 @@ a session (from the independent bench simulator) covers the truth."""
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.noise import effective_fraction, quanta_passed
+from pmdc_bayes.inference.model.noise import effective_fraction, quanta_passed
 
 Q = 0.5
 
@@ -46,9 +46,9 @@ def test_an_undithered_quantised_session_covers_the_truth(tmp_path):
     quanta.  Counting every run of equal readings as an independent error put K 3.5 sd
     and J 4.0 sd from the truth; the central 99 % intervals now cover every motor
     parameter."""
-    from pmdc_bayes.inference.fit import fit_map
-    from pmdc_bayes.inference.objective import build_model
-    from pmdc_bayes.inference.seed import fit_seed
+    from pmdc_bayes.inference.fit.joint import fit_map
+    from pmdc_bayes.inference.model.objective import build_model
+    from pmdc_bayes.inference.model.seed import fit_seed
     from pmdc_bayes.io.loader import load_session
     from pmdc_bayes.simulate.fuzz import fuzz_session
 

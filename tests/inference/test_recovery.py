@@ -27,8 +27,8 @@ from recovery_cases import (  # noqa: E402
     plan_for,
 )
 
-from pmdc_bayes.inference.fit import fit_map  # noqa: E402
-from pmdc_bayes.inference.objective import build_model  # noqa: E402
+from pmdc_bayes.inference.fit.joint import fit_map  # noqa: E402
+from pmdc_bayes.inference.model.objective import build_model  # noqa: E402
 from pmdc_bayes.io.channel import ChannelId  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pmdc_bayes.inference.channels import resting_counts
+from pmdc_bayes.inference.model.channels import resting_counts
 from pmdc_bayes.io.session import Schedule, Trace
 
 Q = 2 * np.pi / 400

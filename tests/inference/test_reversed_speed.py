@@ -8,8 +8,8 @@ import shutil
 import pytest
 
 from pmdc_bayes._errors import SessionError
-from pmdc_bayes.inference.reversal import reversed_speed
-from pmdc_bayes.inference.seed import refuse_reversed
+from pmdc_bayes.inference.model.reversal import reversed_speed
+from pmdc_bayes.inference.model.seed import refuse_reversed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import fuzz_session
 

@@ -13,13 +13,13 @@ import jax
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pmdc_bayes.inference import objective  # noqa: E402
-from pmdc_bayes.inference.derived import derived_quantities  # noqa: E402
-from pmdc_bayes.inference.fit import fit_map  # noqa: E402
-from pmdc_bayes.inference.idata import _padded_pointwise, lumped  # noqa: E402
-from pmdc_bayes.inference.logprob import LogProb as _LogProb  # noqa: E402
-from pmdc_bayes.inference.moves import SHARE_TRUSTED  # noqa: E402
-from pmdc_bayes.inference.sampling import (  # noqa: E402
+from pmdc_bayes.inference.fit.joint import fit_map  # noqa: E402
+from pmdc_bayes.inference.model import objective  # noqa: E402
+from pmdc_bayes.inference.sampling.derived import derived_quantities  # noqa: E402
+from pmdc_bayes.inference.sampling.idata import _padded_pointwise, lumped  # noqa: E402
+from pmdc_bayes.inference.sampling.logprob import LogProb as _LogProb  # noqa: E402
+from pmdc_bayes.inference.sampling.moves import SHARE_TRUSTED  # noqa: E402
+from pmdc_bayes.inference.sampling.posterior import (  # noqa: E402
     PILOT,
     Stop,
     _log_posterior_batch,
@@ -29,7 +29,7 @@ from pmdc_bayes.inference.sampling import (  # noqa: E402
     sample_posterior,
     summarize,
 )
-from pmdc_bayes.inference.stopping import stop_message  # noqa: E402
+from pmdc_bayes.inference.sampling.stopping import stop_message  # noqa: E402
 from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.paper.closed_form import ClosedForm, closed_form  # noqa: E402

@@ -5,7 +5,7 @@ over the span up to the next change, and J follows from it."""
 import pytest
 
 from pmdc_bayes._errors import SessionError
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.session import simulate_session
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference.model_checks import solver_checks
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference.adequacy.model_checks import solver_checks
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.physics.experiment import stack_experiments
 from pmdc_bayes.physics.limited import PHASES

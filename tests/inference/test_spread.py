@@ -7,7 +7,7 @@ import numpy as np
 
 from pmdc_bayes._console import gate_failure_text
 from pmdc_bayes._headline import spread_text
-from pmdc_bayes.inference.diagnostics import widest_direction
+from pmdc_bayes.inference.sampling.diagnostics import widest_direction
 
 NAMES = ("La", "K", "J", "dead_time_a", "dead_time_b")
 

@@ -8,10 +8,10 @@ import warnings
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.arviz_import import az
-from pmdc_bayes.inference.diagnostics import gates
-from pmdc_bayes.inference.ensembles import r_hat_between
-from pmdc_bayes.inference.stopping import (
+from pmdc_bayes.inference.sampling.arviz_import import az
+from pmdc_bayes.inference.sampling.diagnostics import gates
+from pmdc_bayes.inference.sampling.ensembles import r_hat_between
+from pmdc_bayes.inference.sampling.stopping import (
     CHECK,
     TRUST_TAU,
     Stop,
@@ -34,7 +34,7 @@ def _ar1(rng, walkers, steps, dims, rho, *, offset=0.0):
 
 
 def _sampler(chain):
-    """What ``_gate_shortfall`` reads of :class:`~pmdc_bayes.inference.ensembles.Ensembles`."""
+    """What ``_gate_shortfall`` reads of :class:`~.ensembles.Ensembles`."""
     return types.SimpleNamespace(
         get_chain=lambda discard=0, thin=1: chain[discard + thin - 1::thin])
 

@@ -7,10 +7,10 @@ import jax
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.seed import fit_seed
-from pmdc_bayes.inference.superset import Superset, neutral_value
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.fit.superset import Superset, neutral_value
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.physics.regimes import NO_LIMIT
 from pmdc_bayes.physics.sensor import MIN_LAG
 from pmdc_bayes.selection import laplace_log_evidence

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from pmdc_bayes.inference import cache
-from pmdc_bayes.inference.fit import fit_map
-from pmdc_bayes.inference.objective import build_model
-from pmdc_bayes.inference.sampling import sample_posterior
-from pmdc_bayes.inference.seed import fit_seed
+from pmdc_bayes.inference import _runtime as cache
+from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.model.objective import build_model
+from pmdc_bayes.inference.model.seed import fit_seed
+from pmdc_bayes.inference.sampling.posterior import sample_posterior
 from pmdc_bayes.inference.warmup import WarmUp
 from pmdc_bayes.io.loader import load_session
 

@@ -255,7 +255,7 @@ def test_unknown_loads_name_driven_traces(session_dir):
 
 
 def test_an_unknown_load_may_name_the_part_of_the_drag_to_fit(session_dir):
-    from pmdc_bayes.inference.nuisances import nuisance_specs
+    from pmdc_bayes.inference.model.nuisances import nuisance_specs
     from pmdc_bayes.io.loader import load_session
 
     with (session_dir / TOML).open("a") as fh:
@@ -319,7 +319,7 @@ def test_a_negative_b_from_equation_19_is_said_first_and_fails(session_dir):
 
 
 def test_a_dead_time_may_be_shared_by_every_trace(session_dir):
-    from pmdc_bayes.inference.nuisances import nuisance_specs
+    from pmdc_bayes.inference.model.nuisances import nuisance_specs
     from pmdc_bayes.io.loader import load_session
 
     with (session_dir / TOML).open("a") as fh:

@@ -10,7 +10,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference.nuisances import NO_LIMIT
+from pmdc_bayes.inference.model.nuisances import NO_LIMIT
 from pmdc_bayes.physics.angle import since_first_sample
 from pmdc_bayes.physics.solution import Params, make_experiment, simulate_padded
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from pmdc_bayes._format import row_format, value_sd
-from pmdc_bayes.inference.derived import derived_quantities
+from pmdc_bayes.inference.sampling.derived import derived_quantities
 from pmdc_bayes.report import fig_params
 from pmdc_bayes.report._plot import scale_of
 from pmdc_bayes.report.adequacy import bench_table

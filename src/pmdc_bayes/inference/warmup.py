@@ -22,7 +22,7 @@ import numpy as np
 
 from .._cores import usable_cores
 from .._x64 import x64
-from .predictions import RESIDUAL_BATCH
+from .model.predictions import RESIDUAL_BATCH
 
 __all__ = ["WarmUp", "THREAD_NAME"]
 
@@ -115,7 +115,7 @@ class WarmUp:
 
     @staticmethod
     def _kernel(model, theta) -> None:
-        from .optimiser import Stepper
+        from .fit.optimiser import Stepper
 
         Stepper.of(model).terms(theta)
 
@@ -124,7 +124,7 @@ class WarmUp:
         model.predict(theta)
 
     def _sampler(self, model, theta) -> None:
-        from .sampling import warm_up
+        from .sampling.posterior import warm_up
 
         warm_up(model, theta, self.n_walkers)
 

@@ -2,8 +2,8 @@
 its resolution, a current an ADC rounds to its step.
 
 A quantised channel's errors are handled by its quantisation (the inference's noise
-bookkeeping, :mod:`pmdc_bayes.inference.noise`); an analogue channel's are Gaussian,
-white or coloured (:mod:`pmdc_bayes.inference.coloured`).
+bookkeeping, :mod:`pmdc_bayes.inference.model.noise`); an analogue channel's are Gaussian,
+white or coloured (:mod:`pmdc_bayes.inference.model.coloured`).
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._x64 import x64
-from ..inference.objective import SessionModel, build_model
+from ..inference.model.objective import SessionModel, build_model
 from ..io.session import Session
 from ..paper.closed_form import ClosedForm
 from ._view import FigureView, TracePrediction

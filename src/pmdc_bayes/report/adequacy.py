@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .._format import row_format
-from ..inference.findings import Severity
+from ..inference.adequacy.findings import Severity
 from ..io.units import display_unit
 from ._doc import Bullets, Paragraph, Section, Table, fmt
 

@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 
-from ..inference.findings import Verdict
+from ..inference.adequacy.findings import Verdict
 from ._doc import Bullets, Figure, Paragraph, Section, Table, fmt
 from ._render import later
 from ._view import METHODS

@@ -42,7 +42,7 @@ def _density(ax, pop: dict, values, outliers) -> None:
 
 
 def lot_figure(record: dict, path: Path) -> Path:
-    """Draw ``record`` (:func:`~pmdc_bayes.inference.pooling.lot_record`) to ``path``."""
+    """Draw ``record`` (:func:`~pmdc_bayes.inference.population.pooling.lot_record`) to ``path``."""
     names = record["parameters"]
     motors = record["motors"]
     fig = Figure(figsize=(10.0, 2.2 * len(names) + 0.6))

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..inference.objective import noise_scale
+from ..inference.model.objective import noise_scale
 from ..io.channel import ChannelId
 from ._view import BAND, METHODS, TracePrediction, _measured, trace_channels
 
@@ -36,7 +36,7 @@ def predict_traces(model, values: dict, draws, noise_sd: dict, *, seed: int = 0,
 
     Parameters
     ----------
-    model : a :class:`pmdc_bayes.inference.objective.SessionModel`.
+    model : a :class:`pmdc_bayes.inference.model.objective.SessionModel`.
     values : ``{"closed_form": {...}, "map": {...}}`` SI parameter values by name.
     draws : ``(N, P)`` SI posterior draws in ``model.names`` order, or None.
     noise_sd : fitted noise sd per channel, by its text (``"<trace>: speed"``); a trace

@@ -6,8 +6,8 @@ import numpy as np
 
 from .._format import off_by, row_format
 from .._headline import spread_text
-from ..inference.derived import LABELS as DERIVED_LABELS
-from ..inference.derived import derived_draws
+from ..inference.sampling.derived import LABELS as DERIVED_LABELS
+from ..inference.sampling.derived import derived_draws
 from ..io.units import SI_UNIT, display_unit
 from ..physics.motor import gain, tf_full, time_constant
 from ._doc import Table, fmt

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from .._errors import UsageError
 from .._x64 import x64
-from ..inference.cache import StageClock
+from ..inference import StageClock
 from ..io.output import dumps, write_whole
 from ._context import context_from_result
 from ._doc import Figure

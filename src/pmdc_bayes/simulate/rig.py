@@ -38,7 +38,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..inference.nuisances import dead_time_name, load_names
+from ..inference.model.nuisances import dead_time_name, load_names
 from ..io.toml_tables import Table
 from ._encoder import EDGE_FINE, ENCODER_OUTPUTS, encoder_trace_parts
 from .bench import BenchMotor, integrate, steady_point

@@ -25,7 +25,7 @@ from scipy.signal import lfilter
 
 from .._errors import SessionError
 from .._x64 import x64
-from ..inference.trace_states import initial_speed_name
+from ..inference.model.trace_states import initial_speed_name
 from ..io.units import from_si, to_si
 from ..physics import motor
 from ..physics.experiment import stack_experiments, with_drags

@@ -1,0 +1,102 @@
+"""The rig's non-idealities in the prediction: the experiment as the motor sees it
+(:meth:`RigEffects.inputs`: dead times, a driver's dead zone (:meth:`RigEffects.driven`),
+unknown drags), the circuit the logged voltage
+drives (:meth:`RigEffects.circuit`: a source resistance; :meth:`RigEffects.armature_drop`:
+the voltage drop, which opposes the current), the driver's limit, the sensors'
+lags (:meth:`RigEffects.lags`, states of the exact solution) and their gains and offsets
+(:meth:`RigEffects.read_by`)."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from ...physics.motor import driver_output
+from .nuisances import DEAD_ZONE_NAMES, NO_LIMIT, dead_time_name, load_names
+
+__all__ = ["RigEffects"]
+
+
+class RigEffects:
+    """The rig's non-idealities in the prediction, for a model with ``registry`` and
+    ``session``."""
+
+    def circuit(self, theta):
+        """The motor's parameters as the logged voltage drives them: Ra plus the fitted
+        source resistance ``Rs`` when the model has one."""
+        p = self.params(theta)
+        if "Rs" in self.registry:
+            p = p._replace(Ra=p.Ra + self.registry.values(theta)["Rs"])
+        return p
+
+    def limit(self, theta):
+        """The fitted current limit at θ (A); :data:`NO_LIMIT` when the model has none
+        but needs the regime-switching solution (Coulomb friction through a voltage
+        reversal, a voltage drop), else None."""
+        if "Imax" in self.registry:
+            return self.registry.values(theta)["Imax"]
+        return NO_LIMIT if self.reverses or "Vdrop" in self.registry else None
+
+    def drop(self, theta):
+        """The fitted voltage drop at θ (V), 0 when the model has none."""
+        return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else 0.0
+
+    def armature_drop(self, theta):
+        """The fitted voltage drop at θ (V) for the exact solution, which opposes it to
+        the current; None when the model has none."""
+        return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else None
+
+    def driven(self, theta, va):
+        """The voltage the driver puts out at θ for the commands ``va`` (V): through its
+        fitted dead zone when the model has one, else ``va``."""
+        if "dead_zone" not in self.session.nuisances:
+            return va
+        v = self.registry.values(theta)
+        fwd, rev = (v.get(DEAD_ZONE_NAMES[sign][0], 0.0) for sign in (1, -1))
+        return driver_output(va, fwd, rev)
+
+    def inputs(self, theta, exp):
+        """The experiment as the motor sees it at θ: each
+        trace's response its fitted dead time later than its inputs (each sample
+        evaluated in the segment its time less the dead time lies in: exact;
+        before the trace's first segment, its starting state), and each trace's fitted
+        unknown drag per segment, added to its known one (set in the experiment); each
+        segment's voltage as the driver puts it out (:meth:`driven`)."""
+        if "dead_zone" in self.session.nuisances:
+            exp = exp._replace(seg_va=self.driven(theta, exp.seg_va))
+        if "dead_time" in self.session.nuisances:
+            # a trace's own dead time, one shared by every trace, or (in a superset
+            # model, :mod:`.superset`) the sum of both forms
+            v, zero = self.registry.values(theta), jnp.zeros(())
+            exp = exp.delayed(jnp.stack([v.get(dead_time_name(tr.name), zero)
+                                         + v.get(dead_time_name(tr.name, True), zero)
+                                         for tr in self.session.traces]))
+        loaded = self.session.unknown_load_traces()
+        if loaded:
+            v, zero = self.registry.values(theta), jnp.zeros(())
+            parts = [[v[n] if tr.name in loaded and n in v else zero
+                      for n in load_names(tr.name)] for tr in self.session.traces]
+            tc, b = (jnp.stack([jnp.asarray(q[k]) for q in parts]) for k in (0, 1))
+            known = exp.seg_b is not None
+            exp = exp._replace(seg_b=b[exp.seg_trace] + (exp.seg_b if known else 0.0),
+                               seg_tc=tc[exp.seg_trace] + (exp.seg_tc if known else 0.0))
+        return exp
+
+    def lags(self, theta):
+        """The fitted time constants (s) of the current and speed sensors' lags at θ,
+        None for a sensor the model reads without one (``simulate_padded(lags=)``)."""
+        v = self.registry.values(theta)
+        return tuple(v.get(f"{sensor}_lag") for sensor in ("current", "speed"))
+
+    def read_by(self, theta, sensor: str, x):
+        """``x``, the ``sensor``'s (``"speed"`` or ``"current"``) lagged reading, as the
+        sensor reports it at θ: times its declared gain, plus its declared offset."""
+        v = self.registry.values(theta)
+        if f"{sensor}_gain" in self.registry:
+            x = v[f"{sensor}_gain"] * x
+        if f"{sensor}_offset" in self.registry:
+            x = x + v[f"{sensor}_offset"]
+        return x
+
+    def sensed(self, theta, ia, w):
+        """What the sensors report of their lagged readings ``(ia, ω)``."""
+        return self.read_by(theta, "current", ia), self.read_by(theta, "speed", w)

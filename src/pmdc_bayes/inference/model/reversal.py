@@ -1,0 +1,66 @@
+"""A session whose speed turns against its voltage (its leads or a sensor wired the other
+way round), found from its steady levels: what :func:`~.seed.refuse_reversed` refuses."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from ...paper.changes import AT_REST
+from .levels import unloaded_levels
+
+__all__ = ["Reversal", "reversed_speed"]
+
+
+class Reversal(NamedTuple):
+    """Where a session's speed turns against its voltage: ``file`` and ``where`` name
+    the place to mend (``where`` None for a whole file), ``why`` says so and how."""
+
+    file: Path
+    where: str | None
+    why: str
+
+
+def reversed_speed(session) -> Reversal | None:
+    """Where the speed turns against the voltage at every held, unloaded level that
+    moves the motor (above :data:`AT_REST` of the session's largest level): every speed
+    (the motor's leads, or every sensor, wired against the voltage's sign), one trace's
+    (its sensor reversed) or the steady readings' (their speeds written with the other
+    sign), where the rest of the session turns with its voltage.  None when the speeds
+    follow their voltages, or too few levels move to tell."""
+    rows, names = unloaded_levels(session, held=True)
+    if rows.shape[0] == 0:
+        return None
+    v, w = rows[:, 0], rows[:, 1]
+    moving = (np.abs(w) > AT_REST * np.max(np.abs(w))) & (v != 0)
+    against = moving & (np.sign(w) == -np.sign(v))
+    groups = {}
+    for k, name in enumerate(names):
+        if moving[k]:
+            groups.setdefault(name, []).append(bool(against[k]))
+    reversed_ = {g for g, flags in groups.items() if all(flags)}
+    toml = session.root / "session.toml"
+    if not reversed_:
+        return None
+    if reversed_ == set(groups):
+        return Reversal(toml, None, (
+            "the speed turns against the voltage at every steady level (a positive "
+            "voltage, a negative speed): the motor's leads, or its speed sensor, are wired "
+            "the other way round; negate the speeds (or the voltages) and fit again"))
+    name = next((g for g in names if g in reversed_ and g is not None), None)
+    if name is not None:
+        tr = next(t for t in session.traces if t.name == name)
+        return Reversal(tr.file, None, (
+            f"the speed of trace {name!r} turns against its voltage at every level it "
+            "holds, where the rest of the session turns with it: its speed sensor is "
+            "wired the other way round; negate this file's speed column and fit again"))
+    tables = [t for t in session.steady_tables if np.any(t.load_torque == 0)]
+    points = [p for p in session.operating_points if p.load_torque == 0]
+    one_table = len(tables) == 1 and not points
+    return Reversal(tables[0].file if one_table else toml,
+                    None if one_table else "steady readings", (
+        "the steady readings' speeds turn against their voltages, where the traces turn "
+        "with theirs: the steady speeds are written with the other sign; negate "
+        f"{'its speed column' if one_table else 'the steady speeds'} and fit again"))

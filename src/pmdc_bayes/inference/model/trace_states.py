@@ -1,0 +1,63 @@
+"""A trace's own starting state as fitted parameters: a coast-down's speed at its first
+sample and a position trace's angle there (their registry entries)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...io.session import Session
+from .noise import noise_scale
+from .params import ParamSpec, Prior, identifier
+
+__all__ = ["coast_down_specs", "initial_speed_name", "position_specs", "position_offset_name"]
+
+
+def initial_speed_name(trace_name: str) -> str:
+    """The parameter name of a coast-down's speed at its first sample."""
+    return f"initial_speed_{identifier(trace_name)}"
+
+
+def coast_down_specs(session: Session) -> list[ParamSpec]:
+    """Per coast-down trace, ``initial_speed_<trace>`` (rad/s): the speed at its first
+    sample, fitted rather than read off one noisy sample.  Prior normal, centred on the
+    median of the first three samples, sd 10 % of it plus ten times the trace's
+    model-free noise level (the data decide it)."""
+    specs = []
+    for tr in session.coast_downs:
+        w0 = float(np.median(tr.speed[:3]))
+        sd = 0.1 * abs(w0) + 10.0 * noise_scale(tr.speed)
+        specs.append(ParamSpec(initial_speed_name(tr.name), "rad/s", "trace",
+                               Prior("normal", w0, sd, "first samples"), w0,
+                               transform="identity",
+                               description=f"speed at the start of coast-down {tr.name!r}",
+                               trace=tr.name))
+    return specs
+
+
+def position_offset_name(trace_name: str) -> str:
+    """The parameter name of a position trace's angle at its first sample."""
+    return f"position_offset_{identifier(trace_name)}"
+
+
+def position_specs(session: Session) -> list[ParamSpec]:
+    """Per trace with an angle, ``position_offset_<trace>`` (rad): the sensor's reading
+    at the trace's first sample (the angle is otherwise only known up to it).  Prior
+    normal, centred on the first reading (for an encoder trace starting at rest before
+    its first edge, half a count before that edge), sd one count plus ten times the
+    angle's model-free noise level."""
+    specs = []
+    for tr in session.traces:
+        if tr.position is None:
+            continue
+        ok = np.isfinite(tr.position)
+        y = tr.position[ok]
+        first = float(y[0])
+        if not ok[0]:
+            first -= 0.5 * tr.encoder_step * float(np.sign(y[1] - y[0]) if y.size > 1 else 1.0)
+        sd = tr.encoder_step + 10.0 * noise_scale(y)
+        specs.append(ParamSpec(position_offset_name(tr.name), "rad", "trace",
+                               Prior("normal", first, sd, "first reading"), first,
+                               transform="identity",
+                               description=f"angle read at the start of trace {tr.name!r}",
+                               trace=tr.name))
+    return specs
