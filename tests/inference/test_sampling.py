@@ -20,7 +20,6 @@ from pmdc_bayes.inference.sampling.idata import _padded_pointwise, lumped  # noq
 from pmdc_bayes.inference.sampling.logprob import LogProb as _LogProb  # noqa: E402
 from pmdc_bayes.inference.sampling.moves import SHARE_TRUSTED  # noqa: E402
 from pmdc_bayes.inference.sampling.posterior import (  # noqa: E402
-    PILOT,
     Stop,
     _log_posterior_batch,
     az,
@@ -29,6 +28,7 @@ from pmdc_bayes.inference.sampling.posterior import (  # noqa: E402
     sample_posterior,
     summarize,
 )
+from pmdc_bayes.inference.sampling.rule import PILOT  # noqa: E402
 from pmdc_bayes.inference.sampling.stopping import stop_message  # noqa: E402
 from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.io.loader import load_session  # noqa: E402

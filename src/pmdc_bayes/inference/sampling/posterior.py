@@ -7,15 +7,15 @@ ensembles (:mod:`.ensembles`) started around the MAP, moving in the coordinates 
 posterior is closer to Gaussian in around the MAP), in chunks, until the chain is many
 integrated autocorrelation times long, the autocorrelation estimate has settled and
 the draws pass the gates, or until the steps this rule projects from the chain's own
-state exceed a step budget (:mod:`.stopping`): a stop that depends on the seed and the
-data, not on the machine's load.  The result, :class:`Posterior`, carries its status in
+state exceed a step budget (:mod:`.rule`, stepped between chunks, with the pieces of
+:mod:`.stopping`): a stop that depends on the seed and the data, not on the machine's
+load.  The result, :class:`Posterior`, carries its status in
 words; :func:`summarize` and :func:`gates` (in :mod:`pmdc_bayes.inference.sampling.diagnostics`)
 say whether it can be trusted.
 """
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 from dataclasses import dataclass
@@ -39,16 +39,8 @@ from .idata import LL_DRAWS, to_inference_data
 from .logprob import LogProb, initial_walkers
 from .logprob import batch_log_posterior as _log_posterior_batch
 from .moves import LaplaceIndependenceMove, LaplaceMixture, default_moves
-from .stopping import (
-    CHECK,
-    TAU_RTOL,
-    Stop,
-    gate_shortfall,
-    next_gate_check,
-    over_budget,
-    steps_needed,
-    stop_message,
-)
+from .rule import CHUNK, RuleState, StoppingRule
+from .stopping import CHECK, Stop, burn_in
 
 __all__ = ["Posterior", "Stop", "sample_posterior", "to_inference_data", "summarize", "gates",
            "compare_laplace", "loo_compare", "format_loo", "default_moves",
@@ -56,12 +48,6 @@ __all__ = ["Posterior", "Stop", "sample_posterior", "to_inference_data", "summar
 
 MAX_STEPS = 20_000  # the step budget: the most steps a run may take
 
-CHUNK = 200  # steps between autocorrelation checks while the chain is too short to stop
-PILOT = 50  # the first check: whether the independence proposals can take more steps
-THINNED_NEAR = 1.3  # a thinned gate check this close to the gates is redone unthinned
-ADAPT_UNTIL = 4 * CHUNK  # the independence proposals may be refitted up to here ...
-ADAPT_BELOW = 0.3  # ... while fewer than this share of their proposals are accepted,
-ADAPT_WIDER = 1.5  # or the chain spreads more than this times their sd in some direction
 
 
 @dataclass(frozen=True)
@@ -137,12 +123,6 @@ def warm_up(model, theta, n_walkers: int | None = None) -> None:
     _log_posterior_batch(model)(to_device(np.repeat(theta[None], batch, axis=0)))
 
 
-def _burn_in(tau, steps: int, adapted: int) -> int:
-    """Steps discarded: those before the proposals' last refit, and 2 τ_max after it
-    (at most half of what follows)."""
-    return adapted + min(math.ceil(2.0 * float(np.max(tau))), (steps - adapted) // 2)
-
-
 @x64
 def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
                      max_steps: int = MAX_STEPS, min_tau_multiple: float = 50,
@@ -199,100 +179,64 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     # the walkers move in φ (:mod:`.coordinates`); the draws are mapped back to θ
     local = exact_laplace(fit, log_prob)  # the posterior's own curvature at the MAP
     xy = Coordinates.for_fit(model.registry, local, log_prob)
-
-    def si(phi):  # the SI values of draws in φ, on which the gates are judged
-        return model.registry.to_values(xy.to_theta(phi))
-
     sampler = Ensembles(k, n_walkers, ndim, xy.log_prob(log_prob), xy.from_theta(theta0),
                         lp0 + xy.log_jacobian(theta0), seed=seed,
                         moves=lambda j: default_moves(xy.laplace(local)) if moves is None
                         else moves)
+    rule = StoppingRule(max_steps, min_tau_multiple,
+                        max_steps if budget is None else budget, max_seconds,
+                        adapting=moves is None, k=k,
+                        # the SI values of draws in φ, on which the gates are judged
+                        values=lambda phi: model.registry.to_values(xy.to_theta(phi)))
+    state, elapsed = _run(rule, sampler, progress)
+    return _posterior(model, sampler, xy, rule, state, elapsed, ll_draws=ll_draws, seed=seed,
+                      own_moves=moves is not None, t_start=t_start)
 
-    names = tuple(model.names)
-    budget = max_steps if budget is None else budget
-    tau_prev, stop, settled, steps, gate_at, gate = None, None, None, 0, 0, None
-    # the step of the next estimate of τ (and perhaps of the gates); the default moves
-    # are first checked early, on whether their independence proposals deserve more steps
-    check_at = PILOT if moves is None else CHUNK
-    adapted = 0  # the step of the proposals' last refit: the chain before it is burn-in
+
+def _run(rule: StoppingRule, sampler: Ensembles, progress: bool) -> tuple[RuleState, float]:
+    """Run ``sampler`` in chunks until ``rule`` stops it: the rule's last state and the
+    seconds it took."""
+    state = rule.init()
     # the bar's length: until τ is first estimated, the least the stopping rule can
     # need (a first estimate and one to compare it with); then what it needs at τ
-    bar = tqdm(total=min(max_steps, CHUNK + CHECK), disable=not progress, file=sys.stderr,
-               unit="step")
+    bar = tqdm(total=min(rule.max_steps, CHUNK + CHECK), disable=not progress,
+               file=sys.stderr, unit="step")
     t_loop = time.perf_counter()
     with bar:
-        while stop is None:
-            n = min(CHUNK, max_steps - steps, max(1, check_at - steps))
+        while not rule.terminate(state):
+            n = rule.chunk(state)
             sampler.run_mcmc(n)
             _signals.check()  # an interrupt Python dropped in a callback stops here
-            steps += n
             bar.update(n)
-            timed_out = max_seconds is not None and time.perf_counter() - t_loop >= max_seconds
-            last = steps >= max_steps or timed_out
-            if steps < check_at and not last:
-                continue
-            if moves is None and steps <= ADAPT_UNTIL and not last \
-                    and sampler.adapt(below=ADAPT_BELOW, wider=ADAPT_WIDER,
-                                      refit=steps > PILOT):
-                adapted, tau_prev, gate, check_at = steps, None, None, steps + CHUNK
-                continue
-            tau = sampler.get_autocorr_time(discard=adapted)
-            run = steps - adapted
-            long_enough = run >= min_tau_multiple * tau.max()
-            # τ's estimate costs more as the chain grows: a long chain is checked every 5 %
-            check_at = steps + (max(CHECK, run // 20) if long_enough else CHUNK)
-            if tau_prev is not None:
-                # τ has settled, or the chain is so long (twice the multiple) that an
-                # estimate off by the noise of a short τ cannot make it too short
-                settled = bool(np.all(np.abs(tau - tau_prev) < TAU_RTOL * tau)) \
-                    or run >= 2 * min_tau_multiple * tau.max()
-                if settled and long_enough and steps >= gate_at:
-                    # first on every (τ_min/4)-th step: the gates' cost grows with the chain
-                    burn = _burn_in(tau, steps, adapted)
-                    thin = max(1, int(tau.min() / 4))
-                    short = gate_shortfall(sampler, burn, k, thin=thin, values=si)
-                    if thin > 1 and short <= THINNED_NEAR:  # near: the exact check decides
-                        short = gate_shortfall(sampler, burn, k, values=si)
-                    if short <= 1.0:
-                        stop = Stop.CONVERGED
-                        break
-                    gate = (steps, burn, short)
-                    gate_at = next_gate_check(steps, burn, max(short, 1.0 + 1e-3))
-                    check_at = max(check_at, gate_at)
-            tau_prev = tau
-            need = steps_needed(steps, adapted, tau, min_tau_multiple=min_tau_multiple,
-                                gates=gate)
-            # the bar's length: what the stopping rule needs at the current τ and the
-            # gates' last check, not the cap
-            bar.total = int(min(max_steps, max(steps + CHECK, gate_at, need)))
-            bar.set_postfix(tau_max=f"{tau.max():.0f}")
-            if over_budget(steps, adapted, tau, need, budget):
-                stop = Stop.OVER_BUDGET
-            elif last:
-                stop = Stop.STEP_CAP if steps >= max_steps else Stop.TIME_LIMIT
+            state = rule.step(state, sampler, n, time.perf_counter() - t_loop)
+            if state.checked == state.steps and state.stop is not Stop.CONVERGED:
+                bar.total = rule.projected(state)
+                bar.set_postfix(tau_max=f"{state.tau.max():.0f}")
+    return state, time.perf_counter() - t_loop
 
-    timed = {"elapsed": time.perf_counter() - t_loop, "max_seconds": max_seconds} \
-        if stop is Stop.TIME_LIMIT else {}
-    message = stop_message(steps, tau, names, min_tau_multiple=min_tau_multiple,
-                           settled=settled, converged=stop is Stop.CONVERGED,
-                           adapted=adapted, **timed, **({"need": need, "max_steps": budget}
-                           if stop is Stop.OVER_BUDGET else {"max_steps": max_steps}))
-    converged = stop is Stop.CONVERGED
-    burn = _burn_in(tau, steps, adapted)
+
+def _posterior(model, sampler: Ensembles, xy: Coordinates, rule: StoppingRule,
+               state: RuleState, elapsed: float, *, ll_draws: int, seed: int,
+               own_moves: bool, t_start: float) -> Posterior:
+    """The draws after burn-in as a :class:`Posterior`, with their ArviZ record."""
+    names = tuple(model.names)
+    burn = burn_in(state.tau, state.steps, state.adapted)
     chain = xy.to_theta(np.swapaxes(sampler.get_chain(discard=burn), 0, 1))  # (walkers, draws, P)
     lp = np.swapaxes(sampler.get_log_prob(discard=burn), 0, 1) - xy.log_jacobian(chain)
     acc = np.asarray(sampler.acceptance_fraction, dtype=float)
+    converged = state.stop is Stop.CONVERGED
     idata = to_inference_data(model, chain, lp, acc, ll_draws=ll_draws, seed=seed)
-    idata.posterior.attrs.update(n_steps=steps, burn_in=burn, capped=int(not converged),
-                                 ensembles=k, adapted=adapted, stop=stop.name,
-                                 coordinates=xy.kind,
+    idata.posterior.attrs.update(n_steps=state.steps, burn_in=burn, capped=int(not converged),
+                                 ensembles=rule.k, adapted=state.adapted,
+                                 stop=state.stop.name, coordinates=xy.kind,
                                  sampled_in_value=",".join(xy.in_value(names)))
-    shares = [m.share for ms in sampler.moves for m, _ in ms
-              if isinstance(m, LaplaceMixture)] if moves is None else []
+    shares = [] if own_moves else [m.share for ms in sampler.moves for m, _ in ms
+                                   if isinstance(m, LaplaceMixture)]
     if shares:  # the independence proposals' share of the steps the kept draws took
         idata.posterior.attrs["independence_share"] = float(np.mean(shares))
     si = model.registry.to_values(chain)
     return Posterior(names, si, chain, lp, acc,
-                     dict(zip(names, map(float, tau), strict=True)), steps, burn,
-                     not converged, message, time.perf_counter() - t_start, idata,
-                     r_hat_between(si, k, names), stop)
+                     dict(zip(names, map(float, state.tau), strict=True)), state.steps, burn,
+                     not converged, rule.message(state, names, elapsed),
+                     time.perf_counter() - t_start, idata, r_hat_between(si, rule.k, names),
+                     state.stop)

@@ -20,8 +20,8 @@ from .arviz_import import az
 from .diagnostics import ESS_MIN, R_HAT_MAX
 from .ensembles import r_hat_between
 
-__all__ = ["TAU_RTOL", "CHECK", "TRUST_TAU", "Stop", "gate_shortfall", "next_gate_check",
-           "steps_needed", "over_budget", "stop_message"]
+__all__ = ["TAU_RTOL", "CHECK", "TRUST_TAU", "Stop", "burn_in", "gate_shortfall",
+           "next_gate_check", "steps_needed", "over_budget", "stop_message"]
 
 TAU_RTOL = 0.05  # relative change of τ between checks that counts as settled
 CHECK = 100  # least steps between checks once the chain is long enough
@@ -35,6 +35,12 @@ class Stop(enum.Enum):
     OVER_BUDGET = "the rule projects more steps than the step budget"
     STEP_CAP = "the step budget was used up"
     TIME_LIMIT = "the wall-time limit the caller set was reached"
+
+
+def burn_in(tau, steps: int, adapted: int) -> int:
+    """Steps discarded: those before the proposals' last refit, and 2 τ_max after it
+    (at most half of what follows)."""
+    return adapted + min(math.ceil(2.0 * float(np.max(tau))), (steps - adapted) // 2)
 
 
 def steps_needed(steps: int, adapted: int, tau, *, min_tau_multiple: float,
