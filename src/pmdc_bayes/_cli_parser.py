@@ -106,6 +106,17 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
+    _add_closed_form(sub, commands['closed-form'])
+    _add_simulate(sub, commands['simulate'])
+    _add_fit(sub, commands['fit'])
+    _add_report(sub, commands['report'])
+    _add_lot(sub, commands['lot'])
+    _add_cache(sub, commands['cache'])
+    return p
+
+
+def _add_closed_form(sub, run) -> None:
+    """``closed-form``: its options and help."""
     cf = sub.add_parser(
         "closed-form",
         help="the reference paper's closed-form method (Table I, tau, G, transfer function)",
@@ -115,7 +126,11 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
     cf.add_argument("session", nargs="?", help=f"session directory (default: bundled "
                     f"'{DEFAULT_SESSION}')")
     cf.add_argument("--json", action="store_true", help="print one JSON object with SI floats")
-    cf.set_defaults(func=commands['closed-form'])
+    cf.set_defaults(func=run)
+
+
+def _add_simulate(sub, run) -> None:
+    """``simulate``: its options and help."""
     sim = sub.add_parser(
         "simulate",
         help="write a simulated session (bench, steady points, traces) from a plan",
@@ -132,7 +147,11 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
                      "seed)")
     sim.add_argument("--force", action="store_true", help="replace the generated files of an "
                      "existing session in DIR (other files such as plan.toml are kept)")
-    sim.set_defaults(func=commands['simulate'])
+    sim.set_defaults(func=run)
+
+
+def _add_fit(sub, run) -> None:
+    """``fit``: its options and help."""
     ft = sub.add_parser(
         "fit",
         help="closed form, joint MAP fit, adequacy checks, MCMC posterior and the report",
@@ -211,7 +230,11 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
     ft.add_argument("--no-cache", action="store_true",
                     help="neither read nor store compiled programs in the cache directory")
     _talk(ft, "a line per stage and the sampler's bar")
-    ft.set_defaults(func=commands['fit'])
+    ft.set_defaults(func=run)
+
+
+def _add_report(sub, run) -> None:
+    """``report``: its options and help."""
     rp = sub.add_parser(
         "report",
         help="regenerate the uncertainty report of a finished run",
@@ -225,7 +248,11 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
     rp.add_argument("--no-cache", action="store_true",
                     help="neither read nor store compiled programs in the cache directory")
     _talk(rp, "a line per stage")
-    rp.set_defaults(func=commands['report'])
+    rp.set_defaults(func=run)
+
+
+def _add_lot(sub, run) -> None:
+    """``lot``: its options and help."""
     lt = sub.add_parser(
         "lot",
         help="a production lot: every motor fitted (on a Dask cluster), then the lot as a "
@@ -257,7 +284,11 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
     lt.add_argument("--force", action="store_true",
                     help="replace the lot's earlier runs and files in RUNS")
     _talk(lt, "a line per motor")
-    lt.set_defaults(func=commands['lot'])
+    lt.set_defaults(func=run)
+
+
+def _add_cache(sub, run) -> None:
+    """``cache``: its options and help."""
     ch = sub.add_parser(
         "cache",
         help="show or clear the cache of compiled programs",
@@ -268,5 +299,4 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
         "wrote there.",
     )
     ch.add_argument("action", choices=("info", "clear"), nargs="?", default="info")
-    ch.set_defaults(func=commands['cache'])
-    return p
+    ch.set_defaults(func=run)
