@@ -157,14 +157,14 @@ def test_a_coast_down_splits_the_damping_of_a_speed_only_session(tmp_path):
 
 @pytest.mark.slow
 def test_a_coulomb_run_down_rejects_the_viscous_model(tmp_path):
-    from pmdc_bayes.pipeline import fit_session
+    from pmdc_bayes.pipeline import FitOptions, fit_session
 
     session = load_session(_speed_only_with_coast(tmp_path, tc=2e-3))
-    res = fit_session(session, mcmc=False)  # the session's friction: viscous
+    res = fit_session(session, FitOptions(mcmc=False))  # the session's friction: viscous
     assert res.adequacy.verdict == "inadequate"
     assert any(f.where == ChannelId("run_down", "speed") and f.severity == "fail"
                for f in res.adequacy.findings)
-    res = fit_session(session, mcmc=False, friction="coulomb")
+    res = fit_session(session, FitOptions(mcmc=False, friction="coulomb"))
     fit = res.fit
     assert res.adequacy.verdict == "adequate", [f.message for f in res.adequacy.findings]
     for name, true in (("Tc", 2e-3), ("B", B), ("J", J)):

@@ -37,12 +37,12 @@ def _plan():
 
 @pytest.mark.slow
 def test_a_rig_with_every_non_ideality_is_fitted_and_recovered(tmp_path):
-    from pmdc_bayes.pipeline import fit_session
+    from pmdc_bayes.pipeline import FitOptions, fit_session
 
     root = simulate_session(_plan(), tmp_path / "s")
     truth = json.loads((root / "truth.json").read_text())
     session = dataclasses.replace(load_session(root), nuisances=NUISANCES)
-    res = fit_session(session, mcmc=False)
+    res = fit_session(session, FitOptions(mcmc=False))
     assert res.adequacy.verdict == "adequate", [f.message for f in res.adequacy.findings]
     fit = res.fit
     assert set(fit.values) >= {"Vdrop", "Imax", "speed_lag", "current_lag",

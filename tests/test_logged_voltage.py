@@ -51,12 +51,13 @@ def test_the_jitter_of_a_logged_voltage_is_not_a_step(tmp_path):
 
 @pytest.mark.slow
 def test_a_dead_time_of_several_samples_under_a_logged_voltage_is_recovered(tmp_path):
-    from pmdc_bayes.pipeline import fit_session
+    from pmdc_bayes.pipeline import FitOptions, fit_session
 
     session = load_session(simulate_session(_plan({"dead_time": 0.0043}), tmp_path))
-    ideal = fit_session(session, mcmc=False)
+    ideal = fit_session(session, FitOptions(mcmc=False))
     assert ideal.adequacy.verdict == "inadequate"
-    res = fit_session(dataclasses.replace(session, nuisances=("dead_time",)), mcmc=False)
+    res = fit_session(dataclasses.replace(session, nuisances=("dead_time",)),
+                      FitOptions(mcmc=False))
     assert res.adequacy.verdict == "adequate", [f.message for f in res.adequacy.findings]
     fit = res.fit
     for name in ("dead_time_run_9v", "dead_time_run_5v"):

@@ -8,7 +8,7 @@ import arviz as az
 import pytest
 
 from pmdc_bayes.io.bundled import bundled_session_dir
-from pmdc_bayes.pipeline import run_fit
+from pmdc_bayes.pipeline import FitOptions, run_fit
 
 CONTRACT = {"unit", "closed_form", "map", "map_sd", "mean", "sd", "hdi_3%", "hdi_97%",
             "ess_bulk", "r_hat"}
@@ -17,7 +17,7 @@ CONTRACT = {"unit", "closed_form", "map", "map_sd", "mean", "sd", "hdi_3%", "hdi
 @pytest.fixture(scope="module")
 def demo_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("runs") / "demo"
-    return run_fit(bundled_session_dir("demo"), out=out, seed=1)
+    return run_fit(bundled_session_dir("demo"), FitOptions(seed=1), out=out)
 
 
 @pytest.mark.slow

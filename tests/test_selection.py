@@ -283,7 +283,7 @@ def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path, m
     run's copy of session.toml; the report re-read from the run and a refit of the copy
     (without a search) use that model."""
     from pmdc_bayes import pipeline
-    from pmdc_bayes.pipeline import run_fit
+    from pmdc_bayes.pipeline import FitOptions, run_fit
     from pmdc_bayes.readback import read_run
     from pmdc_bayes.simulate.session import simulate_session
 
@@ -291,7 +291,7 @@ def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path, m
     session = simulate_session(tmp_path / "plan.toml", tmp_path / "session")
     refits = []
     monkeypatch.setattr(pipeline, "fit_map", lambda *a, **k: refits.append(1) or fit_map(*a, **k))
-    out, summary = run_fit(session, out=tmp_path / "run", mcmc=False)
+    out, summary = run_fit(session, FitOptions(mcmc=False), out=tmp_path / "run")
     assert refits == [] and summary["diagnostics"]["wall_s"]["model_search"] > 0
     sel = summary["model_selection"]
     assert sel["candidates"][0]["name"] == "ideal"
@@ -304,14 +304,15 @@ def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path, m
     assert "[model]" not in (session / "session.toml").read_text()
     again = read_run(out)  # what `pmdc-bayes report RUN` reads
     assert list(again.model.names) == names
-    _, refit = run_fit(out / SESSION_COPY, out=tmp_path / "refit", mcmc=False, search=False)
+    _, refit = run_fit(out / SESSION_COPY, FitOptions(mcmc=False, search=False),
+                       out=tmp_path / "refit")
     assert "model_selection" not in refit
     assert list(refit["fit"]["names"]) == names
     for name in names:
         a, b = summary["parameters"][name], refit["parameters"][name]
         assert abs(a["map"] - b["map"]) <= 1e-3 * a["map_sd"] + 1e-12, name
     # --no-search: the session's own (ideal) model, rejected, no search recorded
-    _, plain = run_fit(session, out=tmp_path / "plain", mcmc=False, search=False)
+    _, plain = run_fit(session, FitOptions(mcmc=False, search=False), out=tmp_path / "plain")
     assert "model_selection" not in plain and plain["adequacy"]["verdict"] == "inadequate"
 
 

@@ -152,9 +152,9 @@ def test_a_vanishing_lag_passes_the_signal_through_with_finite_gradients(jax_x64
 
 
 def _fit(session, nuisances, **kw):
-    from pmdc_bayes.pipeline import fit_session
+    from pmdc_bayes.pipeline import FitOptions, fit_session
 
-    return fit_session(dataclasses.replace(session, nuisances=nuisances), **kw)
+    return fit_session(dataclasses.replace(session, nuisances=nuisances), FitOptions(**kw))
 
 
 @pytest.mark.slow

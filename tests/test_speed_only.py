@@ -118,11 +118,11 @@ def _with_bench(run, tmp_path, **bench):
 
 @pytest.mark.slow
 def test_a_bench_K_is_a_prior_that_splits_the_damping(run, tmp_path):
-    from pmdc_bayes.pipeline import fit_session
+    from pmdc_bayes.pipeline import FitOptions, fit_session
 
     session = _with_bench(run, tmp_path, K=(K * 1.01, K * 0.01, "V*s/rad"))
     assert set(session.bench) == {"K"} and session.bench["K"].sd == pytest.approx(K * 0.01)
-    res = fit_session(session, mcmc=False)
+    res = fit_session(session, FitOptions(mcmc=False))
     spec = res.model.registry["K"]
     assert (spec.prior.kind, spec.prior.source) == ("normal", "bench")
     fit = res.fit
@@ -138,11 +138,11 @@ def test_a_bench_K_is_a_prior_that_splits_the_damping(run, tmp_path):
 
 @pytest.mark.slow
 def test_a_bench_J_the_data_contradict_is_a_bench_conflict(run, tmp_path):
-    from pmdc_bayes.pipeline import fit_session
+    from pmdc_bayes.pipeline import FitOptions, fit_session
 
     # an inertia measured (or typed) a factor 3 too large, claimed to 2 %
     session = _with_bench(run, tmp_path, J=(3 * J, 0.02 * 3 * J, "kg*m^2"))
-    res = fit_session(session, mcmc=False)
+    res = fit_session(session, FitOptions(mcmc=False))
     assert res.adequacy.verdict == "inadequate"
     assert any(f.check == "bench conflict" and f.where == "J" and f.severity == "fail"
                for f in res.adequacy.findings)

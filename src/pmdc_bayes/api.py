@@ -12,7 +12,13 @@ from .inference import StageClock
 from .io.bundled import session_path
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
-from .pipeline import SAMPLING_SECONDS, fit_session, model_left_open, search_session
+from .pipeline import (
+    SAMPLING_SECONDS,
+    FitOptions,
+    fit_session,
+    model_left_open,
+    search_session,
+)
 from .run import RunResult
 
 __all__ = ["fit"]
@@ -75,11 +81,10 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
         session, selection, chosen = search_session(
             session, holdout=held, friction=friction, seed=seed, say=None,
             compare=bool(search), clock=clock)
-    result = fit_session(session, mcmc=mcmc, friction=friction, seed=seed,
-                         holdout=held,
-                         progress=progress, allow_inadequate=allow_inadequate,
-                         max_sampling_seconds=max_sampling_seconds, fitted=chosen,
-                         clock=clock)
+    options = FitOptions(mcmc=mcmc, friction=friction, seed=seed, holdout=held,
+                         allow_inadequate=allow_inadequate,
+                         max_sampling_seconds=max_sampling_seconds)
+    result = fit_session(session, options, progress=progress, fitted=chosen, clock=clock)
     if selection is not None:
         result.summary["model_selection"] = selection
     if changed:

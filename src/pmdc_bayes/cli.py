@@ -147,17 +147,17 @@ def _fit_lot(args, paths) -> int:
 
 
 def _fit_one(args, path, out) -> tuple[int, dict, Path]:
-    from .pipeline import run_fit
+    from .pipeline import FitOptions, run_fit
 
-    out, summary = run_fit(
-        path, say=_stage_printer(args), progress=_bar(args),
-        out=out, force=args.force, mcmc=not args.no_mcmc,
-        friction=args.friction, seed=args.seed, holdout=args.holdout or (),
-        compare_friction=args.compare_friction, allow_inadequate=args.allow_inadequate,
-        add=tuple(a.replace("-", "_") for a in args.add or ()), compare=args.compare,
-        search=not args.no_search, pi=args.pi,
+    options = FitOptions(
+        mcmc=not args.no_mcmc, friction=args.friction, seed=args.seed,
+        holdout=tuple(args.holdout or ()), compare_friction=args.compare_friction,
+        allow_inadequate=args.allow_inadequate,
         max_sampling_seconds=args.max_sampling_seconds or None,
-    )
+        add=tuple(a.replace("-", "_") for a in args.add or ()), compare=args.compare,
+        search=not args.no_search, pi=args.pi)
+    out, summary = run_fit(path, options, out=out, force=args.force,
+                           say=_stage_printer(args), progress=_bar(args))
     if args.quiet:
         with contextlib.redirect_stdout(io.StringIO()):
             print_fit(summary, out)

@@ -65,14 +65,15 @@ def fit_motor(session: Path, out: Path, *, name: str, mcmc: bool = True, seed: i
     it passed, its evidence about every motor parameter it has."""
     from . import cachedir
     from .inference.population.motor_evidence import from_run
-    from .pipeline import run_fit
+    from .pipeline import FitOptions, run_fit
     from .readback import read_run
 
     t0 = time.perf_counter()
     if cache:
         cachedir.enable()
     try:
-        run, summary = run_fit(session, out=out, force=force, mcmc=mcmc, seed=seed)
+        run, summary = run_fit(session, FitOptions(mcmc=mcmc, seed=seed), out=out,
+                               force=force)
         status, errors = run_outcome(summary, advice=False)
         evidence = None
         if status == 0:

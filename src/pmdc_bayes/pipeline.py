@@ -7,13 +7,14 @@ replaces a good one.
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
 from pathlib import Path
-
-import numpy as np
 
 from . import posterior_stage as _stage
 from ._errors import FitFailed, UsageError
 from ._x64 import x64
+from .candidate import Fitted
 from .inference import StageClock, announcing
 from .inference.adequacy.assess import assess
 from .inference.fit.identifiability import identifiability
@@ -23,158 +24,140 @@ from .inference.model.seed import fit_seed, refuse_reversed
 from .inference.warmup import WarmUp
 from .io.loader import load_session
 from .io.session import NUISANCES, Session
-from .paper.consistency import consistency_checks
 from .run import RunResult, write_run
-from .rundir import check_replaceable, default_out_dir, versions
+from .rundir import check_replaceable, default_out_dir
+from .stage_summary import stage_summary
 
-__all__ = ["fit_session", "run_fit", "search_session", "model_left_open", "write_run"]
+__all__ = ["FitOptions", "fit_session", "run_fit", "search_session", "model_left_open", "write_run"]
 
 SAMPLING_SECONDS = None  # no bound on the sampler's wall time by default: it stops
 # by its step budget, so a run's result does not depend on the machine's load
-def _rms(x) -> float:
-    x = np.asarray(x)
-    x = x[np.isfinite(x)]
-    return float(np.sqrt(np.mean(x * x))) if x.size else float("nan")
+@dataclass(frozen=True)
+class FitOptions:
+    """What a fit is asked for, as ``pmdc-bayes fit``'s options give it.
 
+    Attributes
+    ----------
+    mcmc : sample the posterior after the MAP (refused where the data reject the model,
+        unless ``allow_inadequate``).
+    friction : ``"viscous"`` or ``"coulomb"``; None: the session's.
+    seed : seeds the MAP's starts and the sampler.
+    holdout : the traces kept out of the fit.
+    compare_friction : also fit and sample the other friction model, compared by LOO.
+    allow_inadequate : sample a model the data reject (its values stay labelled so).
+    max_sampling_seconds : a bound on the sampler's wall time; None: none (it stops by
+        its rule or its step budget, the same on any machine).
+    add : rig non-idealities to fit on top of those the session declares
+        (``io.session.NUISANCES``).
+    compare : run the model search from the session's model (:func:`search_session`).
+    search : False: never search, even where the model is left to it
+        (:func:`model_left_open`).
+    pi : ``(kp, ki, delay)`` of a PI speed loop whose stability margins are recorded.
+    """
 
-def trace_rms(model, theta) -> dict:
-    """Per trace RMS of the residuals of each channel it logged: ``speed`` (rad/s),
-    ``current`` (A), ``position`` (rad; where an encoder's count has not started, no
-    sample).  A speed estimated from the angle is not a measurement and has no row."""
-    out = {}
-    angles = model.predict_angles(theta)
-    for tr, (ia, w), a in zip(model.session.traces, model.predict(theta),
-                              angles, strict=True):
-        row = {}
-        if tr.speed_logged:
-            row["speed"] = _rms(tr.speed - w)
-        if tr.current is not None:
-            row["current"] = _rms(tr.current - ia)
-        if tr.position is not None and a is not None:
-            row["position"] = _rms(tr.position - a)
-        out[tr.name] = row
-    return out
-
-
-def _closed_form_theta(model, cf):
-    return np.asarray(model.theta(dict(cf.params(), Tc=0.0)))
+    mcmc: bool = True
+    friction: str | None = None
+    seed: int = 0
+    holdout: tuple[str, ...] = ()
+    compare_friction: bool = False
+    allow_inadequate: bool = False
+    max_sampling_seconds: float | None = SAMPLING_SECONDS
+    add: tuple[str, ...] = ()
+    compare: bool = False
+    search: bool = True
+    pi: tuple[float, float, float] | None = None
 
 
 @x64
-def fit_session(session_full: Session, *, mcmc: bool = True, friction: str | None = None,
-                seed: int = 0, holdout=(), compare_friction: bool = False,
-                progress=None, allow_inadequate: bool = False, say=None,
-                max_sampling_seconds: float | None = SAMPLING_SECONDS,
-                fitted=None, clock: StageClock | None = None) -> RunResult:
+def fit_session(session_full: Session, options: FitOptions = FitOptions(), *,
+                progress=None, say=None, fitted: Fitted | None = None,
+                clock: StageClock | None = None) -> RunResult:
     """Every stage of a fit, in memory: closed form → MAP → adequacy → (MCMC); the
     run's result.  ``say``, when given, is called with a line as each stage starts.
-    ``fitted`` (a :class:`~.search.Fitted` of this session's model, as the model search
-    leaves it) stands for the closed form, MAP and adequacy stages; ``clock``, the
-    :class:`~.inference.StageClock` that timed the search, goes on timing.
-    The sampler stops by its rule or its step budget (the same on any machine);
-    ``max_sampling_seconds``, when given, also bounds its wall time (default None: no
-    bound); a posterior stopped by either fails its gates with the reason.
+    ``fitted`` (the chosen candidate as the model search leaves it) stands for the
+    closed form, MAP and adequacy stages; ``clock``, the :class:`~.inference.StageClock`
+    that timed the search, goes on timing.  A posterior stopped by its step budget or
+    ``options.max_sampling_seconds`` fails its gates with the reason.
 
     ``summary`` of the result is what ``summary.json`` holds; nothing is written.  When
     the adequacy checks reject the model the posterior is not sampled (it would only
-    describe the misfit) unless ``allow_inadequate``.
+    describe the misfit) unless ``options.allow_inadequate``.
     """
     say = say or (lambda text: None)
     clock = clock or StageClock()
-    session = _held_out(session_full, holdout)
-    if fitted is not None:  # the model search fitted and checked it (its stage's time)
-        cf, model, fit, adequacy = fitted.seed, fitted.model, fitted.fit, fitted.adequacy
-        warm = WarmUp(model, mcmc=mcmc)
-        with clock.stage("identifiability"), warm.stopped_on_error():
-            _fit_failed(session, fit)
-            ident = identifiability(model, fit)
-    else:
-        with clock.stage("closed_form"):
-            say("closed form (the paper's method), or a seed from the data")
-            refuse_reversed(session)
-            cf = fit_seed(session)
-        with clock.stage("map"):
-            coulomb = None if friction is None else friction == "coulomb"
-            model = build_model(session, cf, coulomb=coulomb)
-            say(f"MAP fit of {len(model.names)} parameters")
-            warm = WarmUp(model, mcmc=mcmc)  # the later stages' programs, meanwhile
-            with warm.stopped_on_error():
-                fit = fit_map(model, seed=seed)
-                _fit_failed(session, fit)
-                ident = identifiability(model, fit)
-        with clock.stage("adequacy"), warm.stopped_on_error():
-            say("adequacy checks")
-            adequacy = assess(model, fit, cf)
-    if not adequacy.ok and not allow_inadequate:
+    session = _held_out(session_full, options.holdout)
+    fitted, ident, warm = _map_stages(session, options, fitted, clock, say)
+    if not fitted.adequacy.ok and not options.allow_inadequate:
         warm.stop()
-
-    cf_theta = _closed_form_theta(model, cf)
-    params = {}
-    for name in model.names:
-        params[name] = {"unit": model.registry[name].unit,
-                        "description": model.registry[name].description,
-                        "block": model.registry[name].block,
-                        "closed_form": cf.known().get(name) if cf.applicable else None,
-                        "map": fit.values[name], "map_sd": fit.sd[name]}
-        if not adequacy.ok:
-            params[name]["note"] = "conditional on a model the data reject"
-    summary = {
-        "session": {"name": session.name, "path": str(session.root), "motor": session.motor,
-                    "friction": "coulomb" if model.coulomb else "viscous",
-                    "holdout": list(holdout), "nuisances": list(session.nuisances),
-                    "loaded_traces": list(session.unknown_load_traces()),
-                    "load_kinds": dict(session.load_kinds),
-                    "coloured_traces": list(session.coloured_noise_traces()),
-                    "dead_time": "shared" if session.shared_dead_time else "per_trace",
-                    "gear_ratio": session.gear_ratio,
-                    "rows_left_out": {tr.name: list(tr.rows_left_out)
-                                      for tr in session.traces + session.coast_downs
-                                      if tr.rows_left_out}},
-        "adequacy": adequacy.as_json(),
-        "seed": seed,
-        "parameters": params,
-        "closed_form": cf.as_json(),
-        "fit": {"status": str(fit.status), "message": fit.message,
-                "log_posterior": fit.log_posterior,
-                "starts": fit.starts, "correlation": np.asarray(fit.corr).tolist(),
-                "names": list(model.names),
-                "noise_sd": {str(c): sd for c, sd in fit.noise_sd.items()}},
-        "identifiability": ident,
-        "consistency": consistency_checks(session, cf),
-        "residuals": {"closed_form": trace_rms(model, cf_theta),
-                      "map": trace_rms(model, fit.theta)},
-        "versions": versions(),
-    }
-    if session.truth:
-        summary["truth"] = {k: session.truth.get(k) for k in model.names}
-    summary["diagnostics"] = {"gates_passed": None, "failures": []}
-    post = None
-    clock.wall["mcmc"] = clock.compile["mcmc"] = 0.0
-    if mcmc and not adequacy.ok and not allow_inadequate:
-        mcmc = False
-        summary["diagnostics"]["sampler_message"] = (
-            "not sampled: the data reject the model (pass --allow-inadequate to sample it)")
-    if mcmc:
-        with clock.stage("mcmc"), warm.stopped_on_error():
-            say("sampling the posterior (emcee)")
-            post, stats = _stage.posterior_stage(model, fit, seed=seed, progress=progress,
-                                                  max_seconds=max_sampling_seconds)
-            for name in model.names:
-                params[name].update(stats["summary"][name])
-            summary["derived"] = stats["derived"]
-            summary["laplace_check"] = stats["laplace_check"]
-            summary["diagnostics"].update(stats["diagnostics"])
-            if compare_friction:
-                summary["model_comparison"] = _stage.compare_friction(
-                    session, cf, model, post, seed=seed, progress=progress,
-                    max_seconds=max_sampling_seconds)
+    summary = stage_summary(session, fitted, ident, holdout=options.holdout,
+                            seed=options.seed)
+    post = _posterior_stage(summary, session, fitted, options, warm, clock, say, progress)
     clock.wall["report"] = clock.compile["report"] = 0.0
     clock.total()
     summary["diagnostics"]["wall_s"] = clock.wall
     summary["diagnostics"]["compile_s"] = clock.compile
+    model = fitted.model
     draws = None if post is None else post.draws.reshape(-1, len(model.names))
-    return RunResult(summary, session, session_full, cf, model, fit, draws,
-                     None if post is None else post.idata, adequacy)
+    return RunResult(summary, session, session_full, fitted.seed, model, fitted.fit, draws,
+                     None if post is None else post.idata, fitted.adequacy)
+
+
+def _map_stages(session: Session, options: FitOptions, fitted: Fitted | None,
+                clock: StageClock, say) -> tuple[Fitted, dict, WarmUp]:
+    """The closed form (or seed), the MAP and the verdict, unless the search's
+    ``fitted`` holds them; what the data cannot determine; the later stages' programs
+    being made meanwhile."""
+    if fitted is not None:  # the model search fitted and checked it (its stage's time)
+        warm = WarmUp(fitted.model, mcmc=options.mcmc)
+        with clock.stage("identifiability"), warm.stopped_on_error():
+            _fit_failed(session, fitted.fit)
+            return fitted, identifiability(fitted.model, fitted.fit), warm
+    with clock.stage("closed_form"):
+        say("closed form (the paper's method), or a seed from the data")
+        refuse_reversed(session)
+        cf = fit_seed(session)
+    with clock.stage("map"):
+        coulomb = None if options.friction is None else options.friction == "coulomb"
+        model = build_model(session, cf, coulomb=coulomb)
+        say(f"MAP fit of {len(model.names)} parameters")
+        warm = WarmUp(model, mcmc=options.mcmc)  # the later stages' programs, meanwhile
+        with warm.stopped_on_error():
+            fit = fit_map(model, seed=options.seed)
+            _fit_failed(session, fit)
+            ident = identifiability(model, fit)
+    with clock.stage("adequacy"), warm.stopped_on_error():
+        say("adequacy checks")
+        adequacy = assess(model, fit, cf)
+    return Fitted(session, cf, model, fit, adequacy), ident, warm
+
+
+def _posterior_stage(summary: dict, session: Session, fitted: Fitted, options: FitOptions,
+                     warm: WarmUp, clock: StageClock, say, progress):
+    """The posterior, where asked for and the verdict allows it, recorded in
+    ``summary``; None where not sampled."""
+    clock.wall["mcmc"] = clock.compile["mcmc"] = 0.0
+    if not options.mcmc:
+        return None
+    if not fitted.adequacy.ok and not options.allow_inadequate:
+        summary["diagnostics"]["sampler_message"] = (
+            "not sampled: the data reject the model (pass --allow-inadequate to sample it)")
+        return None
+    model, params = fitted.model, summary["parameters"]
+    with clock.stage("mcmc"), warm.stopped_on_error():
+        say("sampling the posterior (emcee)")
+        post, stats = _stage.posterior_stage(model, fitted.fit, seed=options.seed,
+                                             progress=progress,
+                                             max_seconds=options.max_sampling_seconds)
+        for name in model.names:
+            params[name].update(stats["summary"][name])
+        summary["derived"] = stats["derived"]
+        summary["laplace_check"] = stats["laplace_check"]
+        summary["diagnostics"].update(stats["diagnostics"])
+        if options.compare_friction:
+            summary["model_comparison"] = _stage.compare_friction(
+                session, fitted.seed, model, post, seed=options.seed,
+                progress=progress, max_seconds=options.max_sampling_seconds)
+    return post
 
 
 def _fit_failed(session: Session, fit) -> None:
@@ -210,58 +193,48 @@ def _refuse_inert(session: Session, added) -> None:
                          f"{session.name!r}: there is nothing for it to fit; leave it out")
 
 
-def run_fit(session_path, *, out: Path | None = None, force: bool = False,
-            mcmc: bool = True, friction: str | None = None, seed: int = 0,
-            holdout=(), compare_friction: bool = False,
-            progress=None, allow_inadequate: bool = False,
-            add=(), compare: bool = False, search: bool = True, say=None, pi=None,
-            max_sampling_seconds: float | None = SAMPLING_SECONDS) -> tuple[Path, dict]:
-    """Fit a session directory and write the run directory ``out``: ``summary.json``,
-    ``posterior.nc`` (with MCMC) and the report, all built beside ``out`` and moved into
-    place in one rename once complete.
+def run_fit(session_path, options: FitOptions = FitOptions(), *, out: Path | None = None,
+            force: bool = False, say=None, progress=None) -> tuple[Path, dict]:
+    """Fit a session directory as ``options`` ask and write the run directory ``out``:
+    ``summary.json``, ``posterior.nc`` (with MCMC) and the report, all built beside
+    ``out`` and moved into place in one rename once complete.
 
     Returns the run directory and the summary.  Raises :class:`UsageError` for an
-    existing ``out`` without ``force``.  ``add`` names rig non-idealities to fit on top
-    of those the session declares (``io.session.NUISANCES``); ``compare`` first runs the
-    model search of :mod:`.search` from the session's model and goes on from the fit of
-    the model it chose, recording the search under ``"model_selection"`` and writing the
-    chosen model into the run's copy of ``session.toml``; without ``compare`` the search
-    runs when the model is left to it (:func:`model_left_open`), and is recorded only
-    when the data reject the ideal model (``search=False``: never).  ``pi = (kp, ki,
-    delay)`` records the stability margins of that PI speed loop under ``"pi_loop"``.
+    existing ``out`` without ``force``.  ``options.compare`` first runs the model search
+    of :mod:`.search` from the session's model and goes on from the fit of the model it
+    chose, recording the search under ``"model_selection"`` and writing the chosen model
+    into the run's copy of ``session.toml``; without it the search runs when the model
+    is left to it (:func:`model_left_open`), and is recorded only when the data reject
+    the ideal model (``options.search=False``: never).  ``options.pi`` records the
+    stability margins of that PI speed loop under ``"pi_loop"``.
     """
     say = say or (lambda text: None)
     say(f"loading {session_path}")
     session_full = load_session(session_path)
-    if add:
-        import dataclasses
-
-        wanted = set(session_full.nuisances) | set(add)
+    if options.add:
+        wanted = set(session_full.nuisances) | set(options.add)
         session_full = dataclasses.replace(
             session_full, nuisances=tuple(n for n in NUISANCES if n in wanted))
-        _refuse_inert(session_full, add)
-    name = session_full.name
-    out = Path(out) if out is not None else default_out_dir(name)
+        _refuse_inert(session_full, options.add)
+    out = Path(out) if out is not None else default_out_dir(session_full.name)
     check_replaceable(out, force)
     from .report import start_drawing
 
     start_drawing()  # the processes that draw the report: they import matplotlib meanwhile
     selection = chosen = None
     clock = StageClock()
-    if compare or (search and model_left_open(session_full, add, friction)):
+    if options.compare or (options.search
+                           and model_left_open(session_full, options.add, options.friction)):
         session_full, selection, chosen = search_session(
-            session_full, holdout=holdout, friction=friction, seed=seed, say=say,
-            compare=compare, clock=clock)
+            session_full, holdout=options.holdout, friction=options.friction,
+            seed=options.seed, say=say, compare=options.compare, clock=clock)
     with announcing(say):
-        result = fit_session(session_full, mcmc=mcmc, friction=friction, seed=seed,
-                             holdout=holdout, compare_friction=compare_friction,
-                             progress=progress, allow_inadequate=allow_inadequate, say=say,
-                             max_sampling_seconds=max_sampling_seconds, fitted=chosen,
-                             clock=clock)
+        result = fit_session(session_full, options, progress=progress, say=say,
+                             fitted=chosen, clock=clock)
     if selection is not None:
         result.summary["model_selection"] = selection
-    if pi is not None:
-        result.summary["pi_loop"] = result.pi_loop(*pi)
+    if options.pi is not None:
+        result.summary["pi_loop"] = result.pi_loop(*options.pi)
     say(f"writing {out} (summary, posterior, report)")
     write_run(result, out, force=force)
     return out, result.summary

@@ -77,7 +77,7 @@ def test_sessions_that_turn_both_ways_with_their_voltage_pass(seed, tmp_path):
 def test_both_ways_into_a_fit_refuse_it_first(speed_only, tmp_path, entry):
     """The model search and a fit of the session's own model each refuse the session
     before their first fit."""
-    from pmdc_bayes.pipeline import fit_session
+    from pmdc_bayes.pipeline import FitOptions, fit_session
     from pmdc_bayes.search import run_search
 
     d = tmp_path / "s"
@@ -88,4 +88,4 @@ def test_both_ways_into_a_fit_refuse_it_first(speed_only, tmp_path, entry):
         if entry == "search":
             run_search(session)
         else:
-            fit_session(session, mcmc=False)
+            fit_session(session, FitOptions(mcmc=False))

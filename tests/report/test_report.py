@@ -13,7 +13,7 @@ import pytest
 from pmdc_bayes import write_report
 from pmdc_bayes.cli import main
 from pmdc_bayes.io.bundled import bundled_session_dir
-from pmdc_bayes.pipeline import run_fit
+from pmdc_bayes.pipeline import FitOptions, run_fit
 from pmdc_bayes.report import to_control
 from pmdc_bayes.report.tables import TABLE_TITLES
 
@@ -27,22 +27,24 @@ ALWAYS = ("parameters", "derived", "diagnostics", "transfer", "comparison")
 @pytest.fixture(scope="module")
 def demo_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("report") / "demo"
-    run_fit(bundled_session_dir("demo"), out=out, mcmc=True, seed=0, pi=(0.5, 5.0, 0.002))
+    run_fit(bundled_session_dir("demo"), FitOptions(mcmc=True, seed=0, pi=(0.5, 5.0, 0.002)),
+            out=out)
     return out
 
 
 @pytest.fixture(scope="module")
 def paper_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("report") / "paper"
-    run_fit(bundled_session_dir("paper"), out=out, mcmc=True, seed=0, allow_inadequate=True,
-            search=False)
+    run_fit(bundled_session_dir("paper"),
+            FitOptions(mcmc=True, seed=0, allow_inadequate=True, search=False), out=out)
     return out
 
 
 @pytest.fixture(scope="module")
 def holdout_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("report") / "holdout"
-    run_fit(bundled_session_dir("demo"), out=out, mcmc=True, seed=0, holdout=["load_change"])
+    run_fit(bundled_session_dir("demo"), FitOptions(mcmc=True, seed=0, holdout=("load_change",)),
+            out=out)
     return out
 
 
@@ -214,7 +216,7 @@ def test_controller_export_matches_posterior_mean(demo_run):
 
 def test_no_posterior_report_says_so(tmp_path):
     out = tmp_path / "nomcmc"
-    run_fit(bundled_session_dir("paper"), out=out, mcmc=False, search=False)
+    run_fit(bundled_session_dir("paper"), FitOptions(mcmc=False, search=False), out=out)
     assert not (out / "posterior.nc").exists()
     html = (out / "report.html").read_text(encoding="utf-8")
     assert "No posterior was sampled" in html and "chains" not in {
@@ -225,8 +227,8 @@ def test_no_posterior_report_says_so(tmp_path):
 
 def test_report_quiet_prints_nothing_and_verbose_a_line_per_stage(tmp_path, capsys):
     out = tmp_path / "nomcmc"
-    run_fit(bundled_session_dir("paper"), out=out, mcmc=False, allow_inadequate=True,
-            search=False)
+    run_fit(bundled_session_dir("paper"),
+            FitOptions(mcmc=False, allow_inadequate=True, search=False), out=out)
     capsys.readouterr()
     assert main(["report", str(out), "--quiet", "--no-cache"]) == 0
     assert capsys.readouterr() == ("", "")
