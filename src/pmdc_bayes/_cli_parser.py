@@ -115,8 +115,8 @@ def build_parser(commands: dict) -> argparse.ArgumentParser:
     return p
 
 
+# each sub-command: its options and help
 def _add_closed_form(sub, run) -> None:
-    """``closed-form``: its options and help."""
     cf = sub.add_parser(
         "closed-form",
         help="the reference paper's closed-form method (Table I, tau, G, transfer function)",
@@ -130,7 +130,6 @@ def _add_closed_form(sub, run) -> None:
 
 
 def _add_simulate(sub, run) -> None:
-    """``simulate``: its options and help."""
     sim = sub.add_parser(
         "simulate",
         help="write a simulated session (bench, steady points, traces) from a plan",
@@ -151,7 +150,6 @@ def _add_simulate(sub, run) -> None:
 
 
 def _add_fit(sub, run) -> None:
-    """``fit``: its options and help."""
     ft = sub.add_parser(
         "fit",
         help="closed form, joint MAP fit, adequacy checks, MCMC posterior and the report",
@@ -234,7 +232,6 @@ def _add_fit(sub, run) -> None:
 
 
 def _add_report(sub, run) -> None:
-    """``report``: its options and help."""
     rp = sub.add_parser(
         "report",
         help="regenerate the uncertainty report of a finished run",
@@ -252,7 +249,6 @@ def _add_report(sub, run) -> None:
 
 
 def _add_lot(sub, run) -> None:
-    """``lot``: its options and help."""
     lt = sub.add_parser(
         "lot",
         help="a production lot: every motor fitted (on a Dask cluster), then the lot as a "
@@ -288,7 +284,6 @@ def _add_lot(sub, run) -> None:
 
 
 def _add_cache(sub, run) -> None:
-    """``cache``: its options and help."""
     ch = sub.add_parser(
         "cache",
         help="show or clear the cache of compiled programs",

@@ -32,8 +32,8 @@ from pmdc_bayes.inference.model.objective import build_model  # noqa: E402
 from pmdc_bayes.io.channel import ChannelId  # noqa: E402
 from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
-from pmdc_bayes.pipeline import trace_rms  # noqa: E402
 from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
+from pmdc_bayes.stage_summary import trace_rms  # noqa: E402
 
 SEED_BASE = 100
 BY_NAME = {m.name: m for m in MOTORS}
