@@ -86,9 +86,9 @@ def fit(session, *, mcmc: bool = True, add=(), friction: str | None = None, hold
                          max_sampling_seconds=max_sampling_seconds)
     result = fit_session(session, options, progress=progress, fitted=chosen, clock=clock)
     if selection is not None:
-        result.summary["model_selection"] = selection
+        result = result.recorded(model_selection=selection)
     if changed:
-        result.summary["session"]["changed_in_memory"] = True
+        result = result.session_recorded(changed_in_memory=True)
     return result
 
 

@@ -232,12 +232,11 @@ def run_fit(session_path, options: FitOptions = FitOptions(), *, out: Path | Non
         result = fit_session(session_full, options, progress=progress, say=say,
                              fitted=chosen, clock=clock)
     if selection is not None:
-        result.summary["model_selection"] = selection
+        result = result.recorded(model_selection=selection)
     if options.pi is not None:
-        result.summary["pi_loop"] = result.pi_loop(*options.pi)
+        result = result.recorded(pi_loop=result.pi_loop(*options.pi))
     say(f"writing {out} (summary, posterior, report)")
-    write_run(result, out, force=force)
-    return out, result.summary
+    return out, write_run(result, out, force=force).summary
 
 
 def model_left_open(session: Session, add, friction: str | None) -> bool:

@@ -105,20 +105,23 @@ def write_report_for(result, run_dir, *, into=None, say=None) -> dict[str, Path]
     return paths
 
 
-def report_stage(result, run_dir, into) -> dict[str, Path]:
+def report_stage(result, run_dir, into):
     """The report stage of ``pmdc-bayes fit``: write the report of ``result`` into the run
-    directory being built (``into``), record its wall time and the part of it spent
-    making JAX programs in ``summary["diagnostics"]`` (``wall_s`` and ``compile_s``:
-    ``report`` and ``total``) and rewrite ``summary.json`` there."""
+    directory being built (``into``), and ``summary.json`` there again with the report's
+    wall time and the part of it spent making JAX programs in ``summary["diagnostics"]``
+    (``wall_s`` and ``compile_s``: ``report`` and ``total``).  Returns the run so
+    recorded."""
     clock = StageClock()
     with clock.stage("report"):
-        paths = write_report_for(result, run_dir, into=into)
-    diag = result.summary.setdefault("diagnostics", {})
+        write_report_for(result, run_dir, into=into)
+    diag = dict(result.summary.get("diagnostics", {}))
     for key, times in (("wall_s", clock.wall), ("compile_s", clock.compile)):
-        record = diag.setdefault(key, {})
+        record = dict(diag.get(key, {}))
         # a result written twice counts its report once
         record["total"] = record.get("total", 0.0) - record.get("report", 0.0) \
             + times["report"]
         record["report"] = times["report"]
-    write_whole(Path(into) / "summary.json", dumps(result.summary))
-    return paths
+        diag[key] = record
+    run = result.recorded(diagnostics=diag)
+    write_whole(Path(into) / "summary.json", dumps(run.summary))
+    return run
