@@ -26,11 +26,8 @@ def coast_down_specs(session: Session) -> list[ParamSpec]:
     for tr in session.coast_downs:
         w0 = float(np.median(tr.speed[:3]))
         sd = 0.1 * abs(w0) + 10.0 * noise_scale(tr.speed)
-        specs.append(ParamSpec(initial_speed_name(tr.name), "rad/s", "trace",
-                               Prior("normal", w0, sd, "first samples"), w0,
-                               transform="identity",
-                               description=f"speed at the start of coast-down {tr.name!r}",
-                               trace=tr.name))
+        specs.append(_start_spec(initial_speed_name(tr.name), "rad/s", w0, sd, "first samples",
+                                 f"speed at the start of coast-down {tr.name!r}", tr.name))
     return specs
 
 
@@ -55,9 +52,15 @@ def position_specs(session: Session) -> list[ParamSpec]:
         if not ok[0]:
             first -= 0.5 * tr.encoder_step * float(np.sign(y[1] - y[0]) if y.size > 1 else 1.0)
         sd = tr.encoder_step + 10.0 * noise_scale(y)
-        specs.append(ParamSpec(position_offset_name(tr.name), "rad", "trace",
-                               Prior("normal", first, sd, "first reading"), first,
-                               transform="identity",
-                               description=f"angle read at the start of trace {tr.name!r}",
-                               trace=tr.name))
+        specs.append(_start_spec(position_offset_name(tr.name), "rad", first, sd,
+                                 "first reading", f"angle read at the start of trace {tr.name!r}",
+                                 tr.name))
     return specs
+
+
+def _start_spec(name: str, unit: str, centre: float, sd: float, source: str,
+                description: str, trace: str) -> ParamSpec:
+    """A trace's starting value fitted in value, its prior normal around what the data
+    read there (``source``), its seed that reading."""
+    return ParamSpec(name, unit, "trace", Prior("normal", centre, sd, source), centre,
+                     transform="identity", description=description, trace=trace)
