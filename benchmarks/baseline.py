@@ -13,7 +13,7 @@ B, J.  Its log-probability is a plain Python function of one θ for ``emcee``.
 Nothing here imports pmdc_bayes: the session records (``session.traces``,
 ``.operating_points``, ...) and the closed-form seed (``seed.K``, ``.B``, ``.J``) are
 read by attribute only.  The benchmark (``benchmarks/run.py``) and
-``tests/test_baseline.py`` check that it computes the project's log-likelihood.
+``tests/project/test_baseline.py`` check that it computes the project's log-likelihood.
 Viscous friction only: a Coulomb session raises ``ValueError``.
 """
 

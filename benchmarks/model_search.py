@@ -40,7 +40,7 @@ def _session(which):
         return load_session(session_path("demo"))
     if which != "combination":
         return case_session(which, seed=2)
-    return bench_session(BenchMotor(**MOTOR, dead_time=3e-3, brush_drop=1.0), STEPS, seed=3,
+    return bench_session(BenchMotor(**MOTOR, dead_time=3e-3, voltage_drop=1.0), STEPS, seed=3,
                          steady_voltages=STEADY_VOLTAGES)
 
 

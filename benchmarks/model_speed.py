@@ -120,7 +120,7 @@ def _per_trace_log_posterior(model, simulate_trace):
             if current is not None:
                 ss = ss.at[c_i].add(jnp.sum((current - ia) ** 2))
         st, tau = d["steady"], d["tau"]
-        w, i = model.steady_prediction(p, st["v"], st["tl"])
+        i, w = model.steady_prediction(p, st["v"], st["tl"])
         tail = jnp.stack([jnp.sum(jnp.where(st["w_mask"], st["w"] - w, 0.0) ** 2),
                           jnp.sum(jnp.where(st["i_mask"], st["i"] - i, 0.0) ** 2),
                           jnp.sum((tau["tau"] - model.tau_prediction(p)) ** 2)])

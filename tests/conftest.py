@@ -1,5 +1,7 @@
 import os
 import shutil
+import subprocess
+import sys
 import tempfile
 
 import jax
@@ -34,6 +36,14 @@ def jax_x64():
         yield
 
 
+def pytest_collection_modifyitems(config, items):
+    """A statistical test and one that compiles a session's programs are both slow:
+    ``-m "not slow"`` leaves out both, ``-m statistical`` or ``-m compiles`` either."""
+    for item in items:
+        if item.get_closest_marker("statistical") or item.get_closest_marker("compiles"):
+            item.add_marker(pytest.mark.slow)
+
+
 def pytest_sessionfinish(session, exitstatus):
     if _TEST_CACHE is not None:
         shutil.rmtree(_TEST_CACHE, ignore_errors=True)
@@ -41,6 +51,7 @@ def pytest_sessionfinish(session, exitstatus):
 # Shared fixtures: a small valid session written into ``tmp_path``.  Tests break one
 # thing of it at a time (a key, a unit, a CSV cell) and check the error.
 
+import json  # noqa: E402
 import math  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -150,3 +161,97 @@ def _release_compiled_programs():
     from pmdc_bayes.inference import _runtime as cache
 
     cache.release()
+
+
+class Cli:
+    """``pmdc-bayes`` as a user runs it: in a process of its own, its output as text."""
+
+    @staticmethod
+    def argv(*args) -> list[str]:
+        return [sys.executable, "-m", "pmdc_bayes", *map(str, args)]
+
+    def __call__(self, *args, timeout: float | None = 1800,
+                 **kw) -> subprocess.CompletedProcess:
+        """Run ``pmdc-bayes ARGS`` to its end: its exit code, stdout and stderr."""
+        return subprocess.run(self.argv(*args), capture_output=True, text=True,
+                              timeout=timeout, **kw)
+
+    def start(self, *args, **kw) -> subprocess.Popen:
+        """Start ``pmdc-bayes ARGS`` (to interrupt it, or to watch what it writes)."""
+        return subprocess.Popen(self.argv(*args), stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, **kw)
+
+
+@pytest.fixture(scope="session")
+def pmdc() -> Cli:
+    """The command line, run as a user runs it (:class:`Cli`)."""
+    return Cli()
+
+
+# Simulation plans (the plan format of ``pmdc-bayes simulate``) built from their parts,
+# so that tests share a motor, a bench, a steady table or a step rather than copy TOML.
+
+def plan(*, seed: int, motor: str, truth: dict, bench: dict | None = None,
+         friction: str | None = None, rig: dict | None = None, steady: tuple = (),
+         traces: tuple = ()) -> dict:
+    """A plan: ``bench`` maps a measured parameter to its ``(sd, unit)``; ``steady``
+    and ``traces`` are its steady tables and traces (:func:`sweep`, :func:`step`)."""
+    out = {"seed": seed, "motor": {"name": motor, **({"friction": friction} if friction
+                                                      else {})}, "truth": dict(truth)}
+    if bench:
+        out["bench"] = {name: {"sd": sd, "unit": unit} for name, (sd, unit) in bench.items()}
+    if rig is not None:  # an empty [rig] draws the traces through the rig's simulator
+        out["rig"] = dict(rig)
+    if steady:
+        out["steady_table"] = list(steady)
+    if traces:
+        out["trace"] = list(traces)
+    return out
+
+
+def sweep(voltages, speed_sd: float, current_sd: float | None = None, *,
+          name: str = "sweep") -> dict:
+    """A steady table: the speed (and, with ``current_sd``, the current) at each voltage."""
+    table = {"name": name, "voltages": list(voltages), "speed_sd": speed_sd}
+    return table if current_sd is None else {**table, "current_sd": current_sd}
+
+
+def step(name: str, volts: float, *, duration: float, rate: float, at: float = 0.01,
+         **keys) -> dict:
+    """A trace stepping from rest to ``volts`` at ``at`` seconds; ``keys`` the rest of
+    its plan entry (noise levels, delay, ...)."""
+    return {"name": name, "kind": "step", "duration": duration, "rate": rate,
+            "voltage": [[0.0, 0.0], [at, volts]], **keys}
+
+
+def plan_toml(plan: dict) -> str:
+    """``plan`` as the TOML file a user writes."""
+    def value(v) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, list | tuple):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
+        return repr(float(v)) if isinstance(v, float) else repr(v)
+
+    def keys(table: dict) -> list[str]:
+        return [f"{k} = {value(v)}" for k, v in table.items()]
+
+    lines = [f"{k} = {value(v)}" for k, v in plan.items() if not isinstance(v, dict | list)]
+    for name, v in plan.items():
+        if isinstance(v, dict) and all(isinstance(x, dict) for x in v.values()) and v:
+            for sub, table in v.items():
+                lines += [f"[{name}.{sub}]", *keys(table)]
+        elif isinstance(v, dict):
+            lines += [f"[{name}]", *keys(v)]
+        elif isinstance(v, list):
+            for table in v:
+                lines += [f"[[{name}]]", *keys(table)]
+    return "\n".join(lines) + "\n"
+
+
+# a small motor several plans share (SI)
+SMALL_MOTOR = {"Ra": 2.0, "La": 2e-3, "K": 0.05, "B": 2e-5, "J": 2e-5}

@@ -30,14 +30,14 @@ def _says(adequacy, *words):
     return all(w in text for w in words)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_the_ideal_motor_is_adequate():
     a = _verdict(case_session())
     assert a.verdict == "adequate", [f.message for f in a.findings]
     assert a.diagnosis == ()
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.parametrize("case", list(CASES))
 def test_each_bench_non_ideality_is_flagged_with_its_diagnosis(case):
     a = _verdict(case_session(case))
@@ -45,7 +45,7 @@ def test_each_bench_non_ideality_is_flagged_with_its_diagnosis(case):
     assert _says(a, *CASES[case][1]), (case, a.diagnosis, [f.message for f in a.findings])
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_the_diagnosis_tells_dead_time_from_a_sensor_lag():
     """Dead time delays the current too; a speed-sensor lag leaves it on time."""
     dead, lag = _verdict(case_session("dead time")), _verdict(case_session("sensor lag"))
@@ -55,14 +55,14 @@ def test_the_diagnosis_tells_dead_time_from_a_sensor_lag():
                  "driver and logger serve every trace)")
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_voltage_drop_is_not_taken_for_an_unknown_load_or_a_delay():
     a = _verdict(case_session("brush drop"))
     assert not _says(a, "unmeasured load")
     assert not _says(a, "later than the model")
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.parametrize("case", [c for c, words in SPEED_ONLY.items() if words])
 def test_without_any_current_the_non_idealities_are_still_flagged(case):
     """A speed-only bench: the model absorbs a delay in Ra and La rather than missing
@@ -72,7 +72,7 @@ def test_without_any_current_the_non_idealities_are_still_flagged(case):
     assert _says(a, *SPEED_ONLY[case]), (case, a.diagnosis, [f.message for f in a.findings])
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_what_speed_alone_cannot_reveal_is_not_flagged():
     """A source resistance adds to Ra; without a current the data cannot tell, so the
     model they do not reject is adequate (J absorbs it)."""
@@ -81,7 +81,7 @@ def test_what_speed_alone_cannot_reveal_is_not_flagged():
     assert a.verdict == "adequate", [f.message for f in a.findings]
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_speed_only_ideal_bench_is_adequate():
     a = _verdict(case_session(speed_only=True, steady_current=False))
     assert a.verdict == "adequate", [f.message for f in a.findings]
@@ -90,7 +90,7 @@ def test_a_speed_only_ideal_bench_is_adequate():
 N_MOTORS = 20
 
 
-@pytest.mark.slow
+@pytest.mark.statistical
 def test_false_alarm_rate_over_motors_the_model_describes():
     rng = np.random.default_rng(2026)
     verdicts = []
@@ -102,7 +102,7 @@ def test_false_alarm_rate_over_motors_the_model_describes():
     assert len(alarms) <= 0.05 * N_MOTORS, alarms
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_unit_slip_on_one_trace_is_named():
     """The step_6v log holds rpm read as rad/s: the fit cannot absorb it (the other
     trace and the steady table disagree) and names the slip."""
@@ -133,7 +133,7 @@ def test_a_trace_counting_the_other_way_is_refused_before_the_fit():
         refuse_reversed(dataclasses.replace(session, traces=traces))
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_ripple_aliased_near_half_the_sampling_rate_is_named():
     """A PWM ripple sampled out of step with it: the current's residuals alternate from
     sample to sample; the likelihood's white noise is wrong, and the diagnosis says so

@@ -8,8 +8,6 @@ and a steady level at the end of every held plateau; the whole fit runs on them.
 
 import functools
 import re
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -173,7 +171,7 @@ SHAPES = {
 }
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.parametrize("shape", SHAPES)
 def test_the_seed_reads_gain_and_time_constant_off_every_shape(shape, tmp_path):
     """Speed only, no table: G from every settled plateau, τ from one response.  G
@@ -251,7 +249,7 @@ def _z(fit, name):
     return (fit.values[name] - TRUTH[name]) / fit.sd[name]
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.parametrize("shape", SHAPES)
 def test_each_shape_with_a_steady_table_fits_end_to_end(shape, tmp_path):
     """The common real bench: the traces log speed and voltage, the current comes from
@@ -264,15 +262,14 @@ def test_each_shape_with_a_steady_table_fits_end_to_end(shape, tmp_path):
         assert abs(_z(res.fit, name)) < 3.0, (name, res.fit.values[name])
 
 
-@pytest.mark.slow
-def test_a_speed_only_staircase_fits_from_the_command_line(tmp_path):
+@pytest.mark.compiles
+def test_a_speed_only_staircase_fits_from_the_command_line(tmp_path, pmdc):
     """No current anywhere: speed splits the damping only through the priors, but the
     gain (10) and the time constant (9) are the data's, within 3 sd of the truth."""
     from pmdc_bayes import fit
 
     root = _bench_session(tmp_path / "s", SHAPES["staircase"], table=False)
-    run = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(root), "--no-mcmc",
-                          "--out", str(tmp_path / "out")], capture_output=True, text=True)
+    run = pmdc("fit", root, "--no-mcmc", "--out", tmp_path / "out")
     assert run.returncode == 0, run.stderr[-2000:]
     res = fit(root, mcmc=False)
     f, names = res.fit, list(res.fit.names)
@@ -292,7 +289,7 @@ def test_a_speed_only_staircase_fits_from_the_command_line(tmp_path):
         assert abs(np.log(value / true)) < 3 * sd, (what, value, true, sd)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_noisy_logged_voltage_does_not_fail_the_no_load_speed(tmp_path):
     """A 12 V step logged with 0.2 V of measurement noise on the voltage column (an
     ADC's; the motor saw a clean step), speed and current logged, in class: the model is

@@ -41,7 +41,7 @@ def _p_values(quantum, sigma, misfit=0.0):
     return np.array(out)
 
 
-@pytest.mark.slow
+@pytest.mark.statistical
 @pytest.mark.parametrize(("quantum", "sigma"), [(0.0, 0.5), (1.0, 0.3)])
 def test_a_correct_model_alarms_at_about_the_checks_level(quantum, sigma):
     """In-class replicates (white noise; a coarse quantum with noise below it): each
@@ -51,7 +51,7 @@ def test_a_correct_model_alarms_at_about_the_checks_level(quantum, sigma):
     assert np.all(rates <= ALARM_LIMIT), rates
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_systematic_misfit_is_flagged_negative_control():
     p = _p_values(0.0, 0.5, misfit=3.0)
     assert np.mean(p[:, 0] < LEVEL) > 0.95
@@ -112,7 +112,7 @@ def test_the_rise_time_is_not_read_on_a_load_change_at_constant_voltage():
     assert not rise_eligible(load_change)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_misspecified_bench_is_flagged_with_its_p_value_and_no_proposal_the_model_has():
     from pmdc_bayes.inference.adequacy.assess import assess
     from pmdc_bayes.inference.fit.joint import fit_map

@@ -84,7 +84,7 @@ def _assert_covered(hits: dict) -> int:
     return n
 
 
-@pytest.mark.slow
+@pytest.mark.statistical
 def test_central_90_percent_intervals_cover_the_truth(tmp_path):
     hits: dict[str, list[bool]] = {}
     for i, motor in enumerate(prior_motors(N_MOTORS)):
@@ -101,7 +101,7 @@ def test_central_90_percent_intervals_cover_the_truth(tmp_path):
 N_RIGS = 12
 
 
-@pytest.mark.slow
+@pytest.mark.statistical
 def test_intervals_cover_the_truth_with_a_dead_time_and_a_voltage_drop_fitted():
     """The same check on a nuisance-rich structure, with data the fitted model did not
     generate: motors drawn over the range of small bench motors
@@ -120,7 +120,7 @@ def test_intervals_cover_the_truth_with_a_dead_time_and_a_voltage_drop_fitted():
     for i in range(N_RIGS):
         motor, steps = random_motor(rng)
         dead, drop = float(rng.uniform(5e-4, 3e-3)), float(rng.uniform(0.3, 1.5))
-        motor = dataclasses.replace(motor, dead_time=dead, brush_drop=drop)
+        motor = dataclasses.replace(motor, dead_time=dead, voltage_drop=drop)
         steps = tuple(dataclasses.replace(s, t_step=round(0.1 * s.duration / s.dt) * s.dt)
                       for s in steps)
         session = bench_session(motor, steps, seed=i, steady_voltages=(4.0, 8.0, 12.0))
@@ -180,7 +180,7 @@ def _covered(z, width: float = 1.0) -> tuple[int, int]:
     return int(np.sum(np.abs(z) <= half)), z.size
 
 
-@pytest.mark.slow
+@pytest.mark.statistical
 def test_laplace_intervals_cover_the_truth_on_fuzzed_speed_only_sessions(fuzzed_fits):
     z = [x for f, model, fit, _ in fuzzed_fits for x in _laplace_z(model, fit, f.truth)]
     covered, n = _covered(z)
@@ -191,7 +191,7 @@ def test_laplace_intervals_cover_the_truth_on_fuzzed_speed_only_sessions(fuzzed_
     assert not lo <= narrowed <= hi, f"{narrowed}/{n} narrowed intervals still in band"
 
 
-@pytest.mark.slow
+@pytest.mark.statistical
 def test_few_false_alarms_on_fuzzed_in_class_sessions(fuzzed_fits):
     """At most the count that a 5 % session-level false-alarm rate exceeds with
     probability 1 % (Binomial(8, 0.05): 2 or fewer)."""

@@ -100,7 +100,7 @@ def test_draws_in_value_are_draws_of_the_posterior(seed):
     assert tau_log > 3 * tau, (tau_log, tau)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_weakly_identified_coulomb_torque_is_sampled_to_the_gates(tmp_path):
     """Fuzzed session 12 (bench simulator; one step from rest, 301 samples of speed and
     current, and one operating point, Coulomb friction): the data barely split the
@@ -208,7 +208,7 @@ def test_a_speed_step_curve_is_sampled_in_the_motor_constants(seed):
     assert taus["theta"] > 3 * taus["constants"], taus
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_speed_only_step_from_steady_is_sampled_to_the_gates(tmp_path):
     """Fuzzed session 23 (bench simulator; one step from steady, speed only, 1,201
     samples): the data fix the gain and the time constant and leave K, B and J on a curve

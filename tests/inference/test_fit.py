@@ -1,8 +1,6 @@
 """The joint MAP fit, its Laplace uncertainty, identifiability and the fit command."""
 
 import json
-import subprocess
-import sys
 
 import jax
 import numpy as np
@@ -32,7 +30,7 @@ def paper_fit():
     return s, cf, model, fit_map(model)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_demo_map_recovers_truth(demo_fit):
     s, model, fit = demo_fit
     assert fit.ok, fit.message
@@ -47,7 +45,7 @@ def test_demo_map_recovers_truth(demo_fit):
             assert fit.values[name] == pytest.approx(truth, rel=0.01), name
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_demo_map_beats_closed_form_b_bias(demo_fit):
     s, model, fit = demo_fit
     cf = closed_form(s)
@@ -55,7 +53,7 @@ def test_demo_map_beats_closed_form_b_bias(demo_fit):
     assert abs(cf.B - s.truth["B"]) > 10 * abs(fit.values["B"] - s.truth["B"])
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_demo_gradient_of_objective_matches_finite_differences(demo_fit, jax_x64):
     s, model, fit = demo_fit
     theta = np.asarray(fit.theta) + 0.01
@@ -71,7 +69,7 @@ def test_demo_gradient_of_objective_matches_finite_differences(demo_fit, jax_x64
         assert g[k] == pytest.approx(fd, rel=1e-4, abs=1e-3)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_paper_fit_and_consistency(paper_fit):
     s, cf, model, fit = paper_fit
     assert fit.ok, fit.message
@@ -83,7 +81,7 @@ def test_paper_fit_and_consistency(paper_fit):
     assert checks["steady_offset"] == pytest.approx(-24.3, abs=0.1)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_paper_identifiability_flags_what_steady_data_cannot_separate(paper_fit):
     s, cf, model, fit = paper_fit
     ident = identifiability(model, fit)
@@ -95,7 +93,7 @@ def test_paper_identifiability_flags_what_steady_data_cannot_separate(paper_fit)
     assert ident["condition_number"] > 100
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_demo_identifiability_does_not_flag_la(demo_fit):
     s, model, fit = demo_fit
     ident = identifiability(model, fit)
@@ -103,12 +101,10 @@ def test_demo_identifiability_does_not_flag_la(demo_fit):
     assert "La" not in ident["prior_dominated"]
 
 
-@pytest.mark.slow
-def test_fit_command_writes_summary_and_refuses_to_overwrite(tmp_path):
+@pytest.mark.compiles
+def test_fit_command_writes_summary_and_refuses_to_overwrite(tmp_path, pmdc):
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "pmdc_bayes", "fit", "paper", "--no-mcmc", "--no-search",
-           "--out", str(out), "--allow-inadequate"]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
+    proc = pmdc("fit", "paper", "--no-mcmc", "--no-search", "--out", out, "--allow-inadequate")
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "summary.json").read_text())
     for name in ("Ra", "La", "K", "B", "J"):
@@ -116,7 +112,7 @@ def test_fit_command_writes_summary_and_refuses_to_overwrite(tmp_path):
         assert set(row) >= {"unit", "closed_form", "map", "map_sd"}
     assert summary["parameters"]["K"]["closed_form"] == pytest.approx(0.062, abs=1e-12)
     assert summary["identifiability"]["findings"]
-    again = subprocess.run(cmd, capture_output=True, text=True)
+    again = pmdc("fit", "paper", "--no-mcmc", "--no-search", "--out", out, "--allow-inadequate")
     assert again.returncode == 2
     assert "already exists" in again.stderr and "Traceback" not in again.stderr
     assert len(again.stderr.strip().splitlines()) == 1
@@ -131,7 +127,7 @@ def _traced(kernel) -> list[int]:
     return [len(programs)] + [p._cache_size() for p in programs]
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_fit_compiles_once_per_session_structure(demo_fit):
     import dataclasses
 
@@ -156,14 +152,12 @@ def test_fit_compiles_once_per_session_structure(demo_fit):
     assert all(_traced(k) == [1] * len(_traced(k)) for k in kernels)  # ...and reused
 
 
-@pytest.mark.slow
-def test_friction_option_reports_goodness_of_fit_and_tc(tmp_path):
+@pytest.mark.compiles
+def test_friction_option_reports_goodness_of_fit_and_tc(tmp_path, pmdc):
     runs = {}
     for friction in ("viscous", "coulomb"):
         out = tmp_path / friction
-        proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", "demo", "--no-mcmc",
-                               "--friction", friction, "--out", str(out)],
-                              capture_output=True, text=True)
+        proc = pmdc("fit", "demo", "--no-mcmc", "--friction", friction, "--out", out)
         runs[friction] = json.loads((out / "summary.json").read_text())
         # The demo motor has Coulomb friction: the data reject the viscous model.
         verdict = runs[friction]["adequacy"]["verdict"]
@@ -183,7 +177,7 @@ def test_friction_option_reports_goodness_of_fit_and_tc(tmp_path):
         assert rms["viscous"][trace]["speed"] > 1.5 * rms["coulomb"][trace]["speed"], trace
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_speed_only_steps_flag_the_j_b_k_degeneracy():
     import dataclasses
 
@@ -255,7 +249,7 @@ def test_the_evidence_of_several_optima_is_their_laplace_mass_not_their_spread()
         pytest.approx(np.log(2.0))
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_thin_curved_ridge_is_not_reported_as_a_point(tmp_path):
     """A speed-only encoder-edge step with no current anywhere (a fuzzed session of the
     independent bench simulator): the edges fix a combination of K, B and J to a part

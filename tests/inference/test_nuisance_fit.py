@@ -26,7 +26,7 @@ def _within(fit, name, truth, n_sd=4.0, floor=0.0):
     return abs(fit.values[name] - truth) <= n_sd * fit.sd[name] + floor
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_fitted_dead_time_recovers_the_bench_delay_and_the_motor():
     fit, a = _fit("dead time", ("dead_time",))
     delay = CASES["dead time"][0]["dead_time"]
@@ -37,7 +37,7 @@ def test_a_fitted_dead_time_recovers_the_bench_delay_and_the_motor():
         assert fit.values[name] == pytest.approx(MOTOR[name], rel=0.02)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_shared_dead_time_recovers_the_bench_delay_and_the_motor():
     """The bench simulator's one driver delay, fitted as one dead time for both traces."""
     session = dataclasses.replace(case_session("dead time"), nuisances=("dead_time",),
@@ -53,15 +53,15 @@ def test_a_shared_dead_time_recovers_the_bench_delay_and_the_motor():
         assert fit.values[name] == pytest.approx(MOTOR[name], rel=0.02)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_fitted_voltage_drop_recovers_the_brush_drop():
     fit, a = _fit("brush drop", ("voltage_drop",))
     assert a.verdict == "adequate", a.headline()
-    assert fit.values["Vdrop"] == pytest.approx(CASES["brush drop"][0]["brush_drop"], rel=0.02)
+    assert fit.values["Vdrop"] == pytest.approx(CASES["brush drop"][0]["voltage_drop"], rel=0.02)
     assert fit.values["K"] == pytest.approx(MOTOR["K"], rel=0.02)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_nuisances_the_bench_lacks_come_out_zero():
     fit, a = _fit(None, ("dead_time", "voltage_drop"))
     assert a.verdict == "adequate", a.headline()
@@ -70,7 +70,7 @@ def test_nuisances_the_bench_lacks_come_out_zero():
         assert _within(fit, name, 0.0, floor=1e-6)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.parametrize(("case", "index", "name", "kind"), [
     ("unknown load", 0, "load_step_6v", "both"),
     ("unknown viscous load", 1, "drag_step_6v", "both"),
@@ -98,7 +98,7 @@ def test_an_unknown_drag_on_one_trace_is_recovered(case, index, name, kind):
     assert "load_step_12v" not in fit.values
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_speed_sensor_calibration_error_is_honest_then_recovered_with_a_bench_k():
     """A tachometer reading 5 % high with a 0.5 rad/s offset.  A gain on the speed is
     the same as a K, J and B scaled together (the armature equation sees K·ω, the
@@ -139,7 +139,7 @@ def test_a_speed_sensor_calibration_error_is_honest_then_recovered_with_a_bench_
     assert _within(fit, "J", MOTOR["J"], 3.0)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_fitted_source_resistance_splits_the_circuit_from_the_bench_ra():
     """The logged voltage is the supply's: the circuit sees Ra + Rs.  The ideal model
     puts it all in Ra (a bench conflict); fitting Rs leaves Ra at the bench value and
@@ -152,7 +152,7 @@ def test_a_fitted_source_resistance_splits_the_circuit_from_the_bench_ra():
         assert _within(fit, name, MOTOR[name], 3.0), (name, fit.values[name], fit.sd[name])
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.parametrize("case", ["unknown load", "unknown viscous load"])
 def test_a_declared_speed_dependent_load_is_fitted_around(case):
     """The bench's load on one trace, declared as that trace's known drag: the model
@@ -174,7 +174,7 @@ def test_a_declared_speed_dependent_load_is_fitted_around(case):
     assert assess(model, fit_map(model), cf).verdict == "inadequate"
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.parametrize("current_logged", [True, False])
 def test_a_fitted_current_limit_recovers_the_driver_and_the_motor(current_logged):
     """The bench's driver holds the current at 2 A at the start of each step: the ideal

@@ -4,8 +4,6 @@ the likelihood admits, leaves step edges and slow misfits to the checks made for
 and a whole fit on a bench-simulator session with a glitch says first that the data,
 not the model, are at fault."""
 
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -146,7 +144,7 @@ def test_a_bad_reading_alone_is_the_data_s_fault():
     assert not Adequacy(Verdict.ADEQUATE).faulty_data
 
 
-def _fit_with_cell(root, text, out):
+def _fit_with_cell(pmdc, root, text, out):
     """``pmdc-bayes fit`` of the session at ``root`` with the speed two thirds down its
     first trace written as ``text``."""
     csv = next(root.glob("tr0_*.csv"))
@@ -157,19 +155,18 @@ def _fit_with_cell(root, text, out):
     row[col] = text
     lines[k] = ",".join(row)
     csv.write_text("\n".join(lines) + "\n")
-    return subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(root), "--out",
-                           str(out), "--no-mcmc"], capture_output=True, text=True, timeout=900)
+    return pmdc("fit", root, "--out", out, "--no-mcmc", timeout=900)
 
 
-@pytest.mark.slow
-def test_a_session_with_a_glitch_is_refused_for_its_data_with_no_search(tmp_path):
+@pytest.mark.compiles
+def test_a_session_with_a_glitch_is_refused_for_its_data_with_no_search(tmp_path, pmdc):
     fuzz_session(5, out=tmp_path / "s")
-    run = _fit_with_cell(tmp_path / "s", "65535", tmp_path / "out")
+    run = _fit_with_cell(pmdc, tmp_path / "s", "65535", tmp_path / "out")
     assert run.returncode == 3, run.stdout + run.stderr
     first = run.stdout.splitlines()[1]
     assert "outlying reading" in first and "leave that cell empty" in first
     assert "Model search from ideal: 1 fit " in run.stdout
     assert "likely:" not in run.stderr
     # the reading left empty, as the message says: the same session fits
-    run = _fit_with_cell(tmp_path / "s", "", tmp_path / "out2")
+    run = _fit_with_cell(pmdc, tmp_path / "s", "", tmp_path / "out2")
     assert run.returncode == 0, run.stdout + run.stderr

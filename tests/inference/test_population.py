@@ -84,7 +84,7 @@ def test_an_injected_outlier_is_flagged_and_no_other_motor():
     assert flagged_other <= 1
 
 
-@pytest.mark.slow
+@pytest.mark.statistical
 @pytest.mark.parametrize(("n", "spreads"), [(12, 8.0), (6, 20.0)])
 def test_a_motor_off_in_one_parameter_is_flagged_in_a_small_lot(n, spreads):
     """A lot whose last motor's K is far off (a strong magnet), the rest ordinary:
@@ -158,7 +158,7 @@ def test_a_poorly_measured_motor_is_pulled_toward_the_lot_and_still_covered():
     assert covered >= 0.8 * n, f"{covered} of {n}"
 
 
-@pytest.mark.slow
+@pytest.mark.statistical
 def test_reweighted_draws_give_the_population_the_gaussians_give():
     _, gauss = _lot(7)
     _, drawn = _lot(7, draws=True)

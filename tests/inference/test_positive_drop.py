@@ -86,7 +86,7 @@ def test_a_positive_quantity_centred_on_zero_is_a_half_normal_and_nothing_else()
     ParamSpec("dead_time", "s", "driver", Prior("normal", 0.0, 1e-3), 0.0, transform="identity")
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_drop_the_bench_lacks_is_positive_with_the_curvature_of_its_logarithm():
     """On the ideal bench the data put the drop at none: it stays above zero, and its
     Laplace curvature is the exact Hessian's (the Gauss–Newton matrix alone misses the
@@ -105,7 +105,7 @@ def test_a_drop_the_bench_lacks_is_positive_with_the_curvature_of_its_logarithm(
     np.testing.assert_allclose(cov[k, k], np.linalg.inv(exact)[k, k], rtol=0.05)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_noisy_session_keeps_the_drop_its_table_cannot_rule_out(tmp_path):
     """The four noisy table speeds lean towards a drop of none; the fit does not end
     below zero with a narrow interval there (it did: −0.02 ± 0.06 V against a true

@@ -39,7 +39,7 @@ def test_a_dithered_channel_keeps_every_reading():
     assert effective_fraction(np.linspace(0.0, 1.0, 100) ** 2) == 1.0  # not quantised
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_an_undithered_quantised_session_covers_the_truth(tmp_path):
     """Fuzzed session 57: a load change logged at 16.7 kHz whose speed is quantised to
     0.86 rad/s under 0.22 rad/s of noise, 11,735 readings passing about a hundred

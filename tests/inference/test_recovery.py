@@ -57,7 +57,7 @@ def _z_scores(session, model, fit) -> dict:
     return {k: (fit.values[k] - session.truth[k]) / fit.sd[k] for k in model.names}
 
 
-@pytest.mark.slow  # the first motor of each structure compiles the fit (15-45 s)
+@pytest.mark.statistical  # the first motor of each structure compiles the fit (15-45 s)
 @pytest.mark.parametrize("motor", MOTORS, ids=[m.name for m in MOTORS])
 def test_map_within_3_laplace_sd_of_truth(motor, tmp_path):
     session, _, model, fit = _fit(motor, tmp_path, seed=SEEDS[motor.name])
@@ -84,7 +84,7 @@ def _set_step_voltage(session_toml, volts: float) -> None:
     session_toml.write_text("[[trace]]".join(blocks), encoding="utf-8")
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_wrong_logged_voltage_shows_in_that_traces_residuals(tmp_path):
     motor = BY_NAME["tool-20W"]  # a 12 V motor; session: step, capture (viscous+current)
     noise = {"speed": SPEED_NOISE * motor.V / motor.K,
@@ -133,7 +133,7 @@ def test_negative_closed_form_friction_seed(tmp_path):
     assert all(abs(v) <= 3.0 for v in z.values()), z
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
     "known limitation of the Laplace approximation: with only 5 steady readings the "
     "steady-current channel's noise level at the joint mode is ~SS/(n + nu0) while the "

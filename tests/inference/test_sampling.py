@@ -261,7 +261,7 @@ def test_gates_name_the_parameter_and_the_reason():
 # Recovery, ArviZ record, LOO
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_recovers_the_truth_and_passes_the_gates(tiny):
     model, fit = tiny
     post = sample_posterior(model, fit, seed=1, max_steps=6000, progress=False)

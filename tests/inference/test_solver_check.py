@@ -48,7 +48,7 @@ def test_a_segment_ringing_past_the_cap_is_flagged_and_is_where_the_solution_err
     assert np.abs(w_cut - w).max() > 0.5  # rad/s: after the cap the flagged run is wrong
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_the_adequacy_checks_fail_a_trace_beyond_the_cap(tmp_path):
     truth = {"Ra": 2.0, "La": 0.5, "K": 0.05, "B": 2e-5, "J": 2e-5, "Tc": 1e-3}
     plan = {"seed": 1, "motor": {"name": "ringing", "friction": "coulomb"}, "truth": truth,

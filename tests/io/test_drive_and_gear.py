@@ -5,8 +5,6 @@ same SI session as the bundled demo (simulated on the bench simulator) written i
 at the motor shaft; a duty or ratio that makes no sense is one line naming the key."""
 
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -116,9 +114,8 @@ def test_a_duty_schedule_is_read_the_same_way(demo):
     _same_session(load_session(demo), load_session(DEMO))
 
 
-def _closed_form(d):
-    return subprocess.run([sys.executable, "-m", "pmdc_bayes", "closed-form", str(d)],
-                          capture_output=True, text=True, timeout=120)
+def _closed_form(pmdc, d):
+    return pmdc("closed-form", d, timeout=120)
 
 
 OLD = 'voltage = "V", load_torque = "N*m" }\nvoltage = [[0, 0], [0.5, 12.97]]'
@@ -133,19 +130,19 @@ OLD = 'voltage = "V", load_torque = "N*m" }\nvoltage = [[0, 0], [0.5, 12.97]]'
     ('voltage = "pwm", load_torque = "N*m" }\nvoltage = [[0, 0], [0.5, 130]]\n'
      "supply_voltage = 24", "pwm_full_scale", "pwm_full_scale"),
 ], ids=["duty without supply", "supply without duty", "over full scale", "pwm without scale"])
-def test_a_duty_that_cannot_be_read_is_one_line_naming_the_key(demo, new, field, fix):
+def test_a_duty_that_cannot_be_read_is_one_line_naming_the_key(demo, new, field, fix, pmdc):
     replace_once(demo / "session.toml", OLD, new)
-    r = _closed_form(demo)
+    r = _closed_form(pmdc, demo)
     assert r.returncode == 2, r.stderr
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in r.stderr
     assert "session.toml" in lines[0] and field in lines[0] and fix in lines[0]
 
 
-def test_a_gear_ratio_that_is_not_positive_is_refused(demo):
+def test_a_gear_ratio_that_is_not_positive_is_refused(demo, pmdc):
     replace_once(demo / "session.toml", 'friction = "coulomb"', 'friction = "coulomb"\n'
                  "gear_ratio = -5")
-    r = _closed_form(demo)
+    r = _closed_form(pmdc, demo)
     assert r.returncode == 2 and "gear_ratio" in r.stderr and "positive" in r.stderr
 
 

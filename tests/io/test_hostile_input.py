@@ -17,9 +17,8 @@ from conftest import replace_once, set_csv_cell
 TOML = "session.toml"
 
 
-def _run(path, *extra):
-    return subprocess.run([sys.executable, "-m", "pmdc_bayes", "closed-form", str(path),
-                           *extra], capture_output=True, text=True, timeout=120)
+def _run(pmdc, path, *extra):
+    return pmdc("closed-form", path, *extra, timeout=120)
 
 
 def _step_text(d):
@@ -79,11 +78,11 @@ ACCEPTED = [
 
 
 @pytest.mark.parametrize("mutate", [c[1] for c in ACCEPTED], ids=[c[0] for c in ACCEPTED])
-def test_files_as_spreadsheets_save_them_are_read_the_same(session_dir, tmp_path, mutate):
-    expected = _run(session_dir, "--json")
+def test_files_as_spreadsheets_save_them_are_read_the_same(session_dir, tmp_path, mutate, pmdc):
+    expected = _run(pmdc, session_dir, "--json")
     assert expected.returncode == 0, expected.stderr
     mutate(session_dir)
-    proc = _run(session_dir, "--json")
+    proc = _run(pmdc, session_dir, "--json")
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout) == json.loads(expected.stdout)
 
@@ -190,9 +189,9 @@ REFUSED = [
 
 @pytest.mark.parametrize(("mutate", "expected"), [c[1:] for c in REFUSED],
                          ids=[c[0] for c in REFUSED])
-def test_unreadable_or_impossible_input_is_one_line(session_dir, mutate, expected):
+def test_unreadable_or_impossible_input_is_one_line(session_dir, mutate, expected, pmdc):
     mutate(session_dir)
-    proc = _run(session_dir)
+    proc = _run(pmdc, session_dir)
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
     assert "Traceback" not in proc.stderr and proc.stdout == ""
     (line,) = proc.stderr.splitlines()
@@ -202,9 +201,9 @@ def test_unreadable_or_impossible_input_is_one_line(session_dir, mutate, expecte
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root reads files whatever their mode")
-def test_an_unreadable_csv_is_one_line(session_dir):
+def test_an_unreadable_csv_is_one_line(session_dir, pmdc):
     (session_dir / "step.csv").chmod(0)
-    proc = _run(session_dir)
+    proc = _run(pmdc, session_dir)
     assert proc.returncode == 2 and "permission denied" in proc.stderr
     assert len(proc.stderr.splitlines()) == 1
 
@@ -230,15 +229,15 @@ def test_a_closed_pipe_is_not_an_error(session_dir):
     ("voltage = 0.0\nfinal_speed = 100.0\ntau = 0.2\n", "step_reading['sr'].voltage: is 0"),
     ("voltage = 6.0\nfinal_speed = 0.0\ntau = 0.2\n", "final_speed: equals the initial"),
 ])
-def test_a_step_reading_that_is_no_step_is_one_line(session_dir, reading, expected):
+def test_a_step_reading_that_is_no_step_is_one_line(session_dir, reading, expected, pmdc):
     with (session_dir / TOML).open("a") as fh:
         fh.write('\n[[step_reading]]\nname = "sr"\n' + reading)
-    proc = _run(session_dir)
+    proc = _run(pmdc, session_dir)
     assert proc.returncode == 2 and expected in proc.stderr, proc.stderr
     assert len(proc.stderr.splitlines()) == 1
 
 
-def test_unknown_loads_name_driven_traces(session_dir):
+def test_unknown_loads_name_driven_traces(session_dir, pmdc):
     from pmdc_bayes.io.loader import load_session
 
     with (session_dir / TOML).open("a") as fh:
@@ -246,7 +245,7 @@ def test_unknown_loads_name_driven_traces(session_dir):
     session = load_session(session_dir)
     assert session.unknown_load_traces() == ("step",) and "unknown_load" in session.nuisances
     replace_once(session_dir / TOML, 'unknown_load = ["step"]', 'unknown_load = ["stepp"]')
-    proc = _run(session_dir)
+    proc = _run(pmdc, session_dir)
     assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1
     assert "model.unknown_load: expected true, false, a list of driven trace names (of " \
         "'step') or a table of them" in proc.stderr
@@ -254,7 +253,7 @@ def test_unknown_loads_name_driven_traces(session_dir):
     assert load_session(session_dir).unknown_load_traces() == ("step",)
 
 
-def test_an_unknown_load_may_name_the_part_of_the_drag_to_fit(session_dir):
+def test_an_unknown_load_may_name_the_part_of_the_drag_to_fit(session_dir, pmdc):
     from pmdc_bayes.inference.model.nuisances import nuisance_specs
     from pmdc_bayes.io.loader import load_session
 
@@ -275,50 +274,49 @@ def test_an_unknown_load_may_name_the_part_of_the_drag_to_fit(session_dir):
         start = text.index("unknown_load = ")
         end = text.index("\n", start)
         (session_dir / TOML).write_text(text[:start] + f"unknown_load = {bad}" + text[end:])
-        proc = _run(session_dir)
+        proc = _run(pmdc, session_dir)
         assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
         assert says in proc.stderr, proc.stderr
 
 
-def test_comment_lines_are_skipped_and_keep_line_numbers(session_dir):
-    expected = _run(session_dir, "--json")
+def test_comment_lines_are_skipped_and_keep_line_numbers(session_dir, pmdc):
+    expected = _run(pmdc, session_dir, "--json")
     text = _step_text(session_dir)
     (session_dir / "step.csv").write_text("# scope log 3\n# 1 kHz\n" + text)
-    proc = _run(session_dir, "--json")
+    proc = _run(pmdc, session_dir, "--json")
     assert proc.returncode == 0 and json.loads(proc.stdout) == json.loads(expected.stdout)
     replace_once(session_dir / "step.csv", "0.10,", "x,")
-    assert "step.csv:line 14" in _run(session_dir).stderr
+    assert "step.csv:line 14" in _run(pmdc, session_dir).stderr
 
 
-def test_a_file_for_the_session_and_a_bad_option_are_one_line(session_dir):
-    proc = _run(session_dir / "step.csv")
+def test_a_file_for_the_session_and_a_bad_option_are_one_line(session_dir, pmdc):
+    proc = _run(pmdc, session_dir / "step.csv")
     assert proc.returncode == 2 and "pass the session directory" in proc.stderr
     assert len(proc.stderr.splitlines()) == 1
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", "--seed", "-1"],
-                          capture_output=True, text=True, timeout=120)
+    proc = pmdc("fit", "--seed", "-1", timeout=120)
     assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
     assert "--seed" in proc.stderr and "--help" in proc.stderr
 
 
-def test_a_declared_load_at_the_operating_point_enters_equation_19(session_dir):
-    base = json.loads(_run(session_dir, "--json").stdout)
+def test_a_declared_load_at_the_operating_point_enters_equation_19(session_dir, pmdc):
+    base = json.loads(_run(pmdc, session_dir, "--json").stdout)
     replace_once(session_dir / TOML, "current = 0.3", "current = 0.3\nload_torque = 0.002")
-    loaded = json.loads(_run(session_dir, "--json").stdout)
+    loaded = json.loads(_run(pmdc, session_dir, "--json").stdout)
     assert loaded["K"] == base["K"]
     assert loaded["B"] == pytest.approx(base["B"] - 0.002 / 100.0, rel=1e-12)
 
 
-def test_a_negative_b_from_equation_19_is_said_first_and_fails(session_dir):
+def test_a_negative_b_from_equation_19_is_said_first_and_fails(session_dir, pmdc):
     """A negative no-load current gives B < 0 from (19): not impossible for a noisy
     reading (J stays positive), but not a friction either: said before the table, exit 1."""
     replace_once(session_dir / TOML, "current = 0.3", "current = -0.3")
-    proc = _run(session_dir)
+    proc = _run(pmdc, session_dir)
     assert proc.returncode == 1 and proc.stdout.startswith("Closed-form identification")
     (line,) = proc.stderr.splitlines()
     assert "B = -0.000198" in line and "cannot be negative" in line
 
 
-def test_a_dead_time_may_be_shared_by_every_trace(session_dir):
+def test_a_dead_time_may_be_shared_by_every_trace(session_dir, pmdc):
     from pmdc_bayes.inference.model.nuisances import nuisance_specs
     from pmdc_bayes.io.loader import load_session
 
@@ -334,7 +332,7 @@ def test_a_dead_time_may_be_shared_by_every_trace(session_dir):
         assert [p.name for p in nuisance_specs(again)] == ["dead_time_step"]
         replace_once(session_dir / TOML, f"dead_time = {same}", 'dead_time = "shared"')
     replace_once(session_dir / TOML, 'dead_time = "shared"', 'dead_time = "sometimes"')
-    proc = _run(session_dir)
+    proc = _run(pmdc, session_dir)
     assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
     assert ("model.dead_time: expected true, false, \"per_trace\" or \"shared\", got the "
             "string 'sometimes'") in proc.stderr, proc.stderr
@@ -369,7 +367,7 @@ def _clock(start: float, date: str = "", zone: str = "", comma: bool = False):
     _stamped(_clock(43200.0, date="26.11.2026 "), sep=";", decimal=","),  # a German logger
     _stamped(lambda t: f"{int(t // 60)}:{t % 60:06.3f}"),  # m:ss.f, an oscilloscope's
 ], ids=["clock-through-midnight", "iso-date-time", "date-decimal-comma", "minutes-seconds"])
-def test_a_loggers_time_stamps_read_as_the_time_since_the_first_row(session_dir, mutate):
+def test_a_loggers_time_stamps_read_as_the_time_since_the_first_row(session_dir, mutate, pmdc):
     from pmdc_bayes.io.loader import load_session
 
     before = load_session(session_dir).traces[0]
@@ -377,7 +375,7 @@ def test_a_loggers_time_stamps_read_as_the_time_since_the_first_row(session_dir,
     after = load_session(session_dir).traces[0]
     np.testing.assert_allclose(after.time, before.time, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(after.speed, before.speed)
-    proc = _run(session_dir, "--json")
+    proc = _run(pmdc, session_dir, "--json")
     assert proc.returncode == 0, proc.stderr
 
 
@@ -404,15 +402,15 @@ def _without_time(d):
     replace_once(d / TOML, 'columns = { time = "t", ', "sample_rate = 100.0\ncolumns = { ")
 
 
-def test_rows_at_a_stated_sample_rate_need_no_time_column(session_dir):
+def test_rows_at_a_stated_sample_rate_need_no_time_column(session_dir, pmdc):
     from pmdc_bayes.io.loader import load_session
 
     before = load_session(session_dir).traces[0]
-    expected = _run(session_dir, "--json")
+    expected = _run(pmdc, session_dir, "--json")
     _without_time(session_dir)
     after = load_session(session_dir).traces[0]
     np.testing.assert_allclose(after.time, before.time, rtol=0, atol=1e-12)
-    proc = _run(session_dir, "--json")
+    proc = _run(pmdc, session_dir, "--json")
     assert proc.returncode == 0, proc.stderr
     got, want = json.loads(proc.stdout), json.loads(expected.stdout)
     for key in ("Ra", "K", "B", "J"):
@@ -432,9 +430,9 @@ def test_rows_at_a_stated_sample_rate_need_no_time_column(session_dir):
                                                "sample_rate = 0.0")),
      "sample_rate: must be positive"),
 ])
-def test_a_sample_rate_with_a_time_column_or_neither_is_one_line(session_dir, edit, expected):
+def test_a_sample_rate_with_a_time_column_or_neither_is_one_line(session_dir, edit, expected, pmdc):
     edit(session_dir)
-    proc = _run(session_dir)
+    proc = _run(pmdc, session_dir)
     assert proc.returncode == 2, proc.stderr
     (line,) = proc.stderr.splitlines()
     assert expected in line, line

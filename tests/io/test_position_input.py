@@ -163,15 +163,12 @@ def test_a_sensor_nuisance_with_no_such_sensor_is_refused(tmp_path, key, words):
     assert "\n" not in text
 
 
-def test_add_of_a_sensor_nuisance_with_no_such_sensor_is_bad_input(tmp_path):
-    import subprocess
-    import sys
+def test_add_of_a_sensor_nuisance_with_no_such_sensor_is_bad_input(tmp_path, pmdc):
 
     times = [3000 + 400 * k for k in range(20)]
     root = _write(tmp_path / "s", _edges_toml(), "us\n" + "".join(f"{t}\n" for t in times))
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(root), "--no-mcmc",
-                           "--add", "speed-lag", "--out", str(tmp_path / "run")],
-                          capture_output=True, text=True, timeout=300)
+    proc = pmdc("fit", root, "--no-mcmc", "--add", "speed-lag", "--out", tmp_path / "run",
+                timeout=300)
     assert proc.returncode == 2, proc.stderr
     assert "--add speed-lag: no trace logs a speed" in proc.stderr
     assert proc.stderr.count("\n") == 1 and not (tmp_path / "run").exists()

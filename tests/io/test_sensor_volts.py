@@ -3,8 +3,6 @@ sensor's (or shunt's) current, read as the speed and current they measure, and t
 constants they need refused in one line where missing, zero or given for nothing."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -32,20 +30,19 @@ def _as_volts(d, *, tacho=TACHO, units='speed = "V", current = "V"',
     replace_once(d / TOML, UNITS, keys + units + " }")
 
 
-def _closed_form(d):
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "closed-form", str(d),
-                           "--json"], capture_output=True, text=True, timeout=120)
+def _closed_form(pmdc, d):
+    proc = pmdc("closed-form", d, "--json", timeout=120)
     return proc
 
 
-def test_a_tacho_and_a_hall_sensor_logged_in_volts_read_as_speed_and_current(session_dir):
+def test_a_tacho_and_a_hall_sensor_logged_in_volts_read_as_speed_and_current(session_dir, pmdc):
     before = load_session(session_dir).traces[0]
-    expected = _closed_form(session_dir)
+    expected = _closed_form(pmdc, session_dir)
     _as_volts(session_dir)
     after = load_session(session_dir).traces[0]
     np.testing.assert_allclose(after.speed, before.speed, rtol=1e-12)
     np.testing.assert_allclose(after.current, before.current, rtol=1e-9, atol=1e-12)
-    proc = _closed_form(session_dir)
+    proc = _closed_form(pmdc, session_dir)
     assert proc.returncode == 0, proc.stderr
     got, want = json.loads(proc.stdout), json.loads(expected.stdout)
     for key in ("Ra", "K", "B", "J"):
@@ -80,9 +77,9 @@ def test_a_sensor_wired_the_other_way_round_takes_a_negative_constant(session_di
      "current_sensitivity: the current is logged in volts"),
 ])
 def test_a_sensors_constant_missing_zero_or_for_nothing_is_one_line(session_dir, keys, units,
-                                                                     expected):
+                                                                     expected, pmdc):
     replace_once(session_dir / TOML, UNITS, keys + units + " }")
-    proc = _closed_form(session_dir)
+    proc = _closed_form(pmdc, session_dir)
     assert proc.returncode == 2, proc.stderr
     (line,) = proc.stderr.splitlines()
     assert "Traceback" not in proc.stderr and expected in line, line

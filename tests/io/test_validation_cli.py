@@ -5,8 +5,6 @@ Each case breaks one thing of the small valid session from ``conftest.py``, runs
 stderr, no traceback, the file named, and the specific problem described.
 """
 
-import subprocess
-import sys
 
 import pytest
 from conftest import replace_once, set_csv_cell
@@ -228,24 +226,21 @@ CASES = [
 ]
 
 
-def _run(path):
-    return subprocess.run(
-        [sys.executable, "-m", "pmdc_bayes", "closed-form", str(path)],
-        capture_output=True, text=True, timeout=120,
-    )
+def _run(pmdc, path):
+    return pmdc("closed-form", path, timeout=120)
 
 
-def test_the_unbroken_session_runs(session_dir):
-    proc = _run(session_dir)
+def test_the_unbroken_session_runs(session_dir, pmdc):
+    proc = _run(pmdc, session_dir)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
 
 
 @pytest.mark.parametrize(("mutate", "expected"), [c[1:] for c in CASES],
                          ids=[c[0] for c in CASES])
-def test_cli_reports_one_line(session_dir, mutate, expected):
+def test_cli_reports_one_line(session_dir, mutate, expected, pmdc):
     target = mutate(session_dir) or session_dir
-    proc = _run(target)
+    proc = _run(pmdc, target)
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
     assert "Traceback" not in proc.stderr
     lines = proc.stderr.splitlines()

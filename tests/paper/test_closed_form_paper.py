@@ -4,8 +4,6 @@ and the equation functions against independent references.
 
 import dataclasses
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -24,19 +22,14 @@ from pmdc_bayes.paper.closed_form import (
 from pmdc_bayes.physics.motor import steady_state
 
 
-def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "pmdc_bayes", *args], capture_output=True,
-                          text=True, timeout=120)
-
-
 def _sig(x, n):
     """``x`` rounded to ``n`` significant figures."""
     return float(f"{x:.{n - 1}e}")
 
 
 @pytest.fixture(scope="module")
-def paper_json():
-    proc = _cli("closed-form", "paper", "--json")
+def paper_json(pmdc):
+    proc = pmdc("closed-form", "paper", "--json")
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout)
 
@@ -77,8 +70,8 @@ def test_printed_tau_alone_misses_the_fourth_figure():
     assert _sig(den[2], 4) == 7.328
 
 
-def test_closed_form_text_output():
-    proc = _cli("closed-form", "paper")
+def test_closed_form_text_output(pmdc):
+    proc = pmdc("closed-form", "paper")
     assert proc.returncode == 0, proc.stderr
     assert "0.062" in proc.stdout and "5.6630e-05" in proc.stdout
     assert "ω(s)/Va(s) = 105.1 / (0.005621 s² + 8.501 s + 7.329)" in proc.stdout
@@ -88,8 +81,8 @@ def test_closed_form_text_output():
 
 
 @pytest.mark.parametrize("args", [["--help"], ["closed-form", "--help"]])
-def test_help_exits_zero(args):
-    proc = _cli(*args)
+def test_help_exits_zero(args, pmdc):
+    proc = pmdc(*args)
     assert proc.returncode == 0, proc.stderr
     assert "usage: pmdc-bayes" in proc.stdout and proc.stderr == ""
 

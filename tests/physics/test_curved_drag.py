@@ -35,8 +35,8 @@ VT, VV = np.array([0.0, 0.1, 1.5]), np.array([0.0, 12.0, -6.0])
 
 def _reference(tc=0.0, limit=None, drop=0.0, lag=0.0, delay=0.0, drag=FAN, t=T, vt=VT,
                vv=VV):
-    bench = BenchMotor(**MOTOR, Tc=tc, current_limit=limit, brush_drop=drop,
-                       sensor_lag=lag, extra_load={"t": drag})
+    bench = BenchMotor(**MOTOR, Tc=tc, current_limit=limit, voltage_drop=drop,
+                       speed_lag=lag, extra_load={"t": drag})
     starts = vt + delay
     starts[0] = 0.0
     ends = np.append(starts[1:], t[-1])
@@ -108,7 +108,7 @@ def test_a_steady_start_under_a_curve_stays_steady():
     exp = with_drags(stack_experiments([(t, [0.0], [12.0], None, None, "steady",
                                          linearisation_cuts(t, [0.0]))]), [FAN])
     ia, w = x64(simulate_padded)(Params(**MOTOR, Tc=2.5e-3), exp, coulomb=True)
-    w_ss, ia_ss = steady_point(BenchMotor(**MOTOR, Tc=2.5e-3), 12.0, drag=FAN)
+    ia_ss, w_ss = steady_point(BenchMotor(**MOTOR, Tc=2.5e-3), 12.0, drag=FAN)
     np.testing.assert_allclose(np.asarray(exp.unpad(w)), w_ss, rtol=1e-9)
     np.testing.assert_allclose(np.asarray(exp.unpad(ia)), ia_ss, rtol=1e-8)
     # the steady state balances the curve's torque

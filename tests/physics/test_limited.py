@@ -84,7 +84,7 @@ def test_a_limit_never_reached_leaves_the_exact_solution_unchanged():
     assert np.max(np.abs(np.asarray(ia1 - ia0))) < 1e-10 * float(jnp.max(jnp.abs(ia0)))
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.parametrize("coulomb", [False, True])
 def test_derivatives_through_the_located_switching_times(coulomb):
     """Forward- and reverse-mode derivatives of a fit-like sum over the samples with

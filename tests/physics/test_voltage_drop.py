@@ -33,7 +33,7 @@ def _exact(tc, limit, drop, lags=None):
 @pytest.mark.parametrize(("tc", "limit", "drop"),
                          [(0.0, None, 1.5), (1e-3, None, 1.5), (1e-3, 2.0, 1.5), (0.0, 2.0, 0.8)])
 def test_the_drop_follows_the_current_through_braking_coasting_and_reversal(tc, limit, drop):
-    bench = BenchMotor(**MOTOR, Tc=tc, brush_drop=drop, current_limit=limit)
+    bench = BenchMotor(**MOTOR, Tc=tc, voltage_drop=drop, current_limit=limit)
     ends = np.append(VT[1:], T[-1])
     segments = list(zip(VT, ends, VV, np.zeros(VT.size), strict=True))
     ref = integrate(bench, "t", T, segments, np.zeros(5), w_eps=1e-4, i_eps=1e-7,
@@ -51,7 +51,7 @@ def test_the_drop_follows_the_current_through_braking_coasting_and_reversal(tc, 
         assert coasting.sum() > 20
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_the_derivatives_through_the_zero_crossings_match_finite_differences():
     exp = make_experiment(T, VT, VV)
 
@@ -90,7 +90,7 @@ def test_a_current_flows_again_once_the_back_emf_falls_below_the_drop(end):
     exp = make_experiment(t, vt, vv, initial="steady")
     ia, w = x64(simulate_padded)(Params(**motor, Tc=3e-3), exp, coulomb=True, drop=0.5)
     ia, w = np.asarray(exp.unpad(ia)), np.asarray(exp.unpad(w))
-    bench = BenchMotor(**motor, Tc=3e-3, brush_drop=0.5)
+    bench = BenchMotor(**motor, Tc=3e-3, voltage_drop=0.5)
     x0 = np.array([ia[0], w[0], w[0], 0.0, ia[0]])
     ref = integrate(bench, "t", t, [(0.0, 0.1, 12.0, 0.0), (0.1, end, 2.0, 0.0)], x0,
                     w_eps=1e-4, i_eps=1e-7, max_step=2e-4)

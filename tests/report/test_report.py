@@ -17,7 +17,7 @@ from pmdc_bayes.pipeline import FitOptions, run_fit
 from pmdc_bayes.report import to_control
 from pmdc_bayes.report.tables import TABLE_TITLES
 
-pytestmark = pytest.mark.slow
+pytestmark = pytest.mark.compiles
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 IMG = re.compile(r'<img alt="[^"]*" src="data:image/png;base64,([A-Za-z0-9+/=]*)">')
@@ -243,7 +243,7 @@ def test_report_quiet_prints_nothing_and_verbose_a_line_per_stage(tmp_path, caps
     assert exc.value.code == 2
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_the_report_leads_with_the_verdict(demo_run, paper_run):
     """Before any number: 'adequate' on the demo; on the paper (viscous, steady line
     off zero) the rejection, its reason and the conditional label."""

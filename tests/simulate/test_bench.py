@@ -68,7 +68,7 @@ def test_dead_time_shifts_the_response():
 
 def test_brush_drop_lowers_the_final_speed_by_the_analytic_amount():
     drop = 0.8
-    ref, dropped = one(QUIET), one(replace(QUIET, brush_drop=drop))
+    ref, dropped = one(QUIET), one(replace(QUIET, voltage_drop=drop))
     assert ref.speed[-1] - dropped.speed[-1] == pytest.approx(K * drop / DEN, rel=1e-3)
     assert dropped.current[-1] == pytest.approx(B * (V - drop) / DEN, rel=1e-3)
 
@@ -79,7 +79,7 @@ def test_source_resistance_acts_as_extra_armature_resistance():
     heavier = one(replace(QUIET, Ra=RA + rs), duration=0.1)
     assert np.max(np.abs(sourced.speed - heavier.speed)) < 1e-4 * W_FINAL
     assert np.max(np.abs(sourced.current - heavier.current)) < 1e-6
-    w, ia = steady_point(replace(QUIET, source_resistance=rs), V)
+    ia, w = steady_point(replace(QUIET, source_resistance=rs), V)
     den = (RA + rs) * B + K**2
     assert (w, ia) == pytest.approx((K * V / den, B * V / den), rel=1e-12)
 
@@ -103,7 +103,7 @@ def test_current_limit_gives_a_flat_top_of_the_analytic_length():
 
 def test_sensor_lag_delays_the_logged_speed_by_the_lag():
     lag, dt = 2e-3, 1e-4
-    ref, lagged = one(QUIET, dt=dt), one(replace(QUIET, sensor_lag=lag), dt=dt)
+    ref, lagged = one(QUIET, dt=dt), one(replace(QUIET, speed_lag=lag), dt=dt)
     assert t63(lagged) - t63(ref) == pytest.approx(lag, rel=0.15)
     # First-order filter of a step response: ∫(ω − ω_logged) dt = lag · ω_final.
     gap = ref.speed - lagged.speed
@@ -154,11 +154,11 @@ def test_coulomb_friction_running_and_stuck():
     s = bench_session(replace(QUIET, Tc=tc), [StepSpec("s", low, 0.05, 5e-4)])
     assert np.all(s.traces[0].speed == 0.0)
     assert s.traces[0].current[-1] == pytest.approx(low / RA, rel=1e-6)
-    assert steady_point(replace(QUIET, Tc=tc), low) == (0.0, pytest.approx(low / RA))
+    assert steady_point(replace(QUIET, Tc=tc), low) == (pytest.approx(low / RA), 0.0)
 
 
 def test_steady_table_has_brush_drop_but_not_extra_load():
-    motor = replace(QUIET, brush_drop=0.5, extra_load={"s": (1e-3, 0.0)})
+    motor = replace(QUIET, voltage_drop=0.5, extra_load={"s": (1e-3, 0.0)})
     s = bench_session(motor, [StepSpec("s", V, 0.02, 1e-3)], steady_voltages=(4.0, 8.0))
     table = s.steady_tables[0]
     assert table.speed == pytest.approx(K * (table.voltage - 0.5) / DEN, rel=0.015)

@@ -6,8 +6,6 @@ whose coast-down is read through them."""
 
 import copy
 import json
-import subprocess
-import sys
 import tomllib
 
 import numpy as np
@@ -147,18 +145,15 @@ def test_coast_down_plan_errors_are_one_line(mutate, where, what):
     assert where in text and what in text and "\n" not in text, text
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_through_the_cli_a_coast_down_read_through_the_sensor_gives_its_lag_and_offset(
-        tmp_path):
+        tmp_path, pmdc):
     plan = tmp_path / "plan.toml"
     plan.write_text(PLAN_TOML)
-    run = [sys.executable, "-m", "pmdc_bayes"]
-    proc = subprocess.run(run + ["simulate", str(plan), "--out", str(tmp_path / "s")],
-                          capture_output=True, text=True, timeout=900)
+    proc = pmdc("simulate", plan, "--out", tmp_path / "s", timeout=900)
     assert proc.returncode == 0, proc.stderr
-    proc = subprocess.run(run + ["fit", str(tmp_path / "s"), "--no-mcmc", "--add", "speed-lag",
-                                 "--add", "speed-offset", "--out", str(tmp_path / "fit")],
-                          capture_output=True, text=True, timeout=900)
+    proc = pmdc("fit", tmp_path / "s", "--no-mcmc", "--add", "speed-lag", "--add",
+               "speed-offset", "--out", tmp_path / "fit", timeout=900)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((tmp_path / "fit" / "summary.json").read_text())
     assert summary["adequacy"]["verdict"] == "adequate"

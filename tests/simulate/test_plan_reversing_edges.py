@@ -4,50 +4,23 @@ direction column; through the command line, a plan's reversing edge trace fits (
 rise check estimates the model's speed from its angle over the data's own window)."""
 
 import json
-import subprocess
-import sys
 import tomllib
 
 import numpy as np
 import pytest
+from conftest import SMALL_MOTOR, plan, plan_toml, sweep
 
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate._encoder import edge_times
 from pmdc_bayes.simulate.session import simulate_session
 
-PLAN_TOML = """\
-seed = 3
-[motor]
-name = "reversing encoder rig"
-friction = "coulomb"
-[truth]
-Ra = 2.0
-La = 2e-3
-K = 0.05
-B = 2e-5
-J = 2e-5
-Tc = 1e-3
-[bench.Ra]
-sd = 0.06
-unit = "ohm"
-[bench.La]
-sd = 0.1
-unit = "mH"
-[[steady_table]]
-name = "steady"
-voltages = [4.0, 8.0, 12.0]
-speed_sd = 0.3
-current_sd = 0.0003
-[[trace]]
-name = "rev"
-kind = "step"
-duration = 0.25
-rate = 2000.0
-voltage = [[0.0, 0.0], [0.01, 12.0], [0.08, -12.0]]
-record_current = false
-encoder = { counts_per_rev = 100, output = "edges" }
-[rig]
-"""
+PLAN_TOML = plan_toml(plan(
+    seed=3, motor="reversing encoder rig", friction="coulomb", truth={**SMALL_MOTOR, "Tc": 1e-3},
+    bench={"Ra": (0.06, "ohm"), "La": (0.1, "mH")}, rig={},
+    steady=(sweep([4.0, 8.0, 12.0], 0.3, 0.0003, name="steady"),),
+    traces=({"name": "rev", "kind": "step", "duration": 0.25, "rate": 2000.0,
+             "voltage": [[0.0, 0.0], [0.01, 12.0], [0.08, -12.0]], "record_current": False,
+             "encoder": {"counts_per_rev": 100, "output": "edges"}},)))
 
 
 def test_edges_both_ways_lie_on_the_boundaries_crossed():
@@ -78,17 +51,13 @@ def test_a_plans_reversing_edge_trace_carries_its_directions(tmp_path):
     assert counts.max() > counts[-1] + 50  # forward, then well back past it
 
 
-@pytest.mark.slow
-def test_through_the_cli_a_reversing_edge_plan_fits_and_recovers_the_motor(tmp_path):
+@pytest.mark.compiles
+def test_through_the_cli_a_reversing_edge_plan_fits_and_recovers_the_motor(tmp_path, pmdc):
     plan = tmp_path / "plan.toml"
     plan.write_text(PLAN_TOML)
-    run = [sys.executable, "-m", "pmdc_bayes"]
-    proc = subprocess.run(run + ["simulate", str(plan), "--out", str(tmp_path / "s")],
-                          capture_output=True, text=True, timeout=900)
+    proc = pmdc("simulate", plan, "--out", tmp_path / "s", timeout=900)
     assert proc.returncode == 0, proc.stderr
-    proc = subprocess.run(run + ["fit", str(tmp_path / "s"), "--no-mcmc", "--out",
-                                 str(tmp_path / "fit")],
-                          capture_output=True, text=True, timeout=900)
+    proc = pmdc("fit", tmp_path / "s", "--no-mcmc", "--out", tmp_path / "fit", timeout=900)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads((tmp_path / "fit" / "summary.json").read_text())
     assert summary["adequacy"]["verdict"] == "adequate"

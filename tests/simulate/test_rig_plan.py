@@ -6,12 +6,10 @@ recovered once the session declares the rig's model."""
 
 import copy
 import json
-import subprocess
-import sys
-import tomllib
 
 import numpy as np
 import pytest
+from conftest import SMALL_MOTOR, plan, plan_toml, sweep
 
 from pmdc_bayes._errors import SessionError
 from pmdc_bayes.io.loader import load_session
@@ -20,7 +18,7 @@ from pmdc_bayes.simulate.plan import check_plan
 from pmdc_bayes.simulate.rig import RigSpec, rig_steady, rig_trace
 from pmdc_bayes.simulate.session import simulate_session
 
-TRUTH = {"Ra": 2.0, "La": 2e-3, "K": 0.05, "B": 2e-5, "J": 2e-5, "Tc": 1e-3}
+TRUTH = {**SMALL_MOTOR, "Tc": 1e-3}
 
 
 def _trace(name, volts, **extra):
@@ -28,57 +26,17 @@ def _trace(name, volts, **extra):
             "voltage": [[0.0, 0.0], [0.01, volts]], **extra}
 
 
-PLAN_TOML = """\
-seed = 11
-[motor]
-name = "rig motor"
-friction = "coulomb"
-[truth]
-Ra = 2.0
-La = 2e-3
-K = 0.05
-B = 2e-5
-J = 2e-5
-Tc = 1e-3
-[bench.Ra]
-sd = 0.06
-unit = "ohm"
-[rig]
-dead_time = 0.002
-voltage_drop = 0.8
-current_limit = 2.0
-unknown_load = { step_9v = { viscous = 1e-4 } }
-[[steady_table]]
-name = "steady"
-voltages = [3.0, 6.0, 9.0, 12.0]
-speed_sd = 0.3
-current_sd = 0.0003
-[[trace]]
-name = "step_12v"
-kind = "step"
-duration = 0.15
-rate = 2000.0
-voltage = [[0.0, 0.0], [0.01, 12.0]]
-record_current = false
-encoder = { counts_per_rev = 400, output = "position" }
-[[trace]]
-name = "step_6v"
-kind = "step"
-duration = 0.15
-rate = 2000.0
-voltage = [[0.0, 0.0], [0.01, 6.0]]
-record_current = false
-encoder = { counts_per_rev = 400, output = "edges" }
-[[trace]]
-name = "step_9v"
-kind = "step"
-duration = 0.15
-rate = 2000.0
-voltage = [[0.0, 0.0], [0.01, 9.0]]
-speed_noise = 0.5
-current_noise = 0.01
-"""
-PLAN = tomllib.loads(PLAN_TOML)
+PLAN = plan(
+    seed=11, motor="rig motor", friction="coulomb", truth=TRUTH, bench={"Ra": (0.06, "ohm")},
+    rig={"dead_time": 0.002, "voltage_drop": 0.8, "current_limit": 2.0,
+         "unknown_load": {"step_9v": {"viscous": 1e-4}}},
+    steady=(sweep([3.0, 6.0, 9.0, 12.0], 0.3, 0.0003, name="steady"),),
+    traces=(_trace("step_12v", 12.0, record_current=False,
+                   encoder={"counts_per_rev": 400, "output": "position"}),
+            _trace("step_6v", 6.0, record_current=False,
+                   encoder={"counts_per_rev": 400, "output": "edges"}),
+            _trace("step_9v", 9.0, speed_noise=0.5, current_noise=0.01)))
+PLAN_TOML = plan_toml(PLAN)
 MODEL = ('\n[model]\ndead_time = "shared"\nvoltage_drop = true\ncurrent_limit = true\n'
          'unknown_load = { step_9v = "viscous" }\n')
 
@@ -130,11 +88,11 @@ def test_a_rig_step_matches_the_bench_simulators_own():
     spec = check_plan({**copy.deepcopy(PLAN), "rig": {},
                        "trace": [_trace("step", 9.0, speed_noise=0.0)]}).traces[0]
     ours = rig_trace(TRUTH, rig, spec)
-    motor = BenchMotor(**TRUTH, dead_time=0.002, brush_drop=0.8, current_limit=2.0,
+    motor = BenchMotor(**TRUTH, dead_time=0.002, voltage_drop=0.8, current_limit=2.0,
                        extra_load={"step": (0.0, 1e-4)}, speed_noise=0.0, current_noise=0.0)
     theirs = bench_session(motor, [StepSpec("step", 9.0, 0.15, 5e-4, t_step=0.01)]).traces[0]
     assert np.allclose(ours["speed"], theirs.speed, rtol=1e-6, atol=1e-6 * theirs.speed.max())
-    w, ia = steady_point(motor, 9.0, drag=(0.0, 1e-4))
+    ia, w = steady_point(motor, 9.0, drag=(0.0, 1e-4))
     assert ours["speed"][-1] == pytest.approx(w, rel=2e-3)  # the brake is felt
 
 
@@ -165,18 +123,15 @@ def test_rig_plan_errors_are_one_line(mutate, where, what):
     assert where in text and what in text and "\n" not in text, text
 
 
-def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "pmdc_bayes", *map(str, args)],
-                          capture_output=True, text=True, timeout=900)
 
 
-@pytest.mark.slow
-def test_through_the_cli_the_ideal_motor_is_rejected_and_the_rig_recovered(tmp_path):
+@pytest.mark.compiles
+def test_through_the_cli_the_ideal_motor_is_rejected_and_the_rig_recovered(tmp_path, pmdc):
     plan = tmp_path / "plan.toml"
     plan.write_text(PLAN_TOML)
-    proc = _cli("simulate", plan, "--out", tmp_path / "s")
+    proc = pmdc("simulate", plan, "--out", tmp_path / "s")
     assert proc.returncode == 0, proc.stderr
-    ideal = _cli("fit", tmp_path / "s", "--no-mcmc", "--no-search", "--out", tmp_path / "ideal")
+    ideal = pmdc("fit", tmp_path / "s", "--no-mcmc", "--no-search", "--out", tmp_path / "ideal")
     assert ideal.returncode == 3, ideal.stderr
     assert "current-limit" in ideal.stderr
     declared = tmp_path / "declared"
@@ -184,7 +139,7 @@ def test_through_the_cli_the_ideal_motor_is_rejected_and_the_rig_recovered(tmp_p
     for f in (tmp_path / "s").iterdir():
         (declared / f.name).write_bytes(f.read_bytes())
     (declared / "session.toml").write_text((declared / "session.toml").read_text() + MODEL)
-    proc = _cli("fit", declared, "--no-mcmc", "--out", tmp_path / "fit")
+    proc = pmdc("fit", declared, "--no-mcmc", "--out", tmp_path / "fit")
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((tmp_path / "fit" / "summary.json").read_text())
     assert summary["adequacy"]["verdict"] == "adequate"
@@ -195,9 +150,10 @@ def test_through_the_cli_the_ideal_motor_is_rejected_and_the_rig_recovered(tmp_p
 
 
 def _rig_plan(rig: str, model: str, traces: str, bench_la: bool = True) -> tuple[str, str]:
-    la = '[bench.La]\nsd = 0.1\nunit = "mH"\n' if bench_la else ""
-    head = PLAN_TOML[:PLAN_TOML.index("[rig]")].replace("[bench.Ra]", la + "[bench.Ra]")
-    steady = PLAN_TOML[PLAN_TOML.index("[[steady_table]]"):PLAN_TOML.index("[[trace]]")]
+    bench = {"Ra": (0.06, "ohm"), **({"La": (0.1, "mH")} if bench_la else {})}
+    head = plan_toml(plan(seed=11, motor="rig motor", friction="coulomb", truth=TRUTH,
+                          bench=bench))
+    steady = plan_toml({"steady_table": PLAN["steady_table"]})
     return head + rig + steady + traces, model
 
 
@@ -212,7 +168,7 @@ current_noise = 0.005
 """ for v in (12.0, 6.0))
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.parametrize(("rig", "model", "names"), [
     ('[rig]\nspeed_offset = 3.0\ncurrent_gain = 1.06\ncurrent_offset = 0.02\n',
      "[model]\nspeed_offset = true\ncurrent_gain = true\ncurrent_offset = true\n",
@@ -222,15 +178,15 @@ current_noise = 0.005
      ("Imax", "load_step_6v")),
 ])
 def test_sensor_calibrations_a_set_limit_and_a_constant_brake_are_recovered(
-        tmp_path, rig, model, names):
+        tmp_path, rig, model, names, pmdc):
     """Through the CLI: the ideal motor rejected, the declared model adequate, and each
     rig parameter and the motor's within 3 sd of the truth (a current gain is told from
     Ra only with a bench La as well as a bench Ra)."""
     plan_text, model_text = _rig_plan(rig, model, ANALOGUE)
     plan = tmp_path / "plan.toml"
     plan.write_text(plan_text)
-    assert _cli("simulate", plan, "--out", tmp_path / "s").returncode == 0
-    ideal = _cli("fit", tmp_path / "s", "--no-mcmc", "--no-search", "--out", tmp_path / "ideal")
+    assert pmdc("simulate", plan, "--out", tmp_path / "s").returncode == 0
+    ideal = pmdc("fit", tmp_path / "s", "--no-mcmc", "--no-search", "--out", tmp_path / "ideal")
     assert ideal.returncode == 3, ideal.stdout + ideal.stderr
     declared = tmp_path / "declared"
     declared.mkdir()
@@ -238,7 +194,7 @@ def test_sensor_calibrations_a_set_limit_and_a_constant_brake_are_recovered(
         (declared / f.name).write_bytes(f.read_bytes())
     (declared / "session.toml").write_text((declared / "session.toml").read_text() + "\n"
                                            + model_text)
-    proc = _cli("fit", declared, "--no-mcmc", "--out", tmp_path / "fit")
+    proc = pmdc("fit", declared, "--no-mcmc", "--out", tmp_path / "fit")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads((tmp_path / "fit" / "summary.json").read_text())
     truth = json.loads((declared / "truth.json").read_text())

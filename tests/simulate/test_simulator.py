@@ -4,8 +4,6 @@ plan errors, the command line, and the bundled demo session it generated."""
 import copy  # noqa: E402
 import hashlib  # noqa: E402
 import json  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import jax
@@ -84,9 +82,6 @@ def digests(root: Path) -> dict[str, str]:
     return {f.name: hashlib.sha256(f.read_bytes()).hexdigest() for f in sorted(root.iterdir())}
 
 
-def run_cli(*args):
-    return subprocess.run([sys.executable, "-m", "pmdc_bayes", *map(str, args)],
-                          capture_output=True, text=True, timeout=120)
 
 
 # Reproducibility
@@ -288,15 +283,15 @@ def test_force_replaces_only_generated_files(tmp_path):
 # Command line
 
 
-def test_cli_simulate_then_refuses_to_overwrite(tmp_path):
+def test_cli_simulate_then_refuses_to_overwrite(tmp_path, pmdc):
     (tmp_path / "plan.toml").write_text(PLAN_TOML)
-    done = run_cli("simulate", tmp_path / "plan.toml")  # --out defaults to the plan's dir
+    done = pmdc("simulate", tmp_path / "plan.toml")  # --out defaults to the plan's dir
     assert done.returncode == 0, done.stderr
     assert "SIMULATED" in done.stdout
     session = load_session(tmp_path)
     assert session.motor == "CLI motor" and session.truth == TRUTH
     before = digests(tmp_path)
-    again = run_cli("simulate", tmp_path / "plan.toml", "--out", tmp_path)
+    again = pmdc("simulate", tmp_path / "plan.toml", "--out", tmp_path)
     assert again.returncode == 2
     lines = again.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in again.stderr
@@ -304,8 +299,8 @@ def test_cli_simulate_then_refuses_to_overwrite(tmp_path):
     assert digests(tmp_path) == before
 
 
-def test_closed_form_on_demo_lumps_coulomb_friction_into_b():
-    done = run_cli("closed-form", DEMO, "--json")
+def test_closed_form_on_demo_lumps_coulomb_friction_into_b(pmdc):
+    done = pmdc("closed-form", DEMO, "--json")
     assert done.returncode == 0, done.stderr
     cf = json.loads(done.stdout)
     truth = json.loads((DEMO / "truth.json").read_text())

@@ -1,6 +1,7 @@
 """The motor model, equations (5)–(6), and its exact solution for piecewise-constant inputs.
 
-State ``x = (ia, ω)``; inputs the armature voltage Va(t) and load torque TL(t), both
+The state as a pair ``(ia, ω)``, the order of pairs in :mod:`.motor`; inputs the
+armature voltage Va(t) and load torque TL(t), both
 piecewise constant (a logged column is held between samples).  Between input
 changes the viscous model is linear and time-invariant, so its solution is a
 matrix exponential; :func:`simulate` evaluates it in closed (modal) form at every

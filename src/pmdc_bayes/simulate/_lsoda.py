@@ -28,11 +28,11 @@ def _rhs(m, name: str, va: float, tl: float, w_eps: float, i_eps: float):
     tc, b = m.Tc + extra.constant, m.B + extra.viscous
     curve = curve_arrays([extra]) if extra.curved else None
     lim, gain = m.current_limit, m.Ra / (m.La * _LOOP)  # near the limit, dia/dt = gain·Δi
-    lag, i_lag = m.sensor_lag, m.current_lag
+    lag, i_lag = m.speed_lag, m.current_lag
 
     def f(t, x):
         ia, w, ws, _, ias = x
-        v = va - m.brush_drop * math.tanh(ia / i_eps) - m.source_resistance * ia
+        v = va - m.voltage_drop * math.tanh(ia / i_eps) - m.source_resistance * ia
         if lim is not None:  # the driver's current loop: it can only lower |voltage|
             emf = m.Ra * ia + m.K * w
             v = min(max(v, emf + m.La * gain * (-lim - ia)), emf + m.La * gain * (lim - ia))

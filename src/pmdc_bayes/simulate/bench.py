@@ -50,12 +50,12 @@ class BenchMotor:
         viscous friction (N·m·s/rad), inertia (kg·m²) and Coulomb friction (N·m).
     dead_time : float
         The motor sees the commanded voltage step this late (s).
-    sensor_lag : float
+    speed_lag : float
         Time constant (s) of a first-order low-pass between the true and logged speed.
     current_lag : float
         The same between the true and logged current.
-    brush_drop : float
-        A constant voltage drop opposing the current (V): ``Va − brush_drop·sign(ia)``.
+    voltage_drop : float
+        A constant voltage drop opposing the current (V): ``Va − voltage_drop·sign(ia)``.
     source_resistance : float
         Resistance of the supply (Ω): the logged voltage is the supply's open-circuit
         voltage, the motor sees ``Va − source_resistance·ia``.
@@ -91,9 +91,9 @@ class BenchMotor:
     J: float
     Tc: float = 0.0
     dead_time: float = 0.0
-    sensor_lag: float = 0.0
+    speed_lag: float = 0.0
     current_lag: float = 0.0
-    brush_drop: float = 0.0
+    voltage_drop: float = 0.0
     source_resistance: float = 0.0
     current_limit: float | None = None
     speed_gain: float = 1.0
@@ -135,7 +135,7 @@ class StepSpec:
 
 def steady_point(motor: BenchMotor, voltage: float, load: float = 0.0,
                  drag: tuple = (0.0, 0.0)) -> tuple[float, float]:
-    """True steady ``(ω, ia)`` (rad/s, A) of the motor at a constant voltage.
+    """True steady ``(ia, ω)`` (A, rad/s) of the motor at a constant voltage.
 
     Parameters
     ----------
@@ -151,7 +151,7 @@ def steady_point(motor: BenchMotor, voltage: float, load: float = 0.0,
     Returns
     -------
     (float, float)
-        Speed and current, with the brush drop, Coulomb friction and current limit
+        Current and speed, with the voltage drop, Coulomb friction and current limit
         (the smoothing of ``sign`` neglected).
 
     Notes
@@ -170,28 +170,28 @@ def steady_point(motor: BenchMotor, voltage: float, load: float = 0.0,
     w = 0.0
     for _ in range(60):
         slope, t0 = curve_tangent(w, q, kw, kt)
-        w_new, ia = _steady_affine(motor, voltage, load + t0, d.constant, d.viscous + slope)
+        ia, w_new = _steady_affine(motor, voltage, load + t0, d.constant, d.viscous + slope)
         if abs(w_new - w) <= 1e-13 * max(abs(w_new), 1.0):
             break
         w = w_new
-    return w_new, ia
+    return ia, w_new
 
 
 def _steady_affine(m: BenchMotor, voltage: float, load: float, tc_extra: float,
                    b_extra: float) -> tuple[float, float]:
     tc, b, r = m.Tc + tc_extra, m.B + b_extra, m.Ra + m.source_resistance
     den = r * b + m.K**2
-    w, ia = 0.0, math.copysign(max(abs(voltage) - m.brush_drop, 0.0), voltage) / r
+    w, ia = 0.0, math.copysign(max(abs(voltage) - m.voltage_drop, 0.0), voltage) / r
     if abs(m.K * ia - load) > tc:  # it turns: take the direction of the driving torque
         s = math.copysign(1.0, m.K * ia - load)
-        v = voltage - s * m.brush_drop
+        v = voltage - s * m.voltage_drop
         w, ia = (m.K * v - r * (load + s * tc)) / den, (b * v + m.K * (load + s * tc)) / den
     lim = m.current_limit
     if lim is not None and abs(ia) > lim:
         ia = math.copysign(lim, ia)
         net = m.K * ia - load
         w = 0.0 if abs(net) <= tc or b == 0 else (net - math.copysign(tc, net)) / b
-    return w, ia
+    return ia, w
 
 
 def _integrate(m: BenchMotor, spec: StepSpec, t: np.ndarray, w_eps: float, i_eps: float):
@@ -289,7 +289,7 @@ def bench_session(motor: BenchMotor, steps: Sequence[StepSpec], *, seed: int = 0
     tables = ()
     if len(steady_voltages):
         v = np.asarray(steady_voltages, dtype=float)
-        w, ia = np.array([steady_point(m, float(x)) for x in v]).T
+        ia, w = np.array([steady_point(m, float(x)) for x in v]).T
         w = m.speed_gain * w * (1 + 0.003 * table_rng.standard_normal(v.size))
         ia = ia * (1 + 0.003 * table_rng.standard_normal(v.size))
         tables = (SteadyTable("steady", Path("steady.csv"), v, w, ia, np.zeros(v.size)),)

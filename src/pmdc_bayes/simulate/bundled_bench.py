@@ -28,7 +28,7 @@ __all__ = ["MOTOR", "RIG", "STEPS", "SEED", "COUNTS_PER_REV", "BRAKED", "write_b
 
 MOTOR = dict(Ra=2.0, La=2e-3, K=0.05, B=2e-5, J=2e-5, Tc=1e-3)
 BRAKED = "step_9v_braked"
-RIG = dict(dead_time=2e-3, brush_drop=0.8, current_limit=2.0,
+RIG = dict(dead_time=2e-3, voltage_drop=0.8, current_limit=2.0,
            extra_load={BRAKED: (0.0, 1e-4)})
 COUNTS_PER_REV = 400
 STEPS = (StepSpec("step_12v", 12.0, 0.15, 5e-4, t_step=0.01, log_current=False),
@@ -41,7 +41,7 @@ SEED = 7
 def truth() -> dict:
     """The true motor and rig (SI), under the names the fit reports."""
     out = dict(MOTOR)
-    out.update({"Vdrop": RIG["brush_drop"], "Imax": RIG["current_limit"],
+    out.update({"Vdrop": RIG["voltage_drop"], "Imax": RIG["current_limit"],
                 f"drag_{BRAKED}": RIG["extra_load"][BRAKED][1]})
     out["dead_time"] = RIG["dead_time"]  # one driver and logger: shared by every trace
     return out

@@ -19,8 +19,8 @@ STEADY_VOLTAGES = (4.0, 8.0, 12.0)
 #: case -> (BenchMotor fields, words the diagnosis must contain)
 CASES = {
     "dead time": (dict(dead_time=3e-3), ("dead time",)),
-    "sensor lag": (dict(sensor_lag=3e-3), ("lag in the speed sensor",)),
-    "brush drop": (dict(brush_drop=1.0), ("voltage drop",)),
+    "sensor lag": (dict(speed_lag=3e-3), ("lag in the speed sensor",)),
+    "brush drop": (dict(voltage_drop=1.0), ("voltage drop",)),
     "source resistance": (dict(source_resistance=0.6), ("source resistance",)),
     "current limit": (dict(current_limit=2.0), ("current-limited",)),
     "unknown load": (dict(extra_load={"step_6v": (1.5e-2, 0.0)}),

@@ -117,7 +117,7 @@ def _trace(rng, shape: str, name: str, truth: dict, v: float, tau_m: float,
                                              zip(times, loads, strict=True)])
     elif shape == "coast-down":
         rate, duration = _rate_and_duration(rng, tau_m, float(rng.uniform(1.0, 4.0)))
-        w0 = steady_point(motor, abs(top))[0]
+        w0 = steady_point(motor, abs(top))[1]
         return {"name": name, "kind": "coast-down", "duration": duration, "rate": rate,
                 "initial": {"speed": float(f"{w0:.6g}")},
                 "speed_noise": float(f"{_log_uniform(rng, 1e-3, 5e-2) * w0:.4g}")}
@@ -142,7 +142,7 @@ def _trace(rng, shape: str, name: str, truth: dict, v: float, tau_m: float,
 
 def _sensors(rng, t: dict, motor: BenchMotor, v: float, features: set) -> None:
     """Noise, quantum, unit, encoder and current channel of a driven trace."""
-    span = steady_point(motor, v)[0]
+    span = steady_point(motor, v)[1]
     i_span = v / motor.Ra
     edges_ok = t["initial"] == "rest" and t["kind"] == "step"
     u = rng.uniform()
@@ -223,7 +223,7 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
             "trace": traces}
     if rng.uniform() < 0.7:
         plan["bench"]["La"] = {"sd": float(f"{0.1 * truth['La']:.4g}"), "unit": "H"}
-    w_top = steady_point(motor, v)[0]
+    w_top = steady_point(motor, v)[1]
     i_level = (truth["B"] * w_top + truth["Tc"]) / truth["K"]
     draw = rng.uniform(size=3)
     want_table = draw[0] < 0.6 if steady is None else steady.startswith("table")

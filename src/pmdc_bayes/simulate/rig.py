@@ -124,8 +124,8 @@ def _motor(truth: dict, rig: RigSpec, encoder=None) -> BenchMotor:
     tachometer lag)."""
     return BenchMotor(**{k: truth[k] for k in ("Ra", "La", "K", "B", "J", "Tc")},
                       dead_time=rig.dead_time,
-                      sensor_lag=rig.speed_lag if encoder is None else 0.0,
-                      current_lag=rig.current_lag, brush_drop=rig.voltage_drop,
+                      speed_lag=rig.speed_lag if encoder is None else 0.0,
+                      current_lag=rig.current_lag, voltage_drop=rig.voltage_drop,
                       source_resistance=rig.source_resistance,
                       current_limit=rig.current_limit,
                       encoder_counts_per_rev=None if encoder is None else encoder[0],
@@ -157,7 +157,7 @@ def rig_steady(truth: dict, rig: RigSpec, va, tl) -> tuple[np.ndarray, np.ndarra
     (its driver's dead zone, drop, source resistance and current limit; read by other
     instruments than the traces' sensors, so without their gains and offsets)."""
     m = _motor(truth, rig)
-    w, ia = np.array([steady_point(m, rig.driver(float(v)), float(x))
+    ia, w = np.array([steady_point(m, rig.driver(float(v)), float(x))
                       for v, x in zip(np.atleast_1d(va), np.atleast_1d(tl), strict=True)]).T
     return ia, w
 
@@ -206,7 +206,7 @@ def rig_trace(truth: dict, rig: RigSpec, spec) -> dict[str, np.ndarray]:
         x0 = np.zeros(5)
     else:
         if spec.initial == "steady":
-            w, ia = steady_point(m, segs[0][2], segs[0][3], m.extra_load.get(spec.name,
+            ia, w = steady_point(m, segs[0][2], segs[0][3], m.extra_load.get(spec.name,
                                                                                (0.0, 0.0)))
         else:
             ia, w = spec.initial

@@ -260,7 +260,7 @@ def _steady_pairs(model, fit):
     theta = np.asarray(fit.theta)
     p = type(model.params(theta))(*(float(x) for x in model.circuit(theta)))  # on the host
     v = np.asarray(model.driven(theta, st["v"]), dtype=float)
-    w, i = model.steady_prediction(p, v, st["tl"], float(model.drop(theta)))
+    i, w = model.steady_prediction(p, v, st["tl"], float(model.drop(theta)))
     out = []
     for cid, obs, pred, mask in ((ChannelId(STEADY, "speed"), st["w"], w, st["w_mask"]),
                                  (ChannelId(STEADY, "current"), st["i"], i, st["i_mask"])):

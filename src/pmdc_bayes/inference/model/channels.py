@@ -206,7 +206,7 @@ class SteadyBlock(Block):
 
     @staticmethod
     def residuals(model, theta, d, fast: bool = False) -> list:
-        w, i = model.steady_prediction(model.circuit(theta), model.driven(theta, d["v"]),
+        i, w = model.steady_prediction(model.circuit(theta), model.driven(theta, d["v"]),
                                        d["tl"], model.drop(theta))
         return [d["w"] - w, d["i"] - i]
 

@@ -144,11 +144,10 @@ class SessionModel(RigEffects, Predictions, Pointwise):
 
     # -- predictions and residuals -------------------------------------------------------
     def steady_prediction(self, p: Params, v, tl, drop=0.0):
-        """Steady ``(ω, ia)`` at voltages ``v`` and loads ``tl`` (equations (15)–(18)),
+        """Steady ``(ia, ω)`` at voltages ``v`` and loads ``tl`` (equations (15)–(18)),
         with ``drop`` volts lost at the brushes and driver."""
-        i, w = motor.steady_with_drop(p.Ra, p.K, p.B, v, tl, p.Tc if self.coulomb else None,
+        return motor.steady_with_drop(p.Ra, p.K, p.B, v, tl, p.Tc if self.coulomb else None,
                                       drop)
-        return w, i
 
     def tau_prediction(self, p: Params):
         """First-order time constant (9): what a 63.2 % reading measures when La/Ra ≪ τ."""

@@ -239,10 +239,8 @@ def test_report_names_the_damaged_file_of_the_runs_copy(session_dir, tmp_path, c
 
 # --- through the command line, on one fitted run of a small session ----------------------
 
-def _fit_cli(*args, **kw):
-    return subprocess.Popen([sys.executable, "-m", "pmdc_bayes", "fit", "--no-search",
-                             *map(str, args)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
+def _fit_cli(pmdc, *args, **kw):
+    return pmdc.start("fit", "--no-search", *args, **kw)
 
 
 def _two_traces_one_figure_name(session_dir):
@@ -254,7 +252,7 @@ def _two_traces_one_figure_name(session_dir):
 
 
 @pytest.fixture(scope="module")
-def fitted(tmp_path_factory):
+def fitted(tmp_path_factory, pmdc):
     """One `fit --no-mcmc` of a small session (compiling it takes a minute: the tests
     that use it are marked slow)."""
     from conftest import write_session
@@ -262,7 +260,7 @@ def fitted(tmp_path_factory):
     root = tmp_path_factory.mktemp("rundir")
     session = _two_traces_one_figure_name(write_session(root / "sess"))
     out = root / "runs" / "run"
-    proc = _fit_cli(session, "--no-mcmc", "--out", out, "--allow-inadequate",
+    proc = _fit_cli(pmdc, session, "--no-mcmc", "--out", out, "--allow-inadequate",
                     "--allow-unconverged", "--verbose")
     _, err = proc.communicate(timeout=900)
     assert proc.returncode == 0, err
@@ -275,12 +273,12 @@ def fitted(tmp_path_factory):
     return session, out
 
 
-@pytest.mark.slow
-def test_quiet_prints_nothing_but_the_verdict_against_the_model(fitted, tmp_path):
+@pytest.mark.compiles
+def test_quiet_prints_nothing_but_the_verdict_against_the_model(fitted, tmp_path, pmdc):
     """The small session's synthetic current is not a motor's: the model is inadequate,
     and even --quiet with --allow-inadequate says so, in one line."""
     session, _ = fitted
-    proc = _fit_cli(session, "--no-mcmc", "--out", tmp_path / "run", "--allow-inadequate",
+    proc = _fit_cli(pmdc, session, "--no-mcmc", "--out", tmp_path / "run", "--allow-inadequate",
                     "--allow-unconverged", "--quiet")
     out, err = proc.communicate(timeout=900)
     assert proc.returncode == 0 and out == "", (out, err)
@@ -289,7 +287,7 @@ def test_quiet_prints_nothing_but_the_verdict_against_the_model(fitted, tmp_path
     assert (tmp_path / "run" / "report.html").is_file()
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_figures_whose_names_collide_are_both_kept(fitted):
     _, out = fitted
     names = {p.name for p in (out / "figures").glob("trace_*.png")}
@@ -298,8 +296,8 @@ def test_figures_whose_names_collide_are_both_kept(fitted):
     assert "figures/trace_Step-2.png" in html and "figures/trace_step.png" in html
 
 
-@pytest.mark.slow
-def test_the_run_holds_its_session_and_reports_after_the_original_changes(fitted, tmp_path):
+@pytest.mark.compiles
+def test_the_run_holds_its_session_and_reports_after_the_original_changes(fitted, tmp_path, pmdc):
     import shutil
 
     session, out = fitted
@@ -312,13 +310,11 @@ def test_the_run_holds_its_session_and_reports_after_the_original_changes(fitted
     shutil.copytree(session, moved)
     shutil.rmtree(session)
     try:
-        proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(run)],
-                              capture_output=True, text=True, timeout=600)
+        proc = pmdc("report", run, timeout=600)
         assert proc.returncode == 0, proc.stderr
         # without its copy, a run whose session has gone or changed is refused by name
         shutil.rmtree(run / "session")
-        proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(run)],
-                              capture_output=True, text=True, timeout=600)
+        proc = pmdc("report", run, timeout=600)
         assert proc.returncode == 2 and "changed or missing since the fit" in proc.stderr
         assert len(proc.stderr.splitlines()) == 1
     finally:
@@ -338,13 +334,13 @@ def _wait_for_stage(parent: Path, name: str, file: str, proc, timeout=600):
 
 @pytest.mark.parametrize(("sig", "code", "stage"), [(signal.SIGTERM, 143, RUN_MARKER),
                                                     (signal.SIGINT, 130, "summary.json")])
-@pytest.mark.slow
-def test_an_interrupted_rewrite_leaves_the_earlier_run(fitted, sig, code, stage):
+@pytest.mark.compiles
+def test_an_interrupted_rewrite_leaves_the_earlier_run(fitted, sig, code, stage, pmdc):
     """SIGTERM as the new run starts being written, SIGINT once its summary is written and
     its report is being drawn: the earlier run stays whole, nothing else is left."""
     session, out = fitted
     before = _snapshot(out)
-    proc = _fit_cli(session, "--no-mcmc", "--out", out, "--force", "--allow-inadequate",
+    proc = _fit_cli(pmdc, session, "--no-mcmc", "--out", out, "--force", "--allow-inadequate",
                     "--allow-unconverged")
     assert _wait_for_stage(out.parent, out.name, stage, proc), proc.communicate()
     proc.send_signal(sig)
@@ -371,10 +367,10 @@ def small_disk(tmp_path):
     subprocess.run(["umount", str(disk)], check=False)
 
 
-@pytest.mark.slow
-def test_a_full_disk_is_one_line_and_leaves_nothing(fitted, small_disk):
+@pytest.mark.compiles
+def test_a_full_disk_is_one_line_and_leaves_nothing(fitted, small_disk, pmdc):
     session, _ = fitted
-    proc = _fit_cli(session, "--no-mcmc", "--out", small_disk / "run", "--allow-inadequate",
+    proc = _fit_cli(pmdc, session, "--no-mcmc", "--out", small_disk / "run", "--allow-inadequate",
                     "--allow-unconverged")
     _, err = proc.communicate(timeout=900)
     assert proc.returncode == 2, err
@@ -391,19 +387,19 @@ def read_only_cache(tmp_path):
     subprocess.run(["umount", str(cache)], check=False)
 
 
-@pytest.mark.slow
-def test_a_read_only_compile_cache_does_not_stop_a_fit(fitted, read_only_cache, tmp_path):
+@pytest.mark.compiles
+def test_a_read_only_compile_cache_does_not_stop_a_fit(fitted, read_only_cache, tmp_path, pmdc):
     session, _ = fitted
     env = dict(os.environ, PMDC_BAYES_CACHE=str(read_only_cache))
-    proc = _fit_cli(session, "--no-mcmc", "--out", tmp_path / "run", "--allow-inadequate",
+    proc = _fit_cli(pmdc, session, "--no-mcmc", "--out", tmp_path / "run", "--allow-inadequate",
                     "--allow-unconverged", env=env)
     _, err = proc.communicate(timeout=900)
     assert proc.returncode == 0, err
     assert (tmp_path / "run" / "summary.json").is_file()
 
 
-@pytest.mark.slow
-def test_report_on_a_read_only_run_is_one_line(fitted, tmp_path):
+@pytest.mark.compiles
+def test_report_on_a_read_only_run_is_one_line(fitted, tmp_path, pmdc):
     import shutil
 
     _, out = fitted
@@ -413,32 +409,29 @@ def test_report_on_a_read_only_run_is_one_line(fitted, tmp_path):
     try:
         shutil.copytree(out, mount / "run")
         subprocess.run(["mount", "-o", "remount,ro", str(mount)], check=True)
-        proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report",
-                               str(mount / "run")], capture_output=True, text=True, timeout=600)
+        proc = pmdc("report", mount / "run", timeout=600)
         assert proc.returncode == 2, proc.stderr
         assert "cannot write in" in proc.stderr and len(proc.stderr.splitlines()) == 1
     finally:
         subprocess.run(["umount", str(mount)], check=False)
 
 
-@pytest.mark.slow
-def test_report_without_the_cache_stores_nothing(fitted, tmp_path):
+@pytest.mark.compiles
+def test_report_without_the_cache_stores_nothing(fitted, tmp_path, pmdc):
     import shutil
 
     _, out = fitted
     shutil.copytree(out, tmp_path / "run")
     env = dict(os.environ, PMDC_BAYES_CACHE=str(tmp_path / "cache"))
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(tmp_path / "run"),
-                           "--no-cache"], capture_output=True, text=True, timeout=600, env=env)
+    proc = pmdc("report", tmp_path / "run", "--no-cache", timeout=600, env=env)
     assert proc.returncode == 0, proc.stderr
     assert not (tmp_path / "cache").exists()
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(tmp_path / "run")],
-                          capture_output=True, text=True, timeout=600, env=env)
+    proc = pmdc("report", tmp_path / "run", timeout=600, env=env)
     assert proc.returncode == 0 and any((tmp_path / "cache" / "export").rglob("*.jaxexport"))
 
 
-@pytest.mark.slow
-def test_report_over_a_file_named_figures_is_one_line(fitted, tmp_path):
+@pytest.mark.compiles
+def test_report_over_a_file_named_figures_is_one_line(fitted, tmp_path, pmdc):
     import shutil
 
     _, out = fitted
@@ -446,43 +439,40 @@ def test_report_over_a_file_named_figures_is_one_line(fitted, tmp_path):
     shutil.copytree(out, run)
     shutil.rmtree(run / "figures")
     (run / "figures").write_text("mine")
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(run)],
-                          capture_output=True, text=True, timeout=600)
+    proc = pmdc("report", run, timeout=600)
     assert proc.returncode == 2 and "where the report's figures go" in proc.stderr
     assert (run / "figures").read_text() == "mine"
 
 
-def test_report_on_an_empty_summary_is_one_line(tmp_path):
+def test_report_on_an_empty_summary_is_one_line(tmp_path, pmdc):
     run = tmp_path / "run"
     run.mkdir()
     (run / "summary.json").write_text("{}")
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(run)],
-                          capture_output=True, text=True, timeout=600)
+    proc = pmdc("report", run, timeout=600)
     assert proc.returncode == 2 and "not a summary written by 'pmdc-bayes fit'" in proc.stderr
     assert len(proc.stderr.splitlines()) == 1
 
 
-@pytest.mark.slow
-def test_report_on_a_garbage_posterior_is_one_line(fitted, tmp_path):
+@pytest.mark.compiles
+def test_report_on_a_garbage_posterior_is_one_line(fitted, tmp_path, pmdc):
     import shutil
 
     _, out = fitted
     run = tmp_path / "run"
     shutil.copytree(out, run)
     (run / "posterior.nc").write_bytes(b"\x89HDF garbage" * 100)
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "report", str(run)],
-                          capture_output=True, text=True, timeout=600)
+    proc = pmdc("report", run, timeout=600)
     assert proc.returncode == 2, proc.stderr
     assert "cannot be read as this run's posterior" in proc.stderr
     assert len(proc.stderr.splitlines()) == 1
 
 
-def test_fit_into_a_read_only_place_is_refused_before_the_fit(session_dir, tmp_path):
+def test_fit_into_a_read_only_place_is_refused_before_the_fit(session_dir, tmp_path, pmdc):
     mount = tmp_path / "ro"
     if not _mount_tmpfs(mount, "1m", "ro"):
         pytest.skip("cannot mount a read-only file system here (needs root and mount)")
     try:
-        proc = _fit_cli(session_dir, "--out", mount / "run", "--verbose")
+        proc = _fit_cli(pmdc, session_dir, "--out", mount / "run", "--verbose")
         _, err = proc.communicate(timeout=600)
         lines = err.splitlines()
         assert proc.returncode == 2 and "cannot write in" in lines[-1], err

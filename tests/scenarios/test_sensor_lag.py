@@ -157,7 +157,7 @@ def _fit(session, nuisances, **kw):
     return fit_session(dataclasses.replace(session, nuisances=nuisances), FitOptions(**kw))
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_speed_sensor_lag_is_recovered_and_sampled():
     res = _fit(case_session("sensor lag", seed=3), ("speed_lag",), mcmc=True, seed=1)
     assert res.adequacy.verdict == "adequate"
@@ -170,14 +170,14 @@ def test_a_speed_sensor_lag_is_recovered_and_sampled():
         assert abs(row["mean"] - MOTOR[name]) < 4 * row["sd"], (name, row)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_lag_the_bench_does_not_have_is_found_negligible():
     fit = _fit(case_session(None, seed=3), ("speed_lag",), mcmc=False).fit
     dt = STEPS[0].dt
     assert fit.values["speed_lag"] < 0.1 * dt  # far below what the sampling can show
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_current_sensor_lag_is_recovered():
     session = bench_session(BenchMotor(**MOTOR, current_lag=1e-3), STEPS, seed=4,
                             steady_voltages=STEADY_VOLTAGES)
@@ -190,7 +190,7 @@ def test_a_current_sensor_lag_is_recovered():
     assert abs(fit.values["La"] - MOTOR["La"]) < 3 * fit.sd["La"]
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_current_lag_shorter_than_a_sample_is_recovered_with_la():
     """The current rises within a sample (La/Ra 0.26 ms, 1 ms samples) and its sensor
     lags by 0.1 ms: both are fitted from the readings."""

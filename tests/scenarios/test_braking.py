@@ -5,10 +5,10 @@ follows that (the current's zero crossing and the open phase after it) and recov
 drop."""
 
 import dataclasses
-import tomllib
 
 import numpy as np
 import pytest
+from conftest import SMALL_MOTOR, plan, sweep
 
 from pmdc_bayes.inference.adequacy.assess import assess
 from pmdc_bayes.inference.fit.joint import fit_map
@@ -17,48 +17,22 @@ from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.session import simulate_session
 
-PLAN = """\
-seed = 5
-[motor]
-name = "braked at 0 V"
-friction = "coulomb"
-[truth]
-Ra = 2.0
-La = 2e-3
-K = 0.05
-B = 2e-5
-J = 2e-5
-Tc = 1e-3
-[bench.Ra]
-sd = 0.05
-unit = "ohm"
-[bench.La]
-sd = 0.1
-unit = "mH"
-[rig]
-voltage_drop = 1.5
-[[steady_table]]
-name = "steady"
-voltages = [4.0, 8.0, 12.0]
-speed_sd = 0.3
-current_sd = 0.0003
-[[trace]]
-name = "{name}"
-kind = "step"
-duration = {duration}
-rate = 2000.0
-voltage = [[0.0, 0.0], [0.01, 12.0], [0.15, 0.0]]
-speed_noise = 0.3
-current_noise = 0.005
-"""
+
+def _plan(name: str, duration: float) -> dict:
+    return plan(seed=5, motor="braked at 0 V", friction="coulomb",
+                truth={**SMALL_MOTOR, "Tc": 1e-3}, bench={"Ra": (0.05, "ohm"), "La": (0.1, "mH")},
+                rig={"voltage_drop": 1.5},
+                steady=(sweep([4.0, 8.0, 12.0], 0.3, 0.0003, name="steady"),),
+                traces=({"name": name, "kind": "step", "duration": duration, "rate": 2000.0,
+                         "voltage": [[0.0, 0.0], [0.01, 12.0], [0.15, 0.0]], "speed_noise": 0.3,
+                         "current_noise": 0.005},))
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.parametrize(("duration", "brakes"), [(0.4, True), (0.14, False)])
 def test_braking_at_zero_volts_against_a_drop_is_fitted(tmp_path, duration, brakes):
     name = "brake" if brakes else "no_brake"
-    plan = tomllib.loads(PLAN.format(name=name, duration=duration))
-    session = load_session(simulate_session(plan, tmp_path / "s"))
+    session = load_session(simulate_session(_plan(name, duration), tmp_path / "s"))
     session = dataclasses.replace(session, nuisances=("voltage_drop",))
     cf = fit_seed(session)
     model = build_model(session, cf)

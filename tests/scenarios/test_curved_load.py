@@ -7,8 +7,6 @@ session format reads the curve in the trace's units and refuses one that would d
 the motor; a load that makes the model overflow is a failed fit (exit 1), not a crash."""
 
 import json
-import subprocess
-import sys
 from types import SimpleNamespace
 
 import pytest
@@ -38,9 +36,8 @@ def _plan():
                        **noise}]}
 
 
-def _fit(root, out, *extra):
-    return subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(root), "--no-mcmc",
-                           "--out", str(out), "--quiet", *extra], capture_output=True, text=True)
+def _fit(pmdc, root, out, *extra):
+    return pmdc("fit", root, "--no-mcmc", "--out", out, "--quiet", *extra)
 
 
 def _variant(root, where, edit):
@@ -55,12 +52,12 @@ def _variant(root, where, edit):
     return where
 
 
-@pytest.mark.slow
-def test_a_declared_fan_is_carried_and_a_forgotten_one_rejected(tmp_path):
+@pytest.mark.compiles
+def test_a_declared_fan_is_carried_and_a_forgotten_one_rejected(tmp_path, pmdc):
     root = simulate_session(_plan(), tmp_path / "s")
     toml = (root / "session.toml").read_text()
     assert "quadratic = " in toml and "curve = [[0" in toml  # declared in rpm
-    run = _fit(root, tmp_path / "run")
+    run = _fit(pmdc, root, tmp_path / "run")
     assert run.returncode == 0, run.stdout + run.stderr
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["adequacy"]["verdict"] == "adequate"
@@ -69,14 +66,14 @@ def test_a_declared_fan_is_carried_and_a_forgotten_one_rejected(tmp_path):
         assert abs(p["map"] - want) < 3 * p["map_sd"], (name, p["map"], p["map_sd"], want)
     # the same data with the fan left out of the session: the model is rejected
     bare = _variant(root, tmp_path / "bare", lambda ln: None if ln.startswith("drag = ") else ln)
-    run = _fit(bare, tmp_path / "run_bare", "--no-search")
+    run = _fit(pmdc, bare, tmp_path / "run_bare", "--no-search")
     assert run.returncode == 3, run.stdout + run.stderr
     # declared 60 % too strong: rejected, and the diagnosis says the drag is too strong
     strong = _variant(root, tmp_path / "strong", lambda ln: ln.replace(
         "quadratic = 6e-07", "quadratic = 9.6e-07").replace("0.002]", "0.0032]").replace(
         "0.009]", "0.0144]"))
     assert "quadratic = 9.6e-07" in (strong / "session.toml").read_text()
-    run = _fit(strong, tmp_path / "run_strong", "--no-search")
+    run = _fit(pmdc, strong, tmp_path / "run_strong", "--no-search")
     assert run.returncode == 3, run.stdout + run.stderr
     assert "fan_12v: settles" in run.stderr and "declared too strong" in run.stderr
 
@@ -125,10 +122,10 @@ def test_a_curve_whose_last_slope_would_drive_the_motor_is_refused(session_dir):
     assert drag_checks(SimpleNamespace(session=load_session(session_dir))) == []
 
 
-def test_a_load_that_makes_the_model_overflow_is_a_failed_fit(session_dir, tmp_path):
+def test_a_load_that_makes_the_model_overflow_is_a_failed_fit(session_dir, tmp_path, pmdc):
     replace_once(session_dir / "session.toml", 'voltage = [[0.0, 0.0], [0.1, 6.0]]',
                  'voltage = [[0.0, 0.0], [0.1, 6.0]]\ndrag = { quadratic = 1e300 }')
-    run = _fit(session_dir, tmp_path / "run")
+    run = _fit(pmdc, session_dir, tmp_path / "run")
     assert run.returncode == 1, run.stdout + run.stderr
     assert run.stderr.count("\n") == 1 and "the MAP fit failed" in run.stderr
     assert "internal error" not in run.stderr and not (tmp_path / "run").exists()

@@ -7,11 +7,11 @@ choosing it over a dead time the noise does not explain."""
 
 import csv
 import dataclasses
-import tomllib
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import SMALL_MOTOR, plan, step
 
 from pmdc_bayes._x64 import x64
 from pmdc_bayes.inference.adequacy.assess import assess
@@ -28,44 +28,20 @@ from pmdc_bayes.simulate.session import simulate_session
 
 RHO = 0.9
 
-MOTOR = """\
-[truth]
-Ra = 2.0
-La = 2e-3
-K = 0.05
-B = 2e-5
-J = 2e-5
-[bench.Ra]
-sd = 0.05
-unit = "ohm"
-[bench.La]
-sd = 0.1
-unit = "mH"
-"""
+BENCH = {"Ra": (0.05, "ohm"), "La": (0.1, "mH")}
 
-PLAN = """\
-seed = 3
-[motor]
-name = "a tachometer through a filter"
-""" + MOTOR + """\
-[rig]
-dead_time = {dead_time}
-[[trace]]
-name = "steps"
-kind = "step"
-duration = 0.6
-rate = 2000.0
-voltage = [[0.0, 0.0], [0.01, 6.0], [0.3, 2.0]]
-record_current = false
-speed_noise = {white}
-"""
+def _plan(dead_time: float, white: float) -> dict:
+    return plan(seed=3, motor="a tachometer through a filter", truth=SMALL_MOTOR, bench=BENCH,
+                rig={"dead_time": dead_time},
+                traces=({"name": "steps", "kind": "step", "duration": 0.6, "rate": 2000.0,
+                         "voltage": [[0.0, 0.0], [0.01, 6.0], [0.3, 2.0]],
+                         "record_current": False, "speed_noise": white},))
 
 
 def _session(tmp_path, *, ar_sd=0.0, white=0.3, dead_time=0.0, seed=11):
     """The plan drawn by the bench simulator, then AR(1) noise of marginal sd ``ar_sd``
     added to its logged speed (as a filtering sensor would)."""
-    plan = tomllib.loads(PLAN.format(dead_time=dead_time, white=white))
-    root = simulate_session(plan, tmp_path / "s")
+    root = simulate_session(_plan(dead_time, white), tmp_path / "s")
     if ar_sd > 0:
         path = root / "steps.csv"
         rows = list(csv.reader(path.read_text().splitlines()))
@@ -186,7 +162,7 @@ def test_a_filtering_sensor_is_rejected_as_white_and_fitted_as_coloured(tmp_path
     assert abs(fit.values["K"] - 0.05) < 3 * fit.sd["K"]
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_the_search_takes_coloured_noise_where_it_is_and_a_dead_time_where_that_is(tmp_path):
     coloured = search_model(_session(tmp_path / "ar", ar_sd=6.0))
     assert coloured["terms"] == ["coloured_noise:steps"], coloured["candidates"]
@@ -223,7 +199,7 @@ def test_the_simulators_coloured_speed_noise_has_its_correlation_and_sd(tmp_path
     from pmdc_bayes.simulate.plan import check_plan
     from pmdc_bayes.simulate.session import sample_trace
 
-    plan = tomllib.loads(PLAN.format(dead_time=0.0, white=2.0))
+    plan = _plan(0.0, 2.0)
     del plan["rig"]
     tr = plan["trace"][0]
     tr.update(duration=5.0, rate=1000.0, voltage=[[0.0, 6.0]], initial="steady",
@@ -305,33 +281,15 @@ def test_holding_out_the_only_trace_coloured_noise_names_is_bad_input():
         pmdc_bayes.fit(session, holdout="a", mcmc=False)
 
 
-SIBLINGS = """\
-seed = 8
-[motor]
-name = "one tachometer through a filter on every trace"
-""" + MOTOR + """\
-[[trace]]
-name = "long"
-kind = "step"
-duration = 0.6
-rate = 2000.0
-voltage = [[0.0, 0.0], [0.01, 6.0], [0.3, 2.0]]
-record_current = false
-speed_noise = 2.0
-speed_noise_correlation = 0.9
-[[trace]]
-name = "short"
-kind = "step"
-duration = 0.08
-rate = 2000.0
-voltage = [[0.0, 0.0], [0.005, 4.0]]
-record_current = false
-speed_noise = 2.0
-speed_noise_correlation = 0.9
-"""
+_FILTERED = {"record_current": False, "speed_noise": 2.0, "speed_noise_correlation": 0.9}
+SIBLINGS = plan(seed=8, motor="one tachometer through a filter on every trace",
+                truth=SMALL_MOTOR, bench=BENCH,
+                traces=({"name": "long", "kind": "step", "duration": 0.6, "rate": 2000.0,
+                         "voltage": [[0.0, 0.0], [0.01, 6.0], [0.3, 2.0]], **_FILTERED},
+                        step("short", 4.0, duration=0.08, rate=2000.0, at=0.005, **_FILTERED)))
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_coloured_noise_taken_on_one_trace_is_tried_on_the_others(tmp_path):
     """One filtering sensor logs both traces; one trace's correlated errors alone may
     pass the misfit check (here the long one's: without the mend the search took
@@ -339,7 +297,7 @@ def test_coloured_noise_taken_on_one_trace_is_tried_on_the_others(tmp_path):
     one trace it tries it on the other, and the chosen model holds it on both."""
     from pmdc_bayes.search import run_search
 
-    root = simulate_session(tomllib.loads(SIBLINGS), tmp_path / "s")
+    root = simulate_session(SIBLINGS, tmp_path / "s")
     found = run_search(load_session(root), seed=0)
     terms = set(found.record["terms"])
     assert {"coloured_noise:long", "coloured_noise:short"} <= terms, found.record["terms"]

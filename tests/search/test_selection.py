@@ -7,6 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import SMALL_MOTOR, plan, plan_toml, step, sweep
 
 from pmdc_bayes._x64 import x64
 from pmdc_bayes.inference.fit.joint import fit_map
@@ -196,7 +197,7 @@ def _search(session, **kw):
     return sel, "\n".join(format_selection(sel))
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.parametrize(("case", "expected"), [
     (None, set()), ("dead time", {"dead_time"}), ("brush drop", {"voltage_drop"})])
 def test_the_search_reaches_what_the_bench_has(case, expected):
@@ -210,11 +211,11 @@ def test_the_search_reaches_what_the_bench_has(case, expected):
     assert sel["fits"] <= sel["max_fits"]
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_combination_is_reached_from_the_ideal_model():
     """A dead time and a brush drop at once: no single addition makes the model adequate,
     the search takes the dead time, then the drop, and the data do not reject the pair."""
-    session = bench_session(BenchMotor(**MOTOR, dead_time=3e-3, brush_drop=1.0), STEPS,
+    session = bench_session(BenchMotor(**MOTOR, dead_time=3e-3, voltage_drop=1.0), STEPS,
                             seed=3, steady_voltages=STEADY_VOLTAGES)
     sel, text = _search(session)
     chosen = {t.split(":")[0] for t in sel["terms"]}
@@ -223,7 +224,7 @@ def test_a_combination_is_reached_from_the_ideal_model():
         == "adequate", text
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @x64
 def test_a_larger_model_never_ends_below_the_one_it_contains():
     """Started also from its parent's MAP with the dead times at zero (their prior's
@@ -243,40 +244,15 @@ def test_a_larger_model_never_ends_below_the_one_it_contains():
     assert np.isfinite(cfit.log_posterior)
 
 
-PLAN = """\
-seed = 5
-[motor]
-name = "delayed motor"
-[truth]
-Ra = 2.0
-La = 2e-3
-K = 0.05
-B = 2e-5
-J = 2e-5
-[bench.Ra]
-sd = 0.06
-unit = "ohm"
-[bench.La]
-sd = 0.2
-unit = "mH"
-[[steady_table]]
-name = "sweep"
-voltages = [4.0, 8.0, 12.0]
-speed_sd = 0.2
-current_sd = 0.001
-[[trace]]
-name = "step_12v"
-kind = "step"
-duration = 0.12
-rate = 5000.0
-voltage = [[0.0, 0.0], [0.01, 12.0]]
-speed_noise = 0.05
-current_noise = 0.002
-delay = 3e-3
-"""
+PLAN = plan_toml(plan(
+    seed=5, motor="delayed motor", truth=SMALL_MOTOR,
+    bench={"Ra": (0.06, "ohm"), "La": (0.2, "mH")},
+    steady=(sweep([4.0, 8.0, 12.0], 0.2, 0.001),),
+    traces=(step("step_12v", 12.0, duration=0.12, rate=5000.0, speed_noise=0.05,
+                 current_noise=0.002, delay=3e-3),)))
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path, monkeypatch):
     """No [model], the ideal model rejected (a 3 ms dead time): a plain fit searches, goes
     on from the fit of the model it chose (not fitting it again), and writes it into the

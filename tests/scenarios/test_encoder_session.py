@@ -6,8 +6,6 @@ adequate and recovers K, B and J; with a dead time on the rig, ``--add dead-time
 recovers it too."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -48,10 +46,8 @@ def write_edge_session(root, **bench):
     return root, s
 
 
-def _fit(root, out, *extra):
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(root), "--no-mcmc",
-                           "--out", str(out), *extra], capture_output=True, text=True,
-                          timeout=900)
+def _fit(pmdc, root, out, *extra):
+    proc = pmdc("fit", root, "--no-mcmc", "--out", out, *extra, timeout=900)
     summary = json.loads((out / "summary.json").read_text()) if out.exists() else None
     return proc, summary
 
@@ -61,11 +57,11 @@ def _within(summary, name, truth, k=3.0):
     return abs(p["map"] - truth) <= k * p["map_sd"], (name, p["map"], p["map_sd"], truth)
 
 
-@pytest.mark.slow
-def test_an_encoder_edge_session_fits_end_to_end(tmp_path):
+@pytest.mark.compiles
+def test_an_encoder_edge_session_fits_end_to_end(tmp_path, pmdc):
     root, s = write_edge_session(tmp_path / "edges")
     assert all(tr.position is not None and tr.current is None for tr in s.traces)
-    proc, summary = _fit(root, tmp_path / "run")
+    proc, summary = _fit(pmdc, root, tmp_path / "run")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert proc.stdout.splitlines()[0].startswith("Model adequate")
     channels = summary["adequacy"]["channels"]
@@ -83,14 +79,14 @@ def test_an_encoder_edge_session_fits_end_to_end(tmp_path):
         assert 0 < row["position"] < 3 * s.traces[0].encoder_step, row
 
 
-@pytest.mark.slow
-def test_an_encoder_rig_dead_time_is_flagged_then_recovered(tmp_path):
+@pytest.mark.compiles
+def test_an_encoder_rig_dead_time_is_flagged_then_recovered(tmp_path, pmdc):
     delay = 2e-3
     root, _ = write_edge_session(tmp_path / "edges", dead_time=delay)
-    proc, _ = _fit(root, tmp_path / "ideal", "--no-search")
+    proc, _ = _fit(pmdc, root, tmp_path / "ideal", "--no-search")
     assert proc.returncode == 3, proc.stdout + proc.stderr
     assert "dead time" in proc.stdout + proc.stderr
-    proc, summary = _fit(root, tmp_path / "delayed", "--add", "dead-time")
+    proc, summary = _fit(pmdc, root, tmp_path / "delayed", "--add", "dead-time")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     for tr in ("step_12v", "step_6v"):
         ok, row = _within(summary, f"dead_time_{tr}", delay)
@@ -117,7 +113,7 @@ def write_reversing_session(root):
     steady = [(v, *steady_point(motor, v)) for v in (4.0, 8.0, 12.0)]
     (root / "steady.csv").write_text("V,w,i\n" + "".join(
         f"{v!r},{w * (1 + 0.003 * rng.standard_normal())!r},"
-        f"{i * (1 + 0.003 * rng.standard_normal())!r}\n" for v, w, i in steady))
+        f"{i * (1 + 0.003 * rng.standard_normal())!r}\n" for v, i, w in steady))
     (root / "session.toml").write_text(
         '[motor]\nname = "reversing encoder"\n[bench.Ra]\nvalue = 2.0\nsd = 0.06\n'
         'unit = "ohm"\n[bench.La]\nvalue = 2.0\nsd = 0.1\nunit = "mH"\n'
@@ -130,15 +126,15 @@ def write_reversing_session(root):
     return root, (at.size, int(np.sum(np.diff(k)[at - 1] < 0)))
 
 
-@pytest.mark.slow
-def test_a_reversing_edge_trace_is_read_at_the_boundaries_it_crosses(tmp_path):
+@pytest.mark.compiles
+def test_a_reversing_edge_trace_is_read_at_the_boundaries_it_crosses(tmp_path, pmdc):
     """Backward edges lie on the boundary the rotor left by: read one count low, La came
     out 7 sd off and the fit was called inadequate; read right, the motor is recovered
     and the rise of the edge-estimated speed is compared with the model's estimated
     the same way."""
     root, (edges, backward) = write_reversing_session(tmp_path / "rev")
     assert 50 < backward < edges - 50  # many edges each way
-    proc, summary = _fit(root, tmp_path / "run")
+    proc, summary = _fit(pmdc, root, tmp_path / "run")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert summary["adequacy"]["verdict"] == "adequate"
     for name in ("Ra", "La", "K", "B", "J"):

@@ -4,8 +4,6 @@ session declares adequate through the CLI, the truth recovered."""
 
 import dataclasses
 import json
-import subprocess
-import sys
 
 import pytest
 
@@ -36,7 +34,7 @@ def test_the_session_is_what_a_real_rig_logs():
     assert s.truth is not None
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_the_ideal_motor_is_rejected_and_the_nonidealities_named():
     """The current limit, the voltage drop and the braked trace are named; the 2 ms dead
     time is not told apart from the start of the clamped ramp."""
@@ -51,16 +49,15 @@ def test_the_ideal_motor_is_rejected_and_the_nonidealities_named():
         assert expected in words, (expected, a.diagnosis)
 
 
-@pytest.mark.slow
-def test_the_declared_model_passes_the_gates_with_the_truth_in_its_intervals(tmp_path):
+@pytest.mark.compiles
+def test_the_declared_model_passes_the_gates_with_the_truth_in_its_intervals(tmp_path, pmdc):
     """Through the CLI, the posterior sampled to convergence (``--max-sampling-seconds
     0``; a few minutes on two cores): exit 0, adequate, the gates passed; every true
     value of the motor and the rig within 3 Laplace sd of the MAP and inside its 94 %
     HDI."""
     out = tmp_path / "run"
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", "bench",
-                           "--max-sampling-seconds", "0", "--out", str(out)],
-                          capture_output=True, text=True, timeout=3600, cwd=tmp_path)
+    proc = pmdc("fit", "bench", "--max-sampling-seconds", "0", "--out", out, timeout=3600,
+                cwd=tmp_path)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads((out / "summary.json").read_text())
     assert summary["adequacy"]["verdict"] == "adequate"

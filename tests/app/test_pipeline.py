@@ -1,8 +1,6 @@
 """`pmdc-bayes fit` end to end on the demo: closed form → MAP → MCMC → summary.json."""
 
 import json
-import subprocess
-import sys
 
 import arviz as az
 import pytest
@@ -20,7 +18,7 @@ def demo_run(tmp_path_factory):
     return run_fit(bundled_session_dir("demo"), FitOptions(seed=1), out=out)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_summary_contract(demo_run):
     out, summary = demo_run
     on_disk = json.loads((out / "summary.json").read_text())
@@ -38,7 +36,7 @@ def test_summary_contract(demo_run):
     assert on_disk["seed"] == 1
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_demo_hdi_contains_truth_and_gates_pass(demo_run):
     out, summary = demo_run
     assert summary["diagnostics"]["gates_passed"], summary["diagnostics"]["failures"]
@@ -49,7 +47,7 @@ def test_demo_hdi_contains_truth_and_gates_pass(demo_run):
         assert row["r_hat"] <= 1.01 and row["ess_bulk"] >= 400
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_posterior_file_has_the_arviz_groups(demo_run):
     """posterior.nc as a user opens it: every group, a channel per trace and quantity on
     its sample times with its unit, and ArviZ's summary, LOO, LOO-PIT and predictive
@@ -89,7 +87,7 @@ def test_posterior_file_has_the_arviz_groups(demo_run):
         plt.close("all")
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_derived_quantities_from_draws(demo_run):
     _, summary = demo_run
     q = summary["derived"]["quantities"]
@@ -104,54 +102,52 @@ def test_derived_quantities_from_draws(demo_run):
     assert q["tau_m"]["hdi_3%"] < q["tau_m"]["mean"] < q["tau_m"]["hdi_97%"]
 
 
-@pytest.mark.slow
-def test_fit_command_refuses_existing_run_without_force(demo_run):
+@pytest.mark.compiles
+def test_fit_command_refuses_existing_run_without_force(demo_run, pmdc):
     out, _ = demo_run
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", "demo", "--no-mcmc",
-                           "--out", str(out)], capture_output=True, text=True)
+    proc = pmdc("fit", "demo", "--no-mcmc", "--out", out)
     assert proc.returncode == 2
     assert "already exists" in proc.stderr and "Traceback" not in proc.stderr
     assert (out / "posterior.nc").is_file()  # the earlier run is untouched
 
 
-def _fit_cli(*args):
-    return subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", *map(str, args)],
-                          capture_output=True, text=True, timeout=600)
+def _fit_cli(pmdc, *args):
+    return pmdc("fit", *args, timeout=600)
 
 
 def _snapshot(root):
     return {p.relative_to(root): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
-def test_force_never_replaces_a_session_a_file_or_a_foreign_folder(session_dir, tmp_path):
+def test_force_never_replaces_a_session_a_file_or_a_foreign_folder(session_dir, tmp_path, pmdc):
     """--force replaces only an earlier run: the checks come before any fitting."""
     before = _snapshot(session_dir)
-    proc = _fit_cli(session_dir, "--no-mcmc", "--out", session_dir, "--force")
+    proc = _fit_cli(pmdc, session_dir, "--no-mcmc", "--out", session_dir, "--force")
     assert proc.returncode == 2, proc.stderr
     assert "session directory" in proc.stderr and "Traceback" not in proc.stderr
     assert _snapshot(session_dir) == before
     note = tmp_path / "notes.txt"
     note.write_text("mine")
-    proc = _fit_cli(session_dir, "--no-mcmc", "--out", note, "--force")
+    proc = _fit_cli(pmdc, session_dir, "--no-mcmc", "--out", note, "--force")
     assert proc.returncode == 2 and note.read_text() == "mine"
     folder = tmp_path / "photos"
     folder.mkdir()
     (folder / "a.jpg").write_bytes(b"\xff\xd8")
-    proc = _fit_cli(session_dir, "--no-mcmc", "--out", folder, "--force")
+    proc = _fit_cli(pmdc, session_dir, "--no-mcmc", "--out", folder, "--force")
     assert proc.returncode == 2 and "not a pmdc-bayes run" in proc.stderr
     assert (folder / "a.jpg").read_bytes() == b"\xff\xd8"
     (folder / "summary.json").write_text("{}")  # a summary.json of one's own is no marker
-    proc = _fit_cli(session_dir, "--no-mcmc", "--out", folder, "--force")
+    proc = _fit_cli(pmdc, session_dir, "--no-mcmc", "--out", folder, "--force")
     assert proc.returncode == 2 and "not a pmdc-bayes run" in proc.stderr
     assert (folder / "a.jpg").read_bytes() == b"\xff\xd8"
-    proc = _fit_cli(session_dir, "--no-mcmc", "--out", tmp_path / ("x" * 300))
+    proc = _fit_cli(pmdc, session_dir, "--no-mcmc", "--out", tmp_path / ("x" * 300))
     assert proc.returncode == 2 and "choose a shorter --out" in proc.stderr
 
 
-@pytest.mark.slow
-def test_force_replaces_an_earlier_run(demo_run):
+@pytest.mark.compiles
+def test_force_replaces_an_earlier_run(demo_run, pmdc):
     out, _ = demo_run
     assert (out / ".pmdc-bayes-run").is_file()
-    proc = _fit_cli("demo", "--no-mcmc", "--out", out, "--force")
+    proc = _fit_cli(pmdc, "demo", "--no-mcmc", "--out", out, "--force")
     assert proc.returncode == 0, proc.stderr
     assert not (out / "posterior.nc").exists() and (out / "summary.json").is_file()

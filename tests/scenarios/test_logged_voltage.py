@@ -49,7 +49,7 @@ def test_the_jitter_of_a_logged_voltage_is_not_a_step(tmp_path):
     assert t_step == tr.time[0] and before == 0.0 and after == pytest.approx(9.0, abs=0.1)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_dead_time_of_several_samples_under_a_logged_voltage_is_recovered(tmp_path):
     from pmdc_bayes.pipeline import FitOptions, fit_session
 

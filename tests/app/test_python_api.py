@@ -13,14 +13,14 @@ import pytest
 import pmdc_bayes
 from pmdc_bayes._headline import headline_html, headline_rows, headline_text
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "python-api.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "python-api.md"
 
 
 def _blocks(text: str) -> list[str]:
     return re.findall(r"```python\n(.*?)```", text, flags=re.S)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_the_documented_example_runs(tmp_path, monkeypatch):
     """Every python block of docs/python-api.md, in order, in one namespace: a full fit
     of the demo, ArviZ on its posterior, python-control systems of posterior draws,
@@ -142,7 +142,7 @@ def test_a_session_changed_in_memory_is_fitted_but_not_written_as_a_run(tmp_path
     assert not (tmp_path / "run").exists()
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_fit_computes_in_64_bits_and_leaves_the_callers_jax_setting_as_it_was():
     """In a fresh interpreter, JAX starts in 32-bit mode (the test suite's conftest
     switches 64-bit on for itself, so this runs apart): the fit still computes in 64
@@ -167,7 +167,7 @@ print("ok")
     assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-2000:]
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_use_cache_keeps_compiled_programs_for_a_later_interpreter(tmp_path):
     """pmdc_bayes.use_cache(dir) from Python: the first interpreter's fit stores its
     programs there; a second interpreter's fit loads them instead of writing anew and

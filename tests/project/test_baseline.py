@@ -16,7 +16,7 @@ from pmdc_bayes.io.loader import load_session  # noqa: E402
 from pmdc_bayes.paper.closed_form import closed_form  # noqa: E402
 from pmdc_bayes.simulate.session import simulate_session  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 AGREEMENT = 1e-3  # the bound on |Δ log-likelihood|
 TIGHT = {"rtol": 1e-9, "atol": 1e-11}
 TRUTH = {"Ra": 8.5, "La": 5.6e-3, "K": 0.062, "B": 4.5e-5, "J": 5.9e-4, "Tc": 0.0}

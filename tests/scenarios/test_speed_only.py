@@ -3,10 +3,9 @@ to end through the command line: the closed form says why it does not apply, the
 seeds itself from the data, recovers what speed can tell, and says what it cannot."""
 
 import json
-import subprocess
-import sys
 
 import pytest
+from conftest import plan, plan_toml, step, sweep
 
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.io.session import LA_ASSUMED
@@ -15,44 +14,15 @@ from pmdc_bayes.simulate.session import simulate_session
 RA, LA, K, B, J = 2.0, 2e-3, 0.05, 2e-5, 2e-5
 DEN = RA * B + K**2
 
-PLAN = f"""\
-seed = 3
-[motor]
-name = "speed-only motor"
-[truth]
-Ra = {RA}
-La = {LA}
-K = {K}
-B = {B}
-J = {J}
-[bench.Ra]
-sd = 0.06
-unit = "ohm"
-[[steady_table]]
-name = "sweep"
-voltages = [3.0, 6.0, 9.0, 12.0]
-speed_sd = 0.2
-[[trace]]
-name = "step_12v"
-kind = "step"
-duration = 0.15
-rate = 4000.0
-voltage = [[0.0, 0.0], [0.01, 12.0]]
-record_current = false
-speed_noise = 0.2
-[[trace]]
-name = "step_6v"
-kind = "step"
-duration = 0.15
-rate = 4000.0
-voltage = [[0.0, 0.0], [0.01, 6.0]]
-record_current = false
-speed_noise = 0.2
-"""
+_STEP = {"duration": 0.15, "rate": 4000.0, "record_current": False, "speed_noise": 0.2}
+PLAN = plan_toml(plan(
+    seed=3, motor="speed-only motor", truth={"Ra": RA, "La": LA, "K": K, "B": B, "J": J},
+    bench={"Ra": (0.06, "ohm")}, steady=(sweep([3.0, 6.0, 9.0, 12.0], 0.2),),
+    traces=(step("step_12v", 12.0, **_STEP), step("step_6v", 6.0, **_STEP))))
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory):
+def run(tmp_path_factory, pmdc):
     root = tmp_path_factory.mktemp("speed_only")
     plan = root / "plan.toml"
     plan.write_text(PLAN)
@@ -62,13 +32,11 @@ def run(tmp_path_factory):
     assert all(tr.current is None for tr in loaded.traces)
     assert all(t.current is None for t in loaded.steady_tables) and not loaded.operating_points
     out = root / "run"
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(session),
-                           "--no-mcmc", "--out", str(out)],
-                          capture_output=True, text=True, timeout=900)
+    proc = pmdc("fit", session, "--no-mcmc", "--out", out, timeout=900)
     return proc, out
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_speed_only_session_fits_end_to_end(run):
     proc, out = run
     assert proc.returncode == 0, proc.stderr
@@ -80,7 +48,7 @@ def test_a_speed_only_session_fits_end_to_end(run):
     assert "does not apply" in (out / "report.md").read_text()
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_speed_alone_determines_the_gain_and_time_constant_not_the_split(run):
     _, out = run
     summary = json.loads((out / "summary.json").read_text())
@@ -116,7 +84,7 @@ def _with_bench(run, tmp_path, **bench):
     return load_session(session)
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_bench_K_is_a_prior_that_splits_the_damping(run, tmp_path):
     from pmdc_bayes.pipeline import FitOptions, fit_session
 
@@ -136,7 +104,7 @@ def test_a_bench_K_is_a_prior_that_splits_the_damping(run, tmp_path):
         (fit.values["K"] - K * 1.01) / (K * 0.01))
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_bench_J_the_data_contradict_is_a_bench_conflict(run, tmp_path):
     from pmdc_bayes.pipeline import FitOptions, fit_session
 

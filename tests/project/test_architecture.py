@@ -11,7 +11,7 @@ from importlinter.cli import lint_imports
 
 import pmdc_bayes
 
-CONFIG = Path(__file__).resolve().parents[1] / "pyproject.toml"
+CONFIG = Path(__file__).resolve().parents[2] / "pyproject.toml"
 MAX_LINES = 300
 
 

@@ -4,12 +4,11 @@ integrated by SciPy (not by the package's model)."""
 
 import json
 import shutil
-import subprocess
-import sys
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import plan, plan_toml, step, sweep
 from scipy.integrate import solve_ivp
 
 from pmdc_bayes._errors import SessionError
@@ -77,7 +76,7 @@ def test_a_coast_down_is_read_apart_from_the_driven_traces(tmp_path):
     ('voltage = [[0.0, 12.0]]\n', "trace['run_down'].voltage", "unknown key"),
     ('initial = "steady"\n', "trace['run_down'].initial", "unknown key"),
 ])
-def test_a_coast_down_with_drive_keys_is_bad_input(tmp_path, extra, where, what):
+def test_a_coast_down_with_drive_keys_is_bad_input(tmp_path, extra, where, what, pmdc):
     session = tmp_path / "s"
     shutil.copytree(bundled_session_dir("demo"), session)
     _write_coast(session, "run_down", np.linspace(0, 1, 10), np.linspace(5, 1, 10),
@@ -85,38 +84,17 @@ def test_a_coast_down_with_drive_keys_is_bad_input(tmp_path, extra, where, what)
     with pytest.raises(SessionError) as info:
         load_session(session)
     assert where in str(info.value) and what in str(info.value)
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(session),
-                           "--out", str(tmp_path / "run")], capture_output=True, text=True)
+    proc = pmdc("fit", session, "--out", tmp_path / "run")
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     assert not (tmp_path / "run").exists()
 
 
-SPEED_ONLY_PLAN = f"""\
-seed = 3
-[motor]
-name = "speed-only motor with a run-down"
-[truth]
-Ra = {RA}
-La = {LA}
-K = {K}
-B = {B}
-J = {J}
-[bench.Ra]
-sd = 0.06
-unit = "ohm"
-[[steady_table]]
-name = "sweep"
-voltages = [3.0, 6.0, 9.0, 12.0]
-speed_sd = 0.2
-[[trace]]
-name = "step_12v"
-kind = "step"
-duration = 0.15
-rate = 4000.0
-voltage = [[0.0, 0.0], [0.01, 12.0]]
-record_current = false
-speed_noise = 0.2
-"""
+SPEED_ONLY_PLAN = plan_toml(plan(
+    seed=3, motor="speed-only motor with a run-down",
+    truth={"Ra": RA, "La": LA, "K": K, "B": B, "J": J}, bench={"Ra": (0.06, "ohm")},
+    steady=(sweep([3.0, 6.0, 9.0, 12.0], 0.2),),
+    traces=(step("step_12v", 12.0, duration=0.15, rate=4000.0, record_current=False,
+                 speed_noise=0.2),)))
 
 
 def _speed_only_with_coast(root, *, tc=0.0):
@@ -129,13 +107,11 @@ def _speed_only_with_coast(root, *, tc=0.0):
     return session
 
 
-@pytest.mark.slow
-def test_a_coast_down_splits_the_damping_of_a_speed_only_session(tmp_path):
+@pytest.mark.compiles
+def test_a_coast_down_splits_the_damping_of_a_speed_only_session(tmp_path, pmdc):
     session = _speed_only_with_coast(tmp_path)
     out = tmp_path / "run"
-    proc = subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(session), "--out",
-                           str(out), "--seed", "1"], capture_output=True, text=True,
-                          timeout=1500)
+    proc = pmdc("fit", session, "--out", out, "--seed", "1", timeout=1500)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads((out / "summary.json").read_text())
     assert summary["adequacy"]["verdict"] == "adequate"
@@ -155,7 +131,7 @@ def test_a_coast_down_splits_the_damping_of_a_speed_only_session(tmp_path):
     assert "run_down: speed" in (out / "report.md").read_text()
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_coulomb_run_down_rejects_the_viscous_model(tmp_path):
     from pmdc_bayes.pipeline import FitOptions, fit_session
 

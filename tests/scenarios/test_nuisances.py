@@ -4,61 +4,25 @@ the diagnosis "dead time", and fitted with ``--add dead-time`` it passes, with t
 dead time recovered and sampled."""
 
 import json
-import subprocess
-import sys
 
 import pytest
+from conftest import SMALL_MOTOR, plan, plan_toml, step, sweep
 
 from pmdc_bayes.simulate.session import simulate_session
 
 DELAY = 3e-3
 
-PLAN = f"""\
-seed = 5
-[motor]
-name = "delayed motor"
-[truth]
-Ra = 2.0
-La = 2e-3
-K = 0.05
-B = 2e-5
-J = 2e-5
-[bench.Ra]
-sd = 0.06
-unit = "ohm"
-[bench.La]
-sd = 0.2
-unit = "mH"
-[[steady_table]]
-name = "sweep"
-voltages = [4.0, 8.0, 12.0]
-speed_sd = 0.2
-current_sd = 0.001
-[[trace]]
-name = "step_12v"
-kind = "step"
-duration = 0.12
-rate = 5000.0
-voltage = [[0.0, 0.0], [0.01, 12.0]]
-speed_noise = 0.05
-current_noise = 0.002
-delay = {DELAY}
-[[trace]]
-name = "step_6v"
-kind = "step"
-duration = 0.12
-rate = 5000.0
-voltage = [[0.0, 0.0], [0.01, 6.0]]
-speed_noise = 0.05
-current_noise = 0.002
-delay = {DELAY}
-"""
+_STEP = {"duration": 0.12, "rate": 5000.0, "speed_noise": 0.05, "current_noise": 0.002,
+         "delay": DELAY}
+PLAN = plan_toml(plan(
+    seed=5, motor="delayed motor", truth=SMALL_MOTOR,
+    bench={"Ra": (0.06, "ohm"), "La": (0.2, "mH")},
+    steady=(sweep([4.0, 8.0, 12.0], 0.2, 0.001),),
+    traces=(step("step_12v", 12.0, **_STEP), step("step_6v", 6.0, **_STEP))))
 
 
-def _fit(session, out, *extra):
-    return subprocess.run([sys.executable, "-m", "pmdc_bayes", "fit", str(session), "--out",
-                           str(out), "--seed", "1", *extra],
-                          capture_output=True, text=True, timeout=1500)
+def _fit(pmdc, session, out, *extra):
+    return pmdc("fit", session, "--out", out, "--seed", "1", *extra, timeout=1500)
 
 
 @pytest.fixture(scope="module")
@@ -68,18 +32,18 @@ def session(tmp_path_factory):
     return simulate_session(root / "plan.toml", root / "session")
 
 
-@pytest.mark.slow
-def test_the_ideal_model_is_rejected_and_told_to_add_a_dead_time(session, tmp_path):
-    proc = _fit(session, tmp_path / "ideal", "--no-mcmc", "--no-search")
+@pytest.mark.compiles
+def test_the_ideal_model_is_rejected_and_told_to_add_a_dead_time(session, tmp_path, pmdc):
+    proc = _fit(pmdc, session, tmp_path / "ideal", "--no-mcmc", "--no-search")
     assert proc.returncode == 3, proc.stderr
     assert proc.stdout.startswith("MODEL INADEQUATE")
     assert "dead time" in proc.stdout and "--add dead-time" in proc.stdout
 
 
-@pytest.mark.slow
-def test_with_the_dead_time_fitted_the_model_passes_and_recovers_it(session, tmp_path):
+@pytest.mark.compiles
+def test_with_the_dead_time_fitted_the_model_passes_and_recovers_it(session, tmp_path, pmdc):
     out = tmp_path / "delayed"
-    proc = _fit(session, out, "--add", "dead-time")
+    proc = _fit(pmdc, session, out, "--add", "dead-time")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads((out / "summary.json").read_text())
     assert summary["adequacy"]["verdict"] == "adequate"
@@ -97,10 +61,10 @@ def test_with_the_dead_time_fitted_the_model_passes_and_recovers_it(session, tmp
     assert "dead_time_step_12v" in (out / "report.md").read_text()
 
 
-@pytest.mark.slow
-def test_compare_picks_the_dead_time_and_runs_it(session, tmp_path):
+@pytest.mark.compiles
+def test_compare_picks_the_dead_time_and_runs_it(session, tmp_path, pmdc):
     out = tmp_path / "compared"
-    proc = _fit(session, out, "--compare", "--no-mcmc")
+    proc = _fit(pmdc, session, out, "--compare", "--no-mcmc")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert proc.stdout.startswith("Model adequate")
     assert "The model, found by a search (--compare" in proc.stdout
@@ -116,8 +80,8 @@ def test_compare_picks_the_dead_time_and_runs_it(session, tmp_path):
     assert "Model choice" in (out / "report.md").read_text()
 
 
-def test_compare_and_add_together_are_bad_input(session, tmp_path):
-    proc = _fit(session, tmp_path / "x", "--compare", "--add", "dead-time")
+def test_compare_and_add_together_are_bad_input(session, tmp_path, pmdc):
+    proc = _fit(pmdc, session, tmp_path / "x", "--compare", "--add", "dead-time")
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "--compare" in proc.stderr
     assert not (tmp_path / "x").exists()

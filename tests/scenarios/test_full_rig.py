@@ -35,7 +35,7 @@ def _plan():
                        **noise}]}
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_rig_with_every_non_ideality_is_fitted_and_recovered(tmp_path):
     from pmdc_bayes.pipeline import FitOptions, fit_session
 

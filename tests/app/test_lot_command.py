@@ -9,6 +9,7 @@ import socket
 from pathlib import Path
 
 import pytest
+from conftest import plan, plan_toml, step, sweep
 
 from pmdc_bayes._batch import LOT_MARKER, claim_lot, lot_outs
 from pmdc_bayes._cores import usable_cores
@@ -16,55 +17,25 @@ from pmdc_bayes._errors import UsageError
 from pmdc_bayes.cli import main
 from pmdc_bayes.simulate.session import simulate_session
 
-PLAN = """\
-seed = 1
 
-[motor]
-name = "lot motor"
-friction = "viscous"
-
-[truth]
-Ra = 2.0
-La = 1.5e-3
-K = {K}
-B = 2e-5
-J = 2e-5
-
-[bench.Ra]
-sd = 0.02
-unit = "ohm"
-
-[bench.La]
-sd = 0.05
-unit = "mH"
-
-[[steady_table]]
-name = "sweep"
-voltages = [3.0, 6.0, 9.0, 12.0]
-speed_sd = 0.5
-current_sd = 0.005
-
-[[trace]]
-name = "step"
-kind = "step"
-duration = 0.5
-rate = 1000.0
-voltage = [[0.0, 0.0], [0.05, 12.0]]
-initial = "rest"
-record_current = true
-speed_noise = 0.5
-current_noise = 0.01
-"""
+def _plan(K: float) -> str:
+    return plan_toml(plan(
+        seed=1, motor="lot motor", friction="viscous",
+        truth={"Ra": 2.0, "La": 1.5e-3, "K": K, "B": 2e-5, "J": 2e-5},
+        bench={"Ra": (0.02, "ohm"), "La": (0.05, "mH")},
+        steady=(sweep([3.0, 6.0, 9.0, 12.0], 0.5, 0.005),),
+        traces=(step("step", 12.0, duration=0.5, rate=1000.0, at=0.05, initial="rest",
+                     record_current=True, speed_noise=0.5, current_noise=0.01),)))
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.skipif(usable_cores() < 2, reason="two workers need two usable cores")
 def test_a_lot_on_two_dask_workers_pools_the_motors_that_passed(tmp_path, capsys):
     lot = tmp_path / "lot"
     for k, gain in enumerate((0.050, 0.052, 0.049), start=1):
         folder = lot / f"m{k}"
         folder.mkdir(parents=True)
-        (folder / "plan.toml").write_text(PLAN.format(K=gain), encoding="utf-8")
+        (folder / "plan.toml").write_text(_plan(gain), encoding="utf-8")
         simulate_session(folder / "plan.toml", folder, seed=10 + k)
     (lot / "m4").mkdir()
     (lot / "m4" / "session.toml").write_text("[motor\n", encoding="utf-8")
@@ -97,7 +68,7 @@ def _lot(folder, gains):
     for k, gain in enumerate(gains, start=1):
         session = folder / f"m{k}"
         session.mkdir(parents=True)
-        (session / "plan.toml").write_text(PLAN.format(K=gain), encoding="utf-8")
+        (session / "plan.toml").write_text(_plan(gain), encoding="utf-8")
         simulate_session(session / "plan.toml", session, seed=20 + k)
     return folder
 
@@ -127,7 +98,7 @@ def test_a_scheduler_address_that_cannot_serve_is_bad_input_before_any_fit(
     assert not out.exists()
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_a_lot_runs_on_an_existing_dask_cluster_given_by_its_address(tmp_path, capsys):
     from dask.distributed import Client, LocalCluster
 
@@ -292,25 +263,21 @@ def test_a_link_loop_a_session_named_twice_and_too_many_workers_are_bad_input(
     assert not (tmp_path / "runs").exists()
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 @pytest.mark.skipif(usable_cores() < 2, reason="two workers need two usable cores")
-def test_a_lot_stopped_by_ctrl_c_says_one_line_and_leaves_only_whole_runs(tmp_path):
+def test_a_lot_stopped_by_ctrl_c_says_one_line_and_leaves_only_whole_runs(tmp_path, pmdc):
     """Ctrl-C at a terminal reaches every process of the group, the workers too: the
     command says it was interrupted, in one line, no worker's traceback or log, and
     leaves no temporary folder of a motor whose worker it stopped mid-fit."""
     import os
     import signal
-    import subprocess
-    import sys
     import time
 
     lot = _lot(tmp_path / "lot", (0.050, 0.051, 0.049, 0.052))
     out = tmp_path / "runs"
     env = dict(os.environ, PMDC_BAYES_CACHE=str(tmp_path / "cache"))
-    proc = subprocess.Popen([sys.executable, "-m", "pmdc_bayes", "lot", str(lot), "--out",
-                             str(out), "--no-mcmc", "--workers", "2"], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+    proc = pmdc.start("lot", lot, "--out", out, "--no-mcmc", "--workers", "2", env=env,
+                      start_new_session=True)
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and proc.poll() is None:
         if out.is_dir() and any(p.name.startswith(".m") for p in out.iterdir()):

@@ -57,7 +57,7 @@ def test_a_test_run_leaves_no_cache_directory_behind(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
          f"{tests / 'test_format.py'}::test_without_an_sd_six_significant_digits"],
-        cwd=tests.parent, env=env, capture_output=True, text=True, timeout=600)
+        cwd=tests.parents[1], env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert list(tmp_path.glob("pmdc-bayes-test-cache-*")) == []
 

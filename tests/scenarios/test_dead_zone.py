@@ -4,11 +4,11 @@ the fit and the search on steps both ways drawn by that simulator (LSODA, not th
 package's model)."""
 
 import dataclasses
-import tomllib
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import SMALL_MOTOR, plan
 
 from pmdc_bayes.inference.adequacy.assess import assess
 from pmdc_bayes.inference.adequacy.diagnosis_levels import _asymmetry_rule
@@ -26,40 +26,19 @@ from pmdc_bayes.simulate.session import simulate_session
 
 TRUTH = dict(Ra=2.0, La=2e-3, K=0.05, B=2e-5, J=2e-5, Tc=0.0)
 
-PLAN = """\
-seed = 7
-[motor]
-name = "driver with a dead zone"
-[truth]
-Ra = 2.0
-La = 2e-3
-K = 0.05
-B = 2e-5
-J = 2e-5
-[bench.Ra]
-sd = 0.05
-unit = "ohm"
-[bench.La]
-sd = 0.1
-unit = "mH"
-[rig]
-dead_zone_forward = {fwd}
-dead_zone_reverse = {rev}
-[[trace]]
-name = "both_ways"
-kind = "step"
-duration = 0.9
-rate = 2000.0
-voltage = [[0.0, 0.0], [0.01, 3.0], [0.15, 8.0], [0.3, 0.0], [0.45, -3.0], [0.6, -8.0], [0.75, 0.0]]
-record_current = {current}
-speed_noise = 0.3
-current_noise = 0.005
-"""
+def _plan(fwd: float, rev: float, current: bool) -> dict:
+    return plan(seed=7, motor="driver with a dead zone", truth=SMALL_MOTOR,
+                bench={"Ra": (0.05, "ohm"), "La": (0.1, "mH")},
+                rig={"dead_zone_forward": fwd, "dead_zone_reverse": rev},
+                traces=({"name": "both_ways", "kind": "step", "duration": 0.9, "rate": 2000.0,
+                         "voltage": [[0.0, 0.0], [0.01, 3.0], [0.15, 8.0], [0.3, 0.0],
+                                     [0.45, -3.0], [0.6, -8.0], [0.75, 0.0]],
+                         "record_current": current, "speed_noise": 0.3,
+                         "current_noise": 0.005},))
 
 
 def _session(tmp_path, fwd, rev, current=True):
-    plan = tomllib.loads(PLAN.format(fwd=fwd, rev=rev, current=str(current).lower()))
-    return load_session(simulate_session(plan, tmp_path / "s"))
+    return load_session(simulate_session(_plan(fwd, rev, current), tmp_path / "s"))
 
 
 @pytest.mark.parametrize("xp", [np, jnp])
@@ -103,7 +82,7 @@ def test_the_asymmetry_is_proposed_on_a_dead_zone_and_not_on_a_symmetric_rig(tmp
     assert _asymmetry_rule(same) == []  # the same both ways: a drop's pattern, not this
 
 
-@pytest.mark.parametrize("current", [True, pytest.param(False, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("current", [True, pytest.param(False, marks=pytest.mark.compiles)])
 def test_the_dead_zone_is_fitted_and_preferred_to_a_drop(tmp_path, current):
     session = _session(tmp_path, 0.6, 1.0, current=current)
     verdicts, fits, log_z = {}, {}, {}
@@ -123,7 +102,7 @@ def test_the_dead_zone_is_fitted_and_preferred_to_a_drop(tmp_path, current):
         assert abs(fit.values[name] - truth) < 3 * fit.sd[name], (name, fit.values[name])
 
 
-@pytest.mark.slow
+@pytest.mark.compiles
 def test_the_search_finds_the_dead_zone_on_its_own(tmp_path):
     record = search_model(_session(tmp_path, 0.6, 1.0, current=False))
     assert record["terms"] == ["dead_zone"], record["candidates"]
@@ -136,7 +115,7 @@ def test_a_coarse_encoder_staircase_reads_no_asymmetry_into_its_resolution(tmp_p
     differentiate to is the same few counts every sample, so its readings carry no
     noise to weigh the level by; the resolution (one count over the window) does, and
     a level the counts fix only coarsely neither decides the line nor breaks it."""
-    plan = tomllib.loads(PLAN.format(fwd=0.0, rev=0.0, current="false"))
+    plan = _plan(0.0, 0.0, False)
     tr = plan["trace"][0]
     tr.update(rate=1000.0, speed_noise=0.0, encoder={"counts_per_rev": 16,
                                                      "output": "position"})
