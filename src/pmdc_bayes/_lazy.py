@@ -10,12 +10,13 @@ __all__ = ["lazy_names"]
 
 def lazy_names(package: str, where: dict[str, str], namespace: dict):
     """``(__getattr__, __dir__)`` for ``package``: ``where`` maps a name to the relative
-    module that defines it; a name is imported once and kept in ``namespace`` (the
-    package's globals)."""
+    module that defines it (a submodule's own name, ``".name"``, to the submodule); a
+    name is imported once and kept in ``namespace`` (the package's globals)."""
 
     def __getattr__(name):
         if name in where:
-            value = getattr(importlib.import_module(where[name], package), name)
+            module = importlib.import_module(where[name], package)
+            value = module if where[name] == f".{name}" else getattr(module, name)
             namespace[name] = value
             return value
         raise AttributeError(f"module {package!r} has no attribute {name!r}")
