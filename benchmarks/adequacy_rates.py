@@ -33,7 +33,7 @@ import numpy as np
 from _common import REPORT, replace_section
 
 from pmdc_bayes._errors import SessionError
-from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.adequacy.verdict import assess
 from pmdc_bayes.inference.fit.joint import fit_map
 from pmdc_bayes.inference.model.objective import build_model
 from pmdc_bayes.inference.model.seed import fit_seed

@@ -40,7 +40,7 @@ from _common import REPORT, replace_section
 from scipy import stats
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.adequacy.verdict import assess
 from pmdc_bayes.inference.fit.joint import fit_map, laplace
 from pmdc_bayes.inference.fit.optimiser import Stepper
 from pmdc_bayes.inference.model.objective import build_model

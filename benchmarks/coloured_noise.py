@@ -25,7 +25,7 @@ from pathlib import Path
 from _common import REPORT, replace_section
 from calibration import coverage_rows, laplace_z
 
-from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.adequacy.verdict import assess
 from pmdc_bayes.inference.fit.joint import fit_map
 from pmdc_bayes.inference.model.objective import build_model
 from pmdc_bayes.inference.model.seed import fit_seed

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.adequacy.verdict import assess
 from pmdc_bayes.inference.fit.joint import fit_map
 from pmdc_bayes.inference.model.noise import noise_scale
 from pmdc_bayes.inference.model.objective import build_model

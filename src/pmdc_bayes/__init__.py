@@ -10,6 +10,7 @@ from ._lazy import lazy_names
 __all__ = [
     "ClosedForm",
     "FitFailed",
+    "FitOptions",
     "RunResult",
     "Session",
     "SessionError",
@@ -37,6 +38,7 @@ _LAZY = {
     "RunResult": ".run",
     "read_run": ".readback",
     "fit_session": ".pipeline",
+    "FitOptions": ".pipeline",
     "run_fit": ".pipeline",
     "simulate_session": ".simulate.session",
     "use_cache": ".cachedir",

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .inference.adequacy.assess import assess
+from .inference.adequacy.verdict import assess
 from .inference.fit.identifiability import PRIOR_DOMINATED
 from .inference.fit.joint import fit_map
 from .inference.model.objective import build_model
@@ -102,7 +102,7 @@ class Candidate:
 
     @property
     def adequacy(self):
-        """The verdict on the candidate (:func:`~.inference.adequacy.assess.assess`), made when
+        """The verdict on the candidate (:func:`~.inference.adequacy.verdict.assess`), made when
         first asked for: the search asks only of the candidates its choice turns on."""
         if self._adequacy is None:
             self._adequacy = assess(self.model, self.fit, self.cf)

@@ -16,7 +16,7 @@ from ._errors import FitFailed, UsageError
 from ._x64 import x64
 from .candidate import Fitted
 from .inference import StageClock, announcing
-from .inference.adequacy.assess import assess
+from .inference.adequacy.verdict import assess
 from .inference.fit.identifiability import identifiability
 from .inference.fit.joint import fit_map
 from .inference.model.objective import build_model

@@ -11,7 +11,7 @@ out "adequate" (the false-alarm rate is measured over many of them in the slow t
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.adequacy.verdict import assess
 from pmdc_bayes.inference.fit.joint import fit_map
 from pmdc_bayes.inference.model.objective import build_model
 from pmdc_bayes.inference.model.seed import fit_seed

@@ -297,7 +297,7 @@ def test_a_noisy_logged_voltage_does_not_fail_the_no_load_speed(tmp_path):
     model's mean speed at the end follows the mean of the column's noise there.  Without
     that in the test's error the no-load speed failed on a 0.1 % miss (four of these
     eight sessions at p below 1e-4, one at 1e-15)."""
-    from pmdc_bayes.inference.adequacy.assess import assess
+    from pmdc_bayes.inference.adequacy.verdict import assess
     from pmdc_bayes.inference.fit.joint import fit_map
     from pmdc_bayes.inference.model.objective import build_model
 

@@ -114,7 +114,7 @@ def test_the_rise_time_is_not_read_on_a_load_change_at_constant_voltage():
 
 @pytest.mark.compiles
 def test_a_misspecified_bench_is_flagged_with_its_p_value_and_no_proposal_the_model_has():
-    from pmdc_bayes.inference.adequacy.assess import assess
+    from pmdc_bayes.inference.adequacy.verdict import assess
     from pmdc_bayes.inference.fit.joint import fit_map
     from pmdc_bayes.inference.model.objective import build_model
     from pmdc_bayes.inference.model.seed import fit_seed

@@ -148,7 +148,7 @@ NARROWED = 0.6
 
 @pytest.fixture(scope="module")
 def fuzzed_fits(tmp_path_factory):
-    from pmdc_bayes.inference.adequacy.assess import assess
+    from pmdc_bayes.inference.adequacy.verdict import assess
     from pmdc_bayes.inference.model.seed import fit_seed
     from pmdc_bayes.simulate.fuzz import fuzz_session
 

@@ -130,8 +130,8 @@ def test_a_bad_reading_alone_is_the_data_s_fault():
     """A bad reading alone is the data's fault; beside a systematic misfit it may be the
     model's (a model far off the data leaves single readings far off too: a current
     limit's plateau at a trace's start), and the verdict stays the model's."""
-    from pmdc_bayes.inference.adequacy.assess import Adequacy, Finding, Verdict
     from pmdc_bayes.inference.adequacy.findings import Check, Severity
+    from pmdc_bayes.inference.adequacy.verdict import Adequacy, Finding, Verdict
 
     where, bad = ChannelId("tr", "speed"), Verdict.INADEQUATE
     glitch = Finding(Check.OUTLYING_READING, where, Severity.FAIL, "+6.6e4 rad/s", "a glitch")

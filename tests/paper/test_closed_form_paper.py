@@ -29,7 +29,7 @@ def _sig(x, n):
 
 @pytest.fixture(scope="module")
 def paper_json(pmdc):
-    proc = pmdc("closed-form", "paper", "--json")
+    proc = pmdc("closed-form", "paper", "--json", timeout=120)
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout)
 
@@ -71,7 +71,7 @@ def test_printed_tau_alone_misses_the_fourth_figure():
 
 
 def test_closed_form_text_output(pmdc):
-    proc = pmdc("closed-form", "paper")
+    proc = pmdc("closed-form", "paper", timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "0.062" in proc.stdout and "5.6630e-05" in proc.stdout
     assert "ω(s)/Va(s) = 105.1 / (0.005621 s² + 8.501 s + 7.329)" in proc.stdout
@@ -82,7 +82,7 @@ def test_closed_form_text_output(pmdc):
 
 @pytest.mark.parametrize("args", [["--help"], ["closed-form", "--help"]])
 def test_help_exits_zero(args, pmdc):
-    proc = pmdc(*args)
+    proc = pmdc(*args, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "usage: pmdc-bayes" in proc.stdout and proc.stderr == ""
 

@@ -6,6 +6,7 @@ no module grows past the size of one concern; each subpackage exports the main n
 the map gives it."""
 
 import importlib
+import inspect
 import re
 import tomllib
 from pathlib import Path
@@ -55,6 +56,7 @@ def test_each_subpackage_exports_the_main_names_the_map_gives_it():
             obj = package
             for part in name.split("."):
                 obj = getattr(obj, part, None)
-            if obj is None:
+            # a main name is a function, a class or a constant; a module only on its way
+            if obj is None or inspect.ismodule(obj):
                 missing.setdefault(folder, []).append(name)
     assert missing == {}

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import SMALL_MOTOR, plan, sweep
 
-from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.adequacy.verdict import assess
 from pmdc_bayes.inference.fit.joint import fit_map
 from pmdc_bayes.inference.model.objective import build_model
 from pmdc_bayes.inference.model.seed import fit_seed

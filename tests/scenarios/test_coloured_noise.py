@@ -14,7 +14,7 @@ import pytest
 from conftest import SMALL_MOTOR, plan, step
 
 from pmdc_bayes._x64 import x64
-from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.adequacy.verdict import assess
 from pmdc_bayes.inference.fit.joint import fit_map
 from pmdc_bayes.inference.model.coloured import ar_name, previous_index, start_residuals
 from pmdc_bayes.inference.model.noise import NU0

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from conftest import SMALL_MOTOR, plan
 
-from pmdc_bayes.inference.adequacy.assess import assess
 from pmdc_bayes.inference.adequacy.diagnosis_levels import _asymmetry_rule
+from pmdc_bayes.inference.adequacy.verdict import assess
 from pmdc_bayes.inference.fit.joint import fit_map
 from pmdc_bayes.inference.model.levels import direction_intercepts
 from pmdc_bayes.inference.model.nuisances import nuisance_specs

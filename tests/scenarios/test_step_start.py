@@ -7,7 +7,7 @@ import dataclasses
 import pytest
 from conftest import plan, step, sweep
 
-from pmdc_bayes.inference.adequacy.assess import assess
+from pmdc_bayes.inference.adequacy.verdict import assess
 from pmdc_bayes.inference.fit.joint import fit_map
 from pmdc_bayes.inference.model.objective import build_model
 from pmdc_bayes.inference.model.seed import fit_seed

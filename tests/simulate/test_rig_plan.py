@@ -129,9 +129,10 @@ def test_rig_plan_errors_are_one_line(mutate, where, what):
 def test_through_the_cli_the_ideal_motor_is_rejected_and_the_rig_recovered(tmp_path, pmdc):
     plan = tmp_path / "plan.toml"
     plan.write_text(PLAN_TOML)
-    proc = pmdc("simulate", plan, "--out", tmp_path / "s")
+    proc = pmdc("simulate", plan, "--out", tmp_path / "s", timeout=900)
     assert proc.returncode == 0, proc.stderr
-    ideal = pmdc("fit", tmp_path / "s", "--no-mcmc", "--no-search", "--out", tmp_path / "ideal")
+    ideal = pmdc("fit", tmp_path / "s", "--no-mcmc", "--no-search", "--out", tmp_path / "ideal",
+                 timeout=900)
     assert ideal.returncode == 3, ideal.stderr
     assert "current-limit" in ideal.stderr
     declared = tmp_path / "declared"
@@ -139,7 +140,7 @@ def test_through_the_cli_the_ideal_motor_is_rejected_and_the_rig_recovered(tmp_p
     for f in (tmp_path / "s").iterdir():
         (declared / f.name).write_bytes(f.read_bytes())
     (declared / "session.toml").write_text((declared / "session.toml").read_text() + MODEL)
-    proc = pmdc("fit", declared, "--no-mcmc", "--out", tmp_path / "fit")
+    proc = pmdc("fit", declared, "--no-mcmc", "--out", tmp_path / "fit", timeout=900)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((tmp_path / "fit" / "summary.json").read_text())
     assert summary["adequacy"]["verdict"] == "adequate"
@@ -185,8 +186,9 @@ def test_sensor_calibrations_a_set_limit_and_a_constant_brake_are_recovered(
     plan_text, model_text = _rig_plan(rig, model, ANALOGUE)
     plan = tmp_path / "plan.toml"
     plan.write_text(plan_text)
-    assert pmdc("simulate", plan, "--out", tmp_path / "s").returncode == 0
-    ideal = pmdc("fit", tmp_path / "s", "--no-mcmc", "--no-search", "--out", tmp_path / "ideal")
+    assert pmdc("simulate", plan, "--out", tmp_path / "s", timeout=900).returncode == 0
+    ideal = pmdc("fit", tmp_path / "s", "--no-mcmc", "--no-search", "--out", tmp_path / "ideal",
+                 timeout=900)
     assert ideal.returncode == 3, ideal.stdout + ideal.stderr
     declared = tmp_path / "declared"
     declared.mkdir()
@@ -194,7 +196,7 @@ def test_sensor_calibrations_a_set_limit_and_a_constant_brake_are_recovered(
         (declared / f.name).write_bytes(f.read_bytes())
     (declared / "session.toml").write_text((declared / "session.toml").read_text() + "\n"
                                            + model_text)
-    proc = pmdc("fit", declared, "--no-mcmc", "--out", tmp_path / "fit")
+    proc = pmdc("fit", declared, "--no-mcmc", "--out", tmp_path / "fit", timeout=900)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads((tmp_path / "fit" / "summary.json").read_text())
     truth = json.loads((declared / "truth.json").read_text())

@@ -285,13 +285,13 @@ def test_force_replaces_only_generated_files(tmp_path):
 
 def test_cli_simulate_then_refuses_to_overwrite(tmp_path, pmdc):
     (tmp_path / "plan.toml").write_text(PLAN_TOML)
-    done = pmdc("simulate", tmp_path / "plan.toml")  # --out defaults to the plan's dir
+    done = pmdc("simulate", tmp_path / "plan.toml", timeout=120)  # --out: the plan's dir
     assert done.returncode == 0, done.stderr
     assert "SIMULATED" in done.stdout
     session = load_session(tmp_path)
     assert session.motor == "CLI motor" and session.truth == TRUTH
     before = digests(tmp_path)
-    again = pmdc("simulate", tmp_path / "plan.toml", "--out", tmp_path)
+    again = pmdc("simulate", tmp_path / "plan.toml", "--out", tmp_path, timeout=120)
     assert again.returncode == 2
     lines = again.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in again.stderr
@@ -300,7 +300,7 @@ def test_cli_simulate_then_refuses_to_overwrite(tmp_path, pmdc):
 
 
 def test_closed_form_on_demo_lumps_coulomb_friction_into_b(pmdc):
-    done = pmdc("closed-form", DEMO, "--json")
+    done = pmdc("closed-form", DEMO, "--json", timeout=120)
     assert done.returncode == 0, done.stderr
     cf = json.loads(done.stdout)
     truth = json.loads((DEMO / "truth.json").read_text())

@@ -1,5 +1,5 @@
 """Does the session reject the fitted model, and what would it need?  The verdict
-(:mod:`.assess`) from the residual checks (:mod:`.trace_checks`, :mod:`.glitches`,
+(:mod:`.verdict`) from the residual checks (:mod:`.trace_checks`, :mod:`.glitches`,
 :mod:`.residual_stats`), the parameter checks (:mod:`.checks`), the model's own
 (:mod:`.model_checks`) and the plausibility checks (:mod:`.plausibility`), each a
 :class:`~.findings.Finding` with its p-value (:mod:`.calibrate`); and the diagnosis
@@ -15,7 +15,7 @@ from ..._lazy import lazy_names
 __all__ = ["assess", "Adequacy", "Finding", "Check", "Severity", "Verdict",
            "diagnose", "Proposal"]
 
-_LAZY = {"assess": ".assess", "Adequacy": ".assess", "Finding": ".findings",
+_LAZY = {"assess": ".verdict", "Adequacy": ".verdict", "Finding": ".findings",
          "Check": ".findings", "Severity": ".findings", "Verdict": ".findings",
          "diagnose": ".diagnosis", "Proposal": ".proposals"}
 

@@ -2,7 +2,7 @@
 physical plausibility against what the session measured, the global search), and one
 that looks at where in a trace the residuals lie (the start of each step).  Each
 statistical one is a :class:`~.calibrate.Test` with its p-value under the fitted model;
-:func:`~.adequacy.assess` corrects them as one family."""
+:func:`~.adequacy.verdict` corrects them as one family."""
 
 from __future__ import annotations
 
