@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from pmdc_bayes.inference.population.motor_evidence import motor_evidence
+from pmdc_bayes.inference.population.evidence import motor_evidence
 from pmdc_bayes.inference.population.pooling import analyse_lot
 
 NAMES = ("K", "B", "J", "Ra")

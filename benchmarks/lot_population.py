@@ -29,7 +29,7 @@ import numpy as np
 from _common import cli_command, run_measured, write_table_section
 from lot import make_lot
 
-from pmdc_bayes.inference.population.motor_evidence import motor_evidence
+from pmdc_bayes.inference.population.evidence import motor_evidence
 from pmdc_bayes.inference.population.pooling import analyse_lot
 
 SECTION = "A production lot"

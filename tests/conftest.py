@@ -54,6 +54,7 @@ def pytest_sessionfinish(session, exitstatus):
 import json  # noqa: E402
 import math  # noqa: E402
 from pathlib import Path  # noqa: E402
+from typing import NamedTuple  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -255,3 +256,30 @@ def plan_toml(plan: dict) -> str:
 
 # a small motor several plans share (SI)
 SMALL_MOTOR = {"Ra": 2.0, "La": 2e-3, "K": 0.05, "B": 2e-5, "J": 2e-5}
+
+
+# A session fitted as the command fits it before its posterior: the seed, the model,
+# the MAP (global search) and the adequacy verdict.
+
+class Fitted(NamedTuple):
+    seed: object
+    model: object
+    fit: object
+    verdict: object
+
+
+def fit_and_assess(session, *, nuisances: tuple | None = None, seed: int = 0) -> Fitted:
+    """``session`` (with ``nuisances`` in its model, when given) fitted and judged."""
+    import dataclasses
+
+    from pmdc_bayes.inference.adequacy.verdict import assess
+    from pmdc_bayes.inference.fit.joint import fit_map
+    from pmdc_bayes.inference.model.objective import build_model
+    from pmdc_bayes.inference.model.seed import fit_seed
+
+    if nuisances is not None:
+        session = dataclasses.replace(session, nuisances=tuple(nuisances))
+    cf = fit_seed(session)
+    model = build_model(session, cf)
+    fit = fit_map(model, seed=seed)
+    return Fitted(cf, model, fit, assess(model, fit, cf))

@@ -104,7 +104,7 @@ def run_lot_command(args, *, note=None) -> int:
     :mod:`.lot`)."""
     from . import cachedir
     from ._cores import usable_cores
-    from .inference.population.motor_evidence import subset
+    from .inference.population.evidence import subset
     from .inference.population.pooling import analyse_lot
 
     if args.scheduler and args.workers:

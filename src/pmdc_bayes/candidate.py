@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .inference.adequacy.verdict import assess
-from .inference.fit.identifiability import PRIOR_DOMINATED
 from .inference.fit.joint import fit_map
+from .inference.fit.undetermined import PRIOR_DOMINATED
 from .inference.model.objective import build_model
 from .inference.model.seed import fit_seed
 from .io.session import Session

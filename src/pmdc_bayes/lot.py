@@ -64,7 +64,7 @@ def fit_motor(session: Path, out: Path, *, name: str, mcmc: bool = True, seed: i
     """Fit one motor's session into ``out`` (in a worker process): its status and, when
     it passed, its evidence about every motor parameter it has."""
     from . import cachedir
-    from .inference.population.motor_evidence import from_run
+    from .inference.population.evidence import from_run
     from .pipeline import FitOptions, run_fit
     from .readback import read_run
 

@@ -17,8 +17,8 @@ from ._x64 import x64
 from .candidate import Fitted
 from .inference import StageClock, announcing
 from .inference.adequacy.verdict import assess
-from .inference.fit.identifiability import identifiability
 from .inference.fit.joint import fit_map
+from .inference.fit.undetermined import identifiability
 from .inference.model.objective import build_model
 from .inference.model.seed import fit_seed, refuse_reversed
 from .inference.warmup import WarmUp

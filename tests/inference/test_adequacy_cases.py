@@ -10,19 +10,14 @@ out "adequate" (the false-alarm rate is measured over many of them in the slow t
 
 import numpy as np
 import pytest
+from conftest import fit_and_assess
 
-from pmdc_bayes.inference.adequacy.verdict import assess
-from pmdc_bayes.inference.fit.joint import fit_map
-from pmdc_bayes.inference.model.objective import build_model
-from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.simulate.bench import bench_session
 from pmdc_bayes.simulate.cases import CASES, SPEED_ONLY, case_session, random_motor
 
 
 def _verdict(session, seed=0):
-    cf = fit_seed(session)
-    model = build_model(session, cf)
-    return assess(model, fit_map(model, seed=seed), cf)
+    return fit_and_assess(session, seed=seed).verdict
 
 
 def _says(adequacy, *words):

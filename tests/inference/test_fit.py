@@ -6,8 +6,8 @@ import jax
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.fit.identifiability import identifiability
 from pmdc_bayes.inference.fit.joint import fit_map
+from pmdc_bayes.inference.fit.undetermined import identifiability
 from pmdc_bayes.inference.model.objective import build_model
 from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.io.loader import load_session

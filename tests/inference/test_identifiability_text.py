@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from pmdc_bayes.inference.fit.identifiability import identifiability
+from pmdc_bayes.inference.fit.undetermined import identifiability
 
 NAMES = ("Ra", "La", "K", "B", "J", "dead_time_step")
 

@@ -5,6 +5,7 @@ the ideal bench where they must come out zero."""
 import dataclasses
 
 import pytest
+from conftest import fit_and_assess
 
 from pmdc_bayes.inference.adequacy.verdict import assess
 from pmdc_bayes.inference.fit.joint import fit_map
@@ -15,11 +16,8 @@ from pmdc_bayes.simulate.cases import CASES, MOTOR, case_session
 
 
 def _fit(case, nuisances):
-    session = dataclasses.replace(case_session(case), nuisances=nuisances)
-    cf = fit_seed(session)
-    model = build_model(session, cf)
-    fit = fit_map(model)
-    return fit, assess(model, fit, cf)
+    _, _, fit, verdict = fit_and_assess(case_session(case), nuisances=nuisances)
+    return fit, verdict
 
 
 def _within(fit, name, truth, n_sd=4.0, floor=0.0):

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pmdc_bayes.inference.population.evidence import motor_evidence, subset
 from pmdc_bayes.inference.population.hierarchical import MIN_ESS, fit_population
-from pmdc_bayes.inference.population.motor_evidence import motor_evidence, subset
 from pmdc_bayes.inference.population.pooling import analyse_lot, holm
 
 NAMES = ("K", "B", "J", "Ra")

@@ -4,16 +4,10 @@ back-emf falls below the drop, and the rotor then coasts with no current; the mo
 follows that (the current's zero crossing and the open phase after it) and recovers the
 drop."""
 
-import dataclasses
-
 import numpy as np
 import pytest
-from conftest import SMALL_MOTOR, plan, sweep
+from conftest import SMALL_MOTOR, fit_and_assess, plan, sweep
 
-from pmdc_bayes.inference.adequacy.verdict import assess
-from pmdc_bayes.inference.fit.joint import fit_map
-from pmdc_bayes.inference.model.objective import build_model
-from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.session import simulate_session
 
@@ -33,11 +27,7 @@ def _plan(name: str, duration: float) -> dict:
 def test_braking_at_zero_volts_against_a_drop_is_fitted(tmp_path, duration, brakes):
     name = "brake" if brakes else "no_brake"
     session = load_session(simulate_session(_plan(name, duration), tmp_path / "s"))
-    session = dataclasses.replace(session, nuisances=("voltage_drop",))
-    cf = fit_seed(session)
-    model = build_model(session, cf)
-    fit = fit_map(model)
-    verdict = assess(model, fit, cf)
+    _, model, fit, verdict = fit_and_assess(session, nuisances=("voltage_drop",))
     assert verdict.verdict == "adequate", verdict.findings
     assert abs(fit.values["Vdrop"] - 1.5) < 3 * fit.sd["Vdrop"], fit.values["Vdrop"]
     if brakes:  # the current stops within the record: the open phase is reached

@@ -2,15 +2,9 @@
 places half a sample early (a dead time) fails it and a fitted dead time passes; a
 current sensor's lag declared in the model is not taken for one."""
 
-import dataclasses
-
 import pytest
-from conftest import plan, step, sweep
+from conftest import fit_and_assess, plan, step, sweep
 
-from pmdc_bayes.inference.adequacy.verdict import assess
-from pmdc_bayes.inference.fit.joint import fit_map
-from pmdc_bayes.inference.model.objective import build_model
-from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.session import simulate_session
@@ -29,10 +23,7 @@ def _plan(**rig) -> dict:
 
 def _verdict(tmp_path, rig, nuisances):
     session = load_session(simulate_session(_plan(**rig), tmp_path))
-    session = dataclasses.replace(session, nuisances=nuisances)
-    cf = fit_seed(session)
-    model = build_model(session, cf)
-    return assess(model, fit_map(model), cf)
+    return fit_and_assess(session, nuisances=nuisances).verdict
 
 
 @pytest.mark.compiles
@@ -50,11 +41,7 @@ def test_a_declared_current_lag_is_not_taken_for_a_step_off_time(tmp_path):
     """The current rises within a sample (τe 0.26 ms, 1 ms samples) through a 0.5 ms
     lag: the exact reading passes the check, and the lag and La are recovered."""
     session = load_session(simulate_session(_plan(current_lag=0.0005), tmp_path))
-    session = dataclasses.replace(session, nuisances=("current_lag",))
-    cf = fit_seed(session)
-    model = build_model(session, cf)
-    fit = fit_map(model)
-    verdict = assess(model, fit, cf)
+    _, _, fit, verdict = fit_and_assess(session, nuisances=("current_lag",))
     assert verdict.verdict == "adequate", verdict.findings
     for name, truth in (("current_lag", 5e-4), ("La", 1.2e-3)):
         assert abs(fit.values[name] - truth) < 3 * fit.sd[name], (name, fit.values[name])

@@ -1,5 +1,5 @@
 """A lot of motors as a population, the second stage of a hierarchical fit: what each
-motor's own fit tells it (:mod:`.motor_evidence`), the population sampled
+motor's own fit tells it (:mod:`.evidence`), the population sampled
 (:mod:`.hierarchical`), and the pooled values, outliers and lot record
 (:mod:`.pooling`).
 
@@ -13,7 +13,7 @@ __all__ = ["fit_population", "Population", "motor_evidence", "MotorEvidence",
            "analyse_lot", "lot_record"]
 
 _LAZY = {"fit_population": ".hierarchical", "Population": ".hierarchical",
-         "motor_evidence": ".motor_evidence", "MotorEvidence": ".motor_evidence",
+         "motor_evidence": ".evidence", "MotorEvidence": ".evidence",
          "analyse_lot": ".pooling", "lot_record": ".pooling"}
 
 

@@ -5,7 +5,7 @@ are drawn from a log-normal population, ``log x_m ~ N(μ, Σ)`` with
 ``Σ = diag(σ)·R·diag(σ)``: ``exp(μ)`` the lot's median, ``σ`` its spread (a relative
 sd) and ``R`` the correlation of the parameters across the lot (the identity for the
 independent population; an LKJ prior, :mod:`.correlation`, for the correlated one).
-The first stage is each motor's own fit (:mod:`.motor_evidence` reads it); this one
+The first stage is each motor's own fit (:mod:`.evidence` reads it); this one
 combines them without fitting a motor again.  A motor's likelihood of the population
 is its posterior draws reweighted from its own prior to the population
 (``mean_s N(x_s | μ, Σ) / π_m(x_s)``), or, where its draws are too few to carry that
@@ -24,7 +24,7 @@ import emcee
 import numpy as np
 
 from ..model.correlation import cholesky_corr, lkj_log_prior, n_pairs
-from .motor_evidence import MotorEvidence
+from .evidence import MotorEvidence
 
 __all__ = ["Population", "fit_population", "MIN_ESS", "SPREAD_SCALE"]
 
