@@ -149,7 +149,8 @@ def _finding_rules(model, fit, findings, already=()):
                             "this diagnosis proposes",
                             Proposal("coloured_noise", analogue_channels(model.session)[f.where])))
         if f.check is Check.PHYSICAL_BOUND:
-            out.append(f"{f.where} at its bound: {f.suggestion}")
+            text = f"{f.where} at its bound: {f.suggestion}"
+            out.append(said(text, Proposal("dead_time")) if f.where == "La" else text)
         if f.check is Check.SOLVER:
             out.append(f"{f.where}: the solution's limit, not necessarily the model's: "
                        f"{f.suggestion}")

@@ -79,7 +79,18 @@ def bound_checks(model, fit) -> list:
                 f"{display_unit(spec.unit)}, {-z:.2g} prior sd below its prior's centre "
                 f"({np.exp(centre[k]):.3g}), where only the prior holds it: the data want "
                 f"less than none of it, and another part of the model does its work",
-                "check what else carries it (a declared load too strong, a friction model "
-                "the data do not need: --friction viscous for Tc); if it is truly "
-                "negligible, rerun with --allow-inadequate"))
+                _bound_suggestion(spec.name)))
     return out
+
+
+def _bound_suggestion(name: str) -> str:
+    """What to do about parameter ``name`` pressed against zero."""
+    if name == "La":  # less than no electrical lag: the response leads its logged voltage
+        return ("the response starts earlier than the session's voltage says (a voltage "
+                "column shows each change at the first sample after it happened; a "
+                "trigger offset): --add dead-time, whose negative value is a response "
+                "leading its log; if La is truly negligible, measure it ([bench.La]) or "
+                "rerun with --allow-inadequate")
+    return ("check what else carries it (a declared load too strong, a friction model "
+            "the data do not need: --friction viscous for Tc); if it is truly "
+            "negligible, rerun with --allow-inadequate")
