@@ -273,6 +273,13 @@ def test_recovers_the_truth_and_passes_the_gates(tiny):
     # 0.06, so this is a check of calibration at one realisation, not a proof of it.
     for name, value in TRUTH.items():
         assert summary[name]["hdi_3%"] <= value <= summary[name]["hdi_97%"], (name, summary)
+    # the central 90 % interval: the draws' 5 % and 95 % quantiles, about the median
+    draws = post.draws_si()
+    for name in TRUTH:
+        row, d = summary[name], np.asarray(draws[name]).ravel()
+        assert row["q5%"] < row["median"] < row["q95%"]
+        assert np.mean(d < row["q5%"]) == pytest.approx(0.05, abs=2 / d.size ** 0.5)
+        assert np.mean(d > row["q95%"]) == pytest.approx(0.05, abs=2 / d.size ** 0.5)
     # The Laplace approximation agrees with the sample for the well-identified K and J.
     for name in ("K", "J"):
         np.testing.assert_allclose(summary[name]["sd"], fit.sd[name], rtol=0.2)

@@ -16,6 +16,7 @@ __all__ = ["R_HAT_MAX", "ESS_MIN", "summarize", "gates", "compare_laplace", "wid
            "loo_compare", "format_loo"]
 
 HDI_PROB = 0.94
+CENTRAL = (0.05, 0.5, 0.95)  # the central 90 % interval and the median
 LAPLACE_TOLERANCE = 0.2
 R_HAT_MAX = 1.01  # the convergence gates: rank-normalised split R-hat at most this,
 ESS_MIN = 400  # and bulk and tail ESS at least this, for every parameter
@@ -23,8 +24,10 @@ _PARETO_WARNING = r"Estimated shape parameter of Pareto distribution"
 
 
 def summarize(posterior) -> dict[str, dict[str, float]]:
-    """Per parameter (SI): mean, sd, 94 % HDI, bulk and tail ESS, R-hat, and the R-hat
-    across the independent ensembles (``r_hat_ensembles``) when there were several.
+    """Per parameter (SI): mean, sd, 94 % HDI, the central 90 % interval and the median
+    (``q5%``, ``q95%``, ``median``: quantiles of the draws), bulk and tail ESS, R-hat,
+    and the R-hat across the independent ensembles (``r_hat_ensembles``) when there
+    were several.
 
     Walkers count as chains; R-hat is the rank-normalised split R-hat of ArviZ.
     """
@@ -32,6 +35,10 @@ def summarize(posterior) -> dict[str, dict[str, float]]:
                        round_to="none")
     cols = ["mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r_hat"]
     out = {name: {c: float(table.loc[name, c]) for c in cols} for name in posterior.names}
+    for name in posterior.names:
+        draws = np.asarray(posterior.idata.posterior[name]).ravel()
+        q5, median, q95 = np.quantile(draws, CENTRAL)
+        out[name].update({"q5%": float(q5), "median": float(median), "q95%": float(q95)})
     for name, value in (getattr(posterior, "r_hat_between", None) or {}).items():
         out[name]["r_hat_ensembles"] = value
     return out
