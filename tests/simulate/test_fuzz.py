@@ -12,6 +12,7 @@ from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import (
     NON_IDEALITIES,
     TRACE_SHAPES,
+    column_reading,
     fuzz_files,
     fuzz_plan,
     fuzz_session,
@@ -20,7 +21,7 @@ from pmdc_bayes.simulate.plan import check_plan
 
 MOTOR = ("Ra", "La", "K", "B", "J", "Tc")
 FEATURES = {"quantised speed", "encoder position", "encoder edges", "voltage column",
-            "no trace current"}
+            "noisy voltage column", "no trace current"}
 
 
 def _labels(seed) -> set:
@@ -33,6 +34,8 @@ def _labels(seed) -> set:
         out |= {"quantised speed"} if tr.get("speed_quantum") else set()
         out |= {"rpm"} if tr.get("speed_unit") == "rpm" else set()
     out |= {"voltage column"} if extras["columns"] else set()
+    if any(column_reading(seed, name, plan) for name in extras["columns"]):
+        out.add("noisy voltage column")
     out |= {"step reading"} if extras["step_reading"] else set()
     for tab in plan.get("steady_table", []):
         out.add("steady table" if "current_sd" in tab else "steady table without current")
@@ -159,17 +162,24 @@ def spec_rate(spec, name):
     return next(t for t in spec.traces if t.name == name).rate
 
 
+def _first_noisy_column():
+    return next(s for s in range(60) for name in fuzz_plan(s)[1]["columns"]
+                if column_reading(s, name, fuzz_plan(s)[0]))
+
+
 def _first_staircase_column():
     return next(s for s in range(60) if any("staircase" in c for c in fuzz_plan(s)[1]["columns"]))
 
 
-@pytest.mark.parametrize("seed", [None, 212])
+@pytest.mark.parametrize("seed", ["staircase", 212, "noisy"])
 def test_voltage_column_holds_the_rigs_voltage(tmp_path, seed):
     """The column switches at the very sample the rig switched at (a sample late would
     be a one-sample dead time: La off by 7 sd on a staircase at 540 Hz), also late in a
     long trace (seed 212: 23 s at 508 Hz), where a sample time written with ten
-    significant digits reads a few nanoseconds before the switch the rig made at it."""
-    seed = _first_staircase_column() if seed is None else seed
+    significant digits reads a few nanoseconds before the switch the rig made at it; a
+    column read with noise is read back as the rig's levels, within their error."""
+    seed = {"staircase": _first_staircase_column, "noisy": _first_noisy_column}.get(
+        seed, lambda: seed)()
     plan, extras = fuzz_plan(seed)
     spec = check_plan(plan)
     s = load_session(fuzz_session(seed, out=tmp_path / "v").path)
@@ -180,7 +190,12 @@ def test_voltage_column_holds_the_rigs_voltage(tmp_path, seed):
         k = np.rint(times * spec_rate(spec, name)).astype(int)  # switches at samples k
         want = np.array([b for _, b in sched])[np.searchsorted(k, np.arange(tr.n),
                                                                side="right") - 1]
-        assert np.array_equal(tr.voltage.at(tr.time), want)
+        if column_reading(seed, name, plan):
+            se = tr.voltage.se[np.searchsorted(tr.voltage.times, tr.time, side="right") - 1]
+            assert np.all(np.abs(tr.voltage.at(tr.time) - want) < 5 * se + 1e-3)
+            assert tr.voltage.times.size == np.count_nonzero(np.diff(want)) + 1
+        else:
+            assert np.array_equal(tr.voltage.at(tr.time), want)
         assert "voltage = [[" not in (tmp_path / "v" / "session.toml").read_text().split(
             f'name = "{name}"')[1].split("[[")[0]
 

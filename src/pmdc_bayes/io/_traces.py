@@ -15,6 +15,7 @@ from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
 from ._missing import MISSABLE, without_missing, without_repeats
 from ._units_row import check_units_row
 from .drag import check_curve_reach, read_drag
+from .held_levels import held_levels
 from .position import (
     angle_si,
     edge_angles,
@@ -240,7 +241,7 @@ def _trace(t: _Table, root: Path) -> Trace:
     inputs = {}
     for inp in ("voltage", "load_torque"):
         if inp in si:
-            inputs[inp] = Schedule(time, si[inp])
+            inputs[inp] = held_levels(time, si[inp])
         elif inp in t.data:
             inputs[inp] = schedule(t, inp, u, _TRACE_KINDS[inp], t_raw, start,
                                     duty if inp == "voltage" else None)

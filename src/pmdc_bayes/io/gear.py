@@ -35,7 +35,9 @@ def motor_shaft_trace(tr: Trace, n: float) -> Trace:
     initial = tr.initial
     if isinstance(initial, tuple):
         initial = (initial[0], initial[1] * n)
-    load = Schedule(tr.load_torque.times, np.asarray(tr.load_torque.values) / n)
+    se = tr.load_torque.se
+    load = Schedule(tr.load_torque.times, np.asarray(tr.load_torque.values) / n,
+                    None if se is None else np.asarray(se) / n)
     return dataclasses.replace(
         tr, speed=np.asarray(tr.speed) * n, load_torque=load, initial=initial,
         position=None if tr.position is None else np.asarray(tr.position) * n,

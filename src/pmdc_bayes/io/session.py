@@ -50,11 +50,14 @@ class Schedule:
     """A piecewise-constant input: ``values[i]`` holds on ``[times[i], times[i+1])``.
 
     The last value holds to the end of the trace.  A logged input column is a
-    schedule with one breakpoint per sample (zero-order hold).
+    schedule with one breakpoint per sample (zero-order hold), or, where the column is
+    noisy, one per level it held (:mod:`.held_levels`), ``se`` each level's standard
+    error (its noise over the square root of its readings).
     """
 
     times: np.ndarray
     values: np.ndarray
+    se: np.ndarray | None = None
 
     def at(self, t: np.ndarray) -> np.ndarray:
         """Value of the input at times ``t`` (right-continuous)."""

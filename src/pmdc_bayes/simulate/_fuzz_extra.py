@@ -79,10 +79,13 @@ def _held(pairs, t: np.ndarray) -> np.ndarray:
     return values[np.searchsorted(times, t + tol, side="right") - 1]
 
 
-def log_voltage_column(files: dict[str, str], plan: Plan, name: str) -> dict[str, str]:
+def log_voltage_column(files: dict[str, str], plan: Plan, name: str, *,
+                       noise: float = 0.0, seed: int = 0) -> dict[str, str]:
     """``files`` with trace ``name``'s voltage schedule written as a column ``va`` of its
     CSV (the value at each sample, held to the next: exact when the schedule switches
-    on samples) and the schedule removed from ``session.toml``."""
+    on samples) and the schedule removed from ``session.toml``; with ``noise`` (V), the
+    column is the driver's output read by an ADC whose readings carry Gaussian noise of
+    that sd (drawn from ``seed``), rounded to a millivolt."""
     spec = next(t for t in plan.traces if t.name == name)
     rows = files[f"{name}.csv"].rstrip("\n").split("\n")
     header = rows[0].split(",")
@@ -90,6 +93,9 @@ def log_voltage_column(files: dict[str, str], plan: Plan, name: str) -> dict[str
     t = data[:, header.index("t")]
     cols = {h: data[:, k] for k, h in enumerate(header)}
     cols["va"] = _held(spec.voltage, t)
+    if noise > 0.0:
+        read = cols["va"] + np.random.default_rng(seed).normal(0.0, noise, t.size)
+        cols["va"] = np.round(read, 3)
     out = dict(files)
     out[f"{name}.csv"] = csv_text(cols)
     lines = files["session.toml"].split("\n")

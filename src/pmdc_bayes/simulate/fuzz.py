@@ -14,7 +14,8 @@ non-ideality (each of them), sized so that it matters.
 
 :func:`fuzz_session` renders the plan with :func:`~.session.render_session` (the writer
 of ``pmdc-bayes simulate``), adds what plans cannot say (a voltage logged as a column,
-a step reading: :mod:`._fuzz_extra`) and writes the directory the loader reads.  The
+a step reading: :mod:`._fuzz_extra`; half the logged columns read by an ADC with noise
+of 0.1–2 % of the trace's largest voltage) and writes the directory the loader reads.  The
 same seed gives the same bytes.
 """
 
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,7 +36,7 @@ from .plan import check_plan
 from .session import render_session
 
 __all__ = ["NON_IDEALITIES", "TRACE_SHAPES", "FuzzedSession", "fuzz_motor", "fuzz_plan",
-           "fuzz_files", "fuzz_session"]
+           "column_reading", "fuzz_files", "fuzz_session"]
 
 TRACE_SHAPES = ("step from rest", "step from steady", "up-down", "staircase",
                 "load change", "coast-down")
@@ -250,13 +252,26 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
                   "shapes": tuple(kinds), "features": frozenset(features)}
 
 
+def column_reading(seed: int, name: str, plan: dict) -> dict:
+    """How trace ``name``'s logged voltage column is read: for half the columns, by an
+    ADC whose readings carry noise of 0.1–2 % of the trace's largest voltage (drawn from
+    a generator of their own, so that the rest of the session is the seed's as before)."""
+    rng = np.random.default_rng([int(seed), zlib.crc32(name.encode())])
+    if rng.uniform() < 0.5:
+        return {}
+    trace = next(t for t in plan["trace"] if t["name"] == name)
+    top = max(abs(float(v)) for _, v in trace["voltage"])
+    return {"noise": float(f"{_log_uniform(rng, 1e-3, 2e-2) * top:.3g}"),
+            "seed": int(rng.integers(2**31))}
+
+
 def fuzz_files(seed: int, **kw) -> tuple[dict[str, str], dict, dict]:
     """The files of a fuzzed session (name -> text), its plan and extras."""
     plan, extras = fuzz_plan(seed, **kw)
     spec = check_plan(plan)
     files = render_session(spec, int(seed))
     for name in extras["columns"]:
-        files = log_voltage_column(files, spec, name)
+        files = log_voltage_column(files, spec, name, **column_reading(seed, name, plan))
     if extras["step_reading"]:
         files = add_step_reading(files, spec, seed)
     return files, plan, extras
@@ -279,6 +294,8 @@ def fuzz_session(seed: int, *, misspecified: str | tuple[str, ...] | None = None
         features.add("no trace current")
     if extras["columns"]:
         features.add("voltage column")
+    if any(column_reading(seed, name, plan) for name in extras["columns"]):
+        features.add("noisy voltage column")
     labels = list(extras["shapes"]) + [k.replace("_", " ") for k in
                                        ("steady_table", "operating_point") if k in plan]
     if extras["step_reading"]:

@@ -1,0 +1,53 @@
+"""A noisy logged input column is read as the levels its driver held; a column without
+noise as written."""
+
+import numpy as np
+from scipy import stats
+
+from pmdc_bayes.io.held_levels import FALSE_SPLIT, column_noise, held_levels
+
+RATE = 1000.0
+
+
+def _staircase(levels, hold: int, sigma: float, seed: int = 0):
+    t = np.arange(len(levels) * hold) / RATE
+    clean = np.repeat(levels, hold).astype(float)
+    return t, clean, clean + np.random.default_rng(seed).normal(0.0, sigma, t.size)
+
+
+def test_a_noisy_staircase_column_is_read_as_its_levels_at_the_samples_that_show_them():
+    steps = [0.0, 2.0, 4.0, 8.0, 12.0, 4.0, -4.0, -12.0, 0.0]
+    sigma, hold = 0.03, 400
+    t, _, noisy = _staircase(steps, hold, sigma)
+    levels = held_levels(t, noisy)
+    assert np.allclose(levels.times, t[::hold])
+    assert np.allclose(levels.se, column_noise(noisy) / np.sqrt(hold))
+    assert np.all(np.abs(levels.values - steps) < 5 * sigma / np.sqrt(hold)), levels.values
+    assert abs(column_noise(noisy) / sigma - 1.0) < 0.1
+
+
+def test_a_column_without_noise_is_read_as_written():
+    t = np.arange(3000) / RATE
+    ramp = np.where(t < 1.0, 0.0, np.minimum(t - 1.0, 1.0) * 6.0)  # a step, a ramp, held
+    column = np.where(t < 0.5, 0.0, 3.0) + ramp
+    held = held_levels(t, column)
+    assert np.array_equal(held.times, t) and np.array_equal(held.values, column)
+    assert held.se is None
+
+
+def test_a_sag_a_few_noise_widths_deep_is_kept():
+    sigma = 0.02
+    t, clean, noisy = _staircase([0.0, 12.0], 1000, sigma, seed=1)
+    noisy[1000:1040] -= 20 * sigma  # the supply sags while the current rises
+    levels = held_levels(t, noisy)
+    times, values = levels.times, levels.values
+    assert np.allclose(times, [0.0, 1.0, 1.04]), times
+    assert abs(values[1] - (12.0 - 20 * sigma)) < 5 * sigma / np.sqrt(40)
+
+
+def test_a_constant_noisy_column_is_split_no_more_often_than_stated():
+    n_columns, n = 400, 2000
+    rng = np.random.default_rng(2)
+    split = sum(held_levels(np.arange(n) / RATE, 5.0 + rng.normal(0.0, 0.01, n)).times.size > 1
+                for _ in range(n_columns))
+    assert split <= stats.binom.isf(1e-3, n_columns, FALSE_SPLIT), split

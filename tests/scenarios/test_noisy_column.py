@@ -1,0 +1,47 @@
+"""A staircase of both signs whose voltage is logged by an ADC (a noisy column), on a
+motor with Coulomb friction, drawn by the independent bench simulator: the column is read
+as the levels the driver held, and the stick-slip model fits it."""
+
+import numpy as np
+import pytest
+from conftest import fit_and_assess, plan, sweep
+
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.simulate._fuzz_extra import log_voltage_column
+from pmdc_bayes.simulate._write import write_session_files
+from pmdc_bayes.simulate.plan import check_plan
+from pmdc_bayes.simulate.session import render_session
+
+TRUTH = {"Ra": 2.2, "La": 1.5e-3, "K": 0.045, "B": 2e-5, "J": 3e-5, "Tc": 4e-3}
+RATE = 2000.0
+LEVELS = ((0.0, 0.0), (0.05, 6.0), (0.35, 12.0), (0.65, -6.0), (0.95, -12.0))
+COLUMN_SD = 0.05  # V
+
+
+def _session(tmp_path):
+    stairs = {"name": "stairs", "kind": "free-form", "duration": 1.25, "rate": RATE,
+              "voltage": [list(p) for p in LEVELS], "speed_noise": 0.3,
+              "current_noise": 0.01}
+    spec = check_plan(plan(seed=4, motor="noisy column", friction="coulomb", truth=TRUTH,
+                           bench={"Ra": (0.05, "ohm")}, rig={},
+                           steady=(sweep([4.0, 8.0, 12.0], 0.3, 0.005),),
+                           traces=(stairs,)))
+    files = log_voltage_column(render_session(spec, 4), spec, "stairs", noise=COLUMN_SD,
+                               seed=4)
+    write_session_files(files, tmp_path / "s", force=False)
+    return load_session(tmp_path / "s")
+
+
+@pytest.mark.compiles
+def test_a_noisy_voltage_column_is_read_as_its_levels_and_fits(tmp_path):
+    session = _session(tmp_path)
+    (trace,) = session.traces
+    assert trace.voltage_logged
+    assert np.allclose(trace.voltage.times, [t for t, _ in LEVELS])
+    held = np.diff(np.append(trace.voltage.times, trace.time[-1] + 1 / RATE)) * RATE
+    assert np.all(np.abs(trace.voltage.values - [v for _, v in LEVELS])
+                  < 5 * COLUMN_SD / np.sqrt(held)), trace.voltage.values
+    _, _, fit, verdict = fit_and_assess(session)
+    assert verdict.verdict == "adequate", verdict.findings
+    for name in ("K", "B", "J", "Tc"):
+        assert abs(fit.values[name] - TRUTH[name]) < 3 * fit.sd[name], name
