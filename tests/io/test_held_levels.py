@@ -2,6 +2,7 @@
 noise as written."""
 
 import numpy as np
+import pytest
 from scipy import stats
 
 from pmdc_bayes.io.held_levels import FALSE_SPLIT, column_noise, held_levels
@@ -45,8 +46,9 @@ def test_a_sag_a_few_noise_widths_deep_is_kept():
     assert abs(values[1] - (12.0 - 20 * sigma)) < 5 * sigma / np.sqrt(40)
 
 
-def test_a_constant_noisy_column_is_split_no_more_often_than_stated():
-    n_columns, n = 400, 2000
+@pytest.mark.parametrize("n, n_columns", [(2000, 400), (20, 2000)])
+def test_a_constant_noisy_column_is_split_no_more_often_than_stated(n, n_columns):
+    """Also a short column, whose noise is known only roughly from its few readings."""
     rng = np.random.default_rng(2)
     split = sum(held_levels(np.arange(n) / RATE, 5.0 + rng.normal(0.0, 0.01, n)).times.size > 1
                 for _ in range(n_columns))

@@ -7,7 +7,8 @@ supply) is read through a running median of :data:`WINDOW` samples: it changes w
 that median leaves the level it held by more than :data:`CHANGE_OVER_NOISE` times the
 median's own noise (or three times the typical sample-to-sample change, for an input
 quantised coarser than its noise), and a level held for fewer than :data:`WINDOW`
-samples (a slew, a driver's overshoot) belongs to the change that follows it.  The
+samples (a slew, a driver's overshoot) belongs to the change that follows it, as it
+does in a noisy column the loader read as its levels (:mod:`pmdc_bayes.io.held_levels`).  The
 response to a change lasts until the next change comparable to it: one that moves the
 input at least :data:`RESPONSE_SHARE` of the change away from the level it went to.
 """
@@ -99,8 +100,14 @@ def _departures(x: np.ndarray) -> list[int]:
         if abs(m - level) > tol:
             starts.append(k)
             level = med[min(k + WINDOW - 1, n - 1)]
+    return _merged(starts)
+
+
+def _merged(starts: list[int]) -> list[int]:
+    """``starts`` with each run of levels too short to hold (fewer than :data:`WINDOW`
+    samples: a slew, a driver's overshoot) taken as one change, at its first sample."""
     merged, j = [0], 1
-    while j < len(starts):  # a run of levels each too short to hold: one change
+    while j < len(starts):
         merged.append(starts[j])
         j += 1
         while j < len(starts) and starts[j] - starts[j - 1] < WINDOW:
@@ -117,6 +124,9 @@ def plateaus(trace, which: str = "voltage") -> list[Plateau]:
         starts = [(i, float(time[i])) for i in _departures(x)]
     else:
         starts = _written(schedule, time)
+        if schedule.se is not None:  # a noisy column read as its levels
+            kept = set(_merged([i for i, _ in starts]))
+            starts = [(i, t) for i, t in starts if i in kept]
     stops = [s for s, _ in starts[1:]] + [time.size]
     return [Plateau(i, j, float(np.median(x[(i + j) // 2:j])), t)
             for (i, t), j in zip(starts, stops, strict=True)]
