@@ -46,9 +46,9 @@ def held_levels(time: np.ndarray, values: np.ndarray) -> Schedule:
     level with Gaussian readings of sd σ) is largest, when it exceeds ``c``, such that a
     constant level is cut anywhere with probability :data:`FALSE_SPLIT` at most (a
     union bound over the column's cuts; Student's t for σ's own error, with the degrees
-    of freedom of :data:`MAD_EFFICIENCY` of the differences); then each side in turn.  A step is cut at the
-    first sample that shows it, and a drift (a sagging supply) into levels that each
-    hold within their readings' error."""
+    of freedom of :data:`MAD_EFFICIENCY` of the differences); then each side in turn.
+    A step is cut at the first sample that shows it, and a drift (a sagging supply) into
+    levels that each hold within their readings' error."""
     time, values = np.asarray(time, dtype=float), np.asarray(values, dtype=float)
     sigma = column_noise(values)
     if sigma == 0.0 or values.size < 3:
