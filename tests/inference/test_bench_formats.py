@@ -12,7 +12,6 @@ import re
 import numpy as np
 import pytest
 
-from pmdc_bayes._errors import SessionError
 from pmdc_bayes.inference.model.levels import unloaded_levels
 from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
