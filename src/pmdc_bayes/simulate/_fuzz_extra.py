@@ -1,11 +1,12 @@
 """The fuzzer's ``[rig]`` (one non-ideality, sized so that it matters) and what a plan
 cannot say, added to a rendered session: a trace's voltage logged as a column instead of
-a schedule, and a step reading (a 63.2 % time and a final speed read off a plot of the
-rig's step response)."""
+a schedule (half the columns read with noise), and a step reading (a 63.2 % time and a
+final speed read off a plot of the rig's step response)."""
 
 from __future__ import annotations
 
 import re
+import zlib
 
 import numpy as np
 
@@ -13,8 +14,8 @@ from ._text import csv_text, inline, number
 from .plan import Plan, TraceSpec
 from .rig import rig_steady, rig_trace
 
-__all__ = ["NON_IDEALITIES", "rig_table", "log_voltage_column", "add_step_reading",
-           "STEP_READING_SD"]
+__all__ = ["NON_IDEALITIES", "rig_table", "column_reading", "log_voltage_column",
+           "add_step_reading", "STEP_READING_SD"]
 
 NON_IDEALITIES = ("dead time", "speed lag", "voltage drop", "source resistance",
                   "current limit", "unknown load", "encoder speed", "speed gain",
@@ -77,6 +78,20 @@ def _held(pairs, t: np.ndarray) -> np.ndarray:
     values = np.array([b for _, b in pairs])
     tol = 1e-3 * float(np.median(np.diff(t)))
     return values[np.searchsorted(times, t + tol, side="right") - 1]
+
+
+def column_reading(seed: int, name: str, plan: dict) -> dict:
+    """How trace ``name``'s logged voltage column is read: for half the columns, by an
+    ADC whose readings carry noise of 0.1–2 % of the trace's largest voltage (drawn from
+    a generator of their own, so that the rest of the session is the seed's as before)."""
+    rng = np.random.default_rng([int(seed), zlib.crc32(name.encode())])
+    if rng.uniform() < 0.5:
+        return {}
+    trace = next(t for t in plan["trace"] if t["name"] == name)
+    top = max(abs(float(v)) for _, v in trace["voltage"])
+    share = float(np.exp(rng.uniform(np.log(1e-3), np.log(2e-2))))
+    return {"noise": float(f"{share * top:.3g}"),
+            "seed": int(rng.integers(2**31))}
 
 
 def log_voltage_column(files: dict[str, str], plan: Plan, name: str, *,

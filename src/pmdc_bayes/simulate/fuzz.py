@@ -23,13 +23,18 @@ from __future__ import annotations
 
 import json
 import math
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ._fuzz_extra import NON_IDEALITIES, add_step_reading, log_voltage_column, rig_table
+from ._fuzz_extra import (
+    NON_IDEALITIES,
+    add_step_reading,
+    column_reading,
+    log_voltage_column,
+    rig_table,
+)
 from ._write import write_session_files
 from .bench import BenchMotor, steady_point
 from .plan import check_plan
@@ -250,19 +255,6 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
                                      traces))
     return plan, {"columns": tuple(columns), "step_reading": bool(step),
                   "shapes": tuple(kinds), "features": frozenset(features)}
-
-
-def column_reading(seed: int, name: str, plan: dict) -> dict:
-    """How trace ``name``'s logged voltage column is read: for half the columns, by an
-    ADC whose readings carry noise of 0.1–2 % of the trace's largest voltage (drawn from
-    a generator of their own, so that the rest of the session is the seed's as before)."""
-    rng = np.random.default_rng([int(seed), zlib.crc32(name.encode())])
-    if rng.uniform() < 0.5:
-        return {}
-    trace = next(t for t in plan["trace"] if t["name"] == name)
-    top = max(abs(float(v)) for _, v in trace["voltage"])
-    return {"noise": float(f"{_log_uniform(rng, 1e-3, 2e-2) * top:.3g}"),
-            "seed": int(rng.integers(2**31))}
 
 
 def fuzz_files(seed: int, **kw) -> tuple[dict[str, str], dict, dict]:

@@ -217,12 +217,10 @@ def _end_speed_se(tr, n: int, noise_sd: dict, s0: dict, rho: dict) -> float:
 
 def _input_noise_sd(model, p: dict, tr, n: int, v: float) -> float:
     """What a logged voltage's noise moves the model's mean speed over a trace's last
-    ``n`` samples by: the model is driven by the logged values, the motor by the voltage
-    they measure, so the mean speed it predicts there follows the mean of the column's
-    noise over them (:func:`~.levels.level_se`: at most, the rotor's inertia averages
-    over more), or, for a noisy column read as its levels, the last level's standard
-    error, times the slope of the steady speed at ``v``; 0 for a voltage given as a
-    schedule."""
+    ``n`` samples by: the model is driven by the logged values (a noisy column's last
+    level), the motor by the voltage they measure, so its mean speed there follows their
+    error (:func:`~.levels.level_se`, or the level's) times the steady speed's slope at
+    ``v``; 0 for a voltage given as a schedule."""
     if not tr.voltage_logged:
         return 0.0
     u = np.asarray(tr.voltage.at(tr.time[-n:]), dtype=float)
@@ -230,9 +228,8 @@ def _input_noise_sd(model, p: dict, tr, n: int, v: float) -> float:
         return 0.0
     h = 1e-3 * max(abs(v), 1e-9)
     slope = (_no_load_speed(model, p, v + h) - _no_load_speed(model, p, v - h)) / (2 * h)
-    if tr.voltage.se is not None:  # the level the model is driven by, read from the column
-        return abs(slope) * float(tr.voltage.se[-1])
-    return abs(slope) * level_se(u, u.size)
+    se = level_se(u, u.size) if tr.voltage.se is None else float(tr.voltage.se[-1])
+    return abs(slope) * se
 
 
 def _no_load_test(model, fit, out, s0, preds, noise_sd, rho) -> list:
