@@ -16,7 +16,8 @@ from .inference.adequacy.findings import Verdict
 from .io.units import display_unit
 
 __all__ = ["headline_rows", "fit_table", "fit_lines", "determinability", "pi_loop_text",
-           "spread_text", "headline_text", "headline_html", "left_out_lines"]
+           "spread_text", "headline_text", "headline_html", "left_out_lines",
+           "level_lines"]
 
 SPREAD_WORTH_SAYING = 2.0  # posterior sd over Laplace sd along the widest direction
 
@@ -157,6 +158,19 @@ def left_out_lines(summary: dict) -> list[str]:
     return out
 
 
+def level_lines(summary: dict) -> list[str]:
+    """A sentence per logged input column read as the levels its driver held."""
+    units = {"voltage": "V", "load_torque": "N·m"}
+    out = []
+    for name, roles in (summary.get("session", {}).get("columns_as_levels") or {}).items():
+        for role, held in roles.items():
+            out.append(f"{name}: the {role.replace('_', ' ')} column's readings carry noise "
+                       f"(sd {held['noise_sd']:.2g} {units[role]}), so it is read as the "
+                       f"{held['levels']} level{'s' if held['levels'] > 1 else ''} its "
+                       "driver held")
+    return out
+
+
 def headline_text(summary: dict) -> str:
     rows = headline_rows(summary)
     session = summary.get("session", {})
@@ -172,7 +186,8 @@ def headline_text(summary: dict) -> str:
     fits = fit_lines(summary)
     if fits:
         lines += ["Fit % per trace (closed form → MAP):", *fits]
-    lines += [f"- {x}" for x in determinability(summary) + left_out_lines(summary)]
+    lines += [f"- {x}" for x in determinability(summary) + left_out_lines(summary)
+              + level_lines(summary)]
     return "\n".join(lines)
 
 
@@ -191,7 +206,8 @@ def headline_html(summary: dict) -> str:
                 + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>"
                           for r in fits) + "</tbody></table>") if fits else ""
     notes = "".join(f"<li>{e(x)}</li>"
-                    for x in determinability(summary) + left_out_lines(summary))
+                    for x in determinability(summary) + left_out_lines(summary)
+                    + level_lines(summary))
     return (f"<div><p><b>pmdc-bayes fit of {e(str(session.get('name', '?')))}</b> "
             f"({e(str(session.get('friction', '?')))} friction): {e(_verdict(summary))}</p>"
             "<table><thead><tr><th>parameter</th><th>value</th><th>sd</th><th>unit</th>"

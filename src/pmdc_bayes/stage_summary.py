@@ -16,7 +16,24 @@ from .rundir import versions
 if TYPE_CHECKING:
     from .candidate import Fitted
 
-__all__ = ["stage_summary", "trace_rms", "closed_form_theta"]
+__all__ = ["stage_summary", "trace_rms", "closed_form_theta", "columns_as_levels"]
+
+
+def columns_as_levels(session: Session) -> dict:
+    """Per trace and input (``voltage``, ``load_torque``), the logged columns whose noise
+    had them read as the levels the driver held (:mod:`.io.held_levels`): how many
+    levels, and the readings' noise sd (SI)."""
+    out: dict = {}
+    for tr in session.traces:
+        for role in ("voltage", "load_torque"):
+            held = getattr(tr, role)
+            if held.se is not None:
+                first = int(np.searchsorted(tr.time, held.times[1], side="left")
+                            if held.times.size > 1 else tr.time.size)
+                out.setdefault(tr.name, {})[role] = {
+                    "levels": int(held.values.size),
+                    "noise_sd": float(held.se[0] * np.sqrt(max(first, 1)))}
+    return out
 
 
 def _rms(x) -> float:
@@ -75,7 +92,8 @@ def stage_summary(session: Session, fitted: Fitted, ident: dict, *, holdout, see
                     "gear_ratio": session.gear_ratio,
                     "rows_left_out": {tr.name: list(tr.rows_left_out)
                                       for tr in session.traces + session.coast_downs
-                                      if tr.rows_left_out}},
+                                      if tr.rows_left_out},
+                    "columns_as_levels": columns_as_levels(session)},
         "adequacy": adequacy.as_json(),
         "seed": seed,
         "parameters": params,

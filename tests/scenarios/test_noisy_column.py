@@ -6,11 +6,13 @@ import numpy as np
 import pytest
 from conftest import fit_and_assess, plan, sweep
 
+from pmdc_bayes._headline import level_lines
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate._fuzz_extra import log_voltage_column
 from pmdc_bayes.simulate._write import write_session_files
 from pmdc_bayes.simulate.plan import check_plan
 from pmdc_bayes.simulate.session import render_session
+from pmdc_bayes.stage_summary import columns_as_levels
 
 TRUTH = {"Ra": 2.2, "La": 1.5e-3, "K": 0.045, "B": 2e-5, "J": 3e-5, "Tc": 4e-3}
 RATE = 2000.0
@@ -45,3 +47,13 @@ def test_a_noisy_voltage_column_is_read_as_its_levels_and_fits(tmp_path):
     assert verdict.verdict == "adequate", verdict.findings
     for name in ("K", "B", "J", "Tc"):
         assert abs(fit.values[name] - TRUTH[name]) < 3 * fit.sd[name], name
+
+
+def test_the_run_says_a_column_was_read_as_its_levels(tmp_path):
+    session = _session(tmp_path)
+    read = columns_as_levels(session)
+    assert set(read) == {"stairs"} and set(read["stairs"]) == {"voltage"}
+    assert read["stairs"]["voltage"]["levels"] == len(LEVELS)
+    assert abs(read["stairs"]["voltage"]["noise_sd"] / COLUMN_SD - 1.0) < 0.15
+    (line,) = level_lines({"session": {"columns_as_levels": read}})
+    assert line.startswith("stairs: the voltage column") and "5 levels" in line, line
