@@ -106,6 +106,19 @@ def test_a_voltage_logged_as_a_duty_is_the_supply_times_the_duty(demo, unit, ext
     _same_session(duty, volts)
 
 
+def test_a_duty_column_that_moves_at_every_sample_is_read_as_written(demo):
+    """A controller's output logged as its duty (a speed loop's command, new at every
+    sample) is the voltage the driver applied: not a noisy reading to be levelled."""
+    moves = iter(np.random.default_rng(0).normal(0.0, 0.3, 10**6))
+    _with_voltage_column(demo, "step_12v97", lambda v: repr(float(v + next(moves)) / 24.0))
+    text = (demo / "session.toml").read_text()
+    head, tail = text.split('name = "step_12v97"', 1)
+    (demo / "session.toml").write_text(head + 'name = "step_12v97"\nsupply_voltage = 24.0\n'
+                                       + tail.replace('voltage = "V"', 'voltage = "1"', 1))
+    tr = load_session(demo).traces[0]
+    assert tr.voltage.se is None and tr.voltage.times.size == tr.time.size
+
+
 def test_a_duty_schedule_is_read_the_same_way(demo):
     toml = demo / "session.toml"
     replace_once(toml, 'voltage = "V", load_torque = "N*m" }\nvoltage = [[0, 0], [0.5, 12.97]]',

@@ -10,7 +10,8 @@ on either side differ by more than its noise allows, each level the mean of its
 readings, starting at the first sample that shows it (as a held column's change does).
 A change the readings show beyond their noise (a step, a driver's overshoot, a supply
 that sags under load, in levels that each hold within their error) is kept; a column
-without noise (a logged command, a duty) is read as written.
+without noise (a logged command) is read as written, and so is a duty (the trace reader
+does not send it here: it is the command itself, however it moves).
 """
 
 from __future__ import annotations
