@@ -19,6 +19,7 @@ __all__ = ["headline_rows", "fit_table", "fit_lines", "determinability", "pi_loo
            "spread_text", "headline_text", "headline_html", "left_out_lines",
            "level_lines"]
 
+UNCONVERGED = "MAP (the posterior's draws failed their gates)"
 SPREAD_WORTH_SAYING = 2.0  # posterior sd over Laplace sd along the widest direction
 
 EVERYTHING_DETERMINED = ("The data determine every parameter: no weakly constrained "
@@ -37,10 +38,14 @@ def headline_rows(summary: dict) -> list[dict]:
     """One row per parameter, every number already a string rounded to its uncertainty:
     ``name``, ``estimate``, ``sd``, ``unit`` (with the row's scale), ``closed_form`` and
     ``off`` (the closed form's distance from the estimate, in % and in sd; ``off_sd``
-    the number of sd, or None)."""
+    the number of sd, or None).  The estimate is the posterior mean, or the MAP and its
+    Laplace sd where nothing was sampled or the draws failed their gates: a sampler that
+    has not mixed can sit in a corner of the posterior, its sd a fraction of the
+    posterior's, where the Laplace approximation spans it (``source`` says which)."""
+    unconverged = summary.get("diagnostics", {}).get("gates_passed") is False
     rows = []
     for name, p in summary["parameters"].items():
-        post = "mean" in p
+        post = "mean" in p and not unconverged
         est, sd = (p["mean"], p["sd"]) if post else (p["map"], p.get("map_sd"))
         f = row_format(est, sd)
         cf = p.get("closed_form")
@@ -53,7 +58,8 @@ def headline_rows(summary: dict) -> list[dict]:
                      "unit": f"{f.suffix}{display_unit(p['unit'])}".strip(),
                      "closed_form": f.value(cf) if cf is not None else "—", "off": off,
                      "off_sd": nsd,
-                     "source": "posterior mean" if post else "MAP"})
+                     "source": "posterior mean" if post else
+                     UNCONVERGED if unconverged and "mean" in p else "MAP"})
     return rows
 
 

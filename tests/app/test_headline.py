@@ -7,9 +7,11 @@ from __future__ import annotations
 from pmdc_bayes._console import print_fit
 from pmdc_bayes._headline import (
     EVERYTHING_DETERMINED,
+    UNCONVERGED,
     determinability,
     fit_table,
     headline_html,
+    headline_rows,
     headline_text,
     pi_loop_text,
 )
@@ -48,6 +50,23 @@ def test_the_fit_table_has_one_row_per_trace_closed_form_beside_map():
     summary["adequacy"]["channels"] = named
     assert fit_table(summary) == (("trace", "speed: closed form", "speed: MAP"),
                                   [("run: 2", "90.0", "99.0")])
+
+
+def test_draws_that_failed_their_gates_give_way_to_the_map_and_its_laplace_sd():
+    # a sampler stuck in a corner of a ridge: its sd a tenth of the Laplace sd's
+    summary = _summary()
+    summary["parameters"]["K"].update(mean=0.0619801, sd=3.1e-7)
+    summary["diagnostics"] = {"gates_passed": True}
+    row, = headline_rows(summary)
+    assert (row["estimate"], row["sd"], row["source"]) == ("61.98010", "0.00031",
+                                                          "posterior mean")
+    summary["diagnostics"]["gates_passed"] = False
+    row, = headline_rows(summary)
+    assert (row["estimate"], row["sd"], row["source"]) == ("61.9991", "0.0032",
+                                                          UNCONVERGED)
+    assert f"(values: {UNCONVERGED})" in headline_text(summary)
+    del summary["parameters"]["K"]["mean"]  # nothing sampled: the MAP, said plainly
+    assert headline_rows(summary)[0]["source"] == "MAP"
 
 
 def test_what_the_data_cannot_determine_is_said_also_when_nothing():
