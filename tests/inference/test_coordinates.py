@@ -7,7 +7,8 @@ import pytest
 from scipy import stats
 
 from pmdc_bayes.inference.model.params import ParamSpec, Prior, Registry
-from pmdc_bayes.inference.sampling.coordinates import Coordinates, MotorConstants
+from pmdc_bayes.inference.sampling.coordinates import Coordinates
+from pmdc_bayes.inference.sampling.motor_coordinates import MotorConstants
 from pmdc_bayes.inference.sampling.moves import default_moves
 
 

@@ -1,18 +1,17 @@
 """The coordinates the posterior sampler moves in.
 
 The fit works in θ, where a positive quantity is its logarithm.  The sampler moves in
-φ: θ itself, every positive quantity in value, or θ with the viscous friction and the
-inertia replaced by the motor's steady gain and mechanical time constant
-(:class:`MotorConstants`), whichever the posterior is closest to Gaussian in around the
-MAP (:meth:`Coordinates.for_fit`).  Which one depends on the ridge the data leave:
-where they trade two parameters' sum (viscous against Coulomb friction: ``B·ω + Tc``)
-the ridge is straight in value and curved in log, and in log the lognormal priors'
-tail towards zero adds a long arm to it; where they trade a product (a current limit
-against the torque constant: ``K·Imax``) it is straight in log; where a speed-only step
-fixes only the gain ``K/(Ra·B + K²)`` and the time constant ``J·Ra/(Ra·B + K²)``, K, B
-and J lie on a curve in either, and straight in the motor's constants.  On a fuzzed
-session of the first kind the autocorrelation time was 230 steps in log and 9 in
-value; on ``data/bench``, of the second kind, 20 in log and 140 in value.
+φ: θ itself, every positive quantity in value, or θ with the motor's parameters
+replaced by what a step of the speed fixes (:mod:`.motor_coordinates`), whichever the
+posterior is closest to Gaussian in around the MAP (:meth:`Coordinates.for_fit`).
+Which one depends on the ridge the data leave: where they trade two parameters' sum
+(viscous against Coulomb friction: ``B·ω + Tc``) the ridge is straight in value and
+curved in log, and in log the lognormal priors' tail towards zero adds a long arm to
+it; where they trade a product (a current limit against the torque constant:
+``K·Imax``) it is straight in log; where a speed-only step fixes only the motor's
+response, K, B and J (and La) lie on a curve in either, straight in the motor's own.
+On a fuzzed session of the first kind the autocorrelation time was 230 steps in log
+and 9 in value; on ``data/bench``, of the second kind, 20 in log and 140 in value.
 
 The density in φ is the posterior in θ times ``|dθ/dφ|`` (``1/φ`` for each coordinate
 in value), so the draws, mapped back, are draws of the same posterior.
@@ -24,10 +23,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["PROBE", "CLEARLY", "Coordinates", "MotorConstants", "Laplace", "exact_laplace"]
+__all__ = ["PROBE", "CLEARLY", "CoordinateMap", "Coordinates", "Laplace", "exact_laplace"]
 
 PROBE = 2.0  # the Laplace sds either side of the MAP at which the coordinates are compared
 CLEARLY = 1.0  # another's summed misprediction must be this much smaller than θ's (log-density)
+NO_MASS = 20.0  # a log-density this far below the Laplace prediction: no mass, however far
+QUADRATIC = 0.1  # how far twice the steps may move the differenced curvature, in its own metric
 
 
 class Laplace(NamedTuple):
@@ -43,12 +44,31 @@ def exact_laplace(fit, log_prob) -> Laplace:
     (central differences of ``log_prob``, of θ and vectorised, in steps of a thousandth
     of each Laplace sd): the fit's is Gauss–Newton's, which leaves out the residuals'
     curvature and so, along a curved ridge the data leave, can be several times too wide.
-    The fit's own where the differences do not give a maximum (a Hessian not negative
-    definite)."""
+    The fit's own (the MAP's, where the fit's spans several optima) where the differences
+    do not give a maximum (a Hessian not negative definite), or where steps twice as
+    long give a curvature that differs by more than :data:`QUADRATIC` of the curvature
+    itself (in its own metric): the steps then reach past the region where the
+    log-posterior is quadratic, as across a ridge a part in 10⁶ of its length wide, and
+    measure its walls, not its curvature."""
     theta = np.asarray(fit.theta, dtype=float)
-    cov = np.asarray(fit.cov_log, dtype=float)
+    h = 1e-3 * np.minimum(np.sqrt(np.abs(np.diag(np.asarray(fit.cov_log, dtype=float)))), 1.0)
+    own = getattr(fit, "cov_map", None)  # the MAP's own, where cov_log spans several optima
+    cov = np.asarray(fit.cov_log if own is None else own, dtype=float)
+    hess, longer = (_differences(theta, step, log_prob) for step in (h, 2.0 * h))
+    if not (np.all(np.isfinite(hess)) and np.all(np.isfinite(longer))):
+        return Laplace(theta, cov)
+    eig, vec = np.linalg.eigh(-hess)
+    if eig[0] <= 0:
+        return Laplace(theta, cov)
+    scale = vec / np.sqrt(eig)  # (−H)^(-1/2): the curvature's own metric
+    if np.max(np.abs(np.linalg.eigvalsh(scale.T @ (longer - hess) @ scale))) > QUADRATIC:
+        return Laplace(theta, cov)
+    return Laplace(theta, np.linalg.inv(-hess))
+
+
+def _differences(theta, h, log_prob) -> np.ndarray:
+    """The Hessian of ``log_prob`` at ``theta`` by central differences in steps ``h``."""
     n = theta.size
-    h = 1e-3 * np.minimum(np.sqrt(np.abs(np.diag(cov))), 1.0)
     pairs = [(i, j) for i in range(n) for j in range(i, n)]
     signs = ((1, 1), (1, -1), (-1, 1), (-1, -1))
     points = np.repeat(theta[None], 4 * len(pairs), axis=0)
@@ -60,15 +80,10 @@ def exact_laplace(fit, log_prob) -> Laplace:
     hess = np.zeros((n, n))
     for p, (i, j) in enumerate(pairs):
         hess[i, j] = hess[j, i] = (v[p, 0] - v[p, 1] - v[p, 2] + v[p, 3]) / (4 * h[i] * h[j])
-    if not np.all(np.isfinite(hess)):
-        return Laplace(theta, cov)
-    eig = np.linalg.eigvalsh(-hess)
-    if eig[0] <= 0:
-        return Laplace(theta, cov)
-    return Laplace(theta, np.linalg.inv(-hess))
+    return hess
 
 
-class _Map:
+class CoordinateMap:
     """What every system of coordinates shares, given its ``to_theta(phi)``,
     ``from_theta(theta)`` and ``log_jacobian(theta)`` (``log|dθ/dφ|``): the Laplace
     approximation carried to φ, the density in φ and how close to Gaussian it is around
@@ -104,22 +119,23 @@ class _Map:
 
     def _misfit(self, fit, log_prob, along) -> float:
         """Σ |log-density − its Laplace prediction| in these coordinates at ±PROBE sd
-        along the regression line of each parameter in ``along`` (∞ where a point
-        leaves the parameters' range)."""
+        along the regression line of each parameter in ``along``, each term at most
+        :data:`NO_MASS` (a point that leaves the parameters' range, or where the density
+        has fallen by that much more than predicted, holds no mass either way)."""
         centre, cov = self.laplace(fit)
         sd = np.sqrt(np.diag(cov))
         lines = [cov[:, i] / cov[i, i] * sd[i] * PROBE * side
                  for i in np.flatnonzero(along) for side in (-1.0, 1.0)]
         density = self.log_prob(log_prob)
         drop = density(centre[None] + np.array(lines)) - density(centre[None])[0]
-        return float(np.sum(np.abs(drop + 0.5 * PROBE**2)))
+        return float(np.sum(np.minimum(np.abs(drop + 0.5 * PROBE**2), NO_MASS)))
 
     def in_value(self, names) -> list[str]:
         """The parameters moved in value rather than in log."""
         return []
 
 
-class Coordinates(_Map):
+class Coordinates(CoordinateMap):
     """The map between θ and the sampler's φ: ``linear[i]`` where φ_i = exp(θ_i)."""
 
     def __init__(self, linear):
@@ -127,11 +143,11 @@ class Coordinates(_Map):
         self.kind = "value" if self.linear.any() else "theta"
 
     @classmethod
-    def for_fit(cls, registry, fit, log_prob) -> _Map:
+    def for_fit(cls, registry, fit, log_prob) -> CoordinateMap:
         """θ, every log-transformed parameter of ``registry`` in value, or (when it has
-        Ra, K, B and J) the motor's constants (:class:`MotorConstants`): whichever
-        ``fit``'s Laplace approximation (carried to them) predicts the log-posterior
-        ``log_prob`` (of θ, vectorised) best along each positive parameter's
+        the motor's parameters) the motor's own coordinates (:mod:`.motor_coordinates`):
+        whichever ``fit``'s Laplace approximation (carried to them) predicts the
+        log-posterior ``log_prob`` (of θ, vectorised) best along each positive parameter's
         regression line (the parameters moved by their Laplace regression on it, to
         :data:`PROBE` sds either side of the MAP, where a Gaussian falls by PROBE²/2):
         the summed misprediction is compared; θ unless another's is smaller by
@@ -140,8 +156,9 @@ class Coordinates(_Map):
         theta = cls(np.zeros_like(logs))
         if not logs.any():
             return theta
-        others = [cls(logs)] + ([MotorConstants(registry)] if MotorConstants.fits(registry)
-                                else [])
+        from .motor_coordinates import motor_maps  # they build on this module's map
+
+        others = [cls(logs), *motor_maps(registry)]
         misfit = {c: c._misfit(fit, log_prob, logs) for c in [theta, *others]}
         best = min(others, key=misfit.get)
         return best if misfit[best] + CLEARLY < misfit[theta] else theta
@@ -168,48 +185,3 @@ class Coordinates(_Map):
 
     def in_value(self, names) -> list[str]:
         return [n for n, v in zip(names, self.linear, strict=True) if v]
-
-
-class MotorConstants(_Map):
-    """θ with ``log K``, ``log B`` and ``log J`` replaced by the logarithms of the motor's
-    steady gain ``G = K/S`` and mechanical time constant ``τ = J·Ra/S``, ``S = Ra·B + K²``
-    (equations (8)–(9)), what a step of the speed fixes, and ``u = log(Ra·B/K²)``, how
-    the friction and the back-emf share S, which the data may leave to the priors.  Back
-    from φ: ``K = 1/(G·(1 + eᵘ))``, ``B = eᵘ·K²/Ra``, ``J = τ·S/Ra``: every φ is a
-    motor, and ``|dφ/dθ| = 1``."""
-
-    kind = "motor constants"
-    NAMES = ("Ra", "K", "B", "J")
-
-    def __init__(self, registry):
-        self.ra, self.k, self.b, self.j = (registry.names.index(n) for n in self.NAMES)
-
-    @classmethod
-    def fits(cls, registry) -> bool:
-        """Whether ``registry`` has Ra, K, B and J, each in log."""
-        names = list(registry.names)
-        return all(n in names and registry.specs[names.index(n)].transform == "log"
-                   for n in cls.NAMES)
-
-    def from_theta(self, theta) -> np.ndarray:
-        theta = np.asarray(theta, dtype=float)
-        ra, k, b, j = (theta[..., i] for i in (self.ra, self.k, self.b, self.j))
-        log_s = np.logaddexp(ra + b, 2 * k)
-        phi = theta.copy()
-        phi[..., self.k] = k - log_s
-        phi[..., self.b] = ra + b - 2 * k
-        phi[..., self.j] = j + ra - log_s
-        return phi
-
-    def to_theta(self, phi) -> np.ndarray:
-        phi = np.asarray(phi, dtype=float)
-        ra, g, u, tau = (phi[..., i] for i in (self.ra, self.k, self.b, self.j))
-        k = -g - np.logaddexp(0.0, u)
-        theta = phi.copy()
-        theta[..., self.k] = k
-        theta[..., self.b] = u + 2 * k - ra
-        theta[..., self.j] = tau + k - g - ra
-        return theta
-
-    def log_jacobian(self, theta) -> np.ndarray:
-        return np.zeros(np.shape(theta)[:-1])
