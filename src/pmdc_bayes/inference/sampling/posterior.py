@@ -68,7 +68,8 @@ class Posterior:
         ``ceil(2·max τ)`` after it.  ``attrs['sampled_in_value']`` names, comma-separated,
         the positive parameters the walkers moved in value rather than in log
         (:class:`~.coordinates.Coordinates`; empty: all in θ), ``attrs['coordinates']``
-        which coordinates it moved in (``"theta"``, ``"value"``, ``"motor constants"``).
+        which coordinates it moved in (``"theta"``, ``"value"``, ``"motor constants"``,
+        ``"motor response"``).
     capped : the run stopped before the stopping rule was met; ``stop`` says how
         (:class:`~pmdc_bayes.inference.sampling.stopping.Stop`), ``message`` why in words.
     wall_time : seconds spent sampling (including the log-likelihood for ``idata``).
