@@ -34,6 +34,7 @@ from pmdc_bayes.inference.model.objective import build_model
 from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.inference.sampling import coordinates
 from pmdc_bayes.inference.sampling.logprob import LogProb, batch_log_posterior
+from pmdc_bayes.inference.sampling.motor_coordinates import motor_maps
 from pmdc_bayes.inference.sampling.posterior import gates, sample_posterior, summarize
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import fuzz_session
@@ -77,7 +78,8 @@ def main(argv=None) -> int:
             fit = fit_map(model, seed=seed)
             logp = LogProb(batch_log_posterior(model), 16, model.registry.is_log())
             local = x64(coordinates.exact_laplace)(fit, logp)
-            chosen = x64(coordinates.Coordinates.for_fit)(model.registry, local, logp)
+            chosen = x64(coordinates.Coordinates.for_fit)(model.registry, local, logp,
+                                                          motor_maps(model.registry))
             for label, clearly in (("log", np.inf), (f"chosen: {chosen.kind}",
                                                      coordinates.CLEARLY)):
                 if chosen.kind == "theta" and clearly != np.inf:

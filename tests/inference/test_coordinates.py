@@ -1,6 +1,9 @@
 """The sampler's coordinates: a well-determined positive quantity moves in value, its
 density carries the Jacobian, and the draws mapped back are draws of the posterior."""
 
+import sys
+from pathlib import Path
+
 import emcee
 import numpy as np
 import pytest
@@ -8,8 +11,12 @@ from scipy import stats
 
 from pmdc_bayes.inference.model.params import ParamSpec, Prior, Registry
 from pmdc_bayes.inference.sampling.coordinates import Coordinates
-from pmdc_bayes.inference.sampling.motor_coordinates import MotorConstants
+from pmdc_bayes.inference.sampling.motor_coordinates import MotorConstants, motor_maps
 from pmdc_bayes.inference.sampling.moves import default_moves
+from pmdc_bayes.inference.sampling.stopping import Stop
+
+sys.path.insert(0, str(Path(__file__).parent))
+from fuzzed_posterior import sampled  # noqa: E402
 
 
 def test_the_density_in_value_is_the_density_of_the_value():
@@ -109,22 +116,10 @@ def test_a_weakly_identified_coulomb_torque_is_sampled_to_the_gates(tmp_path):
     towards zero.  Moving in log, the ensemble gave up after 12,250 steps (τ of Tc about 460,
     the gates projected at 67,000 steps); in value it passes the gates within the
     budget, and each motor parameter's truth lies in its 99 % interval."""
-    from pmdc_bayes.inference.fit.joint import fit_map
-    from pmdc_bayes.inference.model.objective import build_model
-    from pmdc_bayes.inference.model.seed import fit_seed
-    from pmdc_bayes.inference.sampling.posterior import Stop, gates, sample_posterior, summarize
-    from pmdc_bayes.io.loader import load_session
-    from pmdc_bayes.simulate.fuzz import fuzz_session
-
-    fz = fuzz_session(12, out=tmp_path / "s12")
-    session = load_session(fz.path)
-    model = build_model(session, fit_seed(session))
-    fit = fit_map(model, seed=12)
-    post = sample_posterior(model, fit, seed=12, progress=False)
+    fz, model, post, (ok, failures) = sampled(12, tmp_path)
     assert post.stop is Stop.CONVERGED, post.message
     in_value = post.idata.posterior.attrs["sampled_in_value"].split(",")
     assert in_value == [s.name for s in model.registry.specs if s.transform == "log"]
-    ok, failures = gates(summarize(post), posterior=post)
     assert ok, failures
     draws = post.draws_si()
     for name in ("Ra", "La", "K", "B", "J", "Tc"):
@@ -188,7 +183,8 @@ def test_a_speed_step_curve_is_sampled_in_the_motor_constants(seed):
     prior-bound spread, and mix several times faster than in θ."""
     theta0 = np.log(np.array(list(MOTOR.values())))
     fit = _laplace_of(_gain_and_time_constant, theta0)
-    xy = Coordinates.for_fit(_motor_registry(), fit, _gain_and_time_constant)
+    xy = Coordinates.for_fit(_motor_registry(), fit, _gain_and_time_constant,
+                             motor_maps(_motor_registry()))
     assert isinstance(xy, MotorConstants)
     taus, chains = {}, {}
     for name, coords in (("constants", xy), ("theta", Coordinates([False] * 4))):
@@ -219,20 +215,9 @@ def test_a_speed_only_step_from_steady_is_sampled_to_the_gates(tmp_path):
     about 9; the gates pass, the truths of Ra and of the curve's K, B and J inside their
     99 % intervals (La is set by its bench reading, which the fuzzer drew 2.7 sd off its
     truth)."""
-    from pmdc_bayes.inference.fit.joint import fit_map
-    from pmdc_bayes.inference.model.objective import build_model
-    from pmdc_bayes.inference.model.seed import fit_seed
-    from pmdc_bayes.inference.sampling.posterior import Stop, gates, sample_posterior, summarize
-    from pmdc_bayes.io.loader import load_session
-    from pmdc_bayes.simulate.fuzz import fuzz_session
-
-    fz = fuzz_session(23, out=tmp_path / "s23")
-    session = load_session(fz.path)
-    model = build_model(session, fit_seed(session))
-    post = sample_posterior(model, fit_map(model, seed=23), seed=23, progress=False)
+    fz, _, post, (ok, failures) = sampled(23, tmp_path)
     assert post.idata.posterior.attrs["coordinates"] == "motor response"
     assert post.stop is Stop.CONVERGED, post.message
-    ok, failures = gates(summarize(post), posterior=post)
     assert ok, failures
     draws = post.draws_si()
     for name in ("Ra", "K", "B", "J"):

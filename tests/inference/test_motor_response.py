@@ -1,6 +1,9 @@
 """The motor's response coefficients as the sampler's coordinates, and the curvature the
 coordinates are chosen by, where a ridge is too thin for differences to measure it."""
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -8,6 +11,10 @@ from scipy import stats
 from pmdc_bayes.inference.model.params import ParamSpec, Prior, Registry
 from pmdc_bayes.inference.sampling.coordinates import exact_laplace
 from pmdc_bayes.inference.sampling.motor_coordinates import MotorResponse
+from pmdc_bayes.inference.sampling.stopping import Stop
+
+sys.path.insert(0, str(Path(__file__).parent))
+from fuzzed_posterior import sampled  # noqa: E402
 
 MOTOR = dict(Ra=2.0, La=1e-3, K=0.05, B=2e-4, J=2e-5)
 
@@ -117,20 +124,9 @@ def test_a_fine_encoders_step_is_sampled_in_the_motors_response(tmp_path):
     in a corner, K's sd 0.001 against 0.25, and gave up after 8,650 steps; in the
     response's coefficients τ is a few steps, the gates pass, and every motor
     parameter's truth lies inside its 99 % interval."""
-    from pmdc_bayes.inference.fit.joint import fit_map
-    from pmdc_bayes.inference.model.objective import build_model
-    from pmdc_bayes.inference.model.seed import fit_seed
-    from pmdc_bayes.inference.sampling.posterior import Stop, gates, sample_posterior, summarize
-    from pmdc_bayes.io.loader import load_session
-    from pmdc_bayes.simulate.fuzz import fuzz_session
-
-    fz = fuzz_session(154, out=tmp_path / "s154")
-    session = load_session(fz.path)
-    model = build_model(session, fit_seed(session))
-    post = sample_posterior(model, fit_map(model, seed=154), seed=154, progress=False)
+    fz, _, post, (ok, failures) = sampled(154, tmp_path)
     assert post.idata.posterior.attrs["coordinates"] == "motor response"
     assert post.stop is Stop.CONVERGED, post.message
-    ok, failures = gates(summarize(post), posterior=post)
     assert ok, failures
     draws = post.draws_si()
     assert np.std(np.log(draws["K"])) > 0.1  # K spreads along the ridge, as its Laplace sd

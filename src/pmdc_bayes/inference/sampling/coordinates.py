@@ -143,9 +143,9 @@ class Coordinates(CoordinateMap):
         self.kind = "value" if self.linear.any() else "theta"
 
     @classmethod
-    def for_fit(cls, registry, fit, log_prob) -> CoordinateMap:
-        """θ, every log-transformed parameter of ``registry`` in value, or (when it has
-        the motor's parameters) the motor's own coordinates (:mod:`.motor_coordinates`):
+    def for_fit(cls, registry, fit, log_prob, others=()) -> CoordinateMap:
+        """θ, every log-transformed parameter of ``registry`` in value, or one of
+        ``others`` (the motor's own coordinates, :func:`.motor_coordinates.motor_maps`):
         whichever ``fit``'s Laplace approximation (carried to them) predicts the
         log-posterior ``log_prob`` (of θ, vectorised) best along each positive parameter's
         regression line (the parameters moved by their Laplace regression on it, to
@@ -156,9 +156,7 @@ class Coordinates(CoordinateMap):
         theta = cls(np.zeros_like(logs))
         if not logs.any():
             return theta
-        from .motor_coordinates import motor_maps  # they build on this module's map
-
-        others = [cls(logs), *motor_maps(registry)]
+        others = [cls(logs), *others]
         misfit = {c: c._misfit(fit, log_prob, logs) for c in [theta, *others]}
         best = min(others, key=misfit.get)
         return best if misfit[best] + CLEARLY < misfit[theta] else theta

@@ -38,6 +38,7 @@ from .ensembles import ENSEMBLES, Ensembles, r_hat_between
 from .idata import LL_DRAWS, to_inference_data
 from .logprob import LogProb, initial_walkers
 from .logprob import batch_log_posterior as _log_posterior_batch
+from .motor_coordinates import motor_maps
 from .moves import LaplaceIndependenceMove, LaplaceMixture, default_moves
 from .rule import CHUNK, RuleState, StoppingRule
 from .stopping import CHECK, Stop, burn_in
@@ -179,7 +180,7 @@ def sample_posterior(model, fit, *, seed: int = 0, n_walkers: int | None = None,
     theta0, lp0 = initial_walkers(fit, log_prob, n_walkers, rng)
     # the walkers move in φ (:mod:`.coordinates`); the draws are mapped back to θ
     local = exact_laplace(fit, log_prob)  # the posterior's own curvature at the MAP
-    xy = Coordinates.for_fit(model.registry, local, log_prob)
+    xy = Coordinates.for_fit(model.registry, local, log_prob, motor_maps(model.registry))
     sampler = Ensembles(k, n_walkers, ndim, xy.log_prob(log_prob), xy.from_theta(theta0),
                         lp0 + xy.log_jacobian(theta0), seed=seed,
                         moves=lambda j: default_moves(xy.laplace(local)) if moves is None
