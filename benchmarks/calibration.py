@@ -18,7 +18,9 @@ read back by the loader) and fits each with the library: ``fit_seed``,
 * a row per failure kind: the seed refused the session, the fit failed, an error.
 
 ``--quick`` fits 12 in-class and 9 misspecified sessions; the full run is
-``--n 300``.  Each result is one JSON line in ``--log`` (resumable), and the section
+``--n 300``.  ``--between-samples`` draws the same sessions with the voltage their
+columns log switched between samples (a rig whose switching the logger does not time).
+Each result is one JSON line in ``--log`` (resumable), and the section
 ``## Calibration on fuzzed sessions`` of ``reports/benchmarks.md`` is replaced.
 """
 
@@ -250,6 +252,8 @@ def main(argv=None) -> int:
     ap.add_argument("--no-report", action="store_true")
     ap.add_argument("--mcmc", action="store_true",
                     help="also sample each adequate in-class session's posterior")
+    ap.add_argument("--between-samples", action="store_true",
+                    help="logged voltage columns from a rig that switches between samples")
     args = ap.parse_args(argv)
     n, m = (12, 1) if args.quick else (args.n, args.misspecified)
     jobs = [(s, None) for s in range(args.start, args.start + n)]
@@ -262,8 +266,9 @@ def main(argv=None) -> int:
     records = []
     with tempfile.TemporaryDirectory() as tmp:
         for seed, key in jobs:
-            r = done.get((seed, key)) or run_one(seed, key, Path(tmp),
-                                                 mcmc=args.mcmc and key is None)
+            r = done.get((seed, key)) or run_one(
+                seed, key, Path(tmp), mcmc=args.mcmc and key is None,
+                between_samples=args.between_samples)
             if (seed, key) not in done and args.log:
                 with args.log.open("a") as fh:
                     fh.write(json.dumps(r) + "\n")

@@ -200,6 +200,29 @@ def test_voltage_column_holds_the_rigs_voltage(tmp_path, seed):
             f'name = "{name}"')[1].split("[[")[0]
 
 
+def test_a_column_between_samples_shows_each_change_at_the_first_sample_after_it(tmp_path):
+    """``between_samples``: the rig switches off the sample grid (every other draw of
+    the seed the same), and its logged column shows each change at the first sample at
+    or after it, as a rig whose switching the logger's clock does not time."""
+    plan, extras = fuzz_plan(16, between_samples=True)
+    on_grid, _ = fuzz_plan(16)
+    name = extras["columns"][0]
+    sched = next(t for t in plan["trace"] if t["name"] == name)["voltage"]
+    grid = next(t for t in on_grid["trace"] if t["name"] == name)["voltage"]
+    rate = next(t for t in plan["trace"] if t["name"] == name)["rate"]
+    offsets = [a * rate - round(a * rate) for a, _ in sched[1:]]
+    assert all(abs(x) > 1e-3 for x in offsets)
+    assert [b for _, b in sched] == [b for _, b in grid]
+    assert all(abs(a - g) <= 0.5 / rate for (a, _), (g, _) in zip(sched, grid, strict=True))
+    tr = next(t for t in load_session(fuzz_session(16, out=tmp_path / "b",
+                                                   between_samples=True).path).traces
+              if t.name == name)
+    for a, b in sched[1:]:
+        k = int(np.searchsorted(tr.time, a - 1e-12))  # the first sample at or after it
+        assert tr.voltage.at(tr.time[k:k + 1])[0] == pytest.approx(b, abs=1e-3)
+        assert tr.voltage.at(tr.time[k - 1:k])[0] != pytest.approx(b, abs=1e-3)
+
+
 def test_step_reading_is_the_rigs_time_constant(tmp_path):
     seed = next(s for s in range(200) if fuzz_plan(s)[1]["step_reading"]
                 and "step reading" in fuzz_session(s).shapes)

@@ -94,9 +94,9 @@ def _rate_and_duration(rng, tau_m: float, holds: float) -> tuple[float, float]:
 
 
 def _trace(rng, shape: str, name: str, truth: dict, v: float, tau_m: float,
-           motor: BenchMotor, column: bool) -> dict:
+           motor: BenchMotor, column: bool, between: bool = False) -> dict:
     """A plan ``[[trace]]`` of ``shape``; switching times on the sample grid when the
-    voltage will be logged as a column (then a zero-order hold is exact)."""
+    voltage will be logged as a column (a zero-order hold exact), unless ``between``."""
     sign = 1.0 if rng.uniform() < 0.7 else -1.0
     top = sign * v * float(rng.uniform(0.4, 1.0))
     t = {"name": name, "kind": "step", "initial": "rest"}
@@ -138,7 +138,8 @@ def _trace(rng, shape: str, name: str, truth: dict, v: float, tau_m: float,
             t.update(voltage=[[0.0, 0.0], [t0, top]])
     for key in ("voltage", "load_torque"):  # a column's switch exactly at a sample k/rate
         if key in t:
-            t[key] = [[round(a * rate) / rate if column else float(f"{a:.9g}"),
+            t[key] = [[round(a * rate) / rate if column and not between
+                       else float(f"{a:.9g}"),
                        float(f"{b:.6g}")] for a, b in t[key]]
     t["voltage"][0][0] = 0.0
     if "load_torque" in t:
@@ -174,8 +175,8 @@ def _sensors(rng, t: dict, motor: BenchMotor, v: float, features: set) -> None:
 
 
 def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, shapes=None,
-              trace_current: bool | None = None, steady: str | None = None
-              ) -> tuple[dict, dict]:
+              trace_current: bool | None = None, steady: str | None = None,
+              between_samples: bool = False) -> tuple[dict, dict]:
     """A random plan and what it holds.
 
     Parameters
@@ -187,6 +188,8 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
     trace_current : force (True) or forbid (False) the driven traces' current channels.
     steady : ``"table"``, ``"table without current"`` or ``"point"`` to force that
         steady reading (and no other); default a random mix.
+    between_samples : a column's voltage switches between samples (a rig the logger's
+        clock does not time), shown at the first sample after; all else the same.
 
     Returns
     -------
@@ -213,7 +216,7 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
     for n, shape in enumerate(kinds):
         column = shape != "coast-down" and rng.uniform() < 0.3
         t = _trace(rng, shape, f"tr{n}_{shape.replace(' ', '_').replace('-', '_')}", truth,
-                   v, tau_m, motor, column)
+                   v, tau_m, motor, column, between_samples)
         if shape != "coast-down":
             _sensors(rng, t, motor, v, features)
             if trace_current is not None:
@@ -270,12 +273,13 @@ def fuzz_files(seed: int, **kw) -> tuple[dict[str, str], dict, dict]:
 
 
 def fuzz_session(seed: int, *, misspecified: str | tuple[str, ...] | None = None, out=None,
-                 shapes=None, trace_current: bool | None = None, steady: str | None = None
-                 ) -> FuzzedSession:
+                 shapes=None, trace_current: bool | None = None, steady: str | None = None,
+                 between_samples: bool = False) -> FuzzedSession:
     """Draw the session of ``seed`` (see :func:`fuzz_plan`) and, given ``out``, write it
     there (replacing an earlier fuzzed session) for :func:`~pmdc_bayes.io.loader.load_session`."""
     files, plan, extras = fuzz_files(seed, misspecified=misspecified, shapes=shapes,
-                                     trace_current=trace_current, steady=steady)
+                                     trace_current=trace_current, steady=steady,
+                                     between_samples=between_samples)
     path = None
     if out is not None:
         path = Path(out)

@@ -12,6 +12,7 @@ import jax.numpy as jnp
 
 from ...physics.motor import driver_output
 from .nuisances import DEAD_ZONE_NAMES, NO_LIMIT, dead_time_name, load_names
+from .switch_lead import lead_name
 
 __all__ = ["RigEffects"]
 
@@ -56,23 +57,26 @@ class RigEffects:
 
     def inputs(self, theta, exp):
         """The experiment as the motor sees it at θ: each
-        trace's response its fitted dead time later than its inputs (each sample
+        trace's response its fitted dead time, less its inputs' fitted lead, later than
+        its inputs (each sample
         evaluated in the segment its time less the dead time lies in: exact;
         before the trace's first segment, its starting state), and each trace's fitted
         unknown drag per segment, added to its known one (set in the experiment); each
         segment's voltage as the driver puts it out (:meth:`driven`)."""
         if "dead_zone" in self.session.nuisances:
             exp = exp._replace(seg_va=self.driven(theta, exp.seg_va))
-        if "dead_time" in self.session.nuisances:
+        v, zero = self.registry.values(theta), jnp.zeros(())
+        leads = [lead_name(tr.name) in self.registry for tr in self.session.traces]
+        if "dead_time" in self.session.nuisances or any(leads):
             # a trace's own dead time, one shared by every trace, or (in a superset
-            # model, :mod:`.superset`) the sum of both forms
-            v, zero = self.registry.values(theta), jnp.zeros(())
+            # model, :mod:`.superset`) the sum of both forms; less the lead of its
+            # logged inputs' changes over the samples that show them (:mod:`.switch_lead`)
             exp = exp.delayed(jnp.stack([v.get(dead_time_name(tr.name), zero)
                                          + v.get(dead_time_name(tr.name, True), zero)
+                                         - v.get(lead_name(tr.name), zero)
                                          for tr in self.session.traces]))
         loaded = self.session.unknown_load_traces()
         if loaded:
-            v, zero = self.registry.values(theta), jnp.zeros(())
             parts = [[v[n] if tr.name in loaded and n in v else zero
                       for n in load_names(tr.name)] for tr in self.session.traces]
             tc, b = (jnp.stack([jnp.asarray(q[k]) for q in parts]) for k in (0, 1))

@@ -13,6 +13,7 @@ from ...io.session import Session
 from ...physics.regimes import NO_LIMIT
 from .coloured import ar_specs
 from .params import ParamSpec, Prior, identifier
+from .switch_lead import lead_specs
 
 __all__ = ["nuisance_specs", "dead_time_name", "load_names",
            "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES", "LAG_PRIOR_FACTOR",
@@ -94,6 +95,10 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
       :data:`LAG_PRIOR_SAMPLES` sample intervals, a factor :data:`LAG_PRIOR_FACTOR` wide
       (one sd), log-transformed (a lag is positive).
 
+    * ``switch_lead_<trace>`` — not asked for: every trace whose switching inputs come
+      from logged columns has one (:mod:`.switch_lead`), how long before the first
+      sample showing it each change happened.
+
     * ``unknown_load`` — per loaded trace a constant and a viscous drag (see
       :func:`_load_specs`; ``b_seed`` is the motor's seeded viscous friction).
 
@@ -145,7 +150,7 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     if "dead_time" in session.nuisances:
         specs += _dead_time_specs(session)
     return (specs + _dead_zone_specs(session) + _load_specs(session, b_seed)
-            + _calibration_specs(session) + ar_specs(session))
+            + _calibration_specs(session) + ar_specs(session) + lead_specs(session))
 
 
 DEAD_ZONE_NAMES = {1: ("Vdz_fwd", "positive"), -1: ("Vdz_rev", "negative")}
