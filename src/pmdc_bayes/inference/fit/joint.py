@@ -21,6 +21,7 @@ import numpy as np
 from ..._x64 import x64
 from ..model.noise import noise_weights
 from ..model.objective import SessionModel
+from .box import scan_start, settled
 from .curvature import Terms, invert_curvature, transform_curvature
 from .multistart import MAX_STEPS, WINDOW, Outcome, maximise
 from .optima import distinct_optima
@@ -174,10 +175,15 @@ def fit_map(model: SessionModel, *, theta0=None, n_starts: int = N_STARTS, seed:
         ``theta0`` is the closed form's), solved together with the rest.
     """
     theta0 = np.asarray(model.theta_seed() if theta0 is None else theta0, dtype=float)
-    rng = np.random.default_rng(seed)
-    starts, origins = _starts(model, theta0, n_starts, rng, alternatives)
     stepper = Stepper.of(model)
+    scanned = scan_start(model, stepper, theta0)
+    moved = scanned != theta0  # the leads the scan set: every seed starts them there
+    alternatives = [np.where(moved, scanned, a) for a in alternatives]
+    rng = np.random.default_rng(seed)
+    starts, origins = _starts(model, scanned, n_starts, rng, alternatives)
     states = maximise(stepper, starts, abandon=_far_below)
+    best = int(np.argmax([st.lp if np.isfinite(st.lp) else -np.inf for st in states]))
+    states[best] = settled(model, stepper, states[best])
     return _finish(model, states, origins, stepper.terms)
 
 

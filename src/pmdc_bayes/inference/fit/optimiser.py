@@ -25,6 +25,7 @@ same shapes, runs the same program.  A start steps ``y = θ − θ_0`` from its 
 
 from __future__ import annotations
 
+import copy
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -172,6 +173,12 @@ class Stepper:
         return cls(lambda t, d: model.log_posterior(t, data=d),
                    lambda t, d: gauss_newton(model, t, data=d), model.data,
                    len(model.names), len(model.channels), model.compiled)
+
+    def on(self, data) -> Stepper:
+        """The same compiled step on other ``data`` of the same shapes."""
+        out = copy.copy(self)
+        out.data = data
+        return out
 
     def start(self, theta) -> Step:
         """The first step from ``θ``: it evaluates the objective and its curvature there,

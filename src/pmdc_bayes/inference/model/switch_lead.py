@@ -12,20 +12,22 @@ the model cannot reach, and a step's start, La and J absorb the difference.
 
 A trace whose switching inputs all come from columns therefore carries one fitted lead,
 ``switch_lead_<trace>`` (s): every change of its inputs happened that long before the
-sample that shows it.  A lead is positive (a response later than its logged input is a
-dead time, the model's ``dead_time``, to which the lead adds:
-:meth:`.effects.RigEffects.inputs`), fitted in log; its prior stands for the uniform
-distribution over the sample interval Δ before the change (Δ the trace's median sample
-interval): half-normal, with that uniform's root mean square, Δ/√3, as its scale.  The
-fit starts it at :data:`SEED_SHARE` × Δ, the change at the sample as near as makes no
-difference.  Where the armature's time constant is much shorter than Δ, the density is
-flat in the lead over most of the interval (the first current sample after a change
-reads the current risen whatever the lead) and falls within a time constant of the lead
-at which the change reaches that sample: from the interval's middle a fit would see no
-slope towards a change the logger timed, while from near 0 it climbs to a lead the
-samples show.  The changes of one trace share the lead: one where a trace steps once,
-the lead the changes have on average where it steps many times.  A schedule written in
-``session.toml`` states its own times; a trace with one that changes keeps them.
+sample that shows it (it subtracts from the trace's ``dead_time``, if fitted:
+:meth:`.effects.RigEffects.inputs`).  Its prior stands for the uniform distribution over
+the sample interval Δ before the change (Δ the trace's median sample interval): normal,
+with that uniform's mean Δ/2 and standard deviation Δ/√12, fitted in value, so a lead of
+0 (a rig timed by the logger's clock) lies 1.7 sd from its centre and a slightly
+negative one (a change shown a sample late) is not excluded.
+
+Where the armature's time constant is much shorter than Δ, the density in the lead is
+a box: flat where the first current sample after a change reads the current risen (or
+not yet moved), falling within a time constant of the lead at which the change reaches
+that sample.  A fit started on the wrong flat part sees no slope towards the right one,
+so a fit starts each lead at the best of :data:`SCAN_SHARES` × Δ (:func:`lead_scans`),
+the rest of the parameters at their start.  The changes of one trace share the lead:
+one where a trace steps once, the lead the changes have on average where it steps many
+times.  A schedule written in ``session.toml`` states its own times; a trace with one
+that changes keeps them.
 """
 
 from __future__ import annotations
@@ -35,10 +37,10 @@ import numpy as np
 from ...io.session import Session, Trace
 from .params import ParamSpec, Prior, identifier
 
-__all__ = ["lead_name", "lead_specs", "leading_traces"]
+__all__ = ["lead_name", "lead_specs", "leading_traces", "lead_scans", "SCAN_SHARES"]
 
-UNIFORM_RMS = 1.0 / np.sqrt(3.0)  # root mean square of U(0, 1)
-SEED_SHARE = 1e-6  # where a fit starts a lead, as a share of the sample interval
+UNIFORM_MEAN, UNIFORM_SD = 0.5, 1.0 / np.sqrt(12.0)  # of U(0, 1)
+SCAN_SHARES = np.array([-0.5, -0.2, 0.0, 0.1, 0.25, 0.5, 0.75, 0.95])  # of Δ
 
 
 def lead_name(trace_name: str) -> str:
@@ -64,16 +66,23 @@ def leading_traces(session: Session) -> tuple[str, ...]:
 
 
 def lead_specs(session: Session) -> list[ParamSpec]:
-    """One ``switch_lead_<trace>`` (s) per trace of :func:`leading_traces`: prior
-    half-normal, scale Δ/√3 (Δ the trace's median sample interval; module docstring);
-    fitted in log; seeded at :data:`SEED_SHARE` × Δ."""
+    """One ``switch_lead_<trace>`` (s) per trace of :func:`leading_traces`: prior normal,
+    centre Δ/2, sd Δ/√12 (Δ the trace's median sample interval; module docstring); fitted
+    in value; seeded at Δ/2."""
     specs = []
     for tr in session.traces:
         if _leads(tr):
             dt = tr.dt
             specs.append(ParamSpec(lead_name(tr.name), "s", "trace",
-                                   Prior("half_normal", 0.0, UNIFORM_RMS * dt, "nuisance"),
-                                   SEED_SHARE * dt, trace=tr.name,
+                                   Prior("normal", UNIFORM_MEAN * dt, UNIFORM_SD * dt,
+                                         "nuisance"),
+                                   UNIFORM_MEAN * dt, transform="identity", trace=tr.name,
                                    description=f"how long before the first sample showing "
                                                f"it an input of trace {tr.name!r} changed"))
     return specs
+
+
+def lead_scans(session: Session) -> dict[str, np.ndarray]:
+    """Per lead of :func:`lead_specs`, the values (s) a fit's start is chosen among:
+    :data:`SCAN_SHARES` × Δ."""
+    return {lead_name(tr.name): SCAN_SHARES * tr.dt for tr in session.traces if _leads(tr)}
