@@ -209,3 +209,50 @@ def test_a_position_wrap_without_a_position_column_is_one_line(tmp_path):
         load_session(_write(tmp_path / "s", 'name = "p"\nkind = "step"\nfile = "t.csv"\n'
                             'columns = { time = "t", speed = "w" }\nposition_wrap = 65536\n'
                             'voltage = [[0.0, 6.0]]\ninitial = "steady"\n', csv))
+
+
+def _differenced(counts, dt=0.01, unit_scale=1.0, jitter=None):
+    """A speed column: each interval's counts (of 2π/400 rad) over its length, times
+    ``unit_scale`` (rad/s → the column's unit), the first row 0."""
+    t = np.arange(len(counts)) * dt + (0.0 if jitter is None else jitter)
+    w = np.concatenate([[0.0], np.diff(counts) * (2 * math.pi / 400) / dt]) * unit_scale
+    return "t,w\n" + "".join(f"{a:.6f},{b:.10g}\n" for a, b in zip(t, w, strict=True))
+
+
+_SPEED_TOML = ('name = "d"\nkind = "step"\nfile = "t.csv"\n'
+               'columns = { time = "t", speed = "w" }\nunits = { speed = "rpm" }\n'
+               'counts_per_rev = 400\nvoltage = [[0.0, 6.0]]\ninitial = "steady"\n')
+
+
+@pytest.mark.parametrize("jitter", [None, "logger"])
+def test_a_speed_differenced_from_counts_is_read_as_the_counted_angle(tmp_path, jitter):
+    """Counts 0, 3, 7, 10, ... differenced over 10 ms and logged in rpm, with
+    counts_per_rev: the trace reads the angle they add up to (one count 2π/400), not the
+    speed; with a logger's jittered time stamps and its division by the nominal
+    interval, the same."""
+    counts = np.cumsum(np.r_[0, np.tile([3, 4, 3], 20)])
+    shake = None if jitter is None else np.random.default_rng(1).uniform(-1e-4, 1e-4,
+                                                                        counts.size)
+    tr = load_session(_write(tmp_path / "s", _SPEED_TOML,
+                             _differenced(counts, unit_scale=60 / (2 * math.pi),
+                                          jitter=shake))).traces[0]
+    assert not tr.speed_logged
+    assert tr.encoder_step == pytest.approx(2 * math.pi / 400)
+    np.testing.assert_allclose(tr.position, counts * 2 * math.pi / 400, atol=1e-12)
+
+
+@pytest.mark.parametrize("counts, rows, words", [
+    (np.r_[0.0, 3.0, 6.5, 10.0, 13.0], None, "row 3's speed times its interval is 3.5 counts"),
+    (np.arange(0.0, 90.0, 3.0), (3,), "rows left out break (row"),
+])
+def test_a_speed_that_is_no_differenced_count_is_refused_with_counts_per_rev(tmp_path, counts,
+                                                                            rows, words):
+    csv = _differenced(counts, unit_scale=60 / (2 * math.pi))
+    if rows:  # a row with no speed: the loader leaves it out
+        lines = csv.splitlines()
+        lines[rows[0] + 1] = lines[rows[0] + 1].split(",")[0] + ","
+        csv = "\n".join(lines) + "\n"
+    with pytest.raises(SessionError) as err:
+        load_session(_write(tmp_path / "s", _SPEED_TOML, csv))
+    assert "\n" not in str(err.value) and "counts_per_rev" in str(err.value)
+    assert words in str(err.value)

@@ -18,6 +18,7 @@ from .drag import check_curve_reach, read_drag
 from .held_levels import held_levels
 from .position import (
     angle_si,
+    differenced_angle,
     edge_angles,
     edges_flag,
     speed_estimate,
@@ -177,17 +178,23 @@ def _motion_columns(t: _Table, cols: dict, edges: bool) -> None:
 
 
 def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: bool,
-            voltage: Schedule, initial) -> dict:
+            voltage: Schedule, initial, left_out: tuple) -> dict:
     """The trace's time, speed and angle (SI), and the angle of one count.  An edge
-    trace starting at rest gets a first sample, unread, at its voltage schedule's start."""
+    trace starting at rest gets a first sample, unread, at its voltage schedule's start;
+    a speed differenced from encoder counts (``counts_per_rev`` with a speed column and
+    no position) is read as the counted angle (:func:`.position.differenced_angle`)."""
     if not edges:
-        out = {"time": time, "position": None, "encoder_step": 0.0}
+        out = {"time": time, "position": None, "encoder_step": 0.0, "differenced": False}
         if "position" in raw:
             counts = unwrap_position(t, path, raw["position"], u["position"])
             out["position"], out["encoder_step"] = angle_si(t, counts, u["position"])
         out["speed"] = raw.get("speed")
         if out["speed"] is not None:
             out["speed"] = sensors.speed_si(t, out["speed"], u)
+            if "counts_per_rev" in t.data and "position" not in raw:
+                out["position"], out["encoder_step"] = differenced_angle(
+                    t, time, out["speed"], left_out)
+                out["speed"], out["differenced"] = speed_estimate(time, out["position"]), True
         else:
             out["speed"] = speed_estimate(time, out["position"])
         return out
@@ -207,7 +214,7 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
         time = np.concatenate([voltage.times[:1], time])
         angle = np.concatenate([[np.nan], angle])
     return {"time": time, "position": angle, "encoder_step": q,
-            "speed": speed_estimate(time, angle)}
+            "speed": speed_estimate(time, angle), "differenced": False}
 
 
 def _trace(t: _Table, root: Path) -> Trace:
@@ -250,13 +257,13 @@ def _trace(t: _Table, root: Path) -> Trace:
             inputs[inp] = Schedule(time[:1].copy(), np.zeros(1))
     initial = _initial(t, sensors.physical(u))
     drag = read_drag(t, sensors.physical(u))
-    m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial)
+    m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial, left_out)
     check_curve_reach(t, drag, m["speed"], sensors.physical(u))
     return Trace(name=name, kind=kind, file=path, time=m["time"], speed=m["speed"],
                  current=si.get("current"), voltage=inputs["voltage"],
                  load_torque=inputs["load_torque"], voltage_logged="voltage" in si,
                  load_logged="load_torque" in si, initial=initial,
-                 position=m["position"], speed_logged="speed" in raw,
+                 position=m["position"], speed_logged="speed" in raw and not m["differenced"],
                  encoder_step=m["encoder_step"], drag=drag, rows_left_out=left_out)
 
 

@@ -21,10 +21,11 @@ from .toml_tables import describe as _describe
 from .units import to_si
 
 __all__ = ["unwrap_time", "unwrap_position", "angle_si", "edge_angles", "speed_estimate",
-           "speed_window", "counts_step",
-           "SPEED_WINDOW", "edges_flag"]
+           "speed_window", "counts_step", "differenced_angle",
+           "SPEED_WINDOW", "WHOLE_COUNT", "edges_flag"]
 
 SPEED_WINDOW = 0.005  # half-width of the speed estimate's difference, as a share of the samples
+WHOLE_COUNT = 0.05  # a differenced speed's counts per interval lie this close to whole numbers
 
 
 def counts_step(t: Table, needed_for: str) -> float:
@@ -82,6 +83,37 @@ def angle_si(t: Table, raw: np.ndarray, unit: str) -> tuple[np.ndarray, float]:
         q = counts_step(t, "a position in counts")
         return raw * q, q
     return to_si(raw, "angle", unit), 0.0
+
+
+def differenced_angle(t: Table, time: np.ndarray, speed: np.ndarray,
+                      left_out: tuple) -> tuple[np.ndarray, float]:
+    """The counted angle (rad, 0 at the first sample) behind a speed (rad/s) that is an
+    encoder's counts differenced over each sample interval, and the angle of one count:
+    each interval's counts, the speed times the interval (its own, or the trace's
+    median: a logger that divides by its nominal rate), are whole numbers to within
+    :data:`WHOLE_COUNT`.  The first row's speed (the interval before it) is not read.
+    A trace that declares ``counts_per_rev`` with a speed column and no position is
+    read so; its speed is refused with the fix where the counts are not whole or a row
+    is missing (the counts of its interval are lost)."""
+    q = counts_step(t, "a speed differenced from encoder counts")
+    dt = np.diff(time)
+    for step in (dt, np.full_like(dt, np.median(dt))):
+        n = speed[1:] * step / q
+        off = np.abs(n - np.rint(n))
+        if n.size and np.all(off < WHOLE_COUNT):
+            break
+    else:
+        k = int(np.argmax(off)) + 1 if n.size else 0
+        t.fail("counts_per_rev", f"with a speed column (and no position) the speed is read as "
+               f"the encoder's counts differenced over each sample interval, but row {k + 1}'s "
+               f"speed times its interval is {n[k - 1] if n.size else float('nan'):.4g} "
+               "counts, not a whole number; remove counts_per_rev (a speed the sensor "
+               "measured), or log the counts as columns.position")
+    if left_out:
+        t.fail("counts_per_rev", f"a speed differenced from encoder counts is read as the "
+               f"counted angle, which rows left out break (row {left_out[0]} and "
+               f"{len(left_out) - 1} more); fill in those rows, or remove counts_per_rev")
+    return q * np.concatenate([[0.0], np.cumsum(np.rint(n))]), q
 
 
 def edge_angles(t: Table, path: Path, n: int, direction: np.ndarray | None) -> tuple:

@@ -170,9 +170,10 @@ def _finding_rules(model, fit, findings, already=()):
                        "PWM periods")
         if whiteness and channel.signal == "speed":
             out.append(f"{f.where}: {f.message}: a speed differenced from encoder counts or a "
-                       "quantised position; log the encoder's count as the position "
-                       "(columns.position, or edges = true) instead, or average over "
-                       "more samples")
+                       "quantised position; declare the encoder's counts_per_rev on the "
+                       "trace (its speed is then read as the counted angle), or log the "
+                       "count as the position (columns.position, or edges = true), or "
+                       "average over more samples")
         if f.where == "Ra" and f.check in (Check.BENCH_CONFLICT, Check.PLAUSIBILITY):
             if fit.values["Ra"] > model.registry["Ra"].prior.centre:
                 out.append(said("the fitted resistance exceeds the bench Ra: a supply source "
