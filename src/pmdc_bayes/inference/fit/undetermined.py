@@ -14,6 +14,7 @@ import numpy as np
 
 from ..._format import row_format
 from ...io.session import LA_ASSUMED
+from ..model.column_levels import READINGS
 from ..model.objective import SessionModel
 from .joint import FitResult
 
@@ -50,7 +51,8 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
     ratio = sd_log / np.asarray(model.prior_sd)
     prior_bound = [names[j] for j in range(len(names)) if ratio[j] > PRIOR_DOMINATED]
     for j, name in enumerate(names):
-        if name in prior_bound and name != "La":
+        if name in prior_bound and name != "La" and model.registry[name].prior.source \
+                != READINGS:  # a level the column's readings fix, as they should
             which = ("its bench measurement" if model.registry[name].prior.source == "bench"
                      else "its prior")
             findings.append(f"{name} is determined by {which} alone: its posterior width is "

@@ -35,6 +35,7 @@ from ...physics.experiment import Experiment
 from ...physics.sensor import coast_down_reading, pole
 from ...physics.solution import simulate_padded
 from .coloured import COLOURED, breaks, previous_index
+from .column_levels import level_data
 from .noise import effective_fraction, noise_scale, typical_level
 from .trace_states import initial_speed_name, position_offset_name
 
@@ -137,6 +138,7 @@ class TraceBlock(Block):
             self._data[f"{what}_mask"] = (np.asarray(exp.mask) & (ch >= 0)[:, None]
                                           & np.asarray(exp.pad(np.concatenate(seen[what])),
                                                        bool))
+        self._data.update(level_data(session, exp))
         if COLOURED in session.nuisances:  # each reading's previous, for the whitening
             for what in ("speed", "current"):
                 self._data[f"{what}_prev"] = previous_index(
@@ -161,7 +163,7 @@ class TraceBlock(Block):
     def residuals(self, model, theta, d, fast: bool = False, overflow: bool = False) -> list:
         """The residuals of speed, current and angle; with ``overflow``, also per segment
         whether it changes regime more often than the exact solution follows."""
-        exp = model.inputs(theta, d["exp"])
+        exp = model.inputs(theta, model.held(theta, d["exp"], d))
         p = model.circuit(theta)
         sim = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast,
                               limit=model.limit(theta), with_angle=bool(self.offsets),

@@ -11,6 +11,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from ...physics.motor import driver_output
+from .column_levels import level_names
 from .nuisances import DEAD_ZONE_NAMES, NO_LIMIT, dead_time_name, load_names
 from .switch_lead import lead_name
 
@@ -54,6 +55,20 @@ class RigEffects:
         v = self.registry.values(theta)
         fwd, rev = (v.get(DEAD_ZONE_NAMES[sign][0], 0.0) for sign in (1, -1))
         return driver_output(va, fwd, rev)
+
+    def held(self, theta, exp, d):
+        """The experiment with each segment a noisy input column's fitted level drives at
+        that level's value at θ (:mod:`.column_levels`; ``d["level_<input>"]`` each
+        segment's level, −1 for none)."""
+        v = self.registry.values(theta)
+        for what, field in (("voltage", "seg_va"), ("load", "seg_tl")):
+            index = d.get(f"level_{what}")
+            if index is not None:
+                levels = jnp.stack([v[n] for n in level_names(self.session, what)])
+                exp = exp._replace(**{field: jnp.where(index >= 0,
+                                                       levels[jnp.maximum(index, 0)],
+                                                       getattr(exp, field))})
+        return exp
 
     def inputs(self, theta, exp):
         """The experiment as the motor sees it at θ: each

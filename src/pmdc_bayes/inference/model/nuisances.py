@@ -12,6 +12,7 @@ import numpy as np
 from ...io.session import Session
 from ...physics.regimes import NO_LIMIT
 from .coloured import ar_specs
+from .column_levels import level_specs
 from .params import ParamSpec, Prior, identifier
 from .switch_lead import lead_specs
 
@@ -99,6 +100,10 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
       from logged columns has one (:mod:`.switch_lead`), how long before the first
       sample showing it each change happened.
 
+    * ``voltage_level_<trace>_<j>``, ``load_level_<trace>_<j>`` — not asked for: each
+      level a noisy logged input column held (:mod:`.column_levels`), known from its
+      readings to their standard error.
+
     * ``unknown_load`` — per loaded trace a constant and a viscous drag (see
       :func:`_load_specs`; ``b_seed`` is the motor's seeded viscous friction).
 
@@ -150,7 +155,8 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     if "dead_time" in session.nuisances:
         specs += _dead_time_specs(session)
     return (specs + _dead_zone_specs(session) + _load_specs(session, b_seed)
-            + _calibration_specs(session) + ar_specs(session) + lead_specs(session))
+            + _calibration_specs(session) + ar_specs(session) + lead_specs(session)
+            + level_specs(session))
 
 
 DEAD_ZONE_NAMES = {1: ("Vdz_fwd", "positive"), -1: ("Vdz_rev", "negative")}
