@@ -64,7 +64,7 @@ def level_specs(session: Session) -> list[ParamSpec]:
                     f"{what}_level_{identifier(tr.name)}_{j}", unit, "trace",
                     Prior("normal", float(m), float(se), READINGS), float(m),
                     transform="identity", trace=tr.name,
-                    description=f"the {what} trace {tr.name!r} held from "
+                    description=f"the level of trace {tr.name!r}'s {what} column from "
                                 f"{float(s.times[j]):.6g} s"))
     return specs
 
