@@ -129,7 +129,7 @@ class TraceBlock(Block):
         slot = np.zeros(len(session.traces), int)
         slot[with_pos] = np.arange(len(with_pos))
         self._data = {"exp": exp, "t": np.concatenate([tr.time for tr in session.traces]),
-                      "start": starts,
+                      "start": starts, **level_data(session, exp),
                       "sample_slot": np.repeat(slot, [tr.n for tr in session.traces])}
         for what in chans:
             ch = np.asarray(chans[what])[ct]
@@ -138,7 +138,6 @@ class TraceBlock(Block):
             self._data[f"{what}_mask"] = (np.asarray(exp.mask) & (ch >= 0)[:, None]
                                           & np.asarray(exp.pad(np.concatenate(seen[what])),
                                                        bool))
-        self._data.update(level_data(session, exp))
         if COLOURED in session.nuisances:  # each reading's previous, for the whitening
             for what in ("speed", "current"):
                 self._data[f"{what}_prev"] = previous_index(
@@ -274,8 +273,7 @@ class CoastDownBlock(Block):
         return [d["speed"]]
 
     def residuals(self, model, theta, d, fast: bool = False) -> list:
-        p = model.params(theta)
-        v = model.registry.values(theta)
+        p, v = model.params(theta), model.registry.values(theta)
         w0 = jnp.stack([v[n] for n in self.names])[:, None]
         tc = p.Tc if model.coulomb else 0.0
         lag = model.lags(theta)[1]
