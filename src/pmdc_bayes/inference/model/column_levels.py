@@ -11,12 +11,14 @@ such level is a parameter, ``voltage_level_<trace>_<j>`` (V) or
 ``load_level_<trace>_<j>`` (N·m), its prior normal about the level's mean with its
 standard error (what the column's readings say of it; source :data:`READINGS`), fitted
 in value; the segments the level drives take its value (:func:`segment_levels`,
-:meth:`.effects.RigEffects.inputs`), and the Laplace approximation and the posterior
+:meth:`.effects.RigEffects.held`), and the Laplace approximation and the posterior
 carry its uncertainty into the motor's parameters.  A column of more than
 :data:`MAX_LEVELS` levels (a drifting supply cut into many) keeps them as read.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -28,17 +30,30 @@ __all__ = ["INPUTS", "READINGS", "MAX_LEVELS", "level_names", "level_specs",
 
 READINGS = "column readings"  # the prior's source: the level's own readings
 MAX_LEVELS = 16  # per column: more are kept as read
-INPUTS = {"voltage": ("V", "voltage_logged"), "load": ("N*m", "load_logged")}
+
+
+class Input(NamedTuple):
+    """An input a column may log: its unit, the trace's attributes of its schedule and of
+    whether a column logged it, and the experiment's field of its segments' values."""
+
+    unit: str
+    schedule: str
+    logged: str
+    segments: str
+
+
+INPUTS = {"voltage": Input("V", "voltage", "voltage_logged", "seg_va"),
+          "load": Input("N*m", "load_torque", "load_logged", "seg_tl")}
 
 
 def _schedule(tr: Trace, what: str) -> Schedule:
-    return tr.voltage if what == "voltage" else tr.load_torque
+    return getattr(tr, INPUTS[what].schedule)
 
 
 def _held(tr: Trace, what: str) -> bool:
     """Whether ``tr``'s ``what`` input is a noisy column read as fitted levels."""
     s = _schedule(tr, what)
-    return (bool(getattr(tr, INPUTS[what][1])) and s.se is not None
+    return (bool(getattr(tr, INPUTS[what].logged)) and s.se is not None
             and 1 <= s.values.size <= MAX_LEVELS and bool(np.all(np.asarray(s.se) > 0)))
 
 
@@ -54,14 +69,14 @@ def level_specs(session: Session) -> list[ParamSpec]:
     docstring): prior normal, centre the level's mean, sd its standard error; fitted in
     value; seeded at the mean."""
     specs = []
-    for what, (unit, _) in INPUTS.items():
+    for what, spec in INPUTS.items():
         for tr in session.traces:
             if not _held(tr, what):
                 continue
             s = _schedule(tr, what)
             for j, (m, se) in enumerate(zip(s.values, s.se, strict=True)):
                 specs.append(ParamSpec(
-                    f"{what}_level_{identifier(tr.name)}_{j}", unit, "trace",
+                    f"{what}_level_{identifier(tr.name)}_{j}", spec.unit, "trace",
                     Prior("normal", float(m), float(se), READINGS), float(m),
                     transform="identity", trace=tr.name,
                     description=f"the level of trace {tr.name!r}'s {what} column from "

@@ -11,7 +11,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from ...physics.motor import driver_output
-from .column_levels import level_names
+from .column_levels import INPUTS, level_names
 from .nuisances import DEAD_ZONE_NAMES, NO_LIMIT, dead_time_name, load_names
 from .switch_lead import lead_name
 
@@ -61,13 +61,12 @@ class RigEffects:
         that level's value at θ (:mod:`.column_levels`; ``d["level_<input>"]`` each
         segment's level, −1 for none)."""
         v = self.registry.values(theta)
-        for what, field in (("voltage", "seg_va"), ("load", "seg_tl")):
+        for what, spec in INPUTS.items():
             index = d.get(f"level_{what}")
             if index is not None:
                 levels = jnp.stack([v[n] for n in level_names(self.session, what)])
-                exp = exp._replace(**{field: jnp.where(index >= 0,
-                                                       levels[jnp.maximum(index, 0)],
-                                                       getattr(exp, field))})
+                exp = exp._replace(**{spec.segments: jnp.where(
+                    index >= 0, levels[jnp.maximum(index, 0)], getattr(exp, spec.segments))})
         return exp
 
     def inputs(self, theta, exp):
