@@ -60,6 +60,20 @@ def test_an_oscilloscope_export_with_settings_in_the_first_fields(session_dir):
     assert _same(_arrays(session_dir), plain)
 
 
+def test_an_export_whose_settings_share_the_sample_fields_passes_them_over(session_dir):
+    """A scope's settings written in the fields the samples use (``Record Length,151``:
+    a word beside a number) are passed over, not read as a first sample, nor refused;
+    a line whose fields are all numbers is the first sample."""
+    plain = _arrays(session_dir)
+    lines = _rows(session_dir)[1:]
+    settings = ["Record Length,151,", "Sample Interval,0.01,s", "Trigger Point,0,",
+                "Source,CH1,CH2", "Units,s,rpm A"]
+    _write(session_dir, settings + lines)
+    replace_once(session_dir / "session.toml", COLUMNS,
+                 "columns = { time = 1, speed = 2, current = 3 }")
+    assert _same(_arrays(session_dir), plain)
+
+
 @pytest.mark.parametrize(("columns", "match"), [
     ('{ time = 1, speed = "speed_rpm", current = 3 }', "mixes header names and field numbers"),
     ("{ time = 0, speed = 2, current = 3 }", "count the fields from 1"),

@@ -55,6 +55,17 @@ def _kind(row, index, stamped, missable) -> str:
     return "text"
 
 
+def _worded(row, index, stamped) -> bool:
+    """Whether a numbered field of ``row`` holds text that is neither a number, a time
+    stamp nor a missed reading (an instrument's setting beside its value)."""
+    for role, k in index.items():
+        c = row[k].strip() if k < len(row) else ""
+        if c and not number(c) and c.lower() not in MISSING \
+                and not (role == stamped and stamp_seconds(c) is not None):
+            return True
+    return False
+
+
 def _refuse_text(path, row: _Row, index, wanted, marks) -> None:
     """A line of text between samples: the error its first cell that is no number
     gives (the header written again, a clock time), or one naming the line."""
@@ -106,8 +117,8 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
         short = any(k >= len(cells) for k in index.values())
         if row.line == cut and short:
             kind = "missed"  # a last line cut off mid-write: its readings are lost
-        if header is None and not lines and kind != "data":
-            continue  # a headerless file's preamble
+        if header is None and not lines and (kind != "data" or _worded(cells, index, stamped)):
+            continue  # a headerless file's preamble: a numbered field holds a word
         if kind == "text" and all("\n" not in c for c in cells):
             if not lines and not pending and closing is None and not units:
                 units = {role: (cells[k].strip() if k < len(cells) else "")
