@@ -13,13 +13,17 @@ from pmdc_bayes.inference.fit.optimiser import Stepper
 from pmdc_bayes.inference.model.objective import build_model
 from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.inference.model.switch_lead import (
+    PRIOR_MEAN,
+    PRIOR_SD,
     SCAN_SHARES,
-    UNIFORM_SD,
     lead_name,
+    lead_names,
     lead_scans,
     leading_traces,
+    segment_leads,
 )
 from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.physics.experiment import experiment_from_traces
 from pmdc_bayes.simulate.fuzz import fuzz_plan, fuzz_session
 
 
@@ -39,8 +43,9 @@ def test_a_trace_whose_column_switches_carries_a_lead_with_the_uniform_prior(tmp
     spec = model.registry[lead_name("tr0_step_from_rest")]
     dt = session.traces[0].dt
     assert spec.prior.kind == "normal" and spec.transform == "identity"
-    assert spec.prior.centre == pytest.approx(dt / 2) == spec.seed
-    assert spec.prior.scale == pytest.approx(dt / np.sqrt(12.0)) == UNIFORM_SD * dt
+    # an even mixture of a lead of 0 and one uniform over the interval: its moments
+    assert spec.prior.centre == pytest.approx(dt / 4) == spec.seed == PRIOR_MEAN * dt
+    assert spec.prior.scale == pytest.approx(dt * np.sqrt(1 / 6 - 1 / 16)) == PRIOR_SD * dt
     scan = lead_scans(session)[spec.name]
     assert scan.min() < 0.0 < scan.max() < dt and scan == pytest.approx(SCAN_SHARES * dt)
     plan, extras = fuzz_plan(1)
@@ -97,3 +102,43 @@ def test_a_rig_that_switches_at_the_samples_fits_its_lead_at_the_box_edge(tmp_pa
         assert abs(theta[i] - fit.theta[i]) < 2.576 * np.sqrt(fit.cov_log[i, i]), k
     (far,) = maximise(Stepper.of(model), [np.asarray(model.theta_seed())])
     assert far.lp < fit.log_posterior - 10.0
+
+
+def test_each_change_of_a_column_has_its_own_lead(tmp_path, monkeypatch):
+    """Seed 71's staircase (five changes of a logged voltage column, each between two
+    samples): a lead per change, each segment a change starts reading its own, the
+    trace's first segment none; a column of more changes than allowed shares one."""
+    _, session = _session(71, tmp_path, between_samples=True)
+    (tr,) = session.traces
+    names = lead_names(tr)
+    assert names == tuple(f"{lead_name(tr.name)}_{j}" for j in range(5))
+    exp = experiment_from_traces(session.traces)
+    assert segment_leads(session, exp.seg_t0, exp.seg_trace).tolist() == [-1, 0, 1, 2, 3, 4]
+    monkeypatch.setattr("pmdc_bayes.inference.model.switch_lead.MAX_CHANGES", 4)
+    assert lead_names(tr) == (lead_name(tr.name),)
+    assert segment_leads(session, exp.seg_t0, exp.seg_trace).tolist() == [-1, 0, 0, 0, 0, 0]
+
+
+@pytest.mark.compiles
+def test_a_staircase_whose_changes_fall_anywhere_between_samples_is_fitted_right(tmp_path):
+    """Seed 71 between samples (a staircase of five levels, current logged, each change
+    at its own place in the interval before the sample that shows it; one lead for them
+    all failed the step start): adequate, each change's lead and every motor parameter
+    inside their 99 % Laplace intervals."""
+    fz, session = _session(71, tmp_path, between_samples=True)
+    model = build_model(session, fit_seed(session))
+    fit = fit_map(model, seed=71)
+    assert fit.ok, fit.message
+    assert str(assess(model, fit, fit_seed(session)).verdict) == "adequate"
+    plan, _ = fuzz_plan(71, between_samples=True)
+    (tr,) = session.traces
+    switches = [t for t, _ in plan["trace"][0]["voltage"][1:]]
+    truth = dict(fz.truth)
+    for name, switch in zip(lead_names(tr), switches, strict=True):
+        truth[name] = float(tr.time[np.searchsorted(tr.time, switch)] - switch)
+    names = list(fit.names)
+    theta = np.asarray(model.theta({k: v for k, v in truth.items() if k in names}))
+    for name in ("Ra", "La", "K", "B", "J", "Tc", *lead_names(tr)):
+        i = names.index(name)
+        z = (theta[i] - fit.theta[i]) / np.sqrt(fit.cov_log[i, i])
+        assert abs(z) < 2.576, (name, z)

@@ -64,3 +64,42 @@ def test_a_negative_dead_time_leads_the_inputs(kw):
     moved = _run([(schedule[0] - lead, schedule[1])], None, **kw)
     for got, want in zip(delayed, moved, strict=True):
         np.testing.assert_allclose(got, want, atol=1e-9 * np.abs(want).max())
+
+
+@x64
+def _shifted(schedules, shifts, delays, **kw):
+    """``schedules`` simulated with each segment starting ``shifts[trace][j]`` earlier
+    (its ``j``-th breakpoint's change) and each trace ``delays`` later."""
+    specs = [(T, vt, vv, None, None, "rest") for vt, vv in schedules]
+    exp = stack_experiments(specs)
+    t0, trace = np.asarray(exp.seg_t0), np.asarray(exp.seg_trace)
+    shift = np.zeros(t0.size)
+    for k, ((vt, _), s) in enumerate(zip(schedules, shifts, strict=True)):
+        for when, by in zip(vt, s, strict=True):
+            shift[(trace == k) & np.isclose(t0, when)] = by
+    exp = exp.delayed(jnp.asarray(delays), jnp.asarray(shift))
+    ia, w, angle = simulate_padded(P, exp, with_angle=True, **kw)
+    start = jnp.asarray(np.concatenate([np.arange(T.size) == 0] * len(schedules)))
+    return tuple(np.asarray(x) for x in
+                 (exp.unpad(ia), exp.unpad(w), since_first_sample(exp, angle, start)))
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(coulomb=True, limit=2.5, lags=(3e-4, 4e-3))],
+                         ids=["viscous", "coulomb-limit-lags"])
+def test_each_change_shifted_earlier_reads_as_its_breakpoint_moved(kw):
+    """A logged column's changes, each made its own time before the sample that shows it
+    (``Experiment.delayed``'s ``shift``, per segment), and a dead time on top: the same
+    as the inputs' breakpoints moved by as much, each by its own."""
+    steps = (np.array([0.0, 0.011, 0.031, 0.12]), np.array([0.0, 12.0, 6.0, -8.0]))
+    shifts = [np.array([0.0, 7e-4, 2e-4, 9e-4])]
+    for delay in (0.0, 0.0035):
+        got = _shifted([steps], shifts, np.array([delay]), **kw)
+        want = _run([(steps[0] - shifts[0] + delay, steps[1])], None, **kw)
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_allclose(g, w, atol=1e-9 * np.abs(w).max())
+    # one shift for every change, the trace's start too, is the trace led by as much
+    same = [np.full(4, 6e-4)]
+    got = _shifted([steps], same, np.array([0.0]), **kw)
+    want = _run([steps], np.array([-6e-4]), **kw)
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_allclose(g, w, atol=1e-9 * np.abs(w).max())

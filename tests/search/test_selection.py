@@ -187,7 +187,10 @@ def test_the_path_on_screen_names_every_candidate_and_the_side_by_side_values():
     lines = format_selection(sel)
     assert lines[0].startswith("Model search from ideal: 3 fits")
     assert any(x.startswith("*dead time") and "+49.0" in x for x in lines)
-    assert lines[-3].startswith("The data do not tell it from: speed lag")
+    assert lines[-5].startswith("The data do not tell it from: speed lag")
+    # each model named in full, however long, and its column by its number
+    assert lines[-4].split() == ["[1]", "dead", "time"]
+    assert lines[-3].split() == ["[2]", "speed", "lag"] and lines[-2].split() == ["[1]", "[2]"]
     assert lines[-1].split()[0] == "K" and "0.0501" in lines[-1]
 
 

@@ -97,28 +97,35 @@ class Experiment(NamedTuple):
         ``(C, L)`` under a dead time."""
         return self.chunk_seg[:, None] if self.sample_seg is None else self.sample_seg
 
-    def delayed(self, delay) -> Experiment:
+    def delayed(self, delay, shift=None) -> Experiment:
         """The experiment with each trace's response ``delay[trace]`` (s) later than its
         inputs: each sample evaluated at its time less its trace's delay, in the segment
         that time lies in (exact: the inputs' breakpoints move), held at the trace's
         starting state before its first segment.  A response that leads (a negative
         delay) runs past the trace's last input: its last segment is lengthened by as
-        much, so that events there (a stop, a zero crossing) are still located."""
+        much, so that events there (a stop, a zero crossing) are still located.
+        ``shift`` (s, per segment) starts each segment that much earlier, the segment
+        before it ending there (a change of a logged column before the sample that
+        shows it)."""
         n = self.seg_clock.shape[0]
         idx = jnp.arange(n)
         # each segment's trace's first and last segment
         first = jax.lax.cummax(jnp.where(self.seg_first, idx, 0))
         ends = jnp.concatenate([self.seg_first[1:], jnp.ones(1, bool)])
         last = jax.lax.cummin(jnp.where(ends, idx, n), reverse=True)
+        clock, seg_len = self.seg_clock, self.seg_len
+        if shift is not None:  # kept in order: a segment never starts after the next
+            clock = jax.lax.cummin(self.seg_clock - shift, reverse=True)
+            end = jnp.where(ends, self.seg_clock + self.seg_len, jnp.roll(clock, -1))
+            seg_len = jnp.maximum(end - clock, 0.0)
         c = self.chunk_seg
         t = self.seg_clock[c][:, None] + self.tau - delay[self.chunk_trace][:, None]
-        seg = jnp.searchsorted(self.seg_clock, t, side="right") - 1
+        seg = jnp.searchsorted(clock, t, side="right") - 1
         seg = jnp.clip(seg, first[c][:, None], last[c][:, None])
-        shifted = t - self.seg_clock[seg]
+        shifted = t - clock[seg]
         lead = jnp.maximum(-delay, 0.0)[self.seg_trace]
         return self._replace(tau=jnp.maximum(shifted, 0.0), tau_pre=jnp.minimum(shifted, 0.0),
-                             sample_seg=seg,
-                             seg_len=self.seg_len + jnp.where(ends, lead, 0.0))
+                             sample_seg=seg, seg_len=seg_len + jnp.where(ends, lead, 0.0))
 
     @property
     def voltage_reverses(self) -> bool:

@@ -16,6 +16,7 @@ from ..._format import row_format
 from ...io.session import LA_ASSUMED
 from ..model.column_levels import READINGS
 from ..model.objective import SessionModel
+from ..model.switch_lead import TIMING
 from .joint import FitResult
 
 __all__ = ["identifiability"]
@@ -42,6 +43,8 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
         v = c / c[np.argmax(np.abs(c))]  # its largest part +1
         terms = [f"{v[j]:+.2f}·{_coordinate(model, names[j])}" for j in np.argsort(-np.abs(v))
                  if abs(v[j]) > 0.1]
+        if len(terms) < 2:  # one parameter alone: no trade-off among parts to report
+            continue
         tied.append({"eigenvalue": float(eig[k]),
                      "direction": dict(zip(names, map(float, v), strict=True))})
         findings.append(f"The data fix the combination {' '.join(terms)} far more tightly "
@@ -52,7 +55,7 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
     prior_bound = [names[j] for j in range(len(names)) if ratio[j] > PRIOR_DOMINATED]
     for j, name in enumerate(names):
         if name in prior_bound and name != "La" and model.registry[name].prior.source \
-                != READINGS:  # a level the column's readings fix, as they should
+                not in (READINGS, TIMING):  # what the column's readings and rate fix
             which = ("its bench measurement" if model.registry[name].prior.source == "bench"
                      else "its prior")
             findings.append(f"{name} is determined by {which} alone: its posterior width is "

@@ -14,9 +14,8 @@ one evaluation of the steady state) and knows three things about them:
   belongs to that row's channel), and the observed values in the same layout;
 * **prediction**: the residuals (observed − model) at θ.
 
-The objective treats every array alike (sums of squares per channel, weighted
-residuals, pointwise densities), so a new kind of observation is one new block here,
-added to :func:`blocks_for`.
+The objective treats every array alike (sums of squares per channel, weighted residuals,
+pointwise densities), so a new kind of observation is one new block in :func:`blocks_for`.
 """
 
 from __future__ import annotations
@@ -37,6 +36,7 @@ from ...physics.solution import simulate_padded
 from .coloured import COLOURED, breaks, previous_index
 from .column_levels import level_data
 from .noise import effective_fraction, noise_scale, typical_level
+from .switch_lead import lead_data
 from .trace_states import initial_speed_name, position_offset_name
 
 __all__ = ["Block", "TraceBlock", "CoastDownBlock", "SteadyBlock", "StepReadingBlock",
@@ -129,7 +129,7 @@ class TraceBlock(Block):
         slot = np.zeros(len(session.traces), int)
         slot[with_pos] = np.arange(len(with_pos))
         self._data = {"exp": exp, "t": np.concatenate([tr.time for tr in session.traces]),
-                      "start": starts, **level_data(session, exp),
+                      "start": starts, **level_data(session, exp), **lead_data(session, exp),
                       "sample_slot": np.repeat(slot, [tr.n for tr in session.traces])}
         for what in chans:
             ch = np.asarray(chans[what])[ct]
@@ -162,7 +162,7 @@ class TraceBlock(Block):
     def residuals(self, model, theta, d, fast: bool = False, overflow: bool = False) -> list:
         """The residuals of speed, current and angle; with ``overflow``, also per segment
         whether it changes regime more often than the exact solution follows."""
-        exp = model.inputs(theta, model.held(theta, d["exp"], d))
+        exp = model.inputs(theta, model.held(theta, d["exp"], d), d)
         p = model.circuit(theta)
         sim = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast,
                               limit=model.limit(theta), with_angle=bool(self.offsets),

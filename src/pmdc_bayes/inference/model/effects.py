@@ -13,7 +13,7 @@ import jax.numpy as jnp
 from ...physics.motor import driver_output
 from .column_levels import INPUTS, level_names
 from .nuisances import DEAD_ZONE_NAMES, NO_LIMIT, dead_time_name, load_names
-from .switch_lead import lead_name
+from .switch_lead import session_lead_names
 
 __all__ = ["RigEffects"]
 
@@ -69,26 +69,29 @@ class RigEffects:
                     index >= 0, levels[jnp.maximum(index, 0)], getattr(exp, spec.segments))})
         return exp
 
-    def inputs(self, theta, exp):
+    def inputs(self, theta, exp, d=None):
         """The experiment as the motor sees it at θ: each
-        trace's response its fitted dead time, less its inputs' fitted lead, later than
-        its inputs (each sample
+        trace's response its fitted dead time later than its inputs (each sample
         evaluated in the segment its time less the dead time lies in: exact;
-        before the trace's first segment, its starting state), and each trace's fitted
+        before the trace's first segment, its starting state), each change of a logged
+        column its fitted lead before the sample that shows it (``d["lead_index"]``, each
+        segment's lead: :mod:`.switch_lead`), and each trace's fitted
         unknown drag per segment, added to its known one (set in the experiment); each
         segment's voltage as the driver puts it out (:meth:`driven`)."""
         if "dead_zone" in self.session.nuisances:
             exp = exp._replace(seg_va=self.driven(theta, exp.seg_va))
         v, zero = self.registry.values(theta), jnp.zeros(())
-        leads = [lead_name(tr.name) in self.registry for tr in self.session.traces]
-        if "dead_time" in self.session.nuisances or any(leads):
+        index = None if d is None else d.get("lead_index")
+        shift = None
+        if index is not None:
+            leads = jnp.stack([v[n] for n in session_lead_names(self.session)])
+            shift = jnp.where(index >= 0, leads[jnp.maximum(index, 0)], 0.0)
+        if "dead_time" in self.session.nuisances or shift is not None:
             # a trace's own dead time, one shared by every trace, or (in a superset
-            # model, :mod:`.superset`) the sum of both forms; less the lead of its
-            # logged inputs' changes over the samples that show them (:mod:`.switch_lead`)
+            # model, :mod:`.superset`) the sum of both forms
             exp = exp.delayed(jnp.stack([v.get(dead_time_name(tr.name), zero)
                                          + v.get(dead_time_name(tr.name, True), zero)
-                                         - v.get(lead_name(tr.name), zero)
-                                         for tr in self.session.traces]))
+                                         for tr in self.session.traces]), shift)
         loaded = self.session.unknown_load_traces()
         if loaded:
             parts = [[v[n] if tr.name in loaded and n in v else zero

@@ -96,9 +96,10 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
       :data:`LAG_PRIOR_SAMPLES` sample intervals, a factor :data:`LAG_PRIOR_FACTOR` wide
       (one sd), log-transformed (a lag is positive).
 
-    * ``switch_lead_<trace>`` — not asked for: every trace whose switching inputs come
-      from logged columns has one (:mod:`.switch_lead`), how long before the first
-      sample showing it each change happened.
+    * ``switch_lead_<trace>_<j>`` — not asked for: each change of a trace whose
+      switching inputs come from logged columns (:mod:`.switch_lead`), how long before
+      the first sample showing it the change happened (``switch_lead_<trace>``, one for
+      all, where the trace changes once or more than 16 times).
 
     * ``voltage_level_<trace>_<j>``, ``load_level_<trace>_<j>`` — not asked for: each
       level a noisy logged input column held (:mod:`.column_levels`), known from its

@@ -10,24 +10,29 @@ does.  Where the current is logged and the armature's time constant is shorter t
 sample interval, the first current sample after a change reads a partly risen current
 the model cannot reach, and a step's start, La and J absorb the difference.
 
-A trace whose switching inputs all come from columns therefore carries one fitted lead,
-``switch_lead_<trace>`` (s): every change of its inputs happened that long before the
-sample that shows it (it subtracts from the trace's ``dead_time``, if fitted:
-:meth:`.effects.RigEffects.inputs`).  Its prior stands for the uniform distribution over
-the sample interval Δ before the change (Δ the trace's median sample interval): normal,
-with that uniform's mean Δ/2 and standard deviation Δ/√12, fitted in value, so a lead of
-0 (a rig timed by the logger's clock) lies 1.7 sd from its centre and a slightly
-negative one (a change shown a sample late) is not excluded.
+Each change of a trace whose switching inputs all come from columns therefore carries
+a fitted lead, ``switch_lead_<trace>_<j>`` (s; ``switch_lead_<trace>`` where the trace
+changes once, or more than :data:`MAX_CHANGES` times, when its changes share one): the
+change happened that long before the sample that shows it, the segment it starts
+beginning that much earlier (:meth:`.effects.RigEffects.inputs`; a dead time is added
+on top).  A driver that switches at its own times puts each change at its own place in
+the interval; one lead for all of them leaves the others' first current readings, or
+a fast speed sensor's, off by up to the electrical time constant's share of the jump.
+Its prior is normal with the mean and standard deviation of an even mixture of the
+two ways a rig logs a column: switching at the sample that shows the change (a lead of
+0: a logger that sets its command at a sample), and anywhere in the interval Δ before it
+(uniform: a driver on its own clock, an ADC reading the driver's output), Δ the trace's
+median sample interval: mean Δ/4, sd Δ·√(5/48).  Fitted in value, so a slightly
+negative lead (a change shown a sample late) is not excluded.  A trace's first segment
+is a change too where the trace starts from rest under a column already away from zero.
 
 Where the armature's time constant is much shorter than Δ, the density in the lead is
 a box: flat where the first current sample after a change reads the current risen (or
 not yet moved), falling within a time constant of the lead at which the change reaches
 that sample.  A fit started on the wrong flat part sees no slope towards the right one,
 so a fit starts each lead at the best of :data:`SCAN_SHARES` × Δ (:func:`lead_scans`),
-the rest of the parameters at their start.  The changes of one trace share the lead:
-one where a trace steps once, the lead the changes have on average where it steps many
-times.  A schedule written in ``session.toml`` states its own times; a trace with one
-that changes keeps them.
+the rest of the parameters at their start.  A schedule written in ``session.toml``
+states its own times; a trace with one that changes keeps them.
 """
 
 from __future__ import annotations
@@ -37,14 +42,22 @@ import numpy as np
 from ...io.session import Session, Trace
 from .params import ParamSpec, Prior, identifier
 
-__all__ = ["lead_name", "lead_specs", "leading_traces", "lead_scans", "SCAN_SHARES"]
+__all__ = ["lead_name", "lead_names", "lead_specs", "leading_traces", "lead_scans",
+           "segment_leads", "lead_data", "session_lead_names", "SCAN_SHARES", "MAX_CHANGES",
+           "TIMING",
+           "PRIOR_MEAN", "PRIOR_SD"]
 
-UNIFORM_MEAN, UNIFORM_SD = 0.5, 1.0 / np.sqrt(12.0)  # of U(0, 1)
+# an even mixture of a lead of 0 and a uniform one over the interval, as shares of it
+PRIOR_MEAN, PRIOR_SD = 0.25, float(np.sqrt(5.0 / 48.0))
 SCAN_SHARES = np.array([-0.5, -0.2, 0.0, 0.1, 0.25, 0.5, 0.75, 0.95])  # of Δ
+MAX_CHANGES = 16  # per trace: more changes share one lead
+AWAY = 3.0  # standard errors: a noisy column's first level this far from zero is a change
+TIMING = "the sample interval"  # the prior's source: where the column shows the change
 
 
 def lead_name(trace_name: str) -> str:
-    """The parameter name of a trace's lead."""
+    """The parameter name of a trace's one lead (a trace that changes once, or more
+    than :data:`MAX_CHANGES` times)."""
     return f"switch_lead_{identifier(trace_name)}"
 
 
@@ -53,36 +66,115 @@ def _changes(values: np.ndarray) -> bool:
     return values.size > 1 and bool(np.any(values[1:] != values[:-1]))
 
 
+def _inputs(tr: Trace):
+    return ((tr.voltage, tr.voltage_logged), (tr.load_torque, tr.load_logged))
+
+
 def _leads(tr: Trace) -> bool:
     """Whether ``tr``'s switching inputs all come from columns, and one of them switches."""
-    inputs = ((tr.voltage, tr.voltage_logged), (tr.load_torque, tr.load_logged))
-    switching = [logged for schedule, logged in inputs if _changes(schedule.values)]
+    switching = [logged for schedule, logged in _inputs(tr) if _changes(schedule.values)]
     return bool(switching) and all(switching)
 
 
+def change_times(tr: Trace) -> np.ndarray:
+    """The times (s, the trace's clock) of ``tr``'s logged inputs' changes: each sample
+    that shows a new value, and the trace's start where it starts from rest under a
+    column away from zero (module docstring); none for a trace without a lead."""
+    if not _leads(tr):
+        return np.zeros(0)
+    times = []
+    for schedule, logged in _inputs(tr):
+        values = np.asarray(schedule.values, dtype=float)
+        if not logged or values.size == 0:
+            continue
+        moved = np.flatnonzero(values[1:] != values[:-1]) + 1
+        times.append(np.asarray(schedule.times, dtype=float)[moved])
+        if isinstance(tr.initial, str) and tr.initial == "rest" and _away(schedule):
+            times.append(np.asarray(schedule.times, dtype=float)[:1])
+    return np.unique(np.concatenate(times)) if times else np.zeros(0)
+
+
+def _away(schedule) -> bool:
+    """Whether a column's first value is away from zero: not zero, and for a noisy
+    column's level more than :data:`AWAY` standard errors from it."""
+    first = float(schedule.values[0])
+    se = 0.0 if schedule.se is None else float(schedule.se[0])
+    return first != 0.0 and abs(first) > AWAY * se
+
+
+def lead_names(tr: Trace) -> tuple[str, ...]:
+    """The names of ``tr``'s leads: one per change, or one shared (:func:`lead_name`)
+    where it changes once or more than :data:`MAX_CHANGES` times."""
+    n = change_times(tr).size
+    if n == 0:
+        return ()
+    if n == 1 or n > MAX_CHANGES:
+        return (lead_name(tr.name),)
+    return tuple(f"{lead_name(tr.name)}_{j}" for j in range(n))
+
+
 def leading_traces(session: Session) -> tuple[str, ...]:
-    """The traces that carry a fitted lead (module docstring)."""
-    return tuple(tr.name for tr in session.traces if _leads(tr))
+    """The traces that carry fitted leads (module docstring)."""
+    return tuple(tr.name for tr in session.traces if lead_names(tr))
 
 
 def lead_specs(session: Session) -> list[ParamSpec]:
-    """One ``switch_lead_<trace>`` (s) per trace of :func:`leading_traces`: prior normal,
-    centre Δ/2, sd Δ/√12 (Δ the trace's median sample interval; module docstring); fitted
-    in value; seeded at Δ/2."""
+    """The leads of every trace (:func:`lead_names`): prior normal, centre Δ/4, sd
+    Δ·√(5/48) (Δ the trace's median sample interval; module docstring); fitted in value;
+    seeded at the prior's centre."""
     specs = []
     for tr in session.traces:
-        if _leads(tr):
-            dt = tr.dt
-            specs.append(ParamSpec(lead_name(tr.name), "s", "trace",
-                                   Prior("normal", UNIFORM_MEAN * dt, UNIFORM_SD * dt,
-                                         "nuisance"),
-                                   UNIFORM_MEAN * dt, transform="identity", trace=tr.name,
+        names, times = lead_names(tr), change_times(tr)
+        for j, name in enumerate(names):
+            when = "each change" if len(names) < times.size else \
+                f"the change at {float(times[j]):.6g} s"
+            specs.append(ParamSpec(name, "s", "trace",
+                                   Prior("normal", PRIOR_MEAN * tr.dt, PRIOR_SD * tr.dt,
+                                         TIMING),
+                                   PRIOR_MEAN * tr.dt, transform="identity", trace=tr.name,
                                    description=f"how long before the first sample showing "
-                                               f"it an input of trace {tr.name!r} changed"))
+                                               f"it trace {tr.name!r}'s input made "
+                                               f"{when}"))
     return specs
 
 
 def lead_scans(session: Session) -> dict[str, np.ndarray]:
     """Per lead of :func:`lead_specs`, the values (s) a fit's start is chosen among:
     :data:`SCAN_SHARES` × Δ."""
-    return {lead_name(tr.name): SCAN_SHARES * tr.dt for tr in session.traces if _leads(tr)}
+    return {name: SCAN_SHARES * tr.dt for tr in session.traces for name in lead_names(tr)}
+
+
+def segment_leads(session: Session, seg_t0, seg_trace) -> np.ndarray | None:
+    """Per segment of an experiment of the session's traces (``seg_t0`` on each trace's
+    clock, ``seg_trace`` its trace), the index among the session's leads (trace after
+    trace, in :func:`lead_names`' order) of the lead of the change it starts with, −1 for
+    a segment no change starts; None when no trace has a lead."""
+    seg_t0, seg_trace = np.asarray(seg_t0, float), np.asarray(seg_trace, int)
+    out = np.full(seg_t0.size, -1, dtype=np.int32)
+    base = 0
+    for k, tr in enumerate(session.traces):
+        names, times = lead_names(tr), change_times(tr)
+        if not names:
+            continue
+        mine = np.flatnonzero(seg_trace == k)
+        x = seg_t0[mine]
+        near = np.clip(np.searchsorted(times, x), 0, times.size - 1)
+        before = np.maximum(near - 1, 0)  # the nearer of the changes either side
+        j = np.where(np.abs(times[before] - x) < np.abs(times[near] - x), before, near)
+        hit = np.abs(times[j] - x) <= 1e-3 * tr.dt  # changes lie a sample apart at least
+        out[mine[hit]] = base + (j[hit] if len(names) > 1 else 0)
+        base += len(names)
+    return out if base else None
+
+
+def lead_data(session: Session, exp) -> dict:
+    """``lead_index``: each segment's lead (:func:`segment_leads`) of the experiment
+    ``exp`` of the session's traces, where any trace has one
+    (:meth:`.effects.RigEffects.inputs` reads it)."""
+    index = segment_leads(session, exp.seg_t0, exp.seg_trace)
+    return {} if index is None else {"lead_index": index}
+
+
+def session_lead_names(session: Session) -> tuple[str, ...]:
+    """Every lead of the session, trace after trace (:func:`segment_leads`' order)."""
+    return tuple(name for tr in session.traces for name in lead_names(tr))
