@@ -32,11 +32,12 @@ def _session(seed, tmp_path, **kw):
     return fz, load_session(fz.path)
 
 
-def test_a_trace_whose_column_switches_carries_a_lead_with_the_uniform_prior(tmp_path):
+def test_a_trace_whose_column_switches_once_carries_a_lead_with_its_prior(tmp_path):
     """Seed 16's one trace logs its voltage as a column that steps once: its lead's
-    prior is normal with the mean and sd of a uniform variable over the sample interval,
-    fitted in value, its start chosen among values across that interval; the traces of
-    seed 1 state their schedules in session.toml and carry none."""
+    prior is normal with the mean and sd of an even mixture of a lead of 0 and a uniform
+    one over the sample interval, fitted in value, its start chosen among values across
+    that interval; the traces of seed 1 state their schedules in session.toml and carry
+    none."""
     fz, session = _session(16, tmp_path, between_samples=True)
     assert leading_traces(session) == ("tr0_step_from_rest",)
     model = build_model(session, fit_seed(session))
