@@ -43,10 +43,10 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
         v = c / c[np.argmax(np.abs(c))]  # its largest part +1
         terms = [f"{v[j]:+.2f}·{_coordinate(model, names[j])}" for j in np.argsort(-np.abs(v))
                  if abs(v[j]) > 0.1]
-        if len(terms) < 2:  # one parameter alone: no trade-off among parts to report
-            continue
         tied.append({"eigenvalue": float(eig[k]),
                      "direction": dict(zip(names, map(float, v), strict=True))})
+        if len(terms) < 2:  # one part shown: no trade-off among parts to word
+            continue
         findings.append(f"The data fix the combination {' '.join(terms)} far more tightly "
                         f"than its parts (correlation-matrix eigenvalue {eig[k]:.1e}): they "
                         "trade off against one another while it stays fixed, so each is "
