@@ -133,3 +133,28 @@ def test_a_misspecified_bench_is_flagged_with_its_p_value_and_no_proposal_the_mo
     assert a.proposals and all(not has(model, p) for p in a.proposals)
     assert Proposal("unknown_load", "step_6v") in a.proposals
     assert not {"dead_time", "speed_lag"} & {p.nuisance for p in a.proposals}
+
+
+def test_the_rise_time_of_a_trace_that_steps_twice_is_read_before_its_second_step():
+    """0 → 6 V at 31 ms, then 6 → 12 V at 300 ms, a speed rising with τ = 13.5 ms after
+    each: the check reads the first step's rise up to the second step (about τ), not up
+    to 63 % of the trace's final speed, which the second step makes (0.27 s)."""
+    from pmdc_bayes.inference.adequacy.onset import step_end
+    from pmdc_bayes.inference.adequacy.plausibility import _rise_test
+    from pmdc_bayes.io.session import Schedule
+    from pmdc_bayes.simulate.cases import case_session
+
+    t = np.arange(600) * 1e-3
+    tau = 0.0135
+    w = sum(100.0 * (1.0 - np.exp(-np.clip(t - t0, 0.0, None) / tau)) for t0 in (0.031, 0.3))
+    w = w + np.random.default_rng(2).normal(0.0, 0.5, t.size)
+    volts = Schedule(np.array([0.0, 0.031, 0.3]), np.array([0.0, 6.0, 12.0]))
+    tr = dataclasses.replace(case_session().traces[0], time=t, speed=w, current=None,
+                             voltage=volts, load_torque=Schedule(np.zeros(1), np.zeros(1)),
+                             position=None, speed_logged=True, initial="rest")
+    assert step_end(tr, 0.031) == pytest.approx(0.3) and step_end(tr, 0.3) == np.inf
+    rises = {}
+    (test,) = _rise_test(None, 0, tr, w, {}, {ChannelId(tr.name, "speed"): 0.5},
+                         np.random.default_rng(3), rises, {})
+    assert rises[tr.name]["observed"] == pytest.approx(tau, abs=2e-3)
+    assert test.p_value > 0.01  # the model is the data's own curve

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["departure", "onset_shape", "rise_time", "step_time"]
+__all__ = ["departure", "onset_shape", "rise_time", "step_end", "step_time"]
 
 CONSECUTIVE = 3  # samples in a row beyond the threshold that count as having left rest
 
@@ -114,6 +114,15 @@ def step_time(trace) -> float:
         return float(trace.time[0])
     k = int(np.argmax(np.abs(np.diff(v)))) + 1
     return float(max(t[k], trace.time[0]))
+
+
+def step_end(trace, t_step: float) -> float:
+    """The time of the trace's first voltage change after ``t_step`` (infinite where
+    none): the response to the step at ``t_step`` is read up to it."""
+    v, t = np.asarray(trace.voltage.values, float), np.asarray(trace.voltage.times, float)
+    later = t[np.flatnonzero(np.diff(v) != 0) + 1]
+    later = later[later > t_step]
+    return float(later[0]) if later.size else np.inf
 
 
 def rise_time(t, y, t_step, level: float = 0.632) -> float | None:

@@ -19,7 +19,7 @@ from ..model.nuisances import DEAD_ZONE_NAMES
 from ..model.objective import NU0
 from .calibrate import Test, judged_alone, logged_quantum, replicates, session_rng, tail_p
 from .findings import NO_LOAD_SPEED, Check, Finding, Severity, sig3
-from .onset import rise_time, step_time
+from .onset import rise_time, step_end, step_time
 
 __all__ = ["plausibility_tests", "plausibility_checks", "rise_eligible"]
 
@@ -112,17 +112,19 @@ def _rise_test(model, k, tr, w, noise_sd, s0, rng, rises, rho) -> list:
     distribution on replicates of the MAP through the speed's sensor path; the sample
     interval bounds its resolution (the data's step may fall anywhere within one)."""
     t_step = step_time(tr)
-    obs, mod = rise_time(tr.time, tr.speed, t_step), rise_time(tr.time, _as_logged(tr, w),
-                                                                t_step)
+    span = np.asarray(tr.time) < step_end(tr, t_step)  # up to the next change
+    t = np.asarray(tr.time, float)[span]
+    obs, mod = rise_time(t, tr.speed[span], t_step), rise_time(t, _as_logged(tr, w)[span],
+                                                               t_step)
     if obs is None or mod is None or not (obs > 0 and mod > 0):
         return []
     name = ChannelId(tr.name, "speed" if tr.speed_logged or tr.position is None else "position")
     sigma = float(noise_sd.get(name, s0.get(name, 0.0)))
     quantum = logged_quantum(tr.speed) if tr.speed_logged else 0.0
-    reps = [rise_time(tr.time, row, t_step) for row in
+    reps = [rise_time(t, row[span], t_step) for row in
             _logged_speeds(model, k, tr, w, sigma, quantum, rng, rho.get(name, 0.0))]
     reps = np.log([x for x in reps if x is not None and x > 0])
-    dt = float(np.median(np.diff(tr.time)))
+    dt = float(np.median(np.diff(t)))
     pv = tail_p(np.log(obs), reps, side="two", floor=dt / (np.sqrt(6.0) * mod))
     rises[tr.name] = {"observed": obs, "model": mod, "ratio": mod / obs, "p_value": pv}
     return [Test(Finding(Check.PLAUSIBILITY, ChannelId(tr.name, "speed"), Severity.FAIL,
