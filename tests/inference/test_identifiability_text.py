@@ -83,3 +83,19 @@ def test_a_tied_combination_is_written_in_the_fits_coordinates():
     c = np.array([tied["direction"][n] for n in names])
     assert c[3] == pytest.approx(1.0) and c[5] == pytest.approx(0.1, rel=1e-6)
     assert c @ cov @ c < 0.01 * cov[3, 3]  # fixed far more tightly than log B alone
+
+
+def test_a_tied_combination_of_one_visible_part_is_recorded_but_not_worded():
+    """log B known to 0.01 and log Tc to 1, anti-correlated: the combination fixed is
+    log B + 0.01·log Tc, whose second part is too small to show; it is recorded, but not
+    worded as "the combination +1.00·log B", which would name no trade-off."""
+    names = ("Ra", "La", "K", "B", "J", "Tc")
+    sd = np.array([0.01, 0.01, 0.01, 0.01, 0.01, 1.0])
+    corr = np.eye(6)
+    corr[3, 5] = corr[5, 3] = -0.999
+    fit = SimpleNamespace(names=names, corr=corr, cov_log=corr * np.outer(sd, sd),
+                          values={"La": 1e-3, "Ra": 2.0})
+    out = identifiability(_log_model(names), fit)
+    (tied,) = out["tied_combinations"]
+    assert tied["direction"]["Tc"] == pytest.approx(0.01, rel=1e-6)
+    assert not [f for f in out["findings"] if "fix the combination" in f]
