@@ -71,6 +71,16 @@ def test_a_tacho_lag_declared_on_such_a_column_is_fitted_right(tmp_path):
         assert abs(_z(model, fit, name, truth[name])) < Z99, name
 
 
+@pytest.mark.compiles
+def test_an_undeclared_tacho_lag_on_a_two_step_column_is_diagnosed_as_one():
+    """The same session without the lag declared: rejected, and the diagnosis reads the
+    first step's start up to the second step (the current on time, the speed late) and
+    proposes the speed sensor's lag, nothing else."""
+    _, _, _, verdict = _fitted(SESSIONS / "tacho_lag_column")
+    assert str(verdict.verdict) == "inadequate"
+    assert [p.nuisance for p in verdict.proposals] == ["speed_lag"], verdict.diagnosis
+
+
 def test_a_scope_export_with_its_settings_in_the_sample_fields_is_read():
     """A headerless export whose first lines write each setting beside its value in the
     fields the samples use (``Record Length,1500``): the settings are passed over and

@@ -26,7 +26,7 @@ from ...io.lattice import analogue_channels
 from ..model.noise import noise_scale
 from .diagnosis_levels import level_rules
 from .findings import Check
-from .onset import departure, onset_shape, step_time
+from .onset import departure, onset_shape, step_end, step_time
 from .proposals import Proposal, has, said
 
 __all__ = ["diagnose", "Proposal"]
@@ -39,35 +39,39 @@ DEPART = 5.0  # a channel has left rest when it is this many noise sd from its l
 DEPART_SPAN = 0.01  # ... and this share of its span
 
 
-def _late_start(tr, y, yhat, s0, t_step, t_rise):
+def _late_start(t, y, yhat, s0, t_step, t_rise):
     """How much later than the model (s) the channel leaves rest, or None."""
     span = float(np.max(y) - np.min(y))
     threshold = max(DEPART * s0, DEPART_SPAN * span)
-    d_obs = departure(tr.time, y, t_step, threshold)
-    d_mod = departure(tr.time, yhat, t_step, threshold)
+    d_obs = departure(t, y, t_step, threshold)
+    d_mod = departure(t, yhat, t_step, threshold)
     if d_obs is None or d_mod is None:
         return None
-    dt = float(np.median(np.diff(tr.time)))
+    dt = float(np.median(np.diff(t)))
     late = d_obs - d_mod
     return late if late >= LATE_SAMPLES * dt and late > LATE_SHARE * t_rise else None
 
 
 def _start_rules(model, tr, pred, t_step):
-    """Sentences on the start of a failing trace."""
+    """Sentences on the start of a trace's largest step, read up to its next voltage
+    change (a staircase's later steps would otherwise stand in for the first's end)."""
     ia, w = pred
     out = []
-    data, fitted = onset_shape(tr.time, tr.speed, t_step), onset_shape(tr.time, w, t_step)
-    t_rise = fitted["t90"] if fitted else float(tr.time[-1] - t_step)
+    upto = np.asarray(tr.time) < step_end(tr, t_step)
+    t = np.asarray(tr.time, float)[upto]
+    data = onset_shape(t, np.asarray(tr.speed)[upto], t_step)
+    fitted = onset_shape(t, np.asarray(w)[upto], t_step)
+    t_rise = fitted["t90"] if fitted else float(t[-1] - t_step)
     lates = {}
     for what, y, yhat in (("speed", tr.speed, w), ("current", tr.current, ia)):
         if y is not None:
-            late = _late_start(tr, np.asarray(y), np.asarray(yhat),
+            late = _late_start(t, np.asarray(y)[upto], np.asarray(yhat)[upto],
                                _noise(model, tr, what, y), t_step, t_rise)
             if late is not None:
                 lates[what] = late
     lagged = ramp = False
     if data and fitted:
-        dt = float(np.median(np.diff(tr.time)))
+        dt = float(np.median(np.diff(t)))
         lag_d = min(data["delayed"], data["lagged"])
         lagged = (lag_d < BETTER and lag_d < data["ramp"]
                   and data["dead_time"] - fitted["dead_time"] > max(LATE_SAMPLES * dt,
