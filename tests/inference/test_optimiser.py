@@ -157,6 +157,11 @@ def test_two_finals_are_one_optimum_unless_a_valley_separates_them():
     # a start that did not converge belongs to no optimum
     modes, label = distinct_optima(thetas, logp, np.array([True, False]), cov, well)
     assert modes == [0] and label == [0, -1]
+    # one that stalled where a converged one ended (a kink) reached that optimum
+    near = np.array([[1.0, 0.0], [1.0 + 5e-3, 0.0], [1.0 + 5e-2, 0.0]])
+    modes, label = distinct_optima(near, np.array([0.0, -0.05, -0.05]),
+                                   np.array([True, False, False]), cov, well)
+    assert modes == [0] and label == [0, 0, -1]  # the last lies 5 sds away
 
 
 # The step limit: a typed outcome, the best start continued while it improves

@@ -3,7 +3,8 @@ switching events, its own conventions), logged as benches log them, in
 ``tests/scenarios/sessions/`` with their truths: a noisy voltage column whose driver
 made each change at its own place in the sample interval before the sample that shows
 it; the same with a tachogenerator's 6 ms filter; an oscilloscope's export whose
-settings share the sample fields."""
+settings share the sample fields; two steps through a driver acting a whole number of
+samples late."""
 
 import json
 import shutil
@@ -68,6 +69,25 @@ def test_a_tacho_lag_declared_on_such_a_column_is_fitted_right(tmp_path):
     _, model, fit, verdict = _fitted(path)
     assert str(verdict.verdict) == "adequate", verdict.failures()
     for name in ("Ra", "K", "B", "J", "Tc", "speed_lag"):
+        assert abs(_z(model, fit, name, truth[name])) < Z99, name
+
+
+@pytest.mark.compiles
+def test_a_dead_time_of_a_whole_number_of_samples_converges_on_its_kink(tmp_path):
+    """A 4 ms dead time at 0.5 ms samples puts the delayed step on a sample, where the
+    current's slope jumps: the log-posterior has a kink at the optimum that no step of
+    every parameter together leaves.  The fit converges there (the dead time held, the
+    rest converged, then freed), the starts that stalled at it count as agreeing, and
+    the dead time and every motor parameter lie inside their 99 % intervals."""
+    path = tmp_path / "session"
+    shutil.copytree(SESSIONS / "dead_time_on_a_sample", path)
+    toml = path / "session.toml"
+    toml.write_text(toml.read_text() + '\n[model]\ndead_time = "shared"\n')
+    truth = json.loads((path / "truth.json").read_text())
+    _, model, fit, verdict = _fitted(path)
+    assert str(verdict.verdict) == "adequate", verdict.failures()
+    assert sum(s["agrees"] for s in fit.starts) >= 4, fit.message
+    for name in ("Ra", "La", "K", "B", "J", "dead_time"):
         assert abs(_z(model, fit, name, truth[name])) < Z99, name
 
 

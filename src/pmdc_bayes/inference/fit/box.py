@@ -11,11 +11,16 @@ edge, is a kink (its two one-sided slopes differ in sign), from which no
 Levenberg–Marquardt step of all parameters together can rise.
 
 So each such parameter starts at the best of its scan's values (:func:`scan_start`),
-and a best start that stalls is :func:`settled`: its box parameters held where it
+and a best start that stalls is :func:`settled`: its timing parameters held where it
 stalled (their prior's scale shrunk by :data:`HOLD` about that point, the same compiled
 step with other data), the others moved to their optimum, then all of them freed again.
 An optimum from which the free step still finds no rise, with the others converged
-(Newton decrement over them below the stall tolerance), is the edge's kink: converged.
+(Newton decrement over them below the stall tolerance), is a kink: converged.
+
+A dead time makes the same kind of kink: where the delayed step falls on a sample (a
+driver or controller that acts a whole number of samples late), the current's slope
+there jumps from 0 to V/La, so the log-posterior's one-sided slopes in the dead time
+differ, and the optimum sits on the kink; :func:`kink_indices` names both kinds.
 """
 
 from __future__ import annotations
@@ -26,10 +31,11 @@ import numpy as np
 
 from ..._cores import usable_cores
 from ..._x64 import to_device, x64
+from ..model.nuisances import dead_time_name
 from ..model.switch_lead import lead_scans
 from .multistart import STALL_TOL, Outcome, Start, maximise
 
-__all__ = ["scan_start", "box_indices", "settled"]
+__all__ = ["scan_start", "box_indices", "kink_indices", "settled"]
 
 HOLD = 1e-6  # a held parameter's prior scale, as a share of its own
 
@@ -38,6 +44,15 @@ def box_indices(model) -> np.ndarray:
     """The indices of ``model``'s box parameters (module docstring)."""
     return np.array([model.registry.index(n) for n in lead_scans(model.session)
                      if n in model.registry], dtype=int)
+
+
+def kink_indices(model) -> np.ndarray:
+    """The indices of ``model``'s timing parameters whose optimum may sit on a kink
+    (module docstring): its leads and dead times."""
+    names = [dead_time_name(tr.name, shared) for tr in model.session.traces
+             for shared in (False, True)]
+    dead = [model.registry.index(n) for n in dict.fromkeys(names) if n in model.registry]
+    return np.union1d(box_indices(model), np.array(dead, dtype=int)).astype(int)
 
 
 def scan_start(model, stepper, theta0) -> np.ndarray:
@@ -82,9 +97,10 @@ def _others_converged(start: Start, index) -> bool:
 
 
 def settled(model, stepper, start: Start) -> Start:
-    """``start`` (a stalled one) moved to the kink at its box parameters' edge, converged
-    (module docstring); ``start`` itself where that does not succeed."""
-    index = box_indices(model)
+    """``start`` (a stalled one) moved to the kink of its timing parameters
+    (:func:`kink_indices`), converged (module docstring); ``start`` itself where that
+    does not succeed."""
+    index = kink_indices(model)
     if start.outcome is not Outcome.STALLED or index.size == 0:
         return start
     (held,) = maximise(_held(stepper, index, np.asarray(start.theta)), [start.theta])
@@ -95,6 +111,7 @@ def settled(model, stepper, start: Start) -> Start:
         return start
     if free.outcome is Outcome.STALLED and _others_converged(free, index):
         free.outcome = Outcome.CONVERGED
-        free.detail = "at the edge of a lead's box"
+        free.detail = ("at the edge of a lead's box" if index.size == box_indices(model).size
+                       else "at a kink in a timing parameter (a lead, a dead time)")
     free.steps += start.steps + held.steps
     return free

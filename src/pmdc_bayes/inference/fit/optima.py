@@ -21,17 +21,15 @@ def distinct_optima(thetas, logp, ok, cov, evaluate) -> tuple[list[int], list[in
     other (Mahalanobis distance under the MAP's covariance ``cov``), or on one ridge: the
     log-posterior (``evaluate(θ).lp``) nowhere on the segment between them dips more
     than :data:`DIP` below the lower of the two.  A distinct optimum is one a valley
-    separates from the MAP's.
+    separates from the MAP's.  A start that stalled (at a kink its steps cannot leave)
+    reached an optimum where it lies that close to it (:func:`_close`); it makes none.
     """
     order = [int(i) for i in np.argsort(-logp) if np.isfinite(logp[i]) and ok[i]]
     prec = precision(cov)
 
     def same(i, j):
         d = thetas[i] - thetas[j]
-        gap, dlp = np.max(np.abs(d)), abs(logp[i] - logp[j])
-        if gap < 1e-3 and dlp < 1e-6 * max(1.0, abs(logp[j])):
-            return True
-        if float(d @ prec @ d) < SAME_DISTANCE**2:
+        if _close(d, logp[i], logp[j], prec) or float(d @ prec @ d) < SAME_DISTANCE**2:
             return True
         floor = min(logp[i], logp[j]) - DIP
         return all(evaluate(thetas[j] + f * d).lp >= floor for f in (0.25, 0.5, 0.75))
@@ -42,7 +40,21 @@ def distinct_optima(thetas, logp, ok, cov, evaluate) -> tuple[list[int], list[in
         label[i] = next((j for j in modes if same(i, j)), i)
         if label[i] == i:
             modes.append(i)
+    for i in range(len(logp)):  # a start stalled at an optimum (a kink) reached it
+        if label[i] < 0 and np.isfinite(logp[i]):
+            label[i] = next((j for j in modes if _close(thetas[i] - thetas[j], logp[i],
+                                                        logp[j], prec)), -1)
     return modes, label
+
+
+def _close(d, lp_i, lp_j, prec) -> bool:
+    """Whether two finals whose difference is ``d`` are one point: within 1e-3 in θ with
+    log-posteriors within 1e-6 (relative), or within :data:`SAME_DISTANCE` Laplace
+    standard deviations with log-posteriors within :data:`DIP`."""
+    gap, dlp = np.max(np.abs(d)), abs(lp_i - lp_j)
+    if gap < 1e-3 and dlp < 1e-6 * max(1.0, abs(lp_j)):
+        return True
+    return float(d @ prec @ d) < SAME_DISTANCE**2 and dlp < DIP
 
 
 def precision(cov) -> np.ndarray:
