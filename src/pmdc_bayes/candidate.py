@@ -31,6 +31,9 @@ class Stop(enum.Enum):
     FAULTY_DATA = ("the data hold a bad reading (its verdict's first line), which no "
                    "addition to the model mends")
     ADEQUATE_START = "the data do not reject the session's model"
+    ADEQUATE_REACHED = ("the data do not reject it (a plain fit stops at the first model "
+                        "the data do not reject; fit --compare tries every addition to it "
+                        "as well)")
     NOTHING_BETTER = "the data do not reject it and no single addition is clearly better"
     NO_GAIN = "no addition improves on it"
     FITS = "the bound of {max_fits} fits was reached"

@@ -23,9 +23,12 @@ until one the data do not reject gains enough; a candidate below it keeps its ve
   evidence within :data:`REMOVE_MARGIN`, the same margin as an addition's, of the
   larger's, and the data not rejecting it unless they reject the larger too);
 - it stops (:class:`~.candidate.Stop`, named in the record) when the data do not
-  reject the model and no single addition is clearly better, when no step helps, after
-  :data:`MAX_FITS` fits; or at its start, when its fit fails, when the data hold a bad
-  reading no addition mends, or (a plain ``fit``) when the data do not reject it.
+  reject the model and no single addition is clearly better (``fit --compare``), or as
+  soon as they do not reject it (a plain ``fit``: an adequacy stop, which keeps a
+  search from adding what the evidence alone favours, and its cost to the steps the
+  misfit asks for), when no step helps, after :data:`MAX_FITS` fits; or at its start,
+  when its fit fails, when the data hold a bad reading no addition mends, or (a plain
+  ``fit``) when the data do not reject it.
 
 The model the search starts from is fitted in its own programs (most sessions end
 there).  On a short session a further candidate without a costly solution (stick-slip,
@@ -170,24 +173,31 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
     current = search.start(start_terms)
     current.why = "the session's model" if start_terms else "the ideal motor"
     stop = _first_stop(current, only_if_rejected)
-    for _ in range(0 if stop else max_fits):  # each step fits a new candidate or stops
+    if stop is None:
+        current, stop = _walk(search, current, start_terms, only_if_rejected)
+    return Searched(_record(search, current, stop, session),
+                    Fitted(current.session, current.cf, current.model, current.fit,
+                           current.adequacy), stop)
+
+
+def _walk(search, current, start_terms, only_if_rejected) -> tuple[Candidate, Stop]:
+    """The steps from ``current``: forward, then backward, until a stop (module
+    docstring); the model reached and why it stopped."""
+    for _ in range(search.max_fits):  # each step fits a new candidate or stops
         if search.fits_left() <= 0:
-            stop = Stop.FITS
-            break
+            return current, Stop.FITS
         best, why, source, tried = _forward(search, current)
         for c in tried:
             if c is not best and not c.why:
                 c.why = _dropped(current, c, best)
         if best is None:  # every addition tried, or the bound reached within the step
-            stop = Stop.FITS if search.fits_left() <= 0 else \
-                Stop.NOTHING_BETTER if current.ok else Stop.NO_GAIN
-            break
+            return current, (Stop.FITS if search.fits_left() <= 0 else
+                             Stop.NOTHING_BETTER if current.ok else Stop.NO_GAIN)
         best.why = f"{why} ({source})"
         current = _removals(search, best, start_terms, best.terms - best.parent.terms)
-    stop = stop or Stop.STEPS
-    return Searched(_record(search, current, stop, session),
-                    Fitted(current.session, current.cf, current.model, current.fit,
-                           current.adequacy), stop)
+        if only_if_rejected and current.ok:
+            return current, Stop.ADEQUATE_REACHED
+    return current, Stop.STEPS
 
 
 def _first_stop(start, only_if_rejected) -> Stop | None:

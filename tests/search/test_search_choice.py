@@ -168,3 +168,56 @@ def test_the_search_ends_at_its_start_for_a_named_reason(overflows, faulty, adeq
                             adequacy=SimpleNamespace(faulty_data=faulty), ok=adequate)
     stop = _first_stop(start, only_if_rejected)
     assert stop is (None if expected is None else Stop[expected])
+
+
+class _Walk:
+    """A whole search over given models: ``table`` maps a model's terms to (log Z,
+    adequate); the verdict of a rejected model proposes ``proposals`` (in order)."""
+
+    def __init__(self, table, proposals, max_fits=32):
+        self.table, self._proposals, self.max_fits = table, proposals, max_fits
+        self.done, self.fitted = {}, []
+
+    def fits_left(self):
+        return self.max_fits - len(self.fitted)
+
+    def proposed(self, current):
+        return [] if current._adequate else [m for m in self._proposals
+                                             if not m <= current.terms]
+
+    def singles(self, current):
+        return [m for m in (LAG, DROP, DEAD) if not m <= current.terms]
+
+    def evaluate(self, moves, parent, kind):
+        out = []
+        for move in moves:
+            terms = parent.terms - move if kind == "remove" else parent.terms | move
+            if terms not in self.done:
+                z, adequate = self.table.get(terms, (-50.0, False))
+                c = _Stub("x", z, adequate)
+                c.terms, c.parent, c.why = terms, parent, ""
+                self.done[terms] = c
+                self.fitted.append(terms)
+            out.append(self.done[terms])
+        return out
+
+
+@pytest.mark.parametrize("only_if_rejected", [True, False])
+def test_a_plain_fit_stops_at_the_first_model_the_data_do_not_reject(only_if_rejected):
+    """A plain fit's search takes the proposed lag the data accept and stops there,
+    having fitted only it; ``--compare`` tries every addition to it as well, and takes
+    one the evidence strongly supports."""
+    from pmdc_bayes.search import Stop, _walk
+
+    table = {frozenset(): (0.0, False), LAG: (40.0, True),
+             LAG | DROP: (40.0 + ADD_MARGIN + 1.0, True), LAG | DEAD: (39.0, True)}
+    search = _Walk(table, [LAG])
+    start = _Stub("ideal", 0.0, False)
+    start.terms, start.why = frozenset(), ""
+    chosen, stop = _walk(search, start, frozenset(), only_if_rejected)
+    if only_if_rejected:
+        assert chosen.terms == LAG and stop is Stop.ADEQUATE_REACHED
+        assert search.fitted == [LAG]
+    else:
+        assert chosen.terms == LAG | DROP and stop is Stop.NOTHING_BETTER
+        assert LAG | DEAD in search.fitted

@@ -277,6 +277,11 @@ def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path, m
     assert sel["candidates"][0]["verdict"] == "inadequate"
     assert "dead_time" in sel["nuisances"], format_selection(sel)
     assert summary["adequacy"]["verdict"] == "adequate"
+    # it stops at the first model the data do not reject: no addition tried beyond it
+    assert sel["stopped"] == "adequate_reached", format_selection(sel)
+    chosen = next(r for r in sel["candidates"] if r["decision"] == "chosen")
+    assert not [r for r in sel["candidates"]
+                if r["parent"] == chosen["name"] and r["move"].startswith("+")]
     names = list(summary["fit"]["names"])
     copy = load_session(out / SESSION_COPY)
     assert terms_of(copy) == frozenset(sel["terms"])
