@@ -26,10 +26,9 @@ __all__ = ["plausibility_tests", "plausibility_checks", "rise_eligible"]
 
 def _as_logged(trace, w):
     """The model's speed ``w`` at the trace's samples as the trace's speed was obtained:
-    as it is where a speed was logged; from the angle it turns, by the same estimate
-    as the data's (over the same window, which the counted angle's quantum sets),
-    where the speed was estimated from a counted angle (whose window slows the rise the
-    data show)."""
+    as it is where a speed was logged; where it was estimated from a counted angle, from
+    the angle ``w`` turns by the data's estimate over the data's window (which slows the
+    rise the data show)."""
     if trace.speed_logged or trace.position is None:
         return w
     t = np.asarray(trace.time, dtype=float)
@@ -114,8 +113,7 @@ def _rise_test(model, k, tr, w, noise_sd, s0, rng, rises, rho) -> list:
     t_step = step_time(tr)
     span = np.asarray(tr.time) < step_end(tr, t_step)  # up to the next change
     t = np.asarray(tr.time, float)[span]
-    obs, mod = rise_time(t, tr.speed[span], t_step), rise_time(t, _as_logged(tr, w)[span],
-                                                               t_step)
+    obs, mod = (rise_time(t, y[span], t_step) for y in (tr.speed, _as_logged(tr, w)))
     if obs is None or mod is None or not (obs > 0 and mod > 0):
         return []
     name = ChannelId(tr.name, "speed" if tr.speed_logged or tr.position is None else "position")
