@@ -64,9 +64,8 @@ class RigEffects:
         for what, spec in INPUTS.items():
             index = d.get(f"level_{what}")
             if index is not None:
-                levels = jnp.stack([v[n] for n in level_names(self.session, what)])
-                exp = exp._replace(**{spec.segments: jnp.where(
-                    index >= 0, levels[jnp.maximum(index, 0)], getattr(exp, spec.segments))})
+                exp = exp._replace(**{spec.segments: _per_segment(
+                    v, level_names(self.session, what), index, getattr(exp, spec.segments))})
         return exp
 
     def inputs(self, theta, exp, d=None):
@@ -84,8 +83,7 @@ class RigEffects:
         index = None if d is None else d.get("lead_index")
         shift = None
         if index is not None:
-            leads = jnp.stack([v[n] for n in session_lead_names(self.session)])
-            shift = jnp.where(index >= 0, leads[jnp.maximum(index, 0)], 0.0)
+            shift = _per_segment(v, session_lead_names(self.session), index, 0.0)
         if "dead_time" in self.session.nuisances or shift is not None:
             # a trace's own dead time, one shared by every trace, or (in a superset
             # model, :mod:`.superset`) the sum of both forms
@@ -121,3 +119,10 @@ class RigEffects:
     def sensed(self, theta, ia, w):
         """What the sensors report of their lagged readings ``(ia, ω)``."""
         return self.read_by(theta, "current", ia), self.read_by(theta, "speed", w)
+
+
+def _per_segment(values, names, index, otherwise):
+    """Each segment's value of the parameter ``names[index]`` (``values`` by name), or
+    ``otherwise`` where its index is −1."""
+    table = jnp.stack([values[n] for n in names])
+    return jnp.where(index >= 0, table[jnp.maximum(index, 0)], otherwise)

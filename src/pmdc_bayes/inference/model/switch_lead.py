@@ -43,9 +43,8 @@ from ...io.session import Session, Trace
 from .params import ParamSpec, Prior, identifier
 
 __all__ = ["lead_name", "lead_names", "lead_specs", "leading_traces", "lead_scans",
-           "segment_leads", "lead_data", "session_lead_names", "SCAN_SHARES", "MAX_CHANGES",
-           "TIMING",
-           "PRIOR_MEAN", "PRIOR_SD"]
+           "segment_leads", "lead_data", "session_lead_names", "change_times",
+           "SCAN_SHARES", "MAX_CHANGES", "TIMING", "PRIOR_MEAN", "PRIOR_SD"]
 
 # an even mixture of a lead of 0 and a uniform one over the interval, as shares of it
 PRIOR_MEAN, PRIOR_SD = 0.25, float(np.sqrt(5.0 / 48.0))
@@ -105,7 +104,11 @@ def _away(schedule) -> bool:
 def lead_names(tr: Trace) -> tuple[str, ...]:
     """The names of ``tr``'s leads: one per change, or one shared (:func:`lead_name`)
     where it changes once or more than :data:`MAX_CHANGES` times."""
-    n = change_times(tr).size
+    return _named(tr, change_times(tr).size)
+
+
+def _named(tr: Trace, n: int) -> tuple[str, ...]:
+    """:func:`lead_names` of ``tr`` given its number of changes ``n``."""
     if n == 0:
         return ()
     if n == 1 or n > MAX_CHANGES:
@@ -124,7 +127,8 @@ def lead_specs(session: Session) -> list[ParamSpec]:
     seeded at the prior's centre."""
     specs = []
     for tr in session.traces:
-        names, times = lead_names(tr), change_times(tr)
+        times = change_times(tr)
+        names = _named(tr, times.size)
         for j, name in enumerate(names):
             when = "each change" if len(names) < times.size else \
                 f"the change at {float(times[j]):.6g} s"
@@ -153,7 +157,8 @@ def segment_leads(session: Session, seg_t0, seg_trace) -> np.ndarray | None:
     out = np.full(seg_t0.size, -1, dtype=np.int32)
     base = 0
     for k, tr in enumerate(session.traces):
-        names, times = lead_names(tr), change_times(tr)
+        times = change_times(tr)
+        names = _named(tr, times.size)
         if not names:
             continue
         mine = np.flatnonzero(seg_trace == k)
