@@ -33,6 +33,15 @@ def _fitted(path):
     return session, model, fit, assess(model, fit, cf)
 
 
+def _declaring(tmp_path, name, line):
+    """A copy of the session ``name`` whose ``[model]`` holds ``line``."""
+    path = tmp_path / "session"
+    shutil.copytree(SESSIONS / name, path)
+    toml = path / "session.toml"
+    toml.write_text(toml.read_text() + f"\n[model]\n{line}\n")
+    return path
+
+
 def _z(model, fit, name, truth):
     i = list(fit.names).index(name)
     value = np.asarray(model.theta({name: truth}))[i]  # in θ: log, or the value
@@ -61,10 +70,7 @@ def test_a_tacho_lag_declared_on_such_a_column_is_fitted_right(tmp_path):
     """0 → 6 → 12 V from a noisy column, each change off the samples, the tacho read
     through a 6 ms filter: with the lag declared, adequate, the lag and every motor
     parameter inside its 99 % interval."""
-    path = tmp_path / "session"
-    shutil.copytree(SESSIONS / "tacho_lag_column", path)
-    toml = path / "session.toml"
-    toml.write_text(toml.read_text() + "\n[model]\nspeed_lag = true\n")
+    path = _declaring(tmp_path, "tacho_lag_column", "speed_lag = true")
     truth = json.loads((path / "truth.json").read_text())
     _, model, fit, verdict = _fitted(path)
     assert str(verdict.verdict) == "adequate", verdict.failures()
@@ -79,10 +85,7 @@ def test_a_dead_time_of_a_whole_number_of_samples_converges_on_its_kink(tmp_path
     every parameter together leaves.  The fit converges there (the dead time held, the
     rest converged, then freed), the starts that stalled at it count as agreeing, and
     the dead time and every motor parameter lie inside their 99 % intervals."""
-    path = tmp_path / "session"
-    shutil.copytree(SESSIONS / "dead_time_on_a_sample", path)
-    toml = path / "session.toml"
-    toml.write_text(toml.read_text() + '\n[model]\ndead_time = "shared"\n')
+    path = _declaring(tmp_path, "dead_time_on_a_sample", 'dead_time = "shared"')
     truth = json.loads((path / "truth.json").read_text())
     _, model, fit, verdict = _fitted(path)
     assert str(verdict.verdict) == "adequate", verdict.failures()
