@@ -26,7 +26,7 @@ from ...io.lattice import analogue_channels
 from ..model.noise import noise_scale
 from .diagnosis_levels import level_rules
 from .findings import Check
-from .onset import departure, onset_shape, step_end, step_time
+from .onset import departure, onset_shape, step_window
 from .proposals import Proposal, has, said
 
 __all__ = ["diagnose", "Proposal"]
@@ -52,12 +52,12 @@ def _late_start(t, y, yhat, s0, t_step, t_rise):
     return late if late >= LATE_SAMPLES * dt and late > LATE_SHARE * t_rise else None
 
 
-def _start_rules(model, tr, pred, t_step):
+def _start_rules(model, tr, pred):
     """Sentences on the start of a trace's largest step, read up to its next voltage
-    change (a staircase's later steps would otherwise stand in for the first's end)."""
+    change (:func:`.onset.step_window`)."""
     ia, w = pred
     out = []
-    upto = np.asarray(tr.time) < step_end(tr, t_step)
+    t_step, upto = step_window(tr)
     t = np.asarray(tr.time, float)[upto]
     data = onset_shape(t, np.asarray(tr.speed)[upto], t_step)
     fitted = onset_shape(t, np.asarray(w)[upto], t_step)
@@ -231,7 +231,7 @@ def diagnose(model, fit, preds, findings) -> tuple[list[str], list[Proposal]]:
         # every trace, not only failing ones: a model that absorbs a delay in Ra and La
         # fails on those parameters while its traces only warn
         out += _flat_top(tr, pred[0])
-        out += _start_rules(model, tr, pred, step_time(tr))
+        out += _start_rules(model, tr, pred)
     out += level_rules(model, fit, preds, findings)
     out += _finding_rules(model, fit, findings, out)
     kept, proposals, fitted = [], [], []

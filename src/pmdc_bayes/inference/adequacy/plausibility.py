@@ -19,7 +19,7 @@ from ..model.nuisances import DEAD_ZONE_NAMES
 from ..model.objective import NU0
 from .calibrate import Test, judged_alone, logged_quantum, replicates, session_rng, tail_p
 from .findings import NO_LOAD_SPEED, Check, Finding, Severity, sig3
-from .onset import rise_time, step_end, step_time
+from .onset import rise_time, step_window
 
 __all__ = ["plausibility_tests", "plausibility_checks", "rise_eligible"]
 
@@ -110,8 +110,7 @@ def _rise_test(model, k, tr, w, noise_sd, s0, rng, rises, rho) -> list:
     """The time to 63 % of the speed's change after the step, on the data against its
     distribution on replicates of the MAP through the speed's sensor path; the sample
     interval bounds its resolution (the data's step may fall anywhere within one)."""
-    t_step = step_time(tr)
-    span = np.asarray(tr.time) < step_end(tr, t_step)  # up to the next change
+    t_step, span = step_window(tr)
     t = np.asarray(tr.time, float)[span]
     obs, mod = (rise_time(t, y[span], t_step) for y in (tr.speed, _as_logged(tr, w)))
     if obs is None or mod is None or not (obs > 0 and mod > 0):
