@@ -39,7 +39,9 @@ def print_fit(summary: dict, out) -> bool:
     if "model_selection" in summary:
         from .selection import format_selection
 
-        print("The model, found by a search (--compare; --no-search skips it):")
+        why = ("--compare" if summary["model_selection"].get("compare", True)
+               else "the data reject the session's model; --no-search skips it")
+        print(f"The model, found by a search ({why}):")
         for line in format_selection(summary["model_selection"]):
             print(f"  {line}")
     print(headline_text(summary))

@@ -175,7 +175,9 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
     stop = _first_stop(current, only_if_rejected)
     if stop is None:
         current, stop = _walk(search, current, start_terms, only_if_rejected)
-    return Searched(_record(search, current, stop, session),
+    record = _record(search, current, stop, session)
+    record["compare"] = not only_if_rejected
+    return Searched(record,
                     Fitted(current.session, current.cf, current.model, current.fit,
                            current.adequacy), stop)
 

@@ -83,10 +83,11 @@ def side_by_side(sel: dict) -> list[str]:
     if len(rows) < 2:
         return []
     shared = [p for p in rows[0]["values"] if all(p in r["values"] for r in rows)]
+    width = max([10] + [len(p) + 2 for p in shared])
     lines = [f"  [{k + 1}] {r['name']}" for k, r in enumerate(rows)]  # names in full
-    lines.append("  " + f"{'':<10}" + "".join(f"{f'[{k + 1}]':>15}{'':<11}"
-                                            for k in range(len(rows))))
+    lines.append("  " + f"{'':<{width}}" + "".join(f"{f'[{k + 1}]':>13}{'':<13}"
+                                                for k in range(len(rows))))
     for p in shared:
         cells = "".join(f"{v:>13.4g} ± {sd:<10.2g}" for v, sd in (r["values"][p] for r in rows))
-        lines.append(f"  {p:<10}{cells}")
+        lines.append(f"  {p:<{width}}{cells}")
     return lines

@@ -67,12 +67,13 @@ def test_compare_picks_the_dead_time_and_runs_it(session, tmp_path, pmdc):
     proc = _fit(pmdc, session, out, "--compare", "--no-mcmc")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert proc.stdout.startswith("Model adequate")
-    assert "The model, found by a search (--compare" in proc.stdout
+    assert "The model, found by a search (--compare):" in proc.stdout
     assert "Chosen: dead time" in proc.stdout
     # the rig's parameters are named in words under the table
     assert "The rig's parameters: dead_time" in proc.stdout
     summary = json.loads((out / "summary.json").read_text())
     sel = summary["model_selection"]
+    assert sel["compare"] is True
     assert sel["recommended"].startswith("dead time") and sel["nuisances"] == ["dead_time"]
     verdicts = {r["name"]: r["verdict"] for r in sel["candidates"]}
     assert verdicts["ideal"] == "inadequate" and verdicts[sel["recommended"]] == "adequate"

@@ -175,23 +175,29 @@ def test_each_term_of_a_move_of_several_is_taken_out_where_the_evidence_allows()
 def test_the_path_on_screen_names_every_candidate_and_the_side_by_side_values():
     row = {"name": "ideal", "n_params": 5, "verdict": "inadequate", "log_evidence": 1.0,
            "delta_log_evidence": None, "failures": ["step: whiteness"], "why": "the ideal motor",
-           "decision": "dropped", "values": {"K": [0.05, 1e-4]}}
+           "decision": "dropped", "values": {"K": [0.05, 1e-4], "switch_lead_step": [1e-4, 1e-5]}}
     rows = [row, dict(row, name="dead time", n_params=7, verdict="adequate", log_evidence=50.0,
                       delta_log_evidence=49.0, why="log Z +49.0 over ideal", decision="chosen"),
             dict(row, name="speed lag", n_params=6, verdict="adequate", log_evidence=49.5,
                  delta_log_evidence=48.5, why="log Z -0.5 against dead time",
-                 values={"K": [0.0501, 1e-4]})]
+                 values={"K": [0.0501, 1e-4], "switch_lead_step": [2e-4, 1e-5]})]
     sel = {"start": "ideal", "fits": 3, "max_fits": 16, "candidates": rows,
            "recommended": "dead time", "reason": "the data do not reject it",
            "equivalent": ["speed lag"]}
     lines = format_selection(sel)
     assert lines[0].startswith("Model search from ideal: 3 fits")
     assert any(x.startswith("*dead time") and "+49.0" in x for x in lines)
-    assert lines[-5].startswith("The data do not tell it from: speed lag")
+    assert lines[-6].startswith("The data do not tell it from: speed lag")
     # each model named in full, however long, and its column by its number
-    assert lines[-4].split() == ["[1]", "dead", "time"]
-    assert lines[-3].split() == ["[2]", "speed", "lag"] and lines[-2].split() == ["[1]", "[2]"]
-    assert lines[-1].split()[0] == "K" and "0.0501" in lines[-1]
+    assert lines[-5].split() == ["[1]", "dead", "time"]
+    assert lines[-4].split() == ["[2]", "speed", "lag"] and lines[-3].split() == ["[1]", "[2]"]
+    assert lines[-2].split()[0] == "K" and "0.0501" in lines[-2]
+    # each column's number ends where its values end, however long a parameter's name
+    head, k_row, lead_row = lines[-3:]
+    assert lead_row.split()[0] == "switch_lead_step"
+    for number, value in (("[1]", "0.05"), ("[2]", "0.0501")):
+        assert head.index(number) + 3 == k_row.index(value) + len(value)
+    assert k_row.index("0.0501") == lead_row.index("0.0002")
 
 
 # -- searches on simulated benches (slow: each candidate is a MAP fit) ------------------
@@ -256,7 +262,8 @@ PLAN = plan_toml(plan(
 
 
 @pytest.mark.compiles
-def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path, monkeypatch):
+def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path, monkeypatch,
+                                                                    capsys):
     """No [model], the ideal model rejected (a 3 ms dead time): a plain fit searches, goes
     on from the fit of the model it chose (not fitting it again), and writes it into the
     run's copy of session.toml; the report re-read from the run and a refit of the copy
@@ -279,6 +286,13 @@ def test_a_plain_fit_searches_and_its_run_copy_reproduces_the_choice(tmp_path, m
     assert summary["adequacy"]["verdict"] == "adequate"
     # it stops at the first model the data do not reject: no addition tried beyond it
     assert sel["stopped"] == "adequate_reached", format_selection(sel)
+    assert sel["compare"] is False
+    from pmdc_bayes._console import print_fit
+
+    capsys.readouterr()
+    print_fit(summary, out)  # the terminal says why it searched, and how not to
+    assert ("The model, found by a search (the data reject the session's model; "
+            "--no-search skips it):") in capsys.readouterr().out
     chosen = next(r for r in sel["candidates"] if r["decision"] == "chosen")
     assert not [r for r in sel["candidates"]
                 if r["parent"] == chosen["name"] and r["move"].startswith("+")]
