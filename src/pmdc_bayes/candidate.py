@@ -112,6 +112,11 @@ class Candidate:
         return self._adequacy
 
     @property
+    def checked(self) -> bool:
+        """Whether the verdict is made (a candidate's programs are not needed after)."""
+        return self._adequacy is not None
+
+    @property
     def ok(self) -> bool:
         return self.adequacy.ok and self.fit.ok \
             and math.isfinite(self.log_evidence)

@@ -168,7 +168,7 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
 
         session = dataclasses.replace(session, friction=friction)
     search = SearchState(session, free_friction=friction is None, seed=seed, max_fits=max_fits,
-                     say=say)
+                         say=say, keep_within=max(TIE, REMOVE_MARGIN))
     start_terms = terms_of(session)
     current = search.start(start_terms)
     current.why = "the session's model" if start_terms else "the ideal motor"
@@ -177,6 +177,7 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
         current, stop = _walk(search, current, start_terms, only_if_rejected)
     record = _record(search, current, stop, session)
     record["compare"] = not only_if_rejected
+    search.let_go(current, everything=True)  # the run goes on in the chosen model's own
     return Searched(record,
                     Fitted(current.session, current.cf, current.model, current.fit,
                            current.adequacy), stop)
@@ -197,6 +198,7 @@ def _walk(search, current, start_terms, only_if_rejected) -> tuple[Candidate, St
                              Stop.NOTHING_BETTER if current.ok else Stop.NO_GAIN)
         best.why = f"{why} ({source})"
         current = _removals(search, best, start_terms, best.terms - best.parent.terms)
+        search.let_go(current)
         if only_if_rejected and current.ok:
             return current, Stop.ADEQUATE_REACHED
     return current, Stop.STEPS

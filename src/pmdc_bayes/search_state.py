@@ -1,7 +1,12 @@
 """The state of a model search (:mod:`.search`): the candidates fitted so far, in the
 order fitted, and the single additions it can try on a session.  Candidates are fitted
 in their own compiled programs or a superset model's (:mod:`.supersets`), a step's next
-candidates' programs made in background threads while the one before is fitted."""
+candidates' programs made in background threads while the one before is fitted.
+
+A candidate's programs are let go as soon as the search can no longer need them (a
+stick-slip model's hold about half a gigabyte, and a search fits a dozen): when its
+evidence falls so far below its parent's that it can be neither taken nor reported
+beside the model chosen, or once its verdict is made and the search has moved on."""
 
 from __future__ import annotations
 
@@ -21,8 +26,9 @@ class SearchState:
     """The candidates a search on ``session`` has fitted and what it can try next."""
 
     def __init__(self, session: Session, *, free_friction: bool, seed: int, max_fits: int,
-                 say):
+                 say, keep_within: float = float("inf")):
         self.session, self.seed, self.max_fits, self.say = session, seed, max_fits, say
+        self.keep_within = keep_within  # log Z below a parent's past which nothing is asked
         self.free_friction = free_friction
         self.done: dict[frozenset, Candidate] = {}
         self.order: list[Candidate] = []
@@ -51,9 +57,10 @@ class SearchState:
             out.append(cand)
         programs = [self.supersets.for_model(c.terms, c.model) for c in new]
         ahead = WarmUp.fits([c.model for c in new[1:]],
-                            kernels=[p is None for p in programs[1:]])
+                            kernels=[p is None for p in programs[1:]], lookahead=1)
         with ahead.stopped_on_error():
-            for cand, superset in zip(new, programs, strict=True):
+            for k, (cand, superset) in enumerate(zip(new, programs, strict=True)):
+                ahead.fitting(k)
                 self._fitted(cand, superset)
         ahead.stop()
         return out
@@ -69,9 +76,24 @@ class SearchState:
         and said; with its verdict where asked (which makes it)."""
         cand.run(self.seed, superset)
         self.order.append(cand)
+        parent = cand.parent
+        if parent is not None and not (
+                cand.log_evidence >= parent.log_evidence - self.keep_within):
+            cand.model.release()  # neither taken nor a tie: its verdict is never asked
         said = f"{cand.adequacy.verdict}, " if verdict else ""
         self.say(f"model search: {label(cand.terms)}: {said}log Z {cand.log_evidence:.1f}")
         return cand
+
+    def let_go(self, current, *, everything: bool = False) -> None:
+        """Let go of the programs of every candidate but ``current`` whose verdict is made
+        or whose evidence is more than ``keep_within`` below ``current``'s; with
+        ``everything`` (the search over), of all but ``current`` and of the supersets."""
+        for cand in self.order:
+            if cand is not current and (everything or cand.checked or not (
+                    cand.log_evidence >= current.log_evidence - self.keep_within)):
+                cand.model.release()
+        if everything:
+            self.supersets.release()
 
     # -- what to try -------------------------------------------------------------------
     def _moves_for(self, nuisance: str, trace: str | None) -> list[frozenset]:

@@ -96,6 +96,12 @@ class Supersets:
         made = self._made[family]
         return made if made is not None and made.covers(model) else None
 
+    def release(self) -> None:
+        """Let go of the compiled programs of every superset made."""
+        for made in self._made.values():
+            if made is not None:
+                made.model.release()
+
     def _build(self, family):
         """The superset model of ``family``: a session declares one form of dead time, so
         the shared one is appended to the per-trace ones when the family holds both."""

@@ -270,3 +270,23 @@ def test_programs_are_let_go_when_the_process_nears_its_memory_map_limit(monkeyp
     fn = cache.compiled(("map-test-c",), lambda: jax.jit(lambda x: 2 * x))
     assert set(cache._IN_MEMORY) == {("map-test-c",)}
     assert float(fn(3.0)) == 6.0
+
+
+def test_one_structure_s_programs_are_let_go_and_made_again_when_asked(monkeypatch):
+    """A model a search has dropped: its programs under every name are let go, another
+    structure's kept; asked for again, a program is made anew."""
+    monkeypatch.setattr(cache, "_IN_MEMORY", {})
+    built = []
+
+    def program(name, structure, k):
+        return cache.compiled((name,) + structure,
+                              lambda: built.append((name, structure)) or jax.jit(lambda x: x + k))
+
+    for name in ("step", "predict"):
+        program(name, ("dropped", 1), 1)(1.0)
+        program(name, ("kept", 2), 2)(1.0)
+    cache.release_structure(("dropped", 1))
+    assert set(cache._IN_MEMORY) == {("step", "kept", 2), ("predict", "kept", 2)}
+    assert float(program("step", ("kept", 2), 2)(1.0)) == 3.0 and len(built) == 4
+    assert float(program("step", ("dropped", 1), 1)(1.0)) == 2.0
+    assert built[-1] == ("step", ("dropped", 1))

@@ -3,6 +3,8 @@ each once, the very ones the stages then call, and none when stopped first."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from pmdc_bayes.inference import _runtime as cache
@@ -73,3 +75,36 @@ def test_fits_makes_each_models_fitting_programs_which_the_fits_then_use(session
         assert {n: c for n, c in _made(model).items()} == {"optimistix-step": 1, "predict": 1}
         fit_map(model, seed=0)
         assert _made(model)["optimistix-step"] == 1  # the fit called the program made ahead
+
+
+def test_fits_makes_no_more_models_programs_ahead_than_its_bound(session_dir):
+    """With a lookahead of one, the threads make the programs of the model after the one
+    being fitted, then wait: a search's dozen candidates are not all held at once."""
+    import dataclasses
+
+    cache._IN_MEMORY.clear()
+    session = load_session(session_dir)
+    models = [build_model(s, fit_seed(s)) for s in
+              (dataclasses.replace(session, nuisances=("dead_time",)),
+               dataclasses.replace(session, nuisances=("speed_lag",)))]
+    warm = WarmUp.fits(models, threads=2, lookahead=1)  # the caller fits its model 0
+    deadline = time.monotonic() + 600
+    while warm.waiting() < 2 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert warm.waiting() == 2  # both threads wait at the second model's jobs
+    assert _made(models[0]) == {"optimistix-step": 1, "predict": 1} and not _made(models[1])
+    warm.fitting(1)  # the caller fits its model 1: the next may be made
+    warm.join()
+    assert _made(models[1]) == {"optimistix-step": 1, "predict": 1} and warm.waiting() == 0
+
+
+def test_a_stopped_warm_up_waiting_for_the_fits_ends(session_dir):
+    session = load_session(session_dir)
+    model = build_model(session, fit_seed(session))
+    warm = WarmUp.fits([model, model], threads=1, lookahead=0)  # nothing may be made yet
+    deadline = time.monotonic() + 60
+    while warm.waiting() < 1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    warm.stop()
+    warm.join()  # returns: the waiting thread is woken and ends
+    assert warm.waiting() == 0

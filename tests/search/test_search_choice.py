@@ -201,6 +201,9 @@ class _Walk:
             out.append(self.done[terms])
         return out
 
+    def let_go(self, current, everything=False):
+        pass
+
 
 @pytest.mark.parametrize("only_if_rejected", [True, False])
 def test_a_plain_fit_stops_at_the_first_model_the_data_do_not_reject(only_if_rejected):
@@ -221,3 +224,48 @@ def test_a_plain_fit_stops_at_the_first_model_the_data_do_not_reject(only_if_rej
     else:
         assert chosen.terms == LAG | DROP and stop is Stop.NOTHING_BETTER
         assert LAG | DEAD in search.fitted
+
+
+class _Held(_Stub):
+    """A candidate of a search state: its model counts the times its programs are let
+    go; its verdict made or not; fitted by a no-op."""
+
+    def __init__(self, name, log_evidence, parent=None, checked=False):
+        super().__init__(name, log_evidence, True)
+        self.parent, self.checked = parent, checked
+        self.model = SimpleNamespace(released=0)
+        self.model.release = lambda: setattr(self.model, "released", self.model.released + 1)
+
+    def run(self, seed, superset):
+        pass
+
+
+def test_a_candidate_s_programs_are_let_go_once_the_search_cannot_ask_for_them():
+    """Right after its fit, a candidate whose evidence is so far below its parent's that
+    it can be neither taken, nor kept by a removal, nor reported as a tie; after a step,
+    every candidate whose verdict is made too; at the end, all but the chosen one and
+    the supersets'."""
+    from pmdc_bayes.search import REMOVE_MARGIN, TIE
+    from pmdc_bayes.search_state import SearchState
+
+    within = max(TIE, REMOVE_MARGIN)
+    state = SearchState.__new__(SearchState)
+    supersets = SimpleNamespace(released=0)
+    supersets.release = lambda: setattr(supersets, "released", supersets.released + 1)
+    state.order, state.keep_within, state.seed, state.say = [], within, 0, lambda text: None
+    state.supersets = supersets
+    current = _Held("speed_lag", 0.0)
+    state._fitted(current, None)
+    far = state._fitted(_Held("dead_time", -within - 0.1, current), None)
+    near = state._fitted(_Held("voltage_drop", -within + 0.1, current), None)
+    checked = state._fitted(_Held("current_lag", -1.0, current, checked=True), None)
+    better = state._fitted(_Held("speed_gain", 5.0, current), None)
+    assert [c.model.released for c in (current, far, near, checked, better)] == [0, 1, 0, 0, 0]
+    # the removal rule asks no verdict of what is let go: its loss exceeds the margin
+    assert current.log_evidence - far.log_evidence > REMOVE_MARGIN
+    state.let_go(better)  # the search moved on to `better`: `near` is now far below it
+    assert [c.model.released > 0 for c in (current, far, near, checked, better)] == [
+        True, True, True, True, False]
+    assert supersets.released == 0
+    state.let_go(better, everything=True)
+    assert better.model.released == 0 and supersets.released == 1

@@ -224,9 +224,18 @@ def test_the_search_reaches_what_the_bench_has(case, expected):
 def test_a_combination_is_reached_from_the_ideal_model():
     """A dead time and a brush drop at once: no single addition makes the model adequate,
     the search takes the dead time, then the drop, and the data do not reject the pair."""
+    from pmdc_bayes.inference import _runtime
+    from pmdc_bayes.search import run_search
+
     session = bench_session(BenchMotor(**MOTOR, dead_time=3e-3, voltage_drop=1.0), STEPS,
                             seed=3, steady_voltages=STEADY_VOLTAGES)
-    sel, text = _search(session)
+    before = set(_runtime._IN_MEMORY)
+    found = run_search(session)
+    sel, text = found.record, "\n".join(format_selection(found.record))
+    # the programs of every model dropped are let go: of the MAP's programs made, only
+    # the chosen model's is kept (the run goes on from it)
+    kept = {k[1:] for k in set(_runtime._IN_MEMORY) - before if k[0] == "optimistix-step"}
+    assert kept <= {found.chosen.model.structure_key()} and len(sel["candidates"]) > 2
     chosen = {t.split(":")[0] for t in sel["terms"]}
     assert {"dead_time", "voltage_drop"} <= chosen, text
     assert next(r for r in sel["candidates"] if r["decision"] == "chosen")["verdict"] \

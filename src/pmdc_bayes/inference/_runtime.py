@@ -23,8 +23,8 @@ from jax import export
 
 from ..physics.solution import Experiment
 
-__all__ = ["enable_cache", "compiled", "release", "cache_dir", "announcing", "compile_seconds",
-           "StageClock", "MAP_SHARE"]
+__all__ = ["enable_cache", "compiled", "release", "release_structure", "cache_dir",
+           "announcing", "compile_seconds", "StageClock", "MAP_SHARE"]
 
 _IN_MEMORY: dict = {}
 _STATE = {"dir": None, "announce": None}
@@ -170,11 +170,31 @@ def _map_pressure() -> bool:
 def release() -> None:
     """Let go of every compiled program this process keeps (made again, or loaded from
     the disk cache, when next asked for)."""
-    import gc
-
     _IN_MEMORY.clear()
     jax.clear_caches()
+    _collect()
+
+
+def release_structure(structure: tuple) -> None:
+    """Let go of the compiled programs of one session structure, under every name (a
+    model a search has dropped: a stick-slip model's programs hold about half a gigabyte
+    each); made again, or loaded from the disk cache, if asked for again.  A program a
+    thread is making or running meanwhile is finished, then dropped."""
+    with _BUILDING:
+        for key in [k for k in _IN_MEMORY if k[1:] == structure]:
+            del _IN_MEMORY[key]
+    _collect()
+
+
+def _collect() -> None:
+    """Collect what was let go, and hand the freed memory back to the system where its C
+    library can (glibc's ``malloc_trim``), so that the process's size shows it."""
+    import ctypes
+    import gc
+
     gc.collect()
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
 
 
 def compiled(key: tuple, build):

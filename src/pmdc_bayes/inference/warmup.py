@@ -7,9 +7,10 @@ only on the session's structure, so background threads make them meanwhile, each
 one call at the seed θ; XLA compiles outside the GIL, so on two cores they overlap.
 A program the calling thread reaches first is waited for, never made twice
 (:class:`.cache._Compiled`).  A run that fits several models in turn (``--compare``)
-makes the next models' fitting programs the same way (:meth:`WarmUp.fits`).  A failure
-here is dropped: the stage that needs the program makes it again and reports its own
-error.
+makes the next models' fitting programs the same way (:meth:`WarmUp.fits`), a bounded
+number of models ahead of the one being fitted, so that the programs held at once stay
+few (a stick-slip model's hold about half a gigabyte).  A failure here is dropped: the
+stage that needs the program makes it again and reports its own error.
 """
 
 from __future__ import annotations
@@ -30,9 +31,11 @@ THREAD_NAME = "pmdc-bayes warm-up"
 
 
 def _queue(items) -> queue.SimpleQueue:
+    """``items``, ``(model, job)`` or ``(index, model, job)``, as jobs of an index (the
+    model's place among those a :meth:`WarmUp.fits` makes; 0 otherwise)."""
     jobs = queue.SimpleQueue()
     for item in items:
-        jobs.put(item)
+        jobs.put(item if len(item) == 3 else (0, *item))
     return jobs
 
 
@@ -52,26 +55,44 @@ class WarmUp:
 
     @classmethod
     def fits(cls, models, *, threads: int | None = None, start: bool = True,
-             kernels=None) -> WarmUp:
+             kernels=None, lookahead: int | None = None) -> WarmUp:
         """``threads`` threads (default: two, or one on a single core) making, model
         after model (each taking the next job in order), what a MAP fit and its
         adequacy checks call (the Gauss–Newton kernel, the prediction): for a run that
         fits several models in turn (``--compare``), so that the next models' programs
         are made while this one is fitted (an XLA compilation keeps to one core).
         ``kernels``, per model, whether it needs its own kernel (not when it is fitted
-        in a superset's, :mod:`.superset`); default all."""
+        in a superset's, :mod:`.superset`); default all.  ``lookahead``: the programs of
+        at most that many models beyond the one being fitted (:meth:`fitting`) are made
+        (default: every model's at once)."""
         if threads is None:
             threads = min(2, usable_cores())
         if kernels is None:
             kernels = [True] * len(models)
         self = cls.__new__(cls)
         self.n_walkers = None
-        jobs = _queue((m, job) for m, own in zip(models, kernels, strict=True)
+        jobs = _queue((j, m, job) for j, (m, own) in enumerate(zip(models, kernels, strict=True))
                       for job in ((self._kernel, self._predict) if own else (self._predict,)))
-        self._threads([jobs] * max(1, threads), start)
+        self._threads([jobs] * max(1, threads), start, lookahead)
         return self
 
-    def _threads(self, lines, start: bool) -> None:
+    def fitting(self, k: int) -> None:
+        """The caller begins to fit the ``k``-th of its models (counted from 0), where
+        :meth:`fits`'s ``models`` are its second onward: the programs of those up to
+        ``lookahead`` beyond it may now be made."""
+        with self._bound:
+            self._limit = max(self._limit, k + self._lookahead)
+            self._bound.notify_all()
+
+    def waiting(self) -> int:
+        """How many threads wait for the fits to catch up (:meth:`fitting`)."""
+        with self._bound:
+            return self._waiting
+
+    def _threads(self, lines, start: bool, lookahead: int | None = None) -> None:
+        self._bound, self._waiting = threading.Condition(), 0
+        self._lookahead = float("inf") if lookahead is None else lookahead
+        self._limit = self._lookahead
         self._stop = threading.Event()
         self.threads = [threading.Thread(target=self._run, args=(jobs,), name=THREAD_NAME,
                                          daemon=False) for jobs in lines]
@@ -88,7 +109,9 @@ class WarmUp:
 
     def stop(self) -> None:
         """Begin no further program (one being made is finished)."""
-        self._stop.set()
+        with self._bound:
+            self._stop.set()
+            self._bound.notify_all()
 
     @contextlib.contextmanager
     def stopped_on_error(self):
@@ -105,8 +128,14 @@ class WarmUp:
         """The jobs of ``jobs`` (a queue, perhaps shared with other threads), in order."""
         while not self._stop.is_set():
             try:
-                model, job = jobs.get_nowait()
+                index, model, job = jobs.get_nowait()
             except queue.Empty:
+                return
+            with self._bound:  # no further ahead of the fits than the bound
+                self._waiting += 1
+                self._bound.wait_for(lambda j=index: self._stop.is_set() or j < self._limit)
+                self._waiting -= 1
+            if self._stop.is_set():
                 return
             try:
                 job(model, model.theta_seed())

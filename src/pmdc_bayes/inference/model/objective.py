@@ -33,6 +33,7 @@ from ...paper.closed_form import ClosedForm
 from ...physics import motor
 from ...physics.solution import Params, experiment_from_traces, real_modes
 from .._runtime import compiled as cached_program
+from .._runtime import release_structure
 from .channels import SteadyBlock, blocks_for, entry_weights
 from .coloured import PREFIX as AR_PREFIX
 from .coloured import coloured_data, noise_rho, start_residuals, whiten
@@ -124,6 +125,10 @@ class SessionModel(RigEffects, Predictions, Pointwise):
         through its ``data`` argument (the methods of this class do).
         """
         return cached_program((name,) + self.structure_key(), build)
+
+    def release(self) -> None:
+        """Let go of the compiled programs of this model's structure (made again if asked)."""
+        release_structure(self.structure_key())
 
     # -- parameters ----------------------------------------------------------------------
     def params(self, theta) -> Params:
