@@ -181,9 +181,11 @@ def release_structure(structure: tuple) -> None:
     each); made again, or loaded from the disk cache, if asked for again.  A program a
     thread is making or running meanwhile is finished, then dropped."""
     with _BUILDING:
-        for key in [k for k in _IN_MEMORY if k[1:] == structure]:
+        held = [k for k in _IN_MEMORY if k[1:] == structure]
+        for key in held:
             del _IN_MEMORY[key]
-    _collect()
+    if held:
+        _collect()
 
 
 def _collect() -> None:

@@ -31,11 +31,11 @@ THREAD_NAME = "pmdc-bayes warm-up"
 
 
 def _queue(items) -> queue.SimpleQueue:
-    """``items``, ``(model, job)`` or ``(index, model, job)``, as jobs of an index (the
-    model's place among those a :meth:`WarmUp.fits` makes; 0 otherwise)."""
+    """``items``, each ``(index, model, job)``: the index the model's place among those a
+    :meth:`WarmUp.fits` makes (0 for one model's later stages)."""
     jobs = queue.SimpleQueue()
     for item in items:
-        jobs.put(item if len(item) == 3 else (0, *item))
+        jobs.put(item)
     return jobs
 
 
@@ -48,9 +48,10 @@ class WarmUp:
     def __init__(self, model, *, mcmc: bool, n_walkers: int | None = None,
                  start: bool = True):
         self.n_walkers = n_walkers
-        lines = [_queue([(model, self._predict)] + ([(model, self._sampler)] if mcmc else []))]
+        lines = [_queue([(0, model, self._predict)]
+                        + ([(0, model, self._sampler)] if mcmc else []))]
         if mcmc:
-            lines.append(_queue([(model, self._pointwise)]))
+            lines.append(_queue([(0, model, self._pointwise)]))
         self._threads(lines, start)
 
     @classmethod
