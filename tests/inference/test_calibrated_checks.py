@@ -139,7 +139,7 @@ def test_the_rise_time_of_a_trace_that_steps_twice_is_read_before_its_second_ste
     """0 → 6 V at 31 ms, then 6 → 12 V at 300 ms, a speed rising with τ = 13.5 ms after
     each: the check reads the first step's rise up to the second step (about τ), not up
     to 63 % of the trace's final speed, which the second step makes (0.27 s)."""
-    from pmdc_bayes.inference.adequacy.onset import step_end
+    from pmdc_bayes.inference.adequacy.onset import step_window
     from pmdc_bayes.inference.adequacy.plausibility import _rise_test
     from pmdc_bayes.io.session import Schedule
     from pmdc_bayes.simulate.cases import case_session
@@ -152,7 +152,10 @@ def test_the_rise_time_of_a_trace_that_steps_twice_is_read_before_its_second_ste
     tr = dataclasses.replace(case_session().traces[0], time=t, speed=w, current=None,
                              voltage=volts, load_torque=Schedule(np.zeros(1), np.zeros(1)),
                              position=None, speed_logged=True, initial="rest")
-    assert step_end(tr, 0.031) == pytest.approx(0.3) and step_end(tr, 0.3) == np.inf
+    t_step, inside = step_window(tr)
+    assert t_step == pytest.approx(0.031) and t[inside][-1] < 0.3 <= t[~inside][0]
+    once = dataclasses.replace(tr, voltage=Schedule(volts.times[:2], volts.values[:2]))
+    assert step_window(once)[1].all()  # no later change: read to the trace's end
     rises = {}
     (test,) = _rise_test(None, 0, tr, w, {}, {ChannelId(tr.name, "speed"): 0.5},
                          np.random.default_rng(3), rises, {})

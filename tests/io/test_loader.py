@@ -20,7 +20,7 @@ from conftest import (
 from pmdc_bayes import SessionError
 from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.io.loader import load_session
-from pmdc_bayes.io.session import Drag
+from pmdc_bayes.io.session import Drag, Schedule
 
 RPM = 2.0 * math.pi / 60.0
 TOML = "session.toml"
@@ -95,6 +95,14 @@ def test_logged_input_columns_are_zero_order_hold_schedules(session_dir):
     np.testing.assert_array_equal(tr.voltage.times, tr.time)
     np.testing.assert_array_equal(tr.voltage.values, np.full(STEP_N, 6.0))
     np.testing.assert_array_equal(tr.load_torque.values, np.full(STEP_N, 1.0))
+
+
+def test_a_schedule_changes_where_its_value_does():
+    """A logged column holds one breakpoint per sample: only a new value is a change."""
+    held = Schedule(np.arange(7) * 0.5, np.array([0.0, 0.0, 6.0, 6.0, 6.0, -6.0, -6.0]))
+    np.testing.assert_array_equal(held.change_times(), [1.0, 2.5])
+    assert Schedule(np.zeros(1), np.array([3.0])).change_times().size == 0
+    assert Schedule(np.arange(3.0), np.full(3, 2.0)).change_times().size == 0
 
 
 def test_free_form_kind_and_optional_current(session_dir):

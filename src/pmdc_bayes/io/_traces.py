@@ -204,7 +204,7 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
             t.fail("voltage", "an encoder-edge trace starting at rest starts at its voltage "
                    "schedule's first time, which must come before the first edge; begin the "
                    "schedule at the time the motor was still at rest")
-        moves = voltage.times[1:][np.diff(voltage.values) != 0]
+        moves = voltage.change_times()
         span = float(time[-1] - time[0])
         if moves.size and float(time[0] - moves[0]) > 10.0 * max(span, 1e-12):
             t.fail("voltage", f"the voltage first changes {float(time[0] - moves[0]):.6g} s "

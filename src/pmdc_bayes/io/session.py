@@ -64,6 +64,12 @@ class Schedule:
         idx = np.searchsorted(self.times, np.asarray(t), side="right") - 1
         return self.values[np.clip(idx, 0, len(self.values) - 1)]
 
+    def change_times(self) -> np.ndarray:
+        """The times at which the value changes (each breakpoint whose value differs
+        from the one before it), in order."""
+        values = np.asarray(self.values, dtype=float)
+        return np.asarray(self.times, dtype=float)[1:][values[1:] != values[:-1]]
+
 
 @dataclass(frozen=True, repr=False)
 class Trace:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["departure", "onset_shape", "rise_time", "step_end", "step_time", "step_window"]
+__all__ = ["departure", "onset_shape", "rise_time", "step_time", "step_window"]
 
 CONSECUTIVE = 3  # samples in a row beyond the threshold that count as having left rest
 
@@ -116,11 +116,10 @@ def step_time(trace) -> float:
     return float(max(t[k], trace.time[0]))
 
 
-def step_end(trace, t_step: float) -> float:
+def _step_end(trace, t_step: float) -> float:
     """The time of the trace's first voltage change after ``t_step`` (infinite where
     none): the response to the step at ``t_step`` is read up to it."""
-    v, t = np.asarray(trace.voltage.values, float), np.asarray(trace.voltage.times, float)
-    later = t[np.flatnonzero(np.diff(v) != 0) + 1]
+    later = trace.voltage.change_times()
     later = later[later > t_step]
     return float(later[0]) if later.size else np.inf
 
@@ -128,9 +127,9 @@ def step_end(trace, t_step: float) -> float:
 def step_window(trace) -> tuple[float, np.ndarray]:
     """The time of the trace's largest voltage change (:func:`step_time`) and which of
     its samples the response to it is read over: those before the next change
-    (:func:`step_end`), which a staircase's later step would otherwise stand in for."""
+    (:func:`_step_end`), which a staircase's later step would otherwise stand in for."""
     t_step = step_time(trace)
-    return t_step, np.asarray(trace.time) < step_end(trace, t_step)
+    return t_step, np.asarray(trace.time) < _step_end(trace, t_step)
 
 
 def rise_time(t, y, t_step, level: float = 0.632) -> float | None:

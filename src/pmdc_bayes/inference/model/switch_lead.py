@@ -60,18 +60,13 @@ def lead_name(trace_name: str) -> str:
     return f"switch_lead_{identifier(trace_name)}"
 
 
-def _changes(values: np.ndarray) -> bool:
-    values = np.asarray(values, dtype=float)
-    return values.size > 1 and bool(np.any(values[1:] != values[:-1]))
-
-
 def _inputs(tr: Trace):
     return ((tr.voltage, tr.voltage_logged), (tr.load_torque, tr.load_logged))
 
 
 def _leads(tr: Trace) -> bool:
     """Whether ``tr``'s switching inputs all come from columns, and one of them switches."""
-    switching = [logged for schedule, logged in _inputs(tr) if _changes(schedule.values)]
+    switching = [logged for schedule, logged in _inputs(tr) if schedule.change_times().size]
     return bool(switching) and all(switching)
 
 
@@ -83,11 +78,9 @@ def change_times(tr: Trace) -> np.ndarray:
         return np.zeros(0)
     times = []
     for schedule, logged in _inputs(tr):
-        values = np.asarray(schedule.values, dtype=float)
-        if not logged or values.size == 0:
+        if not logged or np.size(schedule.values) == 0:
             continue
-        moved = np.flatnonzero(values[1:] != values[:-1]) + 1
-        times.append(np.asarray(schedule.times, dtype=float)[moved])
+        times.append(schedule.change_times())
         if isinstance(tr.initial, str) and tr.initial == "rest" and _away(schedule):
             times.append(np.asarray(schedule.times, dtype=float)[:1])
     return np.unique(np.concatenate(times)) if times else np.zeros(0)
