@@ -60,7 +60,8 @@ class SearchState:
                             kernels=[p is None for p in programs[1:]], lookahead=1)
         with ahead.stopped_on_error():
             for k, (cand, superset) in enumerate(zip(new, programs, strict=True)):
-                ahead.fitting(k)
+                if k:
+                    ahead.fitting(cand.model)
                 self._fitted(cand, superset)
         ahead.stop()
         return out

@@ -87,13 +87,13 @@ def test_fits_makes_no_more_models_programs_ahead_than_its_bound(session_dir):
     models = [build_model(s, fit_seed(s)) for s in
               (dataclasses.replace(session, nuisances=("dead_time",)),
                dataclasses.replace(session, nuisances=("speed_lag",)))]
-    warm = WarmUp.fits(models, threads=2, lookahead=1)  # the caller fits its model 0
+    warm = WarmUp.fits(models, threads=2, lookahead=1)  # the caller fits another
     deadline = time.monotonic() + 600
     while warm.waiting() < 2 and time.monotonic() < deadline:
         time.sleep(0.05)
     assert warm.waiting() == 2  # both threads wait at the second model's jobs
     assert _made(models[0]) == {"optimistix-step": 1, "predict": 1} and not _made(models[1])
-    warm.fitting(1)  # the caller fits its model 1: the next may be made
+    warm.fitting(models[0])  # the caller now fits the first: the next may be made
     warm.join()
     assert _made(models[1]) == {"optimistix-step": 1, "predict": 1} and warm.waiting() == 0
 

@@ -47,7 +47,7 @@ class WarmUp:
 
     def __init__(self, model, *, mcmc: bool, n_walkers: int | None = None,
                  start: bool = True):
-        self.n_walkers = n_walkers
+        self.n_walkers, self._models = n_walkers, [model]
         lines = [_queue([(0, model, self._predict)]
                         + ([(0, model, self._sampler)] if mcmc else []))]
         if mcmc:
@@ -71,18 +71,20 @@ class WarmUp:
         if kernels is None:
             kernels = [True] * len(models)
         self = cls.__new__(cls)
-        self.n_walkers = None
+        self.n_walkers, self._models = None, list(models)
         jobs = _queue((j, m, job) for j, (m, own) in enumerate(zip(models, kernels, strict=True))
                       for job in ((self._kernel, self._predict) if own else (self._predict,)))
         self._threads([jobs] * max(1, threads), start, lookahead)
         return self
 
-    def fitting(self, k: int) -> None:
-        """The caller begins to fit the ``k``-th of its models (counted from 0), where
-        :meth:`fits`'s ``models`` are its second onward: the programs of those up to
-        ``lookahead`` beyond it may now be made."""
+    def fitting(self, model) -> None:
+        """The caller begins to fit ``model``, one of :meth:`fits`'s ``models``: the
+        programs of the ``lookahead`` models after it may now be made.  (Before any
+        such call, those of the first ``lookahead`` models may: the caller fits
+        something else meanwhile.)"""
+        k = next(k for k, m in enumerate(self._models) if m is model)
         with self._bound:
-            self._limit = max(self._limit, k + self._lookahead)
+            self._limit = max(self._limit, k + 1 + self._lookahead)
             self._bound.notify_all()
 
     def waiting(self) -> int:
