@@ -67,6 +67,10 @@ def test_trace_in_si(session_dir):
 
 def test_trace_units_apply_to_schedules(session_dir):
     toml = session_dir / TOML
+    replace_once(toml, 'speed = "speed_rpm"', 'speed = "w"')  # its header names rpm
+    lines = (session_dir / "step.csv").read_text().splitlines()
+    (session_dir / "step.csv").write_text("\n".join([lines[0].replace("speed_rpm", "w"),
+                                                     *lines[1:]]) + "\n")
     replace_once(toml, 'time = "s", speed = "rpm", current = "A", voltage = "V"',
                  'time = "ms", speed = "rad/s", current = "mA", voltage = "mV", '
                  'load_torque = "mN*m"')

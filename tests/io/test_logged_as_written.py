@@ -168,6 +168,34 @@ def test_a_row_of_units_is_checked_against_session_toml(session_dir, row, ok):
     assert "trace['step'].units." in text
 
 
+@pytest.mark.parametrize(("header", "ok"), [
+    ("t_s,speed_rpm,ia", True), ("Time (s),Speed [RPM],I_a", True), ("t/s,n/rpm,ia", True),
+    ("time (ms),speed_rpm,ia", False), ("t,speed_rpm,i_mA", False),
+    ("t,Speed [rad/s],ia", False), ("t_ms,speed_rpm,ia", False),
+])
+def test_a_unit_in_a_columns_header_is_checked_against_session_toml(session_dir, header,
+                                                                    ok):
+    """A header that names its column's unit (in brackets, after a slash or after an
+    underscore) and names another than session.toml's is refused with the line to add;
+    a subscript (``I_a``) is not a unit."""
+    names = header.split(",")
+    toml = session_dir / "session.toml"
+    replace_once(toml, 'columns = { time = "t", speed = "speed_rpm", current = "ia" }',
+                 f'columns = {{ time = "{names[0]}", speed = "{names[1]}", '
+                 f'current = "{names[2]}" }}')
+    lines = _rows(session_dir)
+    _write(session_dir, [header, *lines[1:]])
+    if ok:
+        tr = load_session(session_dir).trace("step")
+        assert tr.n == STEP_N and tr.time[1] == pytest.approx(0.01)
+        return
+    with pytest.raises(SessionError) as err:
+        load_session(session_dir)
+    text = str(err.value)
+    assert "step.csv:header: column" in text and "gives its unit in its header" in text
+    assert "set trace['step'].units." in text
+
+
 def test_a_schedule_on_another_clock_than_the_samples_is_refused(session_dir):
     """The logger's time starts at 12.345 s, the schedule at 0: every change lies before
     the first row, so no step would be seen; refused, where leading rows left out for a

@@ -66,9 +66,18 @@ def test_surrounding_spaces_are_ignored():
     assert unit_factor("speed", " rpm ") == unit_factor("speed", "rpm")
 
 
+def test_a_unit_written_as_loggers_write_it_is_read():
+    """Case aside and the names a logger's header uses: what a user types in
+    ``session.toml`` after reading it off the logger's header."""
+    assert unit_factor("speed", "RPM") == unit_factor("speed", "rpm")
+    assert unit_factor("speed", "rad/sec") == 1.0 and unit_factor("speed", "1/min") > 0.1
+    assert unit_factor("time", "Sec") == 1.0 and unit_factor("time", "msec") == 1e-3
+    assert unit_factor("current", "amps") == 1.0 and unit_factor("voltage", "mv") == 1e-3
+
+
 def test_unknown_unit_lists_the_accepted_ones():
-    with pytest.raises(ValueError, match=r"unknown speed unit 'RPM'; use one of: rad/s, rpm"):
-        to_si(1.0, "speed", "RPM")
+    with pytest.raises(ValueError, match=r"unknown speed unit 'mph'; use one of: rad/s, rpm"):
+        to_si(1.0, "speed", "mph")
 
 
 def test_unknown_kind_is_a_key_error():

@@ -48,7 +48,8 @@ def _two_samples(d):
 def _append_trace(d):
     text = (d / TOML).read_text()
     text += '\n[[trace]]\nname = "step"\nkind = "step"\nfile = "step.csv"\n'
-    (d / TOML).write_text(text + STEP_COLUMNS + "\n" + SCHEDULE + "\n")
+    (d / TOML).write_text(text + STEP_COLUMNS + '\nunits = { speed = "rpm" }\n' + SCHEDULE
+                          + "\n")
 
 
 def _sparse_current(d):

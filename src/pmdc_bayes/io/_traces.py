@@ -13,7 +13,7 @@ from . import _sensors as sensors
 from ._csv import read_columns
 from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
 from ._missing import MISSABLE, without_missing, without_repeats
-from ._units_row import check_units_row
+from ._units_row import check_header_units, check_units_row
 from .drag import check_curve_reach, read_drag
 from .held_levels import held_levels
 from .position import (
@@ -88,6 +88,7 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
     second = float(to_si(np.array([1.0]), "time", u["time"])[0])
     read = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}",
                         stamps=("time", second), missing=MISSABLE)
+    check_header_units(path, cols, u, _TRACE_KINDS, t.where)
     check_units_row(path, cols, read.units, read.units_line, u, _TRACE_KINDS, t.where)
     raw, lines = read.values, read.lines
     if "time" in cols:

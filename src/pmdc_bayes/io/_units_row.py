@@ -1,15 +1,17 @@
-"""A CSV's row of units under its header, checked against the units session.toml reads
-the columns in: a file that says ``ms`` where the session reads seconds would make
+"""A CSV's units, as its header names them (``time (ms)``, ``t_ms``, ``n/rpm``) or its
+row of units under the header writes them, checked against the units session.toml
+reads the columns in: a file that says ``ms`` where the session reads seconds would make
 every time a thousand times too long."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from .._errors import SessionError
 from .units import KINDS, unit_factor, unit_named
 
-__all__ = ["check_units_row"]
+__all__ = ["check_units_row", "check_header_units", "header_unit"]
 
 
 def check_units_row(path: Path, cols: dict, row: dict, line: int | None, read_in: dict,
@@ -30,3 +32,41 @@ def check_units_row(path: Path, cols: dict, row: dict, line: int | None, read_in
                 path, f"the row of units gives column {cols[role]!r} in {text.strip()!r}, "
                 f"where session.toml reads it in {unit!r}; set {where}.units.{role} = "
                 f"\"{named}\" (or correct the row)", where=f"line {line}")
+
+
+_BRACKETED = re.compile(r"[(\[{<]\s*([^()\[\]{}<>]+?)\s*[)\]}>]\s*$")
+
+
+def header_unit(kind: str, name: str) -> str | None:
+    """The unit of ``kind`` a column's header name gives: in brackets at its end
+    (``time (ms)``, ``Speed [RPM]``), after a slash (``t/ms``, the quantity over its unit)
+    or after its last underscore (``t_ms``, ``i_mA``; written exactly, and at least two
+    letters, so that ``I_a`` is a subscript, not amperes); None when it gives none."""
+    found = _BRACKETED.search(name)
+    if found:
+        return unit_named(kind, found.group(1))
+    for sep, shortest in (("/", 1), ("_", 2)):
+        head, _, tail = name.partition(sep) if sep == "/" else name.rpartition(sep)
+        tail = tail.strip()
+        if head.strip() and len(tail) >= shortest:
+            named = unit_named(kind, tail, exact=True)
+            if named is not None:
+                return named
+    return None
+
+
+def check_header_units(path: Path, cols: dict, read_in: dict, kinds: dict,
+                       where: str) -> None:
+    """Refuse a column whose header name gives a unit of its kind (:func:`header_unit`)
+    other than the one session.toml reads it in (``read_in``: role -> unit)."""
+    for role, name in cols.items():
+        kind, unit = kinds.get(role), read_in.get(role)
+        if not (kind and isinstance(name, str) and unit in KINDS.get(kind, {})):
+            continue
+        named = header_unit(kind, name)
+        if named is not None and unit_factor(kind, named) != unit_factor(kind, unit):
+            raise SessionError(
+                path, f"column {name!r} gives its unit in its header, {named!r}, where "
+                f"session.toml reads it in {unit!r} ({where}.units.{role}, SI when not "
+                f"given); set {where}.units.{role} = "
+                f"\"{named}\" (or correct the header)", where="header")

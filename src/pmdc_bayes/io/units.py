@@ -66,13 +66,16 @@ _ALIASES: dict[str, dict[str, str]] = {
 }
 
 
-def unit_named(kind: str, text: str) -> str | None:
+def unit_named(kind: str, text: str, *, exact: bool = False) -> str | None:
     """The unit of ``kind`` that ``text`` names, as a logger writes it in a row of units
-    (``ms``, ``(rpm)``, ``[A]``, ``1/min``), or None when it names none."""
+    (``ms``, ``(rpm)``, ``[A]``, ``1/min``), or None when it names none.  ``exact``:
+    only as written, case included (``mA``, not ``ma``)."""
     key = text.strip().strip("()[]{}<>").strip()
     table = KINDS.get(kind, {})
     if key in table and key:
         return key
+    if exact:
+        return _ALIASES.get(kind, {}).get(key)
     folded = {u.lower(): u for u in table if u}
     aliases = {a.lower(): u for a, u in _ALIASES.get(kind, {}).items()}
     found = {folded.get(key.lower()), aliases.get(key.lower())} - {None}
@@ -85,7 +88,8 @@ def display_unit(unit: str) -> str:
 
 
 def unit_factor(kind: str, unit: str) -> float:
-    """Return the factor that converts a value in ``unit`` to SI for a quantity of ``kind``.
+    """Return the factor that converts a value in ``unit`` to SI for a quantity of ``kind``
+    (``unit`` one of :data:`KINDS`, or a name a logger writes for one, :func:`unit_named`).
 
     Raises
     ------
@@ -94,6 +98,8 @@ def unit_factor(kind: str, unit: str) -> float:
     """
     table = KINDS[kind]
     key = unit.strip()
+    if key not in table:
+        key = unit_named(kind, key) or key  # as a logger writes it: "RPM", "rad/sec"
     if key not in table:
         accepted = ", ".join(u for u in table if u)
         raise ValueError(f"unknown {kind} unit {unit!r}; use one of: {accepted}")
