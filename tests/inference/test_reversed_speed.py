@@ -1,14 +1,14 @@
 """A speed wired against the voltage's sign (a tachometer's leads swapped, an encoder
-counting the other way): refused before any fit with the trace it is on and the fix,
-where it was fitted and read as anti-correlated noise; a session that turns both ways
-with its voltage is not touched."""
+counting the other way), or a current sensor wired the other way round: refused before
+any fit with the trace it is on and the fix, where it was fitted and read as
+anti-correlated noise; a session that turns both ways with its voltage is not touched."""
 
 import shutil
 
 import pytest
 
 from pmdc_bayes._errors import SessionError
-from pmdc_bayes.inference.model.reversal import reversed_speed
+from pmdc_bayes.inference.model.reversal import reversed_current, reversed_speed
 from pmdc_bayes.inference.model.seed import refuse_reversed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import fuzz_session
@@ -89,3 +89,18 @@ def test_both_ways_into_a_fit_refuse_it_first(speed_only, tmp_path, entry):
             run_search(session)
         else:
             fit_session(session, FitOptions(mcmc=False))
+
+
+@pytest.mark.parametrize(("seed", "trace"), [(1, "tr0_up_down"), (32, "tr0_load_change")])
+def test_a_current_sensor_wired_the_other_way_round_is_named(tmp_path, seed, trace):
+    """A current that falls where the voltage steps up (an up-down step, both ways) or
+    where the load steps up at a constant voltage (a load-change trace) is refused
+    before any fit, naming its file and the fix; as logged it is not."""
+    d = tmp_path / "s"
+    fuzz_session(seed, out=d)
+    assert reversed_current(load_session(d)) is None
+    _negate(d / f"{trace}.csv", "ia")
+    with pytest.raises(SessionError) as err:
+        refuse_reversed(load_session(d))
+    assert err.value.path.name == f"{trace}.csv"
+    assert "negate this file's current column" in str(err.value)

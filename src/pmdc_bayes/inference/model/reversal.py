@@ -1,5 +1,7 @@
 """A session whose speed turns against its voltage (its leads or a sensor wired the other
-way round), found from its steady levels: what :func:`~.seed.refuse_reversed` refuses."""
+way round), found from its steady levels, or whose current swings against its voltage's
+changes (a current sensor wired the other way round): what :func:`~.seed.refuse_reversed`
+refuses."""
 
 from __future__ import annotations
 
@@ -8,10 +10,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...paper.changes import AT_REST
+from ...paper.changes import AT_REST, responses
 from .levels import unloaded_levels
 
-__all__ = ["Reversal", "reversed_speed"]
+__all__ = ["Reversal", "reversed_speed", "reversed_current"]
 
 
 class Reversal(NamedTuple):
@@ -64,3 +66,41 @@ def reversed_speed(session) -> Reversal | None:
         "the steady readings' speeds turn against their voltages, where the traces turn "
         "with theirs: the steady speeds are written with the other sign; negate "
         f"{'its speed column' if one_table else 'the steady speeds'} and fit again"))
+
+
+CLEAR_SWING = 10.0  # a current's swing this many of its noise's sds above it is clear
+
+
+def reversed_current(session) -> Reversal | None:
+    """The first trace whose current swings against every change of its inputs that
+    moves the current clearly: a step up of the voltage drives the armature's current
+    up (``di/dt = ΔV/La`` at the change; a limit, a lag or a dead time delays it, none
+    turns it round), and so does a step up of the load torque (its steady current
+    ``ΔTL/(K + B·Ra/K)`` higher), so a trace whose current falls on every step up reads
+    it through a sensor wired the other way round.  None when every trace's current
+    follows its inputs, or none swings clearly (by :data:`CLEAR_SWING` sds of its
+    sample-to-sample noise)."""
+    for tr in session.traces:
+        if tr.current is None or tr.n < 8:
+            continue
+        current = np.asarray(tr.current, float)
+        steps = np.abs(np.diff(current[np.isfinite(current)]))
+        noise = float(np.median(steps)) / (0.6745 * np.sqrt(2.0))
+        against = []
+        for r in responses(tr, "voltage") + responses(tr, "load_torque"):
+            t, i = tr.time[r.start:r.stop], current[r.start:r.stop]
+            before, after = i[t < r.time], i[t >= r.time]
+            if after.size < 3 or r.after == r.before:
+                continue
+            base = float(np.mean(before)) if before.size else 0.0  # from rest: none flows
+            swing = after - base
+            swing = float(swing[np.argmax(np.abs(np.nan_to_num(swing)))])
+            if abs(swing) > CLEAR_SWING * noise and abs(swing) > 0.0:
+                against.append(np.sign(swing) == -np.sign(r.after - r.before))
+        if against and all(against):
+            return Reversal(tr.file, None, (
+                f"the current of trace {tr.name!r} swings against its inputs at every "
+                "change (it falls where the voltage or the load steps up): its current "
+                "sensor is wired the other way round; negate this file's current column "
+                "and fit again"))
+    return None
