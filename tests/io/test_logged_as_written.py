@@ -67,13 +67,33 @@ def test_a_last_line_cut_off_mid_write_is_left_out(session_dir):
         load_session(session_dir)
 
 
-def test_an_instrument_overrange_code_is_a_missed_reading(session_dir):
+@pytest.mark.parametrize("code", ["9.9E37", "inf", "-Inf", "\u221e", "\u2212\u221e"])
+def test_an_instrument_overrange_code_is_a_missed_reading(session_dir, code):
     lines = _rows(session_dir)
     cells = lines[60].split(",")
-    lines[60] = ",".join([cells[0], "9.9E37", cells[2]])
+    lines[60] = ",".join([cells[0], code, cells[2]])
     _write(session_dir, lines)
     tr = load_session(session_dir).trace("step")
     assert tr.rows_left_out == (61,) and np.max(tr.speed) < 1100 * RPM
+
+
+def test_an_infinite_time_is_refused_with_its_line(session_dir):
+    lines = _rows(session_dir)
+    lines[60] = ",".join(["inf", *lines[60].split(",")[1:]])
+    _write(session_dir, lines)
+    with pytest.raises(SessionError, match=r"step.csv:line 61: column 't': 'inf' is not a "
+                                           "finite number"):
+        load_session(session_dir)
+
+
+def test_a_quoted_header_with_a_space_after_each_comma_is_read(session_dir):
+    """``"t", "speed_rpm", "ia"`` as some loggers write it: the quotes are the cells'."""
+    lines = _rows(session_dir)
+    _write(session_dir, [", ".join(f'"{c}"' for c in lines[0].split(","))]
+           + [", ".join(line.split(",")) for line in lines[1:]])
+    tr = load_session(session_dir).trace("step")
+    assert tr.n == STEP_N and tr.speed[-1] == pytest.approx(step_rows()[-1][1] * RPM,
+                                                            rel=1e-6)
 
 
 def test_a_twelve_hour_clock_reads_across_noon(session_dir):

@@ -19,7 +19,8 @@ OVERRANGE = 9.9e37  # an instrument's code for a reading out of range (SCPI: 9.9
 
 _CLOCK = re.compile(r"\d{1,2}:\d{2}(:\d{2}([.,]\d*)?)?")  # 12:00:01.250, as loggers stamp
 _GROUPED = re.compile(r"[+-]?[1-9]\d{0,2}(,\d{3})+")  # 1,800: thousands, or 1.8 in a locale
-_MINUS = str.maketrans({"\u2212": "-"})  # the minus sign some exports write for a hyphen
+_MINUS = str.maketrans({"\u2212": "-",  # the minus sign some exports write for a hyphen
+                        "\u221e": "inf"})  # an oscilloscope's overrange, written ∞
 
 
 class DecimalMarks:
@@ -80,7 +81,8 @@ def number(text: str) -> bool:
 def parse_cell(path: Path, line: int, column: str, text: str, marks: DecimalMarks,
                missing: bool = False) -> float:
     """One cell as a finite float (NaN for a missed reading, :data:`MISSING`, or an
-    instrument's overrange code, :data:`OVERRANGE`, where ``missing``), or a
+    instrument's overrange code, :data:`OVERRANGE`, ``inf`` or ``∞``, where
+    ``missing``), or a
     SessionError naming the line, column and text."""
     text = text.translate(_MINUS)
     if missing and text.lower() in MISSING:
@@ -110,8 +112,8 @@ def parse_cell(path: Path, line: int, column: str, text: str, marks: DecimalMark
                "the row"),
             where=f"line {line}",
         ) from None
-    if missing and OVERRANGE <= abs(value) < math.inf:
-        return math.nan  # the instrument's own mark of a reading it could not take
+    if missing and OVERRANGE <= abs(value):
+        return math.nan  # the instrument's own mark of a reading it could not take (or inf)
     if not math.isfinite(value) or abs(value) >= OVERRANGE:
         raise SessionError(
             path,

@@ -142,7 +142,7 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str,
                 return _read_key_values(path, pairs, wanted, stamps, missing, cut)
         sep = _separator(first)
     reader = (_SpaceReader(_lines(text)) if sep == _SPACES
-              else csv.reader(_lines(text), delimiter=sep))
+              else csv.reader(_lines(text), delimiter=sep, skipinitialspace=True))
     try:
         for _ in range(at):  # a preamble before the header
             next(reader)
