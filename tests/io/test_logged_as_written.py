@@ -110,6 +110,21 @@ def test_a_twelve_hour_clock_reads_across_noon(session_dir):
     assert np.allclose(tr.time, np.arange(STEP_N) * 0.01, atol=1e-9)
 
 
+@pytest.mark.parametrize("write", [
+    lambda k: f"{0.01 * k:g} sec",  # MATLAB's writetable of a timetable: durations
+    lambda k: f"{10 * k} ms",
+    lambda k: f"26-Nov-2026 14:03:{7.25 + 0.01 * k:06.3f}",  # MATLAB's datetime
+])
+def test_matlab_timetables_times_are_read(session_dir, write):
+    """A duration with its unit, or a date with its month's name before the clock: the
+    time since the first row, in the trace's unit of time."""
+    lines = _rows(session_dir)
+    _write(session_dir, [lines[0]] + [",".join([write(k), *line.split(",")[1:]])
+                                      for k, line in enumerate(lines[1:])])
+    tr = load_session(session_dir).trace("step")
+    assert np.allclose(tr.time, np.arange(STEP_N) * 0.01, atol=1e-9)
+
+
 def test_text_as_word_processors_and_cards_leave_it_is_read(session_dir):
     lines = _rows(session_dir)
     minus = [lines[0], lines[1].replace(",0.0500", ",\u22120.0500"), *lines[2:]]
