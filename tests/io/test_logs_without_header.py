@@ -96,6 +96,7 @@ def _pairs(lines, fmt):
 
 @pytest.mark.parametrize("fmt", [
     "t={t} s speed_rpm={w} rpm ia={i} A",  # Serial.print with the units after the values
+    "t={t}s speed_rpm={w}rpm ia={i}A",  # ... and against them
     "t: {t}, speed_rpm: {w}, ia: {i}",
     '{{"t": {t}, "speed_rpm": {w}, "ia": {i}, "state": "run"}}',  # JSON lines
     "[log] 12:00:01 t={t}\tspeed_rpm={w}\tia={i}",
@@ -113,10 +114,11 @@ def test_name_value_lines_with_a_reading_missed_or_a_unit_against_the_session(se
     _write(session_dir, lines)
     tr = load_session(session_dir).trace("step")
     assert tr.rows_left_out == (41,) and tr.n == STEP_N - 1
-    _write(session_dir, [line.replace(" s ", " ms ") for line in lines])
-    with pytest.raises(SessionError, match=r"step.csv:line 1: the row of units gives column "
-                                           r"'t' in 'ms'.*units.time = \"ms\""):
-        load_session(session_dir)
+    for glue in (" ", ""):
+        _write(session_dir, [line.replace(" s ", f"{glue}ms ") for line in lines])
+        with pytest.raises(SessionError, match=r"step.csv:line 1: the row of units gives "
+                                               r"column 't' in 'ms'.*units.time = \"ms\""):
+            load_session(session_dir)
 
 
 def test_a_header_written_in_windows_1252_is_read(session_dir):

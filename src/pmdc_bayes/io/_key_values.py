@@ -1,5 +1,6 @@
 """Logs written as ``name=value`` pairs, one sample per line, as a microcontroller's
-serial prints write them (``t=12 ms w=153.2 ia=0.41``, ``t: 12, w: 153.2``) or as
+serial prints write them (``t=12 ms w=153.2 ia=0.41``, ``t: 12, w: 153.2``,
+``t=12ms w=153.2rpm``) or as
 JSON lines (``{"t": 0.012, "w": 153.2}``): the pairs become the rows of a table
 without a header, one line for each line of the file (so errors name the file's
 lines), the columns in the order asked for."""
@@ -32,11 +33,20 @@ class KeyValueTable(NamedTuple):
     units_line: int | None
 
 
+_GLUED = re.compile(r"([+-]?\d+(?:[.,]\d+)?(?:[eE][+-]?\d+)?)([A-Za-zµ°%/][\w/%°µ^*.]*)")
+
+
 def _pairs(line: str) -> dict[str, tuple[str, str]]:
-    """A line's pairs, name -> (value, unit); none in a comment line (``#``)."""
+    """A line's pairs, name -> (value, unit); none in a comment line (``#``).  A unit
+    written against its value (``t=12ms``, ``w=153.2rpm``) is the value's unit."""
     if line.lstrip().startswith("#"):
         return {}
-    return {m.group(1): (m.group(2), m.group(3) or "") for m in _PAIR.finditer(line)}
+    out = {}
+    for m in _PAIR.finditer(line):
+        value, unit = m.group(2), m.group(3) or ""
+        glued = None if unit else _GLUED.fullmatch(value)
+        out[m.group(1)] = glued.groups() if glued else (value, unit)
+    return out
 
 
 def _named(pairs: dict, name: str) -> str | None:
