@@ -205,3 +205,30 @@ def test_an_assumed_la_is_not_offered_as_a_closed_form_value():
     cf = closed_form(unmeasured)
     assert cf.used["La"].startswith("assumed")
     assert set(cf.known()) == {"Ra", "K", "B", "J"} and cf.params()["La"] > 0
+
+
+def test_without_a_steady_current_the_traces_that_log_one_are_said_why_not():
+    """A step that ends at 0 V and a load change both log a current, yet give the
+    method none: the refusal names them and why, and that a fit needs none."""
+    import dataclasses
+
+    from pmdc_bayes._errors import NotApplicable
+    from pmdc_bayes.io.session import Schedule
+    from pmdc_bayes.paper.closed_form import closed_form
+    from pmdc_bayes.simulate.cases import case_session
+
+    full = case_session()
+    step = full.traces[0]
+    braked = np.where(step.time < step.time[step.n // 2], step.speed,
+                      step.speed * np.exp(-(step.time - step.time[step.n // 2]) / 0.002))
+    down = dataclasses.replace(step, speed=braked, voltage=Schedule(
+        np.array([step.time[0], step.time[step.n // 2]]), np.array([12.0, 0.0])),
+        initial="steady")
+    load = dataclasses.replace(step, name="load", kind="load_change")
+    bare = dataclasses.replace(full, traces=(down, load), steady_tables=(),
+                               operating_points=(), step_readings=())
+    with pytest.raises(NotApplicable) as err:
+        closed_form(bare)
+    text = str(err.value)
+    assert f"step trace {step.name!r} ends at rest" in text
+    assert "trace 'load' is a load change" in text and "`pmdc-bayes fit` needs none" in text
