@@ -20,7 +20,8 @@ from .inference.adequacy.verdict import assess
 from .inference.fit.joint import fit_map
 from .inference.fit.undetermined import identifiability
 from .inference.model.objective import build_model
-from .inference.model.seed import fit_seed, refuse_reversed
+from .inference.model.reversal import refuse_reversed
+from .inference.model.seed import fit_seed
 from .inference.warmup import WarmUp
 from .io.loader import load_session
 from .io.session import NUISANCES, Session

@@ -50,7 +50,7 @@ import math
 
 from ._x64 import x64
 from .candidate import Candidate, Fitted, Searched, Stop, nested_start
-from .inference.model.seed import refuse_reversed
+from .inference.model.reversal import refuse_reversed
 from .io.session import Session
 from .search_state import SearchState
 from .terms import is_noise, label, model_table, ordered, terms_of

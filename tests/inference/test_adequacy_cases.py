@@ -119,7 +119,7 @@ def test_a_trace_counting_the_other_way_is_refused_before_the_fit():
     import dataclasses
 
     from pmdc_bayes._errors import SessionError
-    from pmdc_bayes.inference.model.seed import refuse_reversed
+    from pmdc_bayes.inference.model.reversal import refuse_reversed
 
     session = case_session()
     traces = tuple(dataclasses.replace(tr, speed=-tr.speed)

@@ -8,8 +8,7 @@ import shutil
 import pytest
 
 from pmdc_bayes._errors import SessionError
-from pmdc_bayes.inference.model.reversal import reversed_current, reversed_speed
-from pmdc_bayes.inference.model.seed import refuse_reversed
+from pmdc_bayes.inference.model.reversal import refuse_reversed, reversed_current, reversed_speed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import fuzz_session
 
@@ -104,3 +103,14 @@ def test_a_current_sensor_wired_the_other_way_round_is_named(tmp_path, seed, tra
         refuse_reversed(load_session(d))
     assert err.value.path.name == f"{trace}.csv"
     assert "negate this file's current column" in str(err.value)
+
+
+def test_the_closed_form_refuses_a_reversed_sensor_as_the_fit_does(pmdc, tmp_path):
+    """The closed form would read a reversed current as a negative friction: refused
+    first, one line, exit 2."""
+    d = tmp_path / "s"
+    fuzz_session(1, out=d)
+    _negate(d / "tr0_up_down.csv", "ia")
+    done = pmdc("closed-form", d)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.count("\n") == 1 and "current sensor is wired" in done.stderr

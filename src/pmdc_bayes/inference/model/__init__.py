@@ -18,7 +18,7 @@ __all__ = ["SessionModel", "build_model", "Registry", "ParamSpec", "Prior",
 _LAZY = {"SessionModel": ".objective", "build_model": ".objective", "Registry":
          ".params", "ParamSpec": ".params", "Prior": ".params", "motor_registry":
          ".params", "nuisance_specs": ".nuisances", "fit_seed": ".seed",
-         "refuse_reversed": ".seed", "Predictions": ".predictions", "Pointwise":
+         "refuse_reversed": ".reversal", "Predictions": ".predictions", "Pointwise":
          ".pointwise"}
 
 

@@ -1,6 +1,6 @@
 """A session whose speed turns against its voltage (its leads or a sensor wired the other
 way round), found from its steady levels, or whose current swings against its voltage's
-changes (a current sensor wired the other way round): what :func:`~.seed.refuse_reversed`
+changes (a current sensor wired the other way round): what :func:`refuse_reversed`
 refuses."""
 
 from __future__ import annotations
@@ -10,10 +10,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..._errors import SessionError
 from ...paper.changes import AT_REST, responses
 from .levels import unloaded_levels
 
-__all__ = ["Reversal", "reversed_speed", "reversed_current"]
+__all__ = ["Reversal", "reversed_speed", "reversed_current", "refuse_reversed"]
 
 
 class Reversal(NamedTuple):
@@ -104,3 +105,13 @@ def reversed_current(session) -> Reversal | None:
                 "sensor is wired the other way round; negate this file's current column "
                 "and fit again"))
     return None
+
+
+def refuse_reversed(session) -> None:
+    """Raise :class:`~pmdc_bayes.SessionError` where the session's speed turns against
+    its voltage (:func:`reversed_speed`) or a trace's current swings against
+    it (:func:`reversed_current`): no motor does that, and a fit would take
+    the wiring for noise.  Checked once per session, before its first fit."""
+    backwards = reversed_speed(session) or reversed_current(session)
+    if backwards is not None:
+        raise SessionError(backwards.file, backwards.why, where=backwards.where)

@@ -11,23 +11,12 @@ from ...paper.changes import responses
 from ...paper.closed_form import ClosedForm, closed_form, j_from_tau, read_time_constant
 from ...physics.motor import gain
 from .levels import settled, unloaded_levels, voltage_intercept
-from .reversal import reversed_current, reversed_speed
 
-__all__ = ["fit_seed", "refuse_reversed", "seed_from_data", "motor_seed", "drop_seed",
+__all__ = ["fit_seed", "seed_from_data", "motor_seed", "drop_seed",
            "FRICTION_SHARE"]
 
 FRICTION_SHARE = 0.1  # without a current, viscous friction is taken as this share of Ra·B + K²
 AT_REST = 0.02  # a steady level below this share of the largest is the motor at rest
-
-
-def refuse_reversed(session) -> None:
-    """Raise :class:`~pmdc_bayes.SessionError` where the session's speed turns against
-    its voltage (:func:`~.reversal.reversed_speed`) or a trace's current swings against
-    it (:func:`~.reversal.reversed_current`): no motor does that, and a fit would take
-    the wiring for noise.  Checked once per session, before its first fit."""
-    backwards = reversed_speed(session) or reversed_current(session)
-    if backwards is not None:
-        raise SessionError(backwards.file, backwards.why, where=backwards.where)
 
 
 def fit_seed(session) -> ClosedForm:
