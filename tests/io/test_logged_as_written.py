@@ -231,6 +231,29 @@ def test_a_unit_in_a_columns_header_is_checked_against_session_toml(session_dir,
     assert "set trace['step'].units." in text
 
 
+@pytest.mark.parametrize(("unit", "hint"), [
+    ("s", 's, a thousand times the time the schedule\'s voltage first changes (0.1 s): '
+          'is the time column in ms? Then set units.time = "ms"'),
+    ("ms", "is the schedule written in seconds?"),  # here between the first two samples
+])
+def test_a_schedule_a_thousand_times_before_the_motor_starts_is_refused(session_dir,
+                                                                         unit, hint):
+    """The time column in milliseconds, the schedule's step at 0.1 (seconds): read in
+    one unit, the motor starts a thousand times after its step, which a fit would take
+    for a dead time of the whole wait; refused with both ways to mend it."""
+    toml = session_dir / "session.toml"
+    replace_once(toml, 'units = { time = "s",', f'units = {{ time = "{unit}",')
+    lines = _rows(session_dir)
+    _write(session_dir, [lines[0]] + [",".join([f"{float(line.split(',')[0]) * 1000:g}",
+                                                *line.split(",")[1:]]) for line in lines[1:]])
+    with pytest.raises(SessionError) as err:
+        load_session(session_dir)
+    text = str(err.value)
+    assert "trace['step'].voltage: the " in text and hint in text
+    replace_once(toml, "[0.1, 6.0]", "[100.0, 6.0]")  # the schedule in the column's unit
+    assert load_session(session_dir).trace("step").n == STEP_N
+
+
 def test_a_schedule_on_another_clock_than_the_samples_is_refused(session_dir):
     """The logger's time starts at 12.345 s, the schedule at 0: every change lies before
     the first row, so no step would be seen; refused, where leading rows left out for a

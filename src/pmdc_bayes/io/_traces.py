@@ -13,6 +13,7 @@ from . import _sensors as sensors
 from ._csv import read_columns
 from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
 from ._missing import MISSABLE, without_missing, without_repeats
+from ._step_timing import check_step_timing
 from ._units_row import check_header_units, check_units_row
 from .drag import check_curve_reach, read_drag
 from .held_levels import held_levels
@@ -260,6 +261,8 @@ def _trace(t: _Table, root: Path) -> Trace:
     drag = read_drag(t, sensors.physical(u))
     m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial, left_out)
     check_curve_reach(t, drag, m["speed"], sensors.physical(u))
+    if initial == "rest" and "voltage" not in cols:
+        check_step_timing(t, m["time"], m["speed"], inputs["voltage"], u["time"])
     return Trace(name=name, kind=kind, file=path, time=m["time"], speed=m["speed"],
                  current=si.get("current"), voltage=inputs["voltage"],
                  load_torque=inputs["load_torque"], voltage_logged="voltage" in si,
