@@ -82,8 +82,7 @@ def parse_cell(path: Path, line: int, column: str, text: str, marks: DecimalMark
                missing: bool = False) -> float:
     """One cell as a finite float (NaN for a missed reading, :data:`MISSING`, or an
     instrument's overrange code, :data:`OVERRANGE`, ``inf`` or ``∞``, where
-    ``missing``), or a
-    SessionError naming the line, column and text."""
+    ``missing``), or a SessionError naming the line, column and text."""
     text = text.translate(_MINUS)
     if missing and text.lower() in MISSING:
         return math.nan

@@ -13,8 +13,8 @@ import numpy as np
 __all__ = ["STAMP", "DURATION", "stamp_seconds", "elapsed"]
 
 # A logger's time stamp: a clock time h:mm:ss[.f] (on a 12-hour clock with AM or PM; a
-# date and a zone around it allowed, both passed over) or m:ss.f; the day's turn is
-# found from the clock going back.
+# date, its month a number or a name, and a zone around it allowed, both passed over) or
+# m:ss.f; the day's turn is found from the clock going back.
 STAMP = re.compile(r"(?:\d{1,4}[-/. ](?:\d{1,2}|[A-Za-z]{3,9})[-/. ]\d{1,4}(?:T|\s+))?"
                    r"(?:(\d{1,2}):)?(\d{1,2}):"
                     r"(\d{2}(?:[.,]\d*)?)\s*(?:([AP])\.?M\.?)?\s*(?:Z|UTC|[+-]\d{2}:?\d{2})?",

@@ -80,13 +80,15 @@ def reversed_current(session) -> Reversal | None:
     ``ΔTL/(K + B·Ra/K)`` higher), so a trace whose current falls on every step up reads
     it through a sensor wired the other way round.  None when every trace's current
     follows its inputs, or none swings clearly (by :data:`CLEAR_SWING` sds of its
-    sample-to-sample noise)."""
+    sample-to-sample noise, and as many of its smallest steps, a quantised reading's)."""
     for tr in session.traces:
         if tr.current is None or tr.n < 8:
             continue
         current = np.asarray(tr.current, float)
         steps = np.abs(np.diff(current[np.isfinite(current)]))
-        noise = float(np.median(steps)) / (0.6745 * np.sqrt(2.0))
+        quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
+        clear = max(CLEAR_SWING * float(np.median(steps)) / (0.6745 * np.sqrt(2.0)),
+                    CLEAR_SWING * quantum)  # a quantised reading's steps, not its noise
         against = []
         for r in responses(tr, "voltage") + responses(tr, "load_torque"):
             t, i = tr.time[r.start:r.stop], current[r.start:r.stop]
@@ -96,7 +98,7 @@ def reversed_current(session) -> Reversal | None:
             base = float(np.mean(before)) if before.size else 0.0  # from rest: none flows
             swing = after - base
             swing = float(swing[np.argmax(np.abs(np.nan_to_num(swing)))])
-            if abs(swing) > CLEAR_SWING * noise and abs(swing) > 0.0:
+            if abs(swing) > clear:
                 against.append(np.sign(swing) == -np.sign(r.after - r.before))
         if against and all(against):
             return Reversal(tr.file, None, (
