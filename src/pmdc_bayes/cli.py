@@ -16,14 +16,7 @@ from pathlib import Path
 from . import _signals, cachedir
 from ._cli_parser import build_parser
 from ._console import print_fit, run_outcome
-from ._errors import (
-    EXIT_FAILED,
-    EXIT_INTERNAL,
-    EXIT_USAGE,
-    FitFailed,
-    SessionError,
-    UsageError,
-)
+from ._errors import EXIT_FAILED, EXIT_INTERNAL, EXIT_USAGE, FitFailed, SessionError, UsageError
 from .io.bundled import session_path
 from .io.units import display_unit
 from .rundir import check_writable

@@ -171,7 +171,7 @@ REFUSED = [
         "\n".join([ln if i == 0 else ",".join([c if k != 1 else f"-{c}"
                                                for k, c in enumerate(ln.split(","))])
                    for i, ln in enumerate(_step_text(d).splitlines())]) + "\n"),
-     ["step.csv", "speed counts the other way"]),
+     ["step.csv", "speed sensor is wired the other way round", "negate this file's speed"]),
     ("operating-point-speed-unit-slip", _edit(TOML, "speed = 100.0", "speed = 954.9"),
      ["step.csv", "trace 'step' settles at", "rpm given as rad/s"]),
     # physically impossible closed-form results, named with the inputs that cause them

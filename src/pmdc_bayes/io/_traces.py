@@ -14,7 +14,7 @@ from ._csv import read_columns
 from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
 from ._missing import MISSABLE, without_missing, without_repeats
 from ._step_timing import check_step_timing
-from ._units_row import check_header_units, check_units_row
+from ._units_row import check_column_units
 from .drag import check_curve_reach, read_drag
 from .held_levels import held_levels
 from .position import (
@@ -89,8 +89,7 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
     second = float(to_si(np.array([1.0]), "time", u["time"])[0])
     read = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}",
                         stamps=("time", second), missing=MISSABLE)
-    check_header_units(path, cols, u, _TRACE_KINDS, t.where)
-    check_units_row(path, cols, read.units, read.units_line, u, _TRACE_KINDS, t.where)
+    check_column_units(path, cols, read, u, _TRACE_KINDS, t.where)
     raw, lines = read.values, read.lines
     if "time" in cols:
         t_raw = unwrap_time(t, path, raw["time"])
@@ -261,7 +260,7 @@ def _trace(t: _Table, root: Path) -> Trace:
     drag = read_drag(t, sensors.physical(u))
     m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial, left_out)
     check_curve_reach(t, drag, m["speed"], sensors.physical(u))
-    if initial == "rest" and "voltage" not in cols:
+    if initial == "rest" and "voltage" not in cols:  # a schedule, in the trace's unit
         check_step_timing(t, m["time"], m["speed"], inputs["voltage"], u["time"])
     return Trace(name=name, kind=kind, file=path, time=m["time"], speed=m["speed"],
                  current=si.get("current"), voltage=inputs["voltage"],

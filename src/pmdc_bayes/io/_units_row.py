@@ -11,7 +11,7 @@ from pathlib import Path
 from .._errors import SessionError
 from .units import KINDS, unit_factor, unit_named
 
-__all__ = ["check_units_row", "check_header_units", "header_unit"]
+__all__ = ["check_column_units", "check_units_row", "check_header_units", "header_unit"]
 
 
 def check_units_row(path: Path, cols: dict, row: dict, line: int | None, read_in: dict,
@@ -70,3 +70,12 @@ def check_header_units(path: Path, cols: dict, read_in: dict, kinds: dict,
                 f"session.toml reads it in {unit!r} ({where}.units.{role}, SI when not "
                 f"given); set {where}.units.{role} = "
                 f"\"{named}\" (or correct the header)", where="header")
+
+
+def check_column_units(path: Path, cols: dict, read, read_in: dict, kinds: dict,
+                       where: str) -> None:
+    """The units a file's header names (:func:`check_header_units`) and its row of units
+    writes (:func:`check_units_row`; ``read``: the file's columns as read) checked
+    against those session.toml reads its columns in."""
+    check_header_units(path, cols, read_in, kinds, where)
+    check_units_row(path, cols, read.units, read.units_line, read_in, kinds, where)

@@ -20,7 +20,7 @@ from . import gear
 from ._csv import read_columns
 from ._model_table import read_model_table
 from ._traces import read_traces
-from ._units_row import check_header_units, check_units_row
+from ._units_row import check_column_units
 from .bundled import BUNDLED, session_path
 from .session import (
     FRICTION_MODELS,
@@ -115,8 +115,7 @@ def _steady_table(t: _Table, root: Path) -> SteadyTable:
     cols = t.columns(_TABLE_KINDS, ("voltage", "speed"))
     path = root / t.string("file")
     read = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}")
-    check_header_units(path, cols, u, _TABLE_KINDS, t.where)
-    check_units_row(path, cols, read.units, read.units_line, u, _TABLE_KINDS, t.where)
+    check_column_units(path, cols, read, u, _TABLE_KINDS, t.where)
     raw = read.values
     if raw["voltage"].size == 0:
         raise SessionError(path, "no data rows; add one row per steady operating point")

@@ -16,7 +16,8 @@ from ..io.session import Session, Trace
 from ..physics.motor import gain
 from .changes import responses
 
-__all__ = ["GAIN_MISMATCH", "SETTLED", "step_of", "turns", "check_trace", "check_physical"]
+__all__ = ["GAIN_MISMATCH", "SETTLED", "step_of", "turns", "check_trace", "check_physical",
+           "traces_without_steady_current"]
 
 
 STEP_OVER_JITTER = 10.0  # a logged voltage's step stands this far above its jitter
@@ -113,3 +114,13 @@ def check_physical(session: Session, Ra, La, K, B, tau, used) -> None:
                             f"{tau:.3g} s, not longer than the electrical time constant "
                             f"La/Ra = {La / Ra:.3g} s, so it cannot be the mechanical one of "
                             "(8); check the value and its unit", where="step_reading")
+
+
+def traces_without_steady_current(session) -> str:
+    """Why the traces that log a current give the closed form no steady current, for its
+    refusal (empty if none logs one)."""
+    why = [f"step trace {t.name!r} ends at rest" if t.kind == "step" else
+           f"trace {t.name!r} is a {t.kind.replace('_', ' ')}"
+           for t in session.traces if t.current is not None][:3]
+    return (f" ({'; '.join(why)}: the method reads the settled end of a step that turns);"
+            " `pmdc-bayes fit` needs none, it starts from the data") if why else ""

@@ -27,7 +27,7 @@ from ..physics.motor import (
     time_constant,
 )
 from .changes import responses
-from .checks import check_physical, check_trace, step_of, turns
+from .checks import check_physical, check_trace, step_of, traces_without_steady_current, turns
 
 __all__ = [
     "only_assumed",
@@ -207,15 +207,6 @@ def steady_rows_with_current(session: Session):
     return None
 
 
-def _why_not_used(session) -> str:
-    """Why the traces that log a current give the method none (empty if none logs one)."""
-    why = [f"step trace {t.name!r} ends at rest" if t.kind == "step" else
-           f"trace {t.name!r} is a {t.kind.replace('_', ' ')}"
-           for t in session.traces if t.current is not None][:3]
-    return (f" ({'; '.join(why)}: the method reads the settled end of a step that turns);"
-            " `pmdc-bayes fit` needs none, it starts from the data") if why else ""
-
-
 def closed_form(session: Session) -> ClosedForm:
     """Apply the paper's method to a session, choosing its inputs.
 
@@ -264,7 +255,7 @@ def closed_form(session: Session) -> ClosedForm:
                                 "the closed-form method needs a steady current: add an "
                                 "[[operating_point]] with a current, a step trace with a "
                                 "current column or a steady table with a current column"
-                                + _why_not_used(session), where="operating_point")
+                                + traces_without_steady_current(session), where="operating_point")
     digits = session.closed_form_options.get("K_decimals")
     if digits is not None:
         K = round(K, int(digits))
