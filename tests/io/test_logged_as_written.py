@@ -127,13 +127,45 @@ def test_a_twelve_hour_clock_reads_across_noon(session_dir):
     lambda k: f"26-Nov-2026 14:03:{7.25 + 0.01 * k:06.3f}",  # MATLAB's datetime
 ])
 def test_matlab_timetables_times_are_read(session_dir, write):
-    """A duration with its unit, or a date with its month's name before the clock: the
-    time since the first row, in the trace's unit of time."""
+    """A duration with its unit, or a date with its month's name before the clock, in
+    the trace's unit of time."""
     lines = _rows(session_dir)
     _write(session_dir, [lines[0]] + [",".join([write(k), *line.split(",")[1:]])
                                       for k, line in enumerate(lines[1:])])
     tr = load_session(session_dir).trace("step")
     assert np.allclose(tr.time, np.arange(STEP_N) * 0.01, atol=1e-9)
+
+
+def test_durations_are_read_as_written_not_from_the_first_row(session_dir):
+    """A timetable cut from a longer record starts at its own time: the schedule is on
+    that clock, so the times keep it (a clock's stamps count from the first row)."""
+    lines = _rows(session_dir)
+    _write(session_dir, [lines[0]] + [",".join([f"{5 + 0.01 * k:.2f} sec",
+                                                *line.split(",")[1:]])
+                                      for k, line in enumerate(lines[1:])])
+    replace_once(session_dir / "session.toml", "[[0.0, 0.0], [0.1, 6.0]]",
+                 "[[0.0, 0.0], [5.1, 6.0]]")
+    tr = load_session(session_dir).trace("step")
+    assert np.allclose(tr.time, 5 + np.arange(STEP_N) * 0.01, atol=1e-9)
+
+
+def test_a_staircase_whose_first_level_barely_moves_the_motor_is_not_refused(session_dir):
+    """A small first level a thousand times before the step that moves the motor is a
+    staircase, not a unit mix-up: the step the motion follows is the large one."""
+    replace_once(session_dir / "session.toml", "[[0.0, 0.0], [0.1, 6.0]]",
+                 "[[0.0, 0.0], [0.0001, 0.2], [0.1, 6.0]]")
+    assert load_session(session_dir).trace("step").n == STEP_N
+
+
+def test_a_unit_session_toml_writes_as_loggers_do_is_checked_as_its_own(session_dir):
+    """``units.time = "sec"`` is seconds: a header in ms is refused against it."""
+    toml = session_dir / "session.toml"
+    replace_once(toml, 'units = { time = "s",', 'units = { time = "sec",')
+    replace_once(toml, 'time = "t"', 'time = "Time (ms)"')
+    lines = _rows(session_dir)
+    _write(session_dir, ["Time (ms)," + lines[0].split(",", 1)[1], *lines[1:]])
+    assert "gives its unit in its header, 'ms', where session.toml reads it in 's'" in (
+        _refusal(session_dir) or "")
 
 
 def test_text_as_word_processors_and_cards_leave_it_is_read(session_dir):

@@ -108,6 +108,17 @@ def test_name_value_lines_are_read_as_rows(session_dir, fmt):
     assert _same(_arrays(session_dir), plain)
 
 
+def test_a_name_value_number_is_not_split_into_a_value_and_a_unit():
+    """Scientific notation and an overrange code stay numbers; a suffix that names no
+    unit (a hex value, a date) leaves the value whole, to be refused, never read short."""
+    from pmdc_bayes.io._key_values import _pairs
+
+    pairs = _pairs("t=12ms w=1.5e3 x=9.9E37 h=0x1F d=20240105T120001 ia=0.41A")
+    assert pairs["t"] == ("12", "ms") and pairs["ia"] == ("0.41", "A")
+    assert pairs["w"] == ("1.5e3", "") and pairs["x"] == ("9.9E37", "")
+    assert pairs["h"] == ("0x1F", "") and pairs["d"] == ("20240105T120001", "")
+
+
 def test_name_value_lines_with_a_reading_missed_or_a_unit_against_the_session(session_dir):
     lines = _pairs(_rows(session_dir), "t={t} s speed_rpm={w} rpm ia={i} A")
     lines[40] = lines[40].split(" ia=")[0]  # the current not printed on file line 41

@@ -230,5 +230,5 @@ def test_without_a_steady_current_the_traces_that_log_one_are_said_why_not():
     with pytest.raises(NotApplicable) as err:
         closed_form(bare)
     text = str(err.value)
-    assert f"step trace {step.name!r} ends at rest" in text
+    assert f"step trace {step.name!r} ends near rest" in text
     assert "trace 'load' is a load change" in text and "`pmdc-bayes fit` needs none" in text

@@ -82,7 +82,9 @@ class WarmUp:
         programs of the ``lookahead`` models after it may now be made.  (Before any
         such call, those of the first ``lookahead`` models may: the caller fits
         something else meanwhile.)"""
-        k = next(k for k, m in enumerate(self._models) if m is model)
+        k = next((k for k, m in enumerate(self._models) if m is model), None)
+        if k is None:
+            raise ValueError("fitting(model): not one of the models the warm-up makes")
         with self._bound:
             self._limit = max(self._limit, k + 1 + self._lookahead)
             self._bound.notify_all()

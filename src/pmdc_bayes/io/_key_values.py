@@ -13,6 +13,7 @@ from typing import NamedTuple
 from ._cells import number
 from ._rows import column_index
 from ._stamps import stamp_seconds
+from .units import KINDS, unit_named
 
 __all__ = ["KeyValueTable", "key_value_rows"]
 
@@ -38,14 +39,17 @@ _GLUED = re.compile(r"([+-]?\d+(?:[.,]\d+)?(?:[eE][+-]?\d+)?)([A-Za-zµ°%/][\w/
 
 def _pairs(line: str) -> dict[str, tuple[str, str]]:
     """A line's pairs, name -> (value, unit); none in a comment line (``#``).  A unit
-    written against its value (``t=12ms``, ``w=153.2rpm``) is the value's unit."""
+    written against its value (``t=12ms``, ``w=153.2rpm``: a value that is no number,
+    read as one followed by the name of a unit) is the value's unit."""
     if line.lstrip().startswith("#"):
         return {}
     out = {}
     for m in _PAIR.finditer(line):
         value, unit = m.group(2), m.group(3) or ""
-        glued = None if unit else _GLUED.fullmatch(value)
-        out[m.group(1)] = glued.groups() if glued else (value, unit)
+        glued = None if unit or number(value) else _GLUED.fullmatch(value)
+        if glued and any(unit_named(kind, glued.group(2)) for kind in KINDS):
+            value, unit = glued.groups()
+        out[m.group(1)] = (value, unit)
     return out
 
 

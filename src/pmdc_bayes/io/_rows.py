@@ -12,7 +12,7 @@ import numpy as np
 
 from .._errors import SessionError
 from ._cells import MISSING, DecimalMarks, number, parse_cell
-from ._stamps import elapsed, stamp_seconds
+from ._stamps import duration_seconds, elapsed, stamp_seconds
 
 __all__ = ["Columns", "read_rows"]
 
@@ -100,7 +100,7 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
     stamped = stamps[0] if stamps is not None and stamps[0] in wanted else None
     missable = bool(missing) and set(wanted) - {"time"} <= set(missing)
     timed = "time" in wanted
-    kinds: set[bool] = set()  # whether the stamped column's cells were time stamps
+    kinds: set[str] = set()  # the stamped column's cells: clock, duration or plain
     lines: list[int] = []
     skipped: list[int] = []
     pending: list[int] = []  # rows of missed readings, placed once a sample follows
@@ -159,7 +159,8 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
             cell = cells[k].strip()
             stamp = stamp_seconds(cell) if role == stamped else None
             if role == stamped:
-                kinds.add(stamp is not None)
+                kinds.add("plain" if stamp is None else
+                          "duration" if duration_seconds(cell) is not None else "clock")
                 if len(kinds) > 1:
                     raise SessionError(path, f"column {wanted[role]!r}: {cell!r} is written "
                                        "unlike the rows before it (time stamps and plain "
@@ -171,8 +172,10 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
         lines.append(row.line)
     marks.check()
     out = {role: np.frombuffer(v, dtype=float).copy() for role, v in values.items()}
-    if True in kinds and out[stamped].size:
+    if "clock" in kinds and out[stamped].size:
         out[stamped] = elapsed(out[stamped], stamps[1])
+    elif "duration" in kinds:  # as written, in the column's unit
+        out[stamped] = out[stamped] / stamps[1]
     return Columns(out, lines, tuple(skipped), units, units_line)
 
 

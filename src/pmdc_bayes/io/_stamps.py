@@ -1,8 +1,8 @@
 """A logger's time stamps in a CSV time column (``12:00:01.250``, ``10:15:03.120 PM``,
 a date and a zone around it allowed, ``26-Nov-2026 14:03:07.251`` as MATLAB writes a
-datetime), or durations with their unit (``0.001 sec``): read as seconds (since
-midnight), then as the time since the first row, a day's turn found from the clock
-going back."""
+datetime): read as seconds since midnight, then as the time since the first row, a
+day's turn found from the clock going back; or durations with their unit (``0.001
+sec``), read as written, in the column's unit of time."""
 
 from __future__ import annotations
 
@@ -10,7 +10,9 @@ import re
 
 import numpy as np
 
-__all__ = ["STAMP", "DURATION", "stamp_seconds", "elapsed"]
+from .units import unit_factor, unit_named
+
+__all__ = ["STAMP", "DURATION", "stamp_seconds", "duration_seconds", "elapsed"]
 
 # A logger's time stamp: a clock time h:mm:ss[.f] (on a 12-hour clock with AM or PM; a
 # date, its month a number or a name, and a zone around it allowed, both passed over) or
@@ -20,23 +22,27 @@ STAMP = re.compile(r"(?:\d{1,4}[-/. ](?:\d{1,2}|[A-Za-z]{3,9})[-/. ]\d{1,4}(?:T|
                     r"(\d{2}(?:[.,]\d*)?)\s*(?:([AP])\.?M\.?)?\s*(?:Z|UTC|[+-]\d{2}:?\d{2})?",
                     re.IGNORECASE)
 DAY = 86400.0
-# A duration with its unit, as MATLAB writes a timetable's (``0.001 sec``) or a logger
-# its elapsed time (``12.5s``, ``250 ms``).
-DURATION = re.compile(r"([+-]?\d+(?:[.,]\d*)?(?:e[+-]?\d+)?)\s*"
-                      r"(s|sec|secs|seconds?|ms|msec|min|mins|minutes?|hr|hrs|hours?)",
-                      re.IGNORECASE)
-_DURATION_S = {"s": 1.0, "m": 1e-3, "mi": 60.0, "h": 3600.0}
+# A duration with its unit of time, as MATLAB writes a timetable's (``0.001 sec``) or a
+# logger its elapsed time (``12.5s``, ``250 ms``).
+DURATION = re.compile(r"([+-]?\d+(?:[.,]\d*)?(?:e[+-]?\d+)?)\s*([a-zµμ]+)", re.IGNORECASE)
+
+
+def duration_seconds(text: str) -> float | None:
+    """The seconds of a duration with its unit (:data:`DURATION`, a unit of time as
+    :func:`~.units.unit_named` reads it), or None when ``text`` is none."""
+    d = DURATION.fullmatch(text.strip().replace("\u2212", "-"))
+    unit = None if d is None else unit_named("time", d.group(2))
+    return None if unit is None else float(d.group(1).replace(",", ".")) * unit_factor(
+        "time", unit)
 
 
 def stamp_seconds(text: str) -> float | None:
     """The seconds since midnight of a logger's time stamp (:data:`STAMP`), or of a
     duration (:data:`DURATION`), or None when ``text`` is neither (a stamp m:ss needs
     a fraction of a second, as ``12:00`` could be hours or minutes)."""
-    d = DURATION.fullmatch(text.strip())
+    d = duration_seconds(text)
     if d is not None:
-        unit = d.group(2).lower()
-        key = "mi" if unit.startswith("mi") else "m" if unit.startswith("ms") else unit[0]
-        return float(d.group(1).replace(",", ".")) * _DURATION_S[key]
+        return d
     m = STAMP.fullmatch(text.strip())
     if m is None:
         return None

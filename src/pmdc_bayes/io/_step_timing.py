@@ -35,19 +35,25 @@ def _start(time: np.ndarray, speed: np.ndarray) -> float | None:
 
 
 def check_step_timing(t: _Table, time: np.ndarray, speed, voltage: Schedule,
-                      unit: str) -> None:
+                      load: Schedule, unit: str) -> None:
     """Refuse a trace started at rest under its voltage schedule when its speed starts
-    to move a thousand times (:data:`RATIO`) after the schedule's first change, well
-    after it: the schedule and the time column are in different units (``time`` and
-    ``voltage`` in SI, ``unit`` the trace's unit of time, for the message)."""
+    to move a thousand times (:data:`RATIO`) after the schedule's first clear step (a
+    quarter of its largest change or more), well after it and with no input changing
+    in between: the schedule and the time column are in different units (``time``,
+    ``voltage`` and ``load`` in SI, ``unit`` the trace's unit of time, for the
+    message)."""
     changes = voltage.change_times()
-    if speed is None or changes.size == 0 or changes[0] <= 0:
+    if speed is None or changes.size == 0:
         return
-    step = float(changes[0])
+    sizes = np.abs(np.diff(np.asarray(voltage.values, float)))
+    sizes = sizes[sizes > 0]
+    step = float(changes[np.argmax(sizes >= 0.25 * sizes.max())])
     moved = _start(time, speed)
-    if moved is None or not RATIO[0] <= moved / step <= RATIO[1]:
+    if step <= 0 or moved is None or not RATIO[0] <= moved / step <= RATIO[1]:
         return
-    if moved - step < 10 * float(np.median(np.diff(time))):
+    between = np.concatenate([changes, load.change_times()])
+    if moved - step < 10 * float(np.median(np.diff(time))) or np.any(
+            (between > step) & (between < moved)):
         return
     per = float(to_si(np.array([1.0]), "time", unit)[0])
     at, first = moved / per, step / per

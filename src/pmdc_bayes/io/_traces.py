@@ -261,7 +261,8 @@ def _trace(t: _Table, root: Path) -> Trace:
     m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial, left_out)
     check_curve_reach(t, drag, m["speed"], sensors.physical(u))
     if initial == "rest" and "voltage" not in cols:  # a schedule, in the trace's unit
-        check_step_timing(t, m["time"], m["speed"], inputs["voltage"], u["time"])
+        check_step_timing(t, m["time"], m["speed"], inputs["voltage"], inputs["load_torque"],
+                          u["time"])
     return Trace(name=name, kind=kind, file=path, time=m["time"], speed=m["speed"],
                  current=si.get("current"), voltage=inputs["voltage"],
                  load_torque=inputs["load_torque"], voltage_logged="voltage" in si,

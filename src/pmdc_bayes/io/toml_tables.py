@@ -10,7 +10,7 @@ import math
 from pathlib import Path
 
 from .._errors import SessionError
-from .units import SI_UNIT, to_si, unit_factor
+from .units import SI_UNIT, to_si, unit_factor, unit_named
 
 __all__ = ["Table", "REQUIRED", "describe"]
 
@@ -129,7 +129,7 @@ class Table:
             unit_factor(kind, text)
         except ValueError as exc:
             self.fail(key, str(exc))
-        return text.strip()
+        return unit_named(kind, text) or text.strip()  # "RPM" is rpm
 
     def units(self, kinds: dict[str, str], extra: dict | None = None) -> dict[str, str]:
         """The optional ``units`` table: key -> unit, SI for keys not given; ``extra``

@@ -79,7 +79,11 @@ def unit_named(kind: str, text: str, *, exact: bool = False) -> str | None:
     folded = {u.lower(): u for u in table if u}
     aliases = {a.lower(): u for a, u in _ALIASES.get(kind, {}).items()}
     found = {folded.get(key.lower()), aliases.get(key.lower())} - {None}
-    return found.pop() if len(found) == 1 else None
+    if len(found) != 1:
+        return None
+    unit = found.pop()
+    mega = kind == "resistance" and key[:1] == "M"  # MΩ exists; a shouted "MS" is ms
+    return None if mega and unit[:1] == "m" else unit
 
 
 def display_unit(unit: str) -> str:

@@ -119,7 +119,7 @@ def check_physical(session: Session, Ra, La, K, B, tau, used) -> None:
 def traces_without_steady_current(session) -> str:
     """Why the traces that log a current give the closed form no steady current, for its
     refusal (empty if none logs one)."""
-    why = [f"step trace {t.name!r} ends at rest" if t.kind == "step" else
+    why = [f"step trace {t.name!r} ends near rest" if t.kind == "step" else
            f"trace {t.name!r} is a {t.kind.replace('_', ' ')}"
            for t in session.traces if t.current is not None][:3]
     return (f" ({'; '.join(why)}: the method reads the settled end of a step that turns);"

@@ -77,8 +77,9 @@ def reversed_current(session) -> Reversal | None:
     moves the current clearly: a step up of the voltage drives the armature's current
     up (``di/dt = ΔV/La`` at the change; a limit, a lag or a dead time delays it, none
     turns it round), and so does a step up of the load torque (its steady current
-    ``ΔTL/(K + B·Ra/K)`` higher), so a trace whose current falls on every step up reads
-    it through a sensor wired the other way round.  None when every trace's current
+    ``ΔTL/(K + B·Ra/K)`` higher, where its speed falls as a load's does), so a trace
+    whose current falls on every step up reads it through a sensor wired the other way
+    round.  None when every trace's current
     follows its inputs, or none swings clearly (by :data:`CLEAR_SWING` sds of its
     sample-to-sample noise, and as many of its smallest steps, a quantised reading's)."""
     for tr in session.traces:
@@ -90,16 +91,19 @@ def reversed_current(session) -> Reversal | None:
         clear = max(CLEAR_SWING * float(np.median(steps)) / (0.6745 * np.sqrt(2.0)),
                     CLEAR_SWING * quantum)  # a quantised reading's steps, not its noise
         against = []
-        for r in responses(tr, "voltage") + responses(tr, "load_torque"):
-            t, i = tr.time[r.start:r.stop], current[r.start:r.stop]
-            before, after = i[t < r.time], i[t >= r.time]
-            if after.size < 3 or r.after == r.before:
-                continue
-            base = float(np.mean(before)) if before.size else 0.0  # from rest: none flows
-            swing = after - base
-            swing = float(swing[np.argmax(np.abs(np.nan_to_num(swing)))])
-            if abs(swing) > clear:
-                against.append(np.sign(swing) == -np.sign(r.after - r.before))
+        for which in ("voltage", "load_torque"):
+            for r in responses(tr, which):
+                t, i = tr.time[r.start:r.stop], current[r.start:r.stop]
+                before, after = i[t < r.time], i[t >= r.time]
+                if after.size < 3 or r.after == r.before or (
+                        which == "load_torque" and not _slows(tr, r)):
+                    continue
+                # from rest, the current at the change: none flows through La yet
+                base = np.nanmean(before) if np.isfinite(before).any() else after[0]
+                swing = np.nan_to_num(after - base)
+                swing = float(swing[np.argmax(np.abs(swing))])
+                if abs(swing) > clear:
+                    against.append(np.sign(swing) == -np.sign(r.after - r.before))
         if against and all(against):
             return Reversal(tr.file, None, (
                 f"the current of trace {tr.name!r} swings against its inputs at every "
@@ -107,6 +111,19 @@ def reversed_current(session) -> Reversal | None:
                 "sensor is wired the other way round; negate this file's current column "
                 "and fit again"))
     return None
+
+
+def _slows(tr, r) -> bool:
+    """Whether the speed settles lower after a load change ``r`` that raises the load
+    (higher after one that lowers it), as a load given with its sign does; a load
+    written with the other sign is no evidence about the current's."""
+    w = np.asarray(tr.speed[r.start:r.stop], float)
+    t = tr.time[r.start:r.stop]
+    before, after = w[t < r.time], w[t >= r.time]
+    if not (np.isfinite(before).any() and np.isfinite(after).any()):
+        return False
+    settled = np.nanmean(after[-max(3, after.size // 10):]) - np.nanmean(before)
+    return bool(np.sign(settled) == -np.sign(r.after - r.before))
 
 
 def refuse_reversed(session) -> None:
