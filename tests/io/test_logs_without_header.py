@@ -117,6 +117,9 @@ def test_a_name_value_number_is_not_split_into_a_value_and_a_unit():
     assert pairs["t"] == ("12", "ms") and pairs["ia"] == ("0.41", "A")
     assert pairs["w"] == ("1.5e3", "") and pairs["x"] == ("9.9E37", "")
     assert pairs["h"] == ("0x1F", "") and pairs["d"] == ("20240105T120001", "")
+    commas = _pairs("t=12,5ms speed=153,2rpm ia=0,41 A w=3,5")
+    assert commas["t"] == ("12,5", "ms") and commas["speed"] == ("153,2", "rpm")
+    assert commas["ia"] == ("0,41", "A") and commas["w"] == ("3,5", "")
 
 
 def test_name_value_lines_with_a_reading_missed_or_a_unit_against_the_session(session_dir):

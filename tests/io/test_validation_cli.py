@@ -67,6 +67,14 @@ def _coarse_clock(d):
         f"{int(round(float(r[0]) * 100)) // 2 / 50:.2f},{r[1]},{r[2]}\n" for r in rows))
 
 
+def _stray_stamp(d):
+    """A second reading logged at line 20's time stamp (two readings under one stamp)."""
+    lines = (d / "step.csv").read_text().splitlines(keepends=True)
+    t, w, i = lines[19].strip().split(",")
+    extra = f"{t},{float(w) + 0.5!r},{float(i) + 0.01!r}\n"
+    (d / "step.csv").write_text("".join(lines[:20] + [extra] + lines[20:]))
+
+
 def _header_again(d):
     """The header written again at line 21 (two logs joined into one file)."""
     lines = (d / "step.csv").read_text().splitlines(keepends=True)
@@ -161,6 +169,9 @@ CASES = [
     ("time-coarse-clock", _coarse_clock,
      ["step.csv:line 3", "not strictly increasing", "coarser than the sampling",
       "sample_rate = 100 "]),
+    ("time-stray-repeat", _stray_stamp,
+     ["step.csv:line 21", "not strictly increasing", "(line 20)",
+      "a time stamp repeated (once in the file) with other readings", "remove line 21"]),
     ("header-written-again", _header_again,
      ["step.csv:line 21", "the header ('t' ...) is written again here", "remove this line"]),
     ("fewer-than-3-samples", _two_samples, ["step.csv", "only 2 samples", "at least 3"]),

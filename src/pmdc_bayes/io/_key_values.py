@@ -19,7 +19,7 @@ __all__ = ["KeyValueTable", "key_value_rows"]
 
 _PAIR = re.compile(
     r"""(?<![\w.])["']?([A-Za-z_][\w.\[\]()/]*)["']?\s*[=:]\s*"""  # a name, = or :
-    r"""["']?([^\s,;=}"']+(?:,\d+(?![\d,]*\s*[=:]))?)["']?"""  # its value (a decimal comma)
+    r"""["']?([^\s,;=}"']+(?:,\d+[^\s,;=}"']*(?![\d,]*\s*[=:]))?)["']?"""  # a decimal comma
     r"""(?:[ \t]+(?![^\s,;=:]+\s*[=:])([^\s\d,;=:}][^\s,;=:}]*))?""")  # a unit after it
 SEARCHED = 100  # lines searched for the first with every name asked for
 

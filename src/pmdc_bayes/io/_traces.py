@@ -14,6 +14,7 @@ from ._csv import read_columns
 from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
 from ._missing import MISSABLE, without_missing, without_repeats
 from ._step_timing import check_step_timing
+from ._time_order import check_increasing
 from ._units_row import check_column_units
 from .drag import check_curve_reach, read_drag
 from .held_levels import held_levels
@@ -105,29 +106,8 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
     if t_raw.size < 3:
         raise SessionError(path, f"only {t_raw.size} samples; a trace needs at least 3 "
                            "samples (log a longer record)")
-    bad = np.nonzero(np.diff(t_raw) <= 0)[0]
-    if bad.size:
-        k = int(bad[0]) + 1
-        fix = "sort the rows by time and remove duplicate samples"
-        wrap = _counter_wrap(t_raw[k - 1], t_raw[k])
-        if wrap is not None and "time_wrap" not in t.data:
-            fix = (f"the time jumps back near 2^{wrap.bit_length() - 1}: a timer that wraps; "
-                   f"add time_wrap = {wrap} to the trace (in its time unit)")
-        elif (all(v[k] == v[k - 1] for v in raw.values())
-              and np.count_nonzero(np.diff(t_raw) == 0) == 1):
-            fix = (f"line {lines[k]} repeats line {lines[k - 1]} in every column: a row "
-                   f"logged twice, or a sample whose time is wrong; remove line {lines[k]} "
-                   "or mend its time")
-        elif np.all(np.diff(t_raw) >= 0) and t_raw[-1] > t_raw[0]:
-            rows = t_raw.size + len(left_out)
-            rate = (rows - 1) / float(t_raw[-1] - t_raw[0]) / second
-            fix = ("the time repeats, never going back: a clock coarser than the sampling "
-                   "(a logger's millisecond stamps); if the rows are samples at a steady "
-                   f"rate, remove columns.time and give sample_rate = {rate:.4g} (Hz, the "
-                   "rows over the record's span), or log a finer time")
-        raise SessionError(path, f"time column {cols['time']!r} is not strictly increasing: "
-                           f"{t_raw[k]:.12g} follows {t_raw[k - 1]:.12g} (line "
-                           f"{lines[k - 1]}); {fix}", where=f"line {lines[k]}")
+    check_increasing(path, cols.get("time"), raw, t_raw, lines, t_raw.size + len(left_out),
+                     second, wrap_given="time_wrap" in t.data)
     for role in ("speed", "position"):
         y = raw.get(role)
         if y is not None and np.all(y == y[0]):
@@ -144,17 +124,6 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
                            "carries the fit) or log the current itself")
     time = to_si(t_raw, "time", u["time"])
     return _TraceFile(path, raw, t_raw, time, left_out, start)
-
-
-def _counter_wrap(before: float, after: float) -> int | None:
-    """The modulus ``2^k`` (k = 8 ... 64) of a timer that wrapped between two readings,
-    when ``before`` lies in the top tenth of that range and ``after`` in the bottom
-    tenth, else None."""
-    for bits in (8, 10, 12, 16, 24, 31, 32, 48, 63, 64):
-        wrap = 2**bits
-        if 0.9 * wrap <= before < wrap and 0 <= after < 0.1 * wrap:
-            return wrap
-    return None
 
 
 def _motion_columns(t: _Table, cols: dict, edges: bool) -> None:

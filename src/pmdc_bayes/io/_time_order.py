@@ -1,0 +1,62 @@
+"""A trace's time column that does not increase: what the rows that break it most likely
+are (a timer that wraps, a row logged twice, a stray time stamp, a clock coarser than the
+sampling), and the fix, in the one line the loader refuses it with."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .._errors import SessionError
+
+__all__ = ["check_increasing", "STRAY_REPEATS"]
+
+STRAY_REPEATS = 3  # a time repeated this often or less is a stray, not a coarse clock
+
+
+def check_increasing(path: Path, column: str | None, raw: dict, t_raw: np.ndarray,
+                     lines: list, rows: int, second: float, *, wrap_given: bool) -> None:
+    """Raise :class:`~pmdc_bayes.SessionError` where the times ``t_raw`` (in the trace's
+    unit, ``second`` of them to the second; ``raw`` the columns read, ``lines`` each
+    sample's line in the file, ``rows`` the rows before any was left out) do not
+    increase strictly, naming the first line that breaks them and what to do."""
+    bad = np.nonzero(np.diff(t_raw) <= 0)[0]
+    if not bad.size:
+        return
+    k = int(bad[0]) + 1
+    repeats = np.count_nonzero(np.diff(t_raw) == 0)
+    fix = "sort the rows by time and remove duplicate samples"
+    wrap = _counter_wrap(t_raw[k - 1], t_raw[k])
+    if wrap is not None and not wrap_given:
+        fix = (f"the time jumps back near 2^{wrap.bit_length() - 1}: a timer that wraps; "
+               f"add time_wrap = {wrap} to the trace (in its time unit)")
+    elif repeats == 1 and all(v[k] == v[k - 1] for v in raw.values()):
+        fix = (f"line {lines[k]} repeats line {lines[k - 1]} in every column: a row logged "
+               f"twice, or a sample whose time is wrong; remove line {lines[k]} or mend its "
+               "time")
+    elif t_raw[k] == t_raw[k - 1] and repeats <= STRAY_REPEATS:
+        fix = (f"a time stamp repeated ({'once' if repeats == 1 else f'{repeats} times'} in "
+               f"the file) with other readings: a row logged twice or a sample whose time is "
+               f"wrong (remove line {lines[k]} or mend its time), unless the clock is "
+               "coarser than the sampling (then remove columns.time and give sample_rate)")
+    elif np.all(np.diff(t_raw) >= 0) and t_raw[-1] > t_raw[0]:
+        rate = (rows - 1) / float(t_raw[-1] - t_raw[0]) / second
+        fix = ("the time repeats, never going back: a clock coarser than the sampling (a "
+               "logger's millisecond stamps); if the rows are samples at a steady rate, "
+               f"remove columns.time and give sample_rate = {rate:.4g} (Hz, the rows over "
+               "the record's span), or log a finer time")
+    raise SessionError(path, f"time column {column!r} is not strictly increasing: "
+                       f"{t_raw[k]:.12g} follows {t_raw[k - 1]:.12g} (line {lines[k - 1]}); "
+                       f"{fix}", where=f"line {lines[k]}")
+
+
+def _counter_wrap(before: float, after: float) -> int | None:
+    """The modulus ``2^k`` (k = 8 ... 64) of a timer that wrapped between two readings,
+    when ``before`` lies in the top tenth of that range and ``after`` in the bottom
+    tenth, else None."""
+    for bits in (8, 10, 12, 16, 24, 31, 32, 48, 63, 64):
+        wrap = 2**bits
+        if 0.9 * wrap <= before < wrap and 0 <= after < 0.1 * wrap:
+            return wrap
+    return None
