@@ -39,7 +39,7 @@ def noise_scale(y) -> float:
     the quantisation noise q/√12 of its smallest step as a floor."""
     y = np.asarray(y, dtype=float)
     d2 = np.diff(y, 2)
-    mad = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
+    mad = 1.482602218505602 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
     steps = np.abs(np.diff(y))
     steps = steps[steps > 1e-12 * max(1.0, np.abs(y).max())]
     quantum = steps.min() / np.sqrt(12.0) if steps.size else 0.0

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pmdc_bayes.io.held_levels import FALSE_SPLIT, column_noise, held_levels
+from pmdc_bayes.io.held_levels import FALSE_SPLIT, held_levels
+from pmdc_bayes.io.robust import difference_sd
 
 RATE = 1000.0
 
@@ -22,9 +23,9 @@ def test_a_noisy_staircase_column_is_read_as_its_levels_at_the_samples_that_show
     t, _, noisy = _staircase(steps, hold, sigma)
     levels = held_levels(t, noisy)
     assert np.allclose(levels.times, t[::hold])
-    assert np.allclose(levels.se, column_noise(noisy) / np.sqrt(hold))
+    assert np.allclose(levels.se, difference_sd(noisy) / np.sqrt(hold))
     assert np.all(np.abs(levels.values - steps) < 5 * sigma / np.sqrt(hold)), levels.values
-    assert abs(column_noise(noisy) / sigma - 1.0) < 0.1
+    assert abs(difference_sd(noisy) / sigma - 1.0) < 0.1
 
 
 def test_a_column_without_noise_is_read_as_written():

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .robust import difference_sd, first_run
 from .session import Schedule
 from .toml_tables import Table as _Table
 from .units import to_si
@@ -18,20 +19,18 @@ CLEAR = 10.0  # a departure this many noise sds from rest (and 5 % of the swing)
 
 
 def _start(time: np.ndarray, speed: np.ndarray) -> float | None:
-    """When ``speed`` leaves its first level: three samples in a row beyond
-    :data:`CLEAR` sds of its sample-to-sample noise and 5 % of its largest swing."""
+    """When ``speed`` leaves its first level: :data:`~pmdc_bayes.io.robust.CONSECUTIVE`
+    samples in a row beyond :data:`CLEAR` sds of its reading noise and 5 % of its
+    largest swing."""
     w = np.asarray(speed, float)
     ok = np.isfinite(w)
     time, w = np.asarray(time, float)[ok], w[ok]
     if w.size < 10:
         return None
     rest = float(np.median(w[:3]))
-    noise = float(np.median(np.abs(np.diff(w)))) / (0.6745 * np.sqrt(2.0))
     swing = np.abs(w - rest)
-    away = swing > max(CLEAR * noise, 0.05 * float(swing.max()), 1e-300)
-    run = np.convolve(away.astype(int), np.ones(3, int), mode="valid") == 3
-    k = np.flatnonzero(run)
-    return float(time[k[0]]) if k.size else None
+    k = first_run(swing > max(CLEAR * difference_sd(w), 0.05 * float(swing.max()), 1e-300))
+    return None if k is None else float(time[k])
 
 
 def check_step_timing(t: _Table, time: np.ndarray, speed, voltage: Schedule,

@@ -19,24 +19,13 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from .robust import difference_sd
 from .session import Schedule
 
-__all__ = ["held_levels", "column_noise", "FALSE_SPLIT"]
+__all__ = ["held_levels", "FALSE_SPLIT"]
 
 FALSE_SPLIT = 0.01  # the chance that a column of constant level is split anywhere
-_MAD_SD = 1.482602218505602  # sd of a normal variable per median absolute deviation
 MAD_EFFICIENCY = 0.37  # a MAD's σ is as good as a sample sd from this share of its readings
-
-
-def column_noise(values: np.ndarray) -> float:
-    """The sd of a column's reading noise, from the median absolute deviation of its
-    first differences (robust to the column's steps, which are few); 0 for a column that
-    holds its value from one sample to the next more often than not (a command written as
-    it was set, or a reading whose noise seldom moves it by a quantum: read as written)."""
-    d = np.diff(np.asarray(values, dtype=float))
-    if d.size < 2:
-        return 0.0
-    return float(_MAD_SD * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))
 
 
 def held_levels(time: np.ndarray, values: np.ndarray) -> Schedule:
@@ -51,7 +40,7 @@ def held_levels(time: np.ndarray, values: np.ndarray) -> Schedule:
     A step is cut at the first sample that shows it, and a drift (a sagging supply) into
     levels that each hold within their readings' error."""
     time, values = np.asarray(time, dtype=float), np.asarray(values, dtype=float)
-    sigma = column_noise(values)
+    sigma = difference_sd(values)
     if sigma == 0.0 or values.size < 3:
         return Schedule(time, values)
     dof = max(1.0, MAD_EFFICIENCY * (values.size - 1))  # σ's own error, as Student's t

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import median_filter
 
+from ..io.robust import MAD_SD
+
 __all__ = ["WINDOW", "CHANGE_OVER_NOISE", "RESPONSE_SHARE", "AT_REST", "Plateau", "Response",
            "plateaus", "responses"]
 
@@ -88,7 +90,7 @@ def _departures(x: np.ndarray) -> list[int]:
     if n <= WINDOW:
         return [0]
     med = median_filter(x, size=WINDOW, mode="nearest")
-    noise = 1.4826 * float(np.median(np.abs(med[WINDOW:] - med[:-WINDOW]))) / np.sqrt(2.0)
+    noise = MAD_SD * float(np.median(np.abs(med[WINDOW:] - med[:-WINDOW]))) / np.sqrt(2.0)
     moving = np.abs(np.diff(x))
     moving = moving[moving > 0]
     # a quantised input's flicker moves it at many samples; a clean column's few

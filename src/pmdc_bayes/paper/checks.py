@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import NotApplicable
+from ..io.robust import MAD_SD
 from ..io.session import Session, Trace
 from ..physics.motor import gain
 from .changes import responses
@@ -39,7 +40,7 @@ def step_of(trace: Trace) -> tuple[float, float, float]:
     k = int(np.argmax(jumps))
     if v.size < max(8, trace.n // 2):  # a schedule: every change is a step
         return float(max(times[k + 1], trace.time[0])), float(v[k]), float(v[k + 1])
-    if jumps[k] <= STEP_OVER_JITTER * 1.4826 * float(np.median(jumps)):
+    if jumps[k] <= STEP_OVER_JITTER * MAD_SD * float(np.median(jumps)):
         return float(trace.time[0]), 0.0, float(np.median(v))
     return (float(max(times[k + 1], trace.time[0])), float(np.median(v[max(0, k - 9):k + 1])),
             float(np.median(v[k + 1:k + 11])))

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["departure", "onset_shape", "rise_time", "step_time", "step_window"]
+from ...io.robust import first_run
 
-CONSECUTIVE = 3  # samples in a row beyond the threshold that count as having left rest
+__all__ = ["departure", "onset_shape", "rise_time", "step_time", "step_window"]
 
 
 def _rise(t, y, t_step):
@@ -96,14 +96,13 @@ def onset_shape(t, y, t_step) -> dict | None:
 
 def departure(t, y, t_step, threshold) -> float | None:
     """Time after ``t_step`` at which ``y`` leaves its level at the step by more than
-    ``threshold`` for :data:`CONSECUTIVE` samples in a row; None if it never does."""
+    ``threshold`` for :data:`~pmdc_bayes.io.robust.CONSECUTIVE` samples in a row; None
+    if it never does."""
     t, y = np.asarray(t, float), np.asarray(y, float)
     before = y[t <= t_step]
     y0 = float(np.mean(before[-5:])) if before.size else float(y[0])
-    out = (np.abs(y - y0) > threshold) & (t > t_step)
-    run = np.convolve(out.astype(int), np.ones(CONSECUTIVE, int), mode="valid")
-    k = np.nonzero(run == CONSECUTIVE)[0]
-    return float(t[k[0]] - t_step) if k.size else None
+    k = first_run((np.abs(y - y0) > threshold) & (t > t_step))
+    return None if k is None else float(t[k] - t_step)
 
 
 def step_time(trace) -> float:

@@ -11,6 +11,7 @@ import numpy as np
 
 from ...io.channel import ChannelId
 from ...io.lattice import quantum
+from ...io.robust import difference_sd
 
 __all__ = ["Channel", "noise_scale", "typical_level", "quantum", "effective_fraction",
            "quanta_passed", "run_fraction", "integrated_log_likelihood", "noise_weights",
@@ -30,8 +31,7 @@ def noise_scale(y: np.ndarray) -> float:
     q/√12 of its smallest step as a floor.
     """
     y = np.asarray(y, dtype=float)
-    d2 = np.diff(y, 2)
-    mad = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
+    mad = difference_sd(y, 2)
     steps = np.abs(np.diff(y))
     steps = steps[steps > 1e-12 * max(1.0, np.abs(y).max())]
     quantum = steps.min() / np.sqrt(12.0) if steps.size else 0.0
@@ -45,8 +45,7 @@ def _undithered(y: np.ndarray) -> float:
     q = quantum(y)
     if q == 0.0 or y.size < 3:
         return 0.0
-    d2 = np.diff(y, 2)
-    analogue = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
+    analogue = difference_sd(y, 2)
     return q if analogue < 0.5 * q else 0.0
 
 

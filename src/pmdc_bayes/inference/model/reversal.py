@@ -11,6 +11,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..._errors import SessionError
+from ...io.robust import difference_sd
 from ...paper.changes import AT_REST, responses
 from .levels import unloaded_levels
 
@@ -88,7 +89,7 @@ def reversed_current(session) -> Reversal | None:
         current = np.asarray(tr.current, float)
         steps = np.abs(np.diff(current[np.isfinite(current)]))
         quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
-        clear = max(CLEAR_SWING * float(np.median(steps)) / (0.6745 * np.sqrt(2.0)),
+        clear = max(CLEAR_SWING * difference_sd(current),
                     CLEAR_SWING * quantum)  # a quantised reading's steps, not its noise
         against = []
         for which in ("voltage", "load_torque"):

@@ -1,0 +1,35 @@
+"""Robust statistics of a sampled signal, read before any model: the sd of its readings'
+noise from the median absolute deviation of its differences, and where it first leaves a
+level for good (a run of samples beyond a threshold)."""
+
+from __future__ import annotations
+
+from math import comb, sqrt
+
+import numpy as np
+
+__all__ = ["MAD_SD", "CONSECUTIVE", "difference_sd", "first_run"]
+
+MAD_SD = 1.482602218505602  # sd of a normal variable per median absolute deviation
+CONSECUTIVE = 3  # samples in a row beyond a threshold that count as having left a level
+
+
+def difference_sd(values, order: int = 1) -> float:
+    """The sd of a signal's white reading noise, from the median absolute deviation of
+    its ``order``-th differences about their median (white noise of sd σ gives them an
+    sd of σ·√C(2·order, order): √2 for the first, √6 for the second); the few samples
+    where the signal itself steps or bends do not move a median.  0 for a signal that
+    holds its value from one sample to the next more often than not.  Missing readings
+    (NaN) are left out."""
+    y = np.asarray(values, dtype=float)
+    d = np.diff(y[np.isfinite(y)], order)
+    if d.size < 2:
+        return 0.0
+    return float(MAD_SD * np.median(np.abs(d - np.median(d))) / sqrt(comb(2 * order, order)))
+
+
+def first_run(beyond: np.ndarray, n: int = CONSECUTIVE) -> int | None:
+    """The index of the first of ``n`` samples in a row where ``beyond`` holds, or None."""
+    run = np.convolve(np.asarray(beyond, dtype=int), np.ones(n, int), mode="valid") == n
+    k = np.flatnonzero(run)
+    return int(k[0]) if k.size else None
