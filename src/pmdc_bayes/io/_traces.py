@@ -13,6 +13,7 @@ from . import _sensors as sensors
 from ._csv import read_columns
 from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
 from ._missing import MISSABLE, without_missing, without_repeats
+from ._run_down import check_run_down_start
 from ._step_timing import check_step_timing
 from ._time_order import check_increasing
 from ._units_row import check_column_units
@@ -243,18 +244,27 @@ def _trace(t: _Table, root: Path) -> Trace:
 def _coast_down(t: _Table, root: Path) -> Trace:
     """A trace of kind ``"coast-down"``: time and speed only, the armature open."""
     t.check_keys(("name", "kind", "file", "columns", "units", "tacho_constant",
-                  "sample_rate"))
+                  "sample_rate", "opened"))
     name = t.string("name")
     kinds = {"time": "time", "speed": "speed"}
-    u = t.units(dict(kinds, tacho_constant="motor_constant", sample_rate="frequency"),
-                extra={"speed": sensors.VOLTS})
+    u = t.units(dict(kinds, tacho_constant="motor_constant", sample_rate="frequency",
+                     opened="time"), extra={"speed": sensors.VOLTS})
     cols = _columns(t, kinds, ("speed",))
     sensors.check_unused(t, u, cols)
     f = _read_trace_file(t, root, cols, u)
-    none = Schedule(f.time[:1].copy(), np.zeros(1))
-    return Trace(name=name, kind=COAST_DOWN, file=f.path, time=f.time,
-                 speed=sensors.speed_si(t, f.raw["speed"], u), current=None, voltage=none,
-                 load_torque=none, rows_left_out=f.left_out)
+    time, speed = f.time, sensors.speed_si(t, f.raw["speed"], u)
+    per_unit = float(to_si(np.array([1.0]), "time", u["time"])[0])
+    if "opened" in t.data:
+        kept = time >= t.number("opened", "time", u["opened"]) - 1e-9 * per_unit
+        if np.count_nonzero(kept) < 3:
+            t.fail("opened", "fewer than 3 samples follow it; give the time the armature "
+                   "was opened, in the trace's time unit")
+        time, speed = time[kept], speed[kept]
+    else:
+        check_run_down_start(t, time, speed, u["time"], per_unit)
+    none = Schedule(time[:1].copy(), np.zeros(1))
+    return Trace(name=name, kind=COAST_DOWN, file=f.path, time=time, speed=speed,
+                 current=None, voltage=none, load_torque=none, rows_left_out=f.left_out)
 
 
 def read_traces(top: _Table, root: Path) -> tuple[tuple, tuple]:

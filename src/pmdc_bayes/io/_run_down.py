@@ -1,0 +1,67 @@
+"""A coast-down's start: the rows of an oscilloscope's pre-trigger or a logger started
+early, where the rotor still ran driven before the armature was opened.
+
+A rotor coasting against viscous and Coulomb friction slows fastest at its start
+(``J·dω/dt = −B·ω − Tc``, its deceleration falling with its speed), so its speed never
+falls by more over a stretch of time than over the same stretch before it.  A record
+whose time starts before 0 (an oscilloscope's, from its trigger) and whose speed holds at
+first and then falls faster starts before the armature was opened; fitted as a
+coast-down from its first row, its level start would be read as friction.  A record from
+0 is not judged: a lagging speed sensor's reading also holds at first, and the search
+fits the lag.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .robust import difference_sd, first_run
+from .toml_tables import Table
+
+__all__ = ["check_run_down_start", "HOLD_Z"]
+
+CLEAR = 10.0  # a departure this many noise sds from the first level (and 5 % of the fall)
+HOLD_Z = 6.0  # sds of its noise by which the later fall must exceed the earlier one
+
+
+def _mean(x: np.ndarray, at: int, half: int) -> float:
+    return float(np.nanmean(x[max(0, at - half):at + half + 1]))
+
+
+def check_run_down_start(t: Table, time: np.ndarray, speed: np.ndarray, unit: str,
+                         per_unit: float) -> None:
+    """Refuse a coast-down whose record starts before 0 and whose speed holds at its
+    first level and then falls faster (module docstring): ``k`` samples to leave its
+    first level by :data:`CLEAR` sds and 5 % of its fall, and its fall over the next
+    ``k`` more than that over the first by :data:`HOLD_Z` sds of the difference (means
+    over windows of ``k/4`` samples) and a quantum of a quantised speed.  ``time`` in s,
+    ``unit`` the trace's unit of time, ``per_unit`` seconds per unit."""
+    w = np.asarray(speed, float)
+    ok = np.isfinite(w)
+    if not time[0] < 0.0:
+        return
+    time, w = np.asarray(time, float)[ok], np.abs(w[ok])
+    steps = np.abs(np.diff(w))
+    quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
+    sigma = max(difference_sd(w), quantum / np.sqrt(12.0))
+    if w.size < 20 or sigma == 0.0:
+        return
+    first = float(np.mean(w[:3]))
+    fall = first - w
+    k = first_run(fall > max(CLEAR * sigma, 0.05 * float(fall.max())))
+    half = 0 if k is None else k // 8
+    if k is None or k < 8 or half + 2 * k + half >= w.size:
+        return
+    m = 2 * half + 1
+    at = (half, half + k, half + 2 * k)  # equally spaced window centres
+    lv = [_mean(w, i, half) for i in at]
+    excess = (lv[1] - lv[2]) - (lv[0] - lv[1])
+    if excess <= HOLD_Z * sigma * np.sqrt(6.0 / m) + quantum:  # a lattice's means: ±q/2
+        return
+    opened = 0.0 if time[0] < 0.0 < time[at[1]] else time[at[1]] / per_unit
+    ratio = (lv[1] - lv[2]) / max(lv[0] - lv[1], sigma)
+    t.fail("file", f"the speed falls {ratio:.3g}× as much from {time[at[1]] / per_unit:.4g} "
+           f"to {time[at[2]] / per_unit:.4g} {unit} as in the same time before, as a "
+           "coasting rotor cannot (it slows fastest at its start): the record holds rows "
+           "from before the armature was opened (an oscilloscope's pre-trigger?); give "
+           f"opened = {opened:.6g} (the time it was opened, in {unit}), or remove those rows")
