@@ -75,6 +75,12 @@ def _stray_stamp(d):
     (d / "step.csv").write_text("".join(lines[:20] + [extra] + lines[20:]))
 
 
+def _two_records(d):
+    """The record logged twice into one file, the second from time 0 again."""
+    lines = (d / "step.csv").read_text().splitlines(keepends=True)
+    (d / "step.csv").write_text("".join(lines + lines[1:]))
+
+
 def _header_again(d):
     """The header written again at line 21 (two logs joined into one file)."""
     lines = (d / "step.csv").read_text().splitlines(keepends=True)
@@ -172,6 +178,9 @@ CASES = [
     ("time-stray-repeat", _stray_stamp,
      ["step.csv:line 21", "not strictly increasing", "(line 20)",
       "a time stamp repeated (once in the file) with other readings", "remove line 21"]),
+    ("time-starts-again", _two_records,
+     ["not strictly increasing", "the time starts again at line", "two records are joined",
+      "a trace (and a file) of its own"]),
     ("header-written-again", _header_again,
      ["step.csv:line 21", "the header ('t' ...) is written again here", "remove this line"]),
     ("fewer-than-3-samples", _two_samples, ["step.csv", "only 2 samples", "at least 3"]),

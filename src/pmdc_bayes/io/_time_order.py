@@ -31,6 +31,10 @@ def check_increasing(path: Path, column: str | None, raw: dict, t_raw: np.ndarra
     if wrap is not None and not wrap_given:
         fix = (f"the time jumps back near 2^{wrap.bit_length() - 1}: a timer that wraps; "
                f"add time_wrap = {wrap} to the trace (in its time unit)")
+    elif _restarts(t_raw, k):
+        fix = (f"the time starts again at line {lines[k]}, as when two records are joined in "
+               "one file; give each record a trace (and a file) of its own, or remove the "
+               "second")
     elif repeats == 1 and all(v[k] == v[k - 1] for v in raw.values()):
         fix = (f"line {lines[k]} repeats line {lines[k - 1]} in every column: a row logged "
                f"twice, or a sample whose time is wrong; remove line {lines[k]} or mend its "
@@ -49,6 +53,17 @@ def check_increasing(path: Path, column: str | None, raw: dict, t_raw: np.ndarra
     raise SessionError(path, f"time column {column!r} is not strictly increasing: "
                        f"{t_raw[k]:.12g} follows {t_raw[k - 1]:.12g} (line {lines[k - 1]}); "
                        f"{fix}", where=f"line {lines[k]}")
+
+
+def _restarts(t_raw: np.ndarray, k: int) -> bool:
+    """Whether the time starts again at sample ``k``: back to (or before) its first value,
+    within two of its steps, and on from there at its steps (a second record, not one
+    sample's wrong time)."""
+    if k < 3 or k + 3 > t_raw.size:
+        return False
+    step = float(np.median(np.diff(t_raw[:k])))
+    after = np.diff(t_raw[k:k + 3])
+    return bool(t_raw[k] <= t_raw[0] + 2.0 * step and np.all((after > 0) & (after <= 2 * step)))
 
 
 def _counter_wrap(before: float, after: float) -> int | None:
