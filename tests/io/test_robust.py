@@ -10,7 +10,8 @@ from pmdc_bayes.io.robust import difference_sd, first_run
 def test_difference_sd_reads_white_noise_through_steps_and_a_ramp(order):
     rng = np.random.default_rng(3)
     sigma = 0.02
-    signal = np.repeat([0.0, 5.0, -3.0, 2.0], 2500) + np.linspace(0.0, 1.0, 10_000)
+    # a slope of 2.5 sds per sample: the differences' median is far from 0
+    signal = np.repeat([0.0, 5.0, -3.0, 2.0], 2500) + 2.5 * sigma * np.arange(10_000)
     sd = difference_sd(signal + rng.normal(0.0, sigma, signal.size), order)
     assert abs(sd / sigma - 1.0) < 0.05
 
@@ -32,3 +33,4 @@ def test_first_run_needs_every_sample_of_the_run():
     assert first_run(beyond) == 4
     assert first_run(beyond, 2) == 1
     assert first_run(np.array([1, 1, 0, 1], bool)) is None
+    assert first_run(np.array([], bool)) is None and first_run(np.ones(2, bool)) is None

@@ -26,12 +26,39 @@ def _pre_triggered(rng, pre=0.1):
     return t, w + rng.normal(0.0, NOISE, t.size)
 
 
-@pytest.mark.parametrize("pre", [0.02, 0.1, 1.0])
+@pytest.mark.parametrize("pre", [0.02, 0.1, 1.0, 2.0, 3.0])
 def test_a_coast_down_with_its_pre_trigger_is_refused_naming_opened(session_dir, rng, pre):
+    """Up to a mid-screen trigger and beyond (a record of 2 s after the opening)."""
     _coast(session_dir, *_pre_triggered(rng, pre))
     with pytest.raises(SessionError, match=r"trace\['coast'\]\.file: the speed falls .* as "
                                            r"much .* as in the same time before.*give "
-                                           r"opened = 0 \(the time it was opened, in s\)"):
+                                           r"opened = (\S+) \(where it began to fall, in s; "
+                                           r"0 if the scope triggered on the opening\)") as e:
+        load_session(session_dir)
+    opened = float(e.value.args[0].split("opened = ")[1].split(" ")[0])
+    assert 0.0 <= opened < 0.05  # where it began to fall, by 3 noise sds
+
+
+def test_opened_is_in_the_trace_s_time_unit_and_within_the_record(session_dir, rng):
+    """Opened at 50 ms of a record in ms from -100 ms; rows before it with a missed
+    reading are not listed as left out."""
+    t, w = _pre_triggered(rng)
+    t_ms = np.round(1000.0 * t, 6)
+    w = np.where(t < 0.05, W0, W0 * np.exp(-np.clip(t - 0.05, 0, None) / TAU))
+    w[5] = np.nan
+    _coast(session_dir, t_ms, w, 'units = { time = "ms" }\n')
+    with pytest.raises(SessionError, match=r"give opened = (4[5-9]|50)\b.*in ms"):
+        load_session(session_dir)
+    text = (session_dir / TOML).read_text()
+    (session_dir / TOML).write_text(text.replace('units = { time = "ms" }\n',
+                                                 'units = { time = "ms" }\nopened = 50\n'))
+    coast = load_session(session_dir).coast_downs[0]
+    assert coast.time[0] == pytest.approx(0.05) and coast.rows_left_out == ()
+    assert coast.n == np.count_nonzero(t_ms >= 50)
+    (session_dir / TOML).write_text(text.replace('units = { time = "ms" }\n',
+                                                 'units = { time = "ms" }\nopened = 5000\n'))
+    with pytest.raises(SessionError, match=r"trace\['coast'\]\.opened: 5000 ms lies outside "
+                                           r"the record \(-100 to"):
         load_session(session_dir)
 
 
@@ -54,5 +81,6 @@ def test_a_coasting_rotor_is_read_as_written(session_dir, rng):
     t0 = t - t[0]
     lag = 0.03  # the reading y of a first-order lag τs·dy/dt = ω − y, settled at W0
     lagged = W0 * (np.exp(-t0 / TAU) * TAU - np.exp(-t0 / lag) * lag) / (TAU - lag)
-    _coast(session_dir, t0, lagged + rng.normal(0.0, NOISE, t.size), name="lagged")
-    assert load_session(session_dir).coast_downs[-1].n == t.size
+    for name, origin in (("lagged", 0.0), ("lagged_triggered", -1.0)):  # from its start
+        _coast(session_dir, t0 + origin, lagged + rng.normal(0.0, NOISE, t.size), name=name)
+        assert load_session(session_dir).coast_downs[-1].n == t.size

@@ -4,10 +4,11 @@ early, where the rotor still ran driven before the armature was opened.
 A rotor coasting against viscous and Coulomb friction slows fastest at its start
 (``J·dω/dt = −B·ω − Tc``, its deceleration falling with its speed), so its speed never
 falls by more over a stretch of time than over the same stretch before it.  A record
-whose time starts before 0 (an oscilloscope's, from its trigger) and whose speed holds at
-first and then falls faster starts before the armature was opened; fitted as a
-coast-down from its first row, its level start would be read as friction.  A record from
-0 is not judged: a lagging speed sensor's reading also holds at first, and the search
+whose time starts before 0 (an oscilloscope's, from its trigger), whose speed holds up to
+the trigger and then falls faster, starts before the armature was opened; fitted as a
+coast-down from its first row, its level start would be read as friction.  A lagging
+speed sensor's reading also holds at first, from the record's start, so a record whose
+speed begins to fall before 0, or one whose time starts at 0, is not judged: the search
 fits the lag.
 """
 
@@ -31,11 +32,12 @@ def _mean(x: np.ndarray, at: int, half: int) -> float:
 def check_run_down_start(t: Table, time: np.ndarray, speed: np.ndarray, unit: str,
                          per_unit: float) -> None:
     """Refuse a coast-down whose record starts before 0 and whose speed holds at its
-    first level and then falls faster (module docstring): ``k`` samples to leave its
-    first level by :data:`CLEAR` sds and 5 % of its fall, and its fall over the next
-    ``k`` more than that over the first by :data:`HOLD_Z` sds of the difference (means
-    over windows of ``k/4`` samples) and a quantum of a quantised speed.  ``time`` in s,
-    ``unit`` the trace's unit of time, ``per_unit`` seconds per unit."""
+    first level up to 0 and then falls faster (module docstring): ``k`` samples to leave its
+    first level by :data:`CLEAR` sds and 5 % of its fall, and its fall over the ``s``
+    samples after ``k`` more than that over the ``s`` before (``s`` ≤ ``k``, as the
+    record allows; means over windows of ``s/4`` samples) by :data:`HOLD_Z` sds of the
+    difference and a quantum of a quantised speed.  ``time`` in s, ``unit`` the trace's
+    unit of time, ``per_unit`` seconds per unit."""
     w = np.asarray(speed, float)
     ok = np.isfinite(w)
     if not time[0] < 0.0:
@@ -49,19 +51,24 @@ def check_run_down_start(t: Table, time: np.ndarray, speed: np.ndarray, unit: st
     first = float(np.mean(w[:3]))
     fall = first - w
     k = first_run(fall > max(CLEAR * sigma, 0.05 * float(fall.max())))
-    half = 0 if k is None else k // 8
-    if k is None or k < 8 or half + 2 * k + half >= w.size:
+    began = first_run(fall > 3.0 * sigma)  # where it began to fall, by 3 sds
+    if k is None or began is None or time[began] < -2.0 * float(np.median(np.diff(time))):
+        return  # it began to fall before the trigger: no hold up to it
+    s = min(began, int((w.size - 1 - began) / 1.25))  # the windows' spacing
+    half = s // 8
+    if s < 8:
         return
     m = 2 * half + 1
-    at = (half, half + k, half + 2 * k)  # equally spaced window centres
+    at = (began - s + half, began + half, began + s + half)  # equally spaced centres
     lv = [_mean(w, i, half) for i in at]
     excess = (lv[1] - lv[2]) - (lv[0] - lv[1])
     if excess <= HOLD_Z * sigma * np.sqrt(6.0 / m) + quantum:  # a lattice's means: ±q/2
         return
-    opened = 0.0 if time[0] < 0.0 < time[at[1]] else time[at[1]] / per_unit
+    opened = time[max(0, began - 1)] / per_unit
     ratio = (lv[1] - lv[2]) / max(lv[0] - lv[1], sigma)
     t.fail("file", f"the speed falls {ratio:.3g}× as much from {time[at[1]] / per_unit:.4g} "
            f"to {time[at[2]] / per_unit:.4g} {unit} as in the same time before, as a "
            "coasting rotor cannot (it slows fastest at its start): the record holds rows "
            "from before the armature was opened (an oscilloscope's pre-trigger?); give "
-           f"opened = {opened:.6g} (the time it was opened, in {unit}), or remove those rows")
+           f"opened = {opened:.4g} (where it began to fall, in {unit}; 0 if the scope "
+           "triggered on the opening), or remove the rows before it")

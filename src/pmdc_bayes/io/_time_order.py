@@ -25,7 +25,9 @@ def check_increasing(path: Path, column: str | None, raw: dict, t_raw: np.ndarra
     if not bad.size:
         return
     k = int(bad[0]) + 1
-    repeats = np.count_nonzero(np.diff(t_raw) == 0)
+    repeated = np.flatnonzero(np.diff(t_raw) == 0) + 1
+    going_on = bool(np.all(np.diff(t_raw) >= 0) and t_raw[-1] > t_raw[0])
+    rate = (rows - 1) / float(t_raw[-1] - t_raw[0]) / second if going_on else None
     fix = "sort the rows by time and remove duplicate samples"
     wrap = _counter_wrap(t_raw[k - 1], t_raw[k])
     if wrap is not None and not wrap_given:
@@ -35,17 +37,18 @@ def check_increasing(path: Path, column: str | None, raw: dict, t_raw: np.ndarra
         fix = (f"the time starts again at line {lines[k]}, as when two records are joined in "
                "one file; give each record a trace (and a file) of its own, or remove the "
                "second")
-    elif repeats == 1 and all(v[k] == v[k - 1] for v in raw.values()):
+    elif repeated.size == 1 and all(v[k] == v[k - 1] for v in raw.values()):
         fix = (f"line {lines[k]} repeats line {lines[k - 1]} in every column: a row logged "
                f"twice, or a sample whose time is wrong; remove line {lines[k]} or mend its "
                "time")
-    elif t_raw[k] == t_raw[k - 1] and repeats <= STRAY_REPEATS:
-        fix = (f"a time stamp repeated ({'once' if repeats == 1 else f'{repeats} times'} in "
-               f"the file) with other readings: a row logged twice or a sample whose time is "
-               f"wrong (remove line {lines[k]} or mend its time), unless the clock is "
-               "coarser than the sampling (then remove columns.time and give sample_rate)")
-    elif np.all(np.diff(t_raw) >= 0) and t_raw[-1] > t_raw[0]:
-        rate = (rows - 1) / float(t_raw[-1] - t_raw[0]) / second
+    elif t_raw[k] == t_raw[k - 1] and repeated.size <= STRAY_REPEATS:
+        named = ", ".join(str(lines[i]) for i in repeated)
+        fix = (f"the time repeats the line before at line{'s' * (repeated.size > 1)} {named} "
+               "only: a row logged twice or a sample whose time is wrong (remove or mend "
+               f"{'them' if repeated.size > 1 else 'it'}), unless the clock is coarser than "
+               "the sampling (then remove columns.time and give sample_rate" + (
+                   f" = {rate:.4g} Hz)" if rate else ")"))
+    elif going_on:
         fix = ("the time repeats, never going back: a clock coarser than the sampling (a "
                "logger's millisecond stamps); if the rows are samples at a steady rate, "
                f"remove columns.time and give sample_rate = {rate:.4g} (Hz, the rows over "
@@ -56,14 +59,15 @@ def check_increasing(path: Path, column: str | None, raw: dict, t_raw: np.ndarra
 
 
 def _restarts(t_raw: np.ndarray, k: int) -> bool:
-    """Whether the time starts again at sample ``k``: back to (or before) its first value,
-    within two of its steps, and on from there at its steps (a second record, not one
-    sample's wrong time)."""
-    if k < 3 or k + 3 > t_raw.size:
+    """Whether the time starts again at sample ``k``: back by more than two of its steps
+    to (or before) its first value, and on from there at its steps (a second record, not
+    one sample's wrong time nor two rows swapped)."""
+    if k < 5 or k + 3 > t_raw.size:
         return False
     step = float(np.median(np.diff(t_raw[:k])))
     after = np.diff(t_raw[k:k + 3])
-    return bool(t_raw[k] <= t_raw[0] + 2.0 * step and np.all((after > 0) & (after <= 2 * step)))
+    return bool(t_raw[k - 1] - t_raw[k] > 2.0 * step and t_raw[k] <= t_raw[0] + 0.5 * step
+                and np.all((after > 0) & (after <= 2.0 * step)))
 
 
 def _counter_wrap(before: float, after: float) -> int | None:

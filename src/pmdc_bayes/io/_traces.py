@@ -74,7 +74,7 @@ def _columns(t: _Table, kinds: dict, required=()) -> dict:
 class _TraceFile(NamedTuple):
     """A trace's CSV file read: its path, the raw columns (role -> values in the file's
     units), the raw and SI time axes, the file lines of the rows left out and the raw
-    time of the first row (before any is left out)."""
+    time of the first row (before any is left out), and each sample's line."""
 
     path: Path
     raw: dict
@@ -82,6 +82,7 @@ class _TraceFile(NamedTuple):
     time: np.ndarray
     left_out: tuple
     start: float
+    lines: list
 
 
 def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
@@ -124,7 +125,7 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
                            "reading; leave current out of columns (the speed alone then "
                            "carries the fit) or log the current itself")
     time = to_si(t_raw, "time", u["time"])
-    return _TraceFile(path, raw, t_raw, time, left_out, start)
+    return _TraceFile(path, raw, t_raw, time, left_out, start, lines)
 
 
 def _motion_columns(t: _Table, cols: dict, edges: bool) -> None:
@@ -209,7 +210,7 @@ def _trace(t: _Table, root: Path) -> Trace:
     if "voltage" not in cols and "voltage" not in t.data:
         t.fail("voltage", "no armature voltage given; add a column (columns.voltage = "
                "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
-    path, raw, t_raw, time, left_out, start = _read_trace_file(t, root, cols, u)
+    path, raw, t_raw, time, left_out, start, _ = _read_trace_file(t, root, cols, u)
     si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw
           if role == "load_torque" or (role == "voltage" and duty is None)}
     if "current" in raw:
@@ -247,24 +248,30 @@ def _coast_down(t: _Table, root: Path) -> Trace:
                   "sample_rate", "opened"))
     name = t.string("name")
     kinds = {"time": "time", "speed": "speed"}
-    u = t.units(dict(kinds, tacho_constant="motor_constant", sample_rate="frequency",
-                     opened="time"), extra={"speed": sensors.VOLTS})
+    u = t.units(dict(kinds, tacho_constant="motor_constant", sample_rate="frequency"),
+                extra={"speed": sensors.VOLTS})
     cols = _columns(t, kinds, ("speed",))
     sensors.check_unused(t, u, cols)
     f = _read_trace_file(t, root, cols, u)
-    time, speed = f.time, sensors.speed_si(t, f.raw["speed"], u)
+    time, speed, left_out = f.time, sensors.speed_si(t, f.raw["speed"], u), f.left_out
     per_unit = float(to_si(np.array([1.0]), "time", u["time"])[0])
-    if "opened" in t.data:
-        kept = time >= t.number("opened", "time", u["opened"]) - 1e-9 * per_unit
-        if np.count_nonzero(kept) < 3:
-            t.fail("opened", "fewer than 3 samples follow it; give the time the armature "
-                   "was opened, in the trace's time unit")
+    if "opened" in t.data:  # in the trace's unit of time, as its time column
+        opened = t.number("opened") * per_unit
+        step = float(np.median(np.diff(time)))
+        if not time[0] - step <= opened <= time[-3]:
+            t.fail("opened", f"{t.data['opened']!r} {u['time']} lies outside the record "
+                   f"({time[0] / per_unit:.6g} to {time[-3] / per_unit:.6g} {u['time']}, "
+                   "3 samples before its end); give the time the armature was opened, in "
+                   "the trace's time unit")
+        kept = time >= opened - 1e-9 * step
+        first_line = f.lines[int(np.argmax(kept))]
         time, speed = time[kept], speed[kept]
+        left_out = tuple(n for n in left_out if n > first_line)
     else:
         check_run_down_start(t, time, speed, u["time"], per_unit)
     none = Schedule(time[:1].copy(), np.zeros(1))
     return Trace(name=name, kind=COAST_DOWN, file=f.path, time=time, speed=speed,
-                 current=None, voltage=none, load_torque=none, rows_left_out=f.left_out)
+                 current=None, voltage=none, load_torque=none, rows_left_out=left_out)
 
 
 def read_traces(top: _Table, root: Path) -> tuple[tuple, tuple]:

@@ -30,6 +30,9 @@ def difference_sd(values, order: int = 1) -> float:
 
 def first_run(beyond: np.ndarray, n: int = CONSECUTIVE) -> int | None:
     """The index of the first of ``n`` samples in a row where ``beyond`` holds, or None."""
-    run = np.convolve(np.asarray(beyond, dtype=int), np.ones(n, int), mode="valid") == n
+    beyond = np.asarray(beyond, dtype=int)
+    if beyond.size < n:
+        return None
+    run = np.convolve(beyond, np.ones(n, int), mode="valid") == n
     k = np.flatnonzero(run)
     return int(k[0]) if k.size else None
