@@ -2,9 +2,9 @@
 
 import json
 
-import arviz as az
 import pytest
 
+from pmdc_bayes.inference.sampling.arviz_import import az
 from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.pipeline import FitOptions, run_fit
 
