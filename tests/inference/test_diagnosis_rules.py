@@ -302,3 +302,35 @@ def test_the_models_no_load_speed_carries_the_fits_uncertainty():
                         12.0) for d in draws]
     assert _no_load_speed_sd(model, fit, 12.0) == pytest.approx(np.std(w), rel=0.05)
     assert _no_load_speed_sd(model, SimpleNamespace(values={}), 12.0) == 0.0
+
+
+def test_a_steady_miss_proposes_the_calibration_of_a_sensor_the_traces_log():
+    """Steady readings missed beyond their scatter point at the traces' sensor of that
+    signal; with no trace logging the signal there is no such sensor to calibrate, and a
+    current missed so proposes Coulomb friction."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    from pmdc_bayes.inference.adequacy.diagnosis import diagnose
+    from pmdc_bayes.inference.adequacy.proposals import COULOMB, Proposal
+    from pmdc_bayes.inference.model.objective import build_model
+    from pmdc_bayes.io.channel import STEADY
+    from pmdc_bayes.paper.closed_form import closed_form
+
+    def proposals(session, signal):
+        model = build_model(session, closed_form(session))
+        preds = [(np.asarray(tr.current) if tr.current is not None else np.zeros(tr.n),
+                  np.asarray(tr.speed)) for tr in session.traces]
+        miss = Finding(Check.STEADY_MISS, ChannelId(STEADY, signal), Severity.FAIL,
+                       "6 % of the largest reading", "the steady readings miss")
+        return diagnose(model, SimpleNamespace(values=dict(session.truth)), preds, [miss])[1]
+
+    session = case_session()
+    assert {Proposal("speed_gain"), Proposal("speed_offset")} <= set(proposals(session, "speed"))
+    with_current = set(proposals(session, "current"))
+    assert {Proposal("current_gain"), Proposal(COULOMB)} <= with_current
+    no_current = dataclasses.replace(
+        session, traces=tuple(dataclasses.replace(tr, current=None) for tr in session.traces))
+    without = set(proposals(no_current, "current"))
+    assert Proposal(COULOMB) in without
+    assert not {Proposal("current_gain"), Proposal("current_offset")} & without

@@ -48,8 +48,10 @@ def adequacy_section(ctx) -> Section | None:
     rows = []
     for name, c in a["channels"].items():
         if "whiteness" not in c:
+            label = "of the largest reading" + ("" if c.get("tested") else ", untested")
             rows.append((name, "—", "—", "—", "—",
-                         f"{100 * c['rms_miss_fraction']:.2g} (rms miss)", "—", "—", "—"))
+                         f"{100 * c['rms_miss_fraction']:.2g} (rms miss {label})",
+                         _p(c.get("p_value")), "—", "—"))
             continue
         rows.append((name, fmt(c["fitted_sd"], 2), fmt(c["model_free_sd"], 2),
                      f"{c['inflation']:.2f}", _p(c["whiteness"]["p_value"]),
@@ -63,7 +65,9 @@ def adequacy_section(ctx) -> Section | None:
                   "parametric bootstrap at the MAP through the data's quantisation). A "
                   "channel fails when the session's checks, corrected together (Holm) at "
                   f"{_level(a)} family-wise, reject its systematic misfit and that misfit is "
-                  "material (above 1.5 % of the span)."))
+                  "material (above 1.5 % of the span). A steady channel's p is that of "
+                  "its miss beyond the readings' own scatter about a line in voltage and "
+                  "load (untested where too few readings leave no scatter)."))
     bench = a.get("bench", {})
     if bench:
         sec.add(bench_table(ctx, bench))

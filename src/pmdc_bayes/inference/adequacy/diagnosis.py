@@ -14,7 +14,9 @@ Each rule reads the data and the MAP prediction:
   speed means Coulomb friction;
 * **anti-correlated noise** on a speed: a speed differenced from encoder counts;
 * a **bench resistance** below or above the fitted one; and unit slips (a ratio of
-  2π, 60/2π or 1000 between the data and the model).
+  2π, 60/2π or 1000 between the data and the model);
+* the **steady readings** missed beyond their scatter (:mod:`.steady`): the traces'
+  sensor's calibration, or for the currents Coulomb friction.
 """
 
 from __future__ import annotations
@@ -24,10 +26,11 @@ import numpy as np
 from ...io.channel import ChannelId
 from ...io.lattice import analogue_channels
 from ..model.noise import noise_scale
+from ..model.nuisances import sensor_readings
 from .diagnosis_levels import level_rules
 from .findings import Check
 from .onset import departure, onset_shape, step_window
-from .proposals import Proposal, has, said
+from .proposals import COULOMB, Proposal, has, said
 
 __all__ = ["diagnose", "Proposal"]
 
@@ -158,6 +161,8 @@ def _finding_rules(model, fit, findings, already=()):
         if f.check is Check.SOLVER:
             out.append(f"{f.where}: the solution's limit, not necessarily the model's: "
                        f"{f.suggestion}")
+        if f.check is Check.STEADY_MISS and channel is not None:
+            out += _steady_rule(model, channel.signal, f)
         if f.check is Check.STEP_START and channel is not None:
             sensor = channel.signal
             out.append(said(f"{channel.trace}: the model misses the start of the voltage "
@@ -199,6 +204,27 @@ def _finding_rules(model, fit, findings, already=()):
                        "together, which a bench value then contradicts; fit the sensor's "
                        "gain: --add speed-gain, or speed_gain = true under [model] (or check "
                        "the bench value)", Proposal("speed_gain")))
+    return out
+
+
+def _steady_rule(model, signal: str, f) -> list:
+    """A sentence on steady readings that the traces' fit misses: the traces' sensor
+    reads the signal at another scale or zero than the steady instrument (a gain, an
+    offset), or, for a current, a torque the model lacks at every speed."""
+    out = []
+    if sensor_readings(model.session, signal):
+        out.append(said(f"{f.where}: {f.message}: the traces' {signal} sensor reads on "
+                        "another scale or zero than the steady readings' instrument (a "
+                        "tachometer constant, a shunt, a scale, an offset); fit its "
+                        f"calibration: --add {signal}-gain, --add {signal}-offset (or "
+                        f"{signal}_gain, {signal}_offset = true under [model]), or check "
+                        "the steady readings", Proposal(f"{signal}_gain"),
+                        Proposal(f"{signal}_offset")))
+    if signal == "current" and not model.coulomb:
+        out.append(said(f"{f.where}: the steady currents stand off the model's by a "
+                        "constant in each direction: a friction torque that does not "
+                        "grow with speed (Coulomb friction): --friction coulomb",
+                        Proposal(COULOMB)))
     return out
 
 

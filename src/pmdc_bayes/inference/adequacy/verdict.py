@@ -13,6 +13,9 @@ look at the fit from outside the likelihood, per channel:
   data (second differences, quantisation-aware; see :mod:`.noise`);
 * **fit percentage**: ``100·(1 − ‖y − ŷ‖/‖y − ȳ‖)`` (MATLAB's ``compare``) of the closed
   form and of the MAP;
+* **steady readings**: the miss of a steady table's, operating points' and step
+  readings' speeds and currents beyond their own scatter about a model-free line
+  (:mod:`.steady`);
 * **bench conflict**: each bench-measured quantity's fitted value in bench sd;
 * **plausibility**: derived quantities against what the session itself measured (a
   rise time, a peak current, a no-load speed).
@@ -36,16 +39,17 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from ..._x64 import x64
-from ...io.channel import STEADY, ChannelId
+from ...io.channel import ChannelId
 from ..model.channels import CoastDownBlock
 from ..model.coloured import channel_rho
 from .calibrate import FAMILY_LEVEL, holm, logged_quantum, session_rng
 from .checks import bench_checks, search_checks, step_start_test
 from .diagnosis import diagnose
-from .findings import Check, Finding, Severity, Verdict
+from .findings import Check, Finding, Verdict
 from .model_checks import bound_checks, drag_checks, solver_checks
 from .plausibility import plausibility_tests
 from .residual_stats import fit_percent, systematic_misfit, whiteness
+from .steady import steady_tests
 from .trace_checks import channel_tests
 
 __all__ = ["Finding", "Verdict", "Adequacy", "assess", "whiteness", "fit_percent",
@@ -54,7 +58,6 @@ __all__ = ["Finding", "Verdict", "Adequacy", "assess", "whiteness", "fit_percent
 DATA_FAULTS = frozenset({Check.OUTLYING_READING})  # checks that fail the data, not the model
 NOTHING_TO_ADD = ("nothing: the check that fails finds a bad reading in the data, not a part "
                   "the model lacks; mend the reading and fit again")
-STEADY_MATERIAL = 0.03  # steady readings missed by 3 % of the largest reading (rms)
 
 
 @dataclass(frozen=True)
@@ -113,24 +116,6 @@ def _data_fault(findings) -> bool:
     """Whether some check fails and every one that does is one of :data:`DATA_FAULTS`."""
     fails = [f.check for f in findings if f.failed]
     return bool(fails) and all(c in DATA_FAULTS for c in fails)
-
-
-def _steady_channel(name, unit, y, yhat) -> tuple[dict, list]:
-    """The steady readings' miss, as a size: a handful of readings carries no noise
-    level of its own to calibrate it against, so it warns and does not fail."""
-    scale = float(np.max(np.abs(y))) if y.size else 1.0
-    rel = np.abs(y - yhat) / max(scale, 1e-300)
-    rms = float(np.sqrt(np.mean(rel**2))) if rel.size else 0.0
-    row = {"unit": unit, "n": int(y.size), "rms_miss_fraction": rms,
-           "largest_miss_fraction": float(np.max(rel)) if rel.size else 0.0}
-    found = []
-    if rms > STEADY_MATERIAL:
-        found.append(Finding(Check.STEADY_MISS, name, Severity.WARN,
-                             f"rms miss {100 * rms:.2g} % of the largest reading",
-                             f"the model misses the steady readings by {100 * rms:.2g} % of "
-                             "the largest reading (rms; not tested: the readings carry no "
-                             "noise level of their own)"))
-    return row, found
 
 
 def _judge(tests: list, key: str) -> tuple[list, list]:
@@ -198,10 +183,10 @@ def assess(model, fit, closed_form=None) -> Adequacy:
         channel(cid, y, yhat, None, None, logged_quantum(y))
     for cid, y, yhat, q in _position_pairs(model, fit):
         channel(cid, y, yhat, None, None, q)
-    for cid, y, yhat in _steady_pairs(model, fit):
-        row, found = _steady_channel(cid, by_id[cid].unit, y, yhat)
-        channels[str(cid)] = {"trace": cid.trace, "signal": cid.signal, **row}
-        findings += found
+    rows, tests, found = steady_tests(model, fit)
+    channels.update(rows)
+    fails += tests
+    findings += found
     bench, found, tests = bench_checks(model, fit)
     findings += found
     fails += tests
@@ -253,17 +238,3 @@ def _position_pairs(model, fit):
                         float(tr.encoder_step or 0.0)))
     return out
 
-
-def _steady_pairs(model, fit):
-    """(channel, observed, predicted) for the steady speeds and currents."""
-    st = model.steady
-    theta = np.asarray(fit.theta)
-    p = type(model.params(theta))(*(float(x) for x in model.circuit(theta)))  # on the host
-    v = np.asarray(model.driven(theta, st["v"]), dtype=float)
-    i, w = model.steady_prediction(p, v, st["tl"], float(model.drop(theta)))
-    out = []
-    for cid, obs, pred, mask in ((ChannelId(STEADY, "speed"), st["w"], w, st["w_mask"]),
-                                 (ChannelId(STEADY, "current"), st["i"], i, st["i_mask"])):
-        if np.any(mask):
-            out.append((cid, np.asarray(obs)[mask], np.asarray(pred)[mask]))
-    return out

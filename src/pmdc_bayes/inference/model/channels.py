@@ -207,8 +207,7 @@ class SteadyBlock(Block):
 
     @staticmethod
     def residuals(model, theta, d, fast: bool = False) -> list:
-        i, w = model.steady_prediction(model.circuit(theta), model.driven(theta, d["v"]),
-                                       d["tl"], model.drop(theta))
+        i, w = model.steady_at(theta, d["v"], d["tl"])
         return [d["w"] - w, d["i"] - i]
 
 

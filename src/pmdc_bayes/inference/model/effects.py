@@ -47,6 +47,12 @@ class RigEffects:
         the current; None when the model has none."""
         return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else None
 
+    def steady_at(self, theta, va, tl):
+        """Steady ``(ia, ω)`` at θ for the commanded voltages ``va`` and loads ``tl``: the
+        circuit the logged voltage drives, through the driver and its drop."""
+        return self.steady_prediction(self.circuit(theta), self.driven(theta, va), tl,
+                                      self.drop(theta))
+
     def driven(self, theta, va):
         """The voltage the driver puts out at θ for the commands ``va`` (V): through its
         fitted dead zone when the model has one, else ``va``."""

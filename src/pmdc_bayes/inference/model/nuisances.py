@@ -18,7 +18,7 @@ from .switch_lead import lead_specs
 
 __all__ = ["nuisance_specs", "dead_time_name", "load_names",
            "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES", "LAG_PRIOR_FACTOR",
-           "NO_LIMIT", "DEAD_ZONE_NAMES"]
+           "NO_LIMIT", "DEAD_ZONE_NAMES", "sensor_readings"]
 
 DEAD_TIME_PRIOR = 0.05  # sd of a trace's dead time, as a share of the trace's length
 DROP_PRIOR = 0.1  # sd of the voltage drop, as a share of the session's largest voltage
@@ -224,6 +224,17 @@ def _limit_specs(session: Session) -> list[ParamSpec]:
                       centre, description="current limit of the driver")]
 
 
+def sensor_readings(session: Session, signal: str) -> list[np.ndarray]:
+    """What the traces' ``signal`` sensor ("speed" or "current") logged: each trace's
+    readings, and for the speed each coast-down's (the same sensor)."""
+    logged = [y for tr in session.traces
+              if (y := (tr.speed if tr.speed_logged else None) if signal == "speed"
+                  else tr.current) is not None]
+    if signal == "speed":
+        logged += [tr.speed for tr in session.coast_downs]
+    return logged
+
+
 def _calibration_specs(session: Session) -> list[ParamSpec]:
     """``speed_gain``, ``speed_offset``, ``current_gain``, ``current_offset``: the
     traces' sensor reads ``gain·x + offset`` of the true (lagged) signal.  A gain's
@@ -233,11 +244,7 @@ def _calibration_specs(session: Session) -> list[ParamSpec]:
     for key, (channel, kind) in CALIBRATION.items():
         if key not in session.nuisances:
             continue
-        logged = [np.abs(y) for tr in session.traces
-                  if (y := (tr.speed if tr.speed_logged else None) if channel == "speed"
-                      else tr.current) is not None]
-        if channel == "speed":  # the coast-downs' speeds, read by the same sensor
-            logged += [np.abs(tr.speed) for tr in session.coast_downs]
+        logged = [np.abs(y) for y in sensor_readings(session, channel)]
         if not logged:
             continue
         unit = "rad/s" if channel == "speed" else "A"

@@ -1,0 +1,172 @@
+"""The steady readings against the fitted model: a test of the miss, calibrated.
+
+A steady table, operating points and step readings' final speeds are read with an
+instrument of their own (a tachometer, a meter, a stopwatch), so they show what the
+traces alone cannot: a trace sensor whose calibration is off scales K, B and J
+together and still fits every trace, but not the steady readings.
+
+Every steady law the model knows is affine in the driven voltage and the load within
+one regime (the current's direction sets the drop's sign, the rotation's the Coulomb
+torque's), and a reading with the rotor held or no current flowing is set by its
+regime alone.  A least-squares line over those columns (:func:`line_columns`) holds
+the model's prediction whatever θ; its residual is the readings' own scatter, free of
+the model.  The miss's part in the line's span is what the model gets wrong; tested
+against that scatter it is an F statistic (:func:`line_test`), with the prediction's
+own uncertainty at the MAP (the Laplace covariance through the prediction's Jacobian)
+added, so that a prediction the rest of the session fixes only loosely is not
+rejected for the readings' noise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from scipy.stats import f as f_dist
+
+from ...io.channel import STEADY, ChannelId
+from .calibrate import Test, logged_quantum
+from .findings import MATERIAL_FRACTION, Check, Finding, Severity
+
+__all__ = ["LineTest", "line_columns", "line_test", "reading_quantum", "steady_tests",
+           "UNTESTED_MATERIAL"]
+
+UNTESTED_MATERIAL = 0.03  # an untested channel's rms miss that warns, of the largest reading
+RANK_TOL = 1e-9  # a column direction below this share of the largest is not in the span
+
+
+@dataclass(frozen=True)
+class LineTest:
+    """The miss's part in the line's span tested against the line's scatter:
+    ``stat`` ~ F(``dof``) for an exact prediction; ``excess`` that part's rms as a share
+    of the largest reading."""
+
+    stat: float
+    dof: tuple[int, int]
+    p_value: float
+    excess: float
+
+
+def line_columns(v, tl, i_model, w_model) -> np.ndarray:
+    """The columns of the model-free line over steady readings at driven voltages ``v``
+    and loads ``tl`` whose predicted regime is read from ``i_model`` and ``w_model``:
+    over the readings with current flowing and the rotor turning, the voltage, the load
+    and an intercept per (current, rotation) direction pair; a column of its own for
+    each reading with the rotor held or no current."""
+    v, tl = np.asarray(v, float), np.asarray(tl, float)
+    si, sw = np.sign(np.asarray(i_model, float)), np.sign(np.asarray(w_model, float))
+    moving = (si != 0) & (sw != 0)
+    cols = []
+    if moving.any():
+        cols += [np.where(moving, v, 0.0), np.where(moving, tl, 0.0)]
+        for a in (-1.0, 1.0):
+            for b in (-1.0, 1.0):
+                cols.append((moving & (si == a) & (sw == b)).astype(float))
+    cols += [np.arange(v.size) == k for k in np.flatnonzero(~moving)]
+    return np.column_stack(cols).astype(float) if cols else np.zeros((v.size, 0))
+
+
+def line_test(y, yhat, x, cov=None, quantum: float = 0.0) -> LineTest | None:
+    """The F test of the prediction ``yhat`` against the readings ``y`` within the span of
+    the columns ``x``, with ``cov`` the prediction's covariance and the scatter floored at
+    a logged lattice's ``quantum²/12``; None where the line leaves no degree of freedom
+    for the scatter or spans nothing."""
+    y, yhat = np.asarray(y, float), np.asarray(yhat, float)
+    x = np.asarray(x, float)
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(yhat)) and x.shape[1]):
+        return None
+    norms = np.linalg.norm(x, axis=0)
+    x = x[:, norms > 0] / norms[norms > 0]
+    if not x.shape[1]:
+        return None
+    basis, s, _ = np.linalg.svd(x, full_matrices=False)
+    q = basis[:, s > RANK_TOL * s[0]]
+    n, p = y.size, q.shape[1]
+    if n - p < 1:
+        return None
+    u = q.T @ (y - yhat)
+    scale = float(np.max(np.abs(y))) or 1.0
+    rss = float(np.sum((y - q @ (q.T @ y)) ** 2))
+    s2 = max(rss / (n - p), quantum**2 / 12.0, (1e-12 * scale) ** 2)
+    m = s2 * np.eye(p)
+    if cov is not None and np.all(np.isfinite(cov)):
+        m = m + q.T @ np.asarray(cov, float) @ q
+    stat = float(u @ np.linalg.solve(m, u)) / p
+    if not np.isfinite(stat):
+        return None
+    excess = float(np.sqrt(u @ u / n)) / scale
+    return LineTest(stat, (p, n - p), float(f_dist.sf(stat, p, n - p)), excess)
+
+
+def reading_quantum(y) -> float:
+    """The lattice steady readings were logged on (:func:`~.calibrate.logged_quantum`),
+    0 unless it is fine against their range (at least two steps per reading): readings
+    evenly spaced, as a table at evenly spaced voltages gives, are not a lattice of
+    that spacing."""
+    q = logged_quantum(y)
+    return q if q > 0 and float(np.ptp(y)) >= 2 * np.size(y) * q else 0.0
+
+
+def _prediction(model, fit):
+    """The steady ``(ia, ω)`` at the MAP, the driven voltages, and their covariance
+    from the Laplace curvature (the MAP's own where ``cov_log`` spans several optima);
+    None for the covariance where it is not finite."""
+    st = model.steady
+    theta = jnp.asarray(fit.theta)
+
+    def predict(th):
+        return jnp.stack(model.steady_at(th, st["v"], st["tl"]))
+
+    pred = np.asarray(predict(theta))
+    v = np.asarray(model.driven(theta, st["v"]), float)
+    cov = fit.cov_map if fit.cov_map is not None else fit.cov_log
+    if cov is None or not np.all(np.isfinite(cov)):
+        return pred, v, None
+    jac = np.asarray(jax.jacfwd(predict)(theta))  # (2, n, P)
+    return pred, v, np.einsum("knp,pq,kmq->knm", jac, np.asarray(cov), jac)
+
+
+def steady_tests(model, fit) -> tuple[dict, list, list]:
+    """Per steady channel its row for the verdict's table, the tests that join the
+    verdict's family (a material miss fails) and the warnings of channels too small to
+    test (an rms miss above :data:`UNTESTED_MATERIAL` of the largest reading)."""
+    st = model.steady
+    if not (st["w_mask"].any() or st["i_mask"].any()):
+        return {}, [], []
+    pred, v, cov = _prediction(model, fit)
+    units = {c.id: c.unit for c in model.channels}
+    rows, tests, warns = {}, [], []
+    for k, signal, mask in ((1, "speed", st["w_mask"]), (0, "current", st["i_mask"])):
+        if not mask.any():
+            continue
+        cid = ChannelId(STEADY, signal)
+        y, yhat = np.asarray(st["w" if k else "i"])[mask], pred[k][mask]
+        x = line_columns(v[mask], np.asarray(st["tl"])[mask], pred[0][mask], pred[1][mask])
+        c = None if cov is None else cov[k][np.ix_(mask, mask)]
+        t = line_test(y, yhat, x, c, reading_quantum(y))
+        scale = max(float(np.max(np.abs(y))), 1e-300)
+        rel = np.abs(y - yhat) / scale
+        rms = float(np.sqrt(np.mean(rel**2)))
+        rows[str(cid)] = {"trace": cid.trace, "signal": signal, "unit": units.get(cid, ""),
+                          "n": int(y.size), "rms_miss_fraction": rms,
+                          "largest_miss_fraction": float(np.max(rel)),
+                          "tested": t is not None,
+                          "p_value": None if t is None else t.p_value}
+        if t is None:
+            if rms > UNTESTED_MATERIAL:
+                warns.append(Finding(
+                    Check.STEADY_MISS, cid, Severity.WARN,
+                    f"rms miss {100 * rms:.2g} % of the largest reading",
+                    f"the model misses the steady readings by {100 * rms:.2g} % of the "
+                    "largest reading (rms; not tested: too few readings to measure their "
+                    "scatter)"))
+            continue
+        tests.append(Test(Finding(
+            Check.STEADY_MISS, cid, Severity.FAIL,
+            f"{100 * t.excess:.2g} % of the largest reading",
+            f"the steady {signal}s miss the model by more than their own scatter "
+            f"(rms {100 * t.excess:.2g} % of the largest reading, along the voltage and "
+            "load)"), t.p_value, material=t.excess > MATERIAL_FRACTION))
+    return rows, tests, warns
