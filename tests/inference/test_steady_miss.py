@@ -10,11 +10,14 @@ from scipy import stats
 from pmdc_bayes.inference.adequacy.findings import Check, Severity
 from pmdc_bayes.inference.adequacy.steady import (
     UNTESTED_MATERIAL,
+    Noise,
     line_columns,
     line_test,
     reading_quantum,
     steady_tests,
 )
+from pmdc_bayes.inference.model.noise import NU0
+from pmdc_bayes.io.channel import STEADY, ChannelId
 
 TRIALS = 4000
 LEVEL = 0.05
@@ -148,29 +151,38 @@ def test_evenly_spaced_readings_are_not_taken_for_a_lattice():
     assert reading_quantum(fine) == pytest.approx(rpm)
 
 
-def _fake(speeds, loads=None):
-    """A model whose steady speed is θ·v with no current logged, and its fit at θ = 30."""
+def _fake(speeds, s0=None):
+    """A model whose steady speed is θ·v with no current logged, its steady speed
+    channel at the noise scale ``s0`` (1 % of the first reading), and its fit at θ = 30."""
     v = np.linspace(4.0, 12.0, len(speeds))
-    st = {"v": v, "tl": np.zeros(v.size) if loads is None else loads,
-          "w": np.asarray(speeds, float), "i": np.zeros(v.size),
+    speeds = np.asarray(speeds, float)
+    st = {"v": v, "tl": np.zeros(v.size), "w": speeds, "i": np.zeros(v.size),
           "w_mask": np.ones(v.size, bool), "i_mask": np.zeros(v.size, bool)}
+    channel = SimpleNamespace(id=ChannelId(STEADY, "speed"), unit="rad/s",
+                              s0=0.01 * speeds[0] if s0 is None else s0)
     model = SimpleNamespace(
-        steady=st, channels=(),
+        steady=st, channels=(channel,),
         steady_at=lambda th, va, tl: (jnp.ones_like(va), th[0] * va),
         driven=lambda th, va: va)
     fit = SimpleNamespace(theta=np.array([30.0]), cov_map=None, cov_log=np.zeros((1, 1)))
     return model, fit
 
 
-@pytest.mark.parametrize(("miss", "warned"), [(0.05, True), (0.01, False)])
-def test_a_lone_operating_point_warns_only_above_its_threshold(miss, warned):
+@pytest.mark.parametrize(("miss", "warned", "rejected"),
+                         [(0.01, False, False), (0.05, True, False), (0.5, True, True)])
+def test_a_lone_operating_point_is_read_on_its_noise_prior(miss, warned, rejected):
+    """One reading shows no scatter of its own: its miss is read on the channel's noise
+    prior (here 1 % of the prediction, F(1, ν0)), so that 5 % passes with a warning and a
+    reading the model misses by half fails."""
     assert UNTESTED_MATERIAL < 0.05
-    model, fit = _fake([30.0 * 4.0 * (1 + miss)])
+    model, fit = _fake([30.0 * 4.0 * (1 + miss)], s0=0.01 * 30.0 * 4.0)
     rows, tests, warns = steady_tests(model, fit)
-    assert tests == []
-    assert rows["steady: speed"]["tested"] is False
+    assert rows["steady: speed"]["noise"] == Noise.PRIOR
     assert len(warns) == warned
     assert all(w.check is Check.STEADY_MISS and w.severity is Severity.WARN for w in warns)
+    (t,) = tests
+    assert (t.p_value < 1e-3) == rejected and t.material == (miss > 0.015)
+    assert t.p_value == pytest.approx(stats.f.sf((miss / 0.01) ** 2, 1, NU0), rel=1e-6)
 
 
 def test_a_table_missed_beyond_its_scatter_is_a_test_of_the_verdicts_family():
@@ -178,6 +190,7 @@ def test_a_table_missed_beyond_its_scatter_is_a_test_of_the_verdicts_family():
     noise = 0.01 * np.array([1.0, -1.0, 0.5, -0.5, 0.2, -0.2])
     model, fit = _fake(33.0 * v + noise)  # 10 % above the model's
     rows, tests, warns = steady_tests(model, fit)
+    assert rows["steady: speed"]["noise"] == Noise.SCATTER
     assert warns == [] and len(tests) == 1
     assert tests[0].p_value < 1e-6 and tests[0].material
     assert tests[0].finding.severity is Severity.FAIL
@@ -208,7 +221,7 @@ def test_a_traces_speed_sensor_reading_high_is_found_on_the_steady_table(tmp_pat
 
     ok = _assessed(202, None, tmp_path)
     assert ok.ok, ok.headline()
-    assert ok.channels["steady: speed"]["tested"]
+    assert ok.channels["steady: speed"]["noise"] == Noise.SCATTER
     bad = _assessed(202, "speed gain", tmp_path)
     assert [f.check for f in bad.failures()] == [Check.STEADY_MISS], bad.headline()
     assert Proposal("speed_gain") in bad.proposals

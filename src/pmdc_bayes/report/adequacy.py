@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from .._format import row_format
 from ..inference.adequacy.findings import Severity
+from ..inference.model.channels import STEADY_RELATIVE_NOISE
 from ..io.units import display_unit
 from ._doc import Bullets, Paragraph, Section, Table, fmt
 
@@ -48,7 +49,8 @@ def adequacy_section(ctx) -> Section | None:
     rows = []
     for name, c in a["channels"].items():
         if "whiteness" not in c:
-            label = "of the largest reading" + ("" if c.get("tested") else ", untested")
+            label = "of the largest reading" + (", on its noise prior"
+                                                if c.get("noise") == "prior" else "")
             rows.append((name, "—", "—", "—", "—",
                          f"{100 * c['rms_miss_fraction']:.2g} (rms miss {label})",
                          _p(c.get("p_value")), "—", "—"))
@@ -67,7 +69,9 @@ def adequacy_section(ctx) -> Section | None:
                   f"{_level(a)} family-wise, reject its systematic misfit and that misfit is "
                   "material (above 1.5 % of the span). A steady channel's p is that of "
                   "its miss beyond the readings' own scatter about a line in voltage and "
-                  "load (untested where too few readings leave no scatter)."))
+                  "load, or where too few readings show no scatter, beyond the channel's "
+                  f"noise prior ({100 * STEADY_RELATIVE_NOISE:.0f} % of the typical reading, "
+                  "heavy-tailed)."))
     bench = a.get("bench", {})
     if bench:
         sec.add(bench_table(ctx, bench))

@@ -14,11 +14,14 @@ the model.  The miss's part in the line's span is what the model gets wrong; tes
 against that scatter it is an F statistic (:func:`line_test`), with the prediction's
 own uncertainty at the MAP (the Laplace covariance through the prediction's Jacobian)
 added, so that a prediction the rest of the session fixes only loosely is not
-rejected for the readings' noise.
+rejected for the readings' noise.  Readings too few to show a scatter about the line
+(a lone operating point) are read on the channel's noise prior instead
+(:func:`prior_test`): only a miss far beyond any plausible instrument's fails.
 """
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass
 
 import jax
@@ -27,14 +30,22 @@ import numpy as np
 from scipy.stats import f as f_dist
 
 from ...io.channel import STEADY, ChannelId
+from ..model.noise import NU0
 from .calibrate import Test, logged_quantum
 from .findings import MATERIAL_FRACTION, Check, Finding, Severity
 
-__all__ = ["LineTest", "line_columns", "line_test", "reading_quantum", "steady_tests",
-           "UNTESTED_MATERIAL"]
+__all__ = ["LineTest", "Noise", "line_columns", "line_test", "prior_test", "reading_quantum",
+           "steady_tests", "UNTESTED_MATERIAL"]
 
 UNTESTED_MATERIAL = 0.03  # an untested channel's rms miss that warns, of the largest reading
 RANK_TOL = 1e-9  # a column direction below this share of the largest is not in the span
+
+
+class Noise(enum.StrEnum):
+    """What a steady channel's miss is measured against."""
+
+    SCATTER = "scatter"  # the readings' own scatter about the line
+    PRIOR = "prior"  # the channel's noise prior: too few readings to show a scatter
 
 
 @dataclass(frozen=True)
@@ -100,6 +111,25 @@ def line_test(y, yhat, x, cov=None, quantum: float = 0.0) -> LineTest | None:
     return LineTest(stat, (p, n - p), float(f_dist.sf(stat, p, n - p)), excess)
 
 
+def prior_test(y, yhat, s0: float, cov=None) -> LineTest | None:
+    """The miss of readings too few to measure their own scatter, read on the steady
+    channel's noise prior (the likelihood's: an inverse-gamma of ``NU0``
+    pseudo-observations at the scale ``s0``), under which their mean square over
+    ``s0²`` plus the prediction's covariance ``cov`` is F(n, ``NU0``): a heavy tail, so
+    that only a miss far beyond any plausible instrument's is rejected."""
+    y, yhat = np.asarray(y, float), np.asarray(yhat, float)
+    r = y - yhat
+    if not (r.size and np.all(np.isfinite(r)) and s0 > 0):
+        return None
+    m = s0**2 * np.eye(r.size)
+    if cov is not None and np.all(np.isfinite(cov)):
+        m = m + np.asarray(cov, float)
+    stat = float(r @ np.linalg.solve(m, r)) / r.size
+    scale = float(np.max(np.abs(y))) or 1.0
+    excess = float(np.sqrt(np.mean(r**2))) / scale
+    return LineTest(stat, (r.size, int(NU0)), float(f_dist.sf(stat, r.size, NU0)), excess)
+
+
 def reading_quantum(y) -> float:
     """The lattice steady readings were logged on (:func:`~.calibrate.logged_quantum`),
     0 unless it is fine against their range (at least two steps per reading): readings
@@ -130,13 +160,15 @@ def _prediction(model, fit):
 
 def steady_tests(model, fit) -> tuple[dict, list, list]:
     """Per steady channel its row for the verdict's table, the tests that join the
-    verdict's family (a material miss fails) and the warnings of channels too small to
-    test (an rms miss above :data:`UNTESTED_MATERIAL` of the largest reading)."""
+    verdict's family (a material miss fails: beyond the readings' scatter about the
+    line, or, for readings too few to show one, beyond their noise prior) and the
+    warnings of a miss above :data:`UNTESTED_MATERIAL` of the largest reading where the
+    readings show no scatter of their own."""
     st = model.steady
     if not (st["w_mask"].any() or st["i_mask"].any()):
         return {}, [], []
     pred, v, cov = _prediction(model, fit)
-    units = {c.id: c.unit for c in model.channels}
+    by_id = {c.id: c for c in model.channels}
     rows, tests, warns = {}, [], []
     for k, signal, mask in ((1, "speed", st["w_mask"]), (0, "current", st["i_mask"])):
         if not mask.any():
@@ -145,28 +177,31 @@ def steady_tests(model, fit) -> tuple[dict, list, list]:
         y, yhat = np.asarray(st["w" if k else "i"])[mask], pred[k][mask]
         x = line_columns(v[mask], np.asarray(st["tl"])[mask], pred[0][mask], pred[1][mask])
         c = None if cov is None else cov[k][np.ix_(mask, mask)]
-        t = line_test(y, yhat, x, c, reading_quantum(y))
+        t, noise = line_test(y, yhat, x, c, reading_quantum(y)), Noise.SCATTER
+        if t is None:
+            t, noise = prior_test(y, yhat, by_id[cid].s0, c), Noise.PRIOR
         scale = max(float(np.max(np.abs(y))), 1e-300)
         rel = np.abs(y - yhat) / scale
         rms = float(np.sqrt(np.mean(rel**2)))
-        rows[str(cid)] = {"trace": cid.trace, "signal": signal, "unit": units.get(cid, ""),
+        rows[str(cid)] = {"trace": cid.trace, "signal": signal, "unit": by_id[cid].unit,
                           "n": int(y.size), "rms_miss_fraction": rms,
                           "largest_miss_fraction": float(np.max(rel)),
-                          "tested": t is not None,
-                          "p_value": None if t is None else t.p_value}
+                          "noise": str(noise), "p_value": None if t is None else t.p_value}
+        if noise is Noise.PRIOR and rms > UNTESTED_MATERIAL:
+            warns.append(Finding(
+                Check.STEADY_MISS, cid, Severity.WARN,
+                f"rms miss {100 * rms:.2g} % of the largest reading",
+                f"the model misses the steady readings by {100 * rms:.2g} % of the "
+                "largest reading (rms; too few readings to show their own scatter, "
+                "so read only on their noise prior)"))
         if t is None:
-            if rms > UNTESTED_MATERIAL:
-                warns.append(Finding(
-                    Check.STEADY_MISS, cid, Severity.WARN,
-                    f"rms miss {100 * rms:.2g} % of the largest reading",
-                    f"the model misses the steady readings by {100 * rms:.2g} % of the "
-                    "largest reading (rms; not tested: too few readings to measure their "
-                    "scatter)"))
             continue
+        against = ("their own scatter" if noise is Noise.SCATTER
+                   else "any plausible instrument's noise")
         tests.append(Test(Finding(
             Check.STEADY_MISS, cid, Severity.FAIL,
             f"{100 * t.excess:.2g} % of the largest reading",
-            f"the steady {signal}s miss the model by more than their own scatter "
-            f"(rms {100 * t.excess:.2g} % of the largest reading, along the voltage and "
-            "load)"), t.p_value, material=t.excess > MATERIAL_FRACTION))
+            f"the steady {signal}s miss the model by more than {against} (rms "
+            f"{100 * t.excess:.2g} % of the largest reading)"), t.p_value,
+            material=t.excess > MATERIAL_FRACTION))
     return rows, tests, warns
