@@ -170,10 +170,15 @@ def level_lines(summary: dict) -> list[str]:
     out = []
     for name, roles in (summary.get("session", {}).get("columns_as_levels") or {}).items():
         for role, held in roles.items():
+            n = f"{held['levels']} level{'s' if held['levels'] > 1 else ''}"
+            if held.get("switched"):
+                out.append(f"{name}: the {role.replace('_', ' ')} column samples a switching "
+                           "driver's output (each reading a rail or zero), so it is read as "
+                           f"the {n} of its duty")
+                continue
             out.append(f"{name}: the {role.replace('_', ' ')} column's readings carry noise "
                        f"(sd {held['noise_sd']:.2g} {units[role]}), so it is read as the "
-                       f"{held['levels']} level{'s' if held['levels'] > 1 else ''} its "
-                       "driver held")
+                       f"{n} its driver held")
     return out
 
 

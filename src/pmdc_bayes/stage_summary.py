@@ -22,17 +22,16 @@ __all__ = ["stage_summary", "trace_rms", "closed_form_theta", "columns_as_levels
 def columns_as_levels(session: Session) -> dict:
     """Per trace and input (``voltage``, ``load_torque``), the logged columns whose noise
     had them read as the levels the driver held (:mod:`.io.held_levels`): how many
-    levels, and the readings' noise sd (SI)."""
+    levels, the readings' noise sd (SI), and whether the column sampled a switching
+    driver's output."""
     out: dict = {}
     for tr in session.traces:
         for role in ("voltage", "load_torque"):
             held = getattr(tr, role)
             if held.se is not None:
-                first = int(np.searchsorted(tr.time, held.times[1], side="left")
-                            if held.times.size > 1 else tr.time.size)
                 out.setdefault(tr.name, {})[role] = {
-                    "levels": int(held.values.size),
-                    "noise_sd": float(held.se[0] * np.sqrt(max(first, 1)))}
+                    "levels": int(held.values.size), "noise_sd": float(held.noise),
+                    "switched": held.switched}
     return out
 
 

@@ -9,7 +9,7 @@ from scipy import stats
 
 from pmdc_bayes.inference.adequacy.findings import Check, Severity
 from pmdc_bayes.inference.adequacy.steady import (
-    UNTESTED_MATERIAL,
+    PRIOR_MATERIAL,
     Noise,
     line_columns,
     line_test,
@@ -174,7 +174,7 @@ def test_a_lone_operating_point_is_read_on_its_noise_prior(miss, warned, rejecte
     """One reading shows no scatter of its own: its miss is read on the channel's noise
     prior (here 1 % of the prediction, F(1, ν0)), so that 5 % passes with a warning and a
     reading the model misses by half fails."""
-    assert UNTESTED_MATERIAL < 0.05
+    assert PRIOR_MATERIAL < 0.05
     model, fit = _fake([30.0 * 4.0 * (1 + miss)], s0=0.01 * 30.0 * 4.0)
     rows, tests, warns = steady_tests(model, fit)
     assert rows["steady: speed"]["noise"] == Noise.PRIOR

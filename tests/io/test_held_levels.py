@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pmdc_bayes.io.held_levels import FALSE_SPLIT, held_levels
+from pmdc_bayes.io.held_levels import FALSE_SPLIT, held_levels, switched_swing
 from pmdc_bayes.io.robust import difference_sd
 
 RATE = 1000.0
@@ -54,3 +54,34 @@ def test_a_constant_noisy_column_is_split_no_more_often_than_stated(n, n_columns
     split = sum(held_levels(np.arange(n) / RATE, 5.0 + rng.normal(0.0, 0.01, n)).times.size > 1
                 for _ in range(n_columns))
     assert split <= stats.binom.isf(1e-3, n_columns, FALSE_SPLIT), split
+
+
+def _pwm_sampled(duties, hold: int, rail: float, seed: int = 0):
+    """A driver's switched output sampled far slower than it switches: each reading the
+    rail (of the duty's sign) with the duty's probability, else zero."""
+    t = np.arange(len(duties) * hold) / RATE
+    d = np.repeat(duties, hold).astype(float)
+    on = np.random.default_rng(seed).uniform(size=t.size) < np.abs(d)
+    return t, d, np.where(on, np.sign(d) * rail, 0.0)
+
+
+def test_a_sampled_switching_output_is_read_as_the_levels_of_its_duty():
+    duties, hold, rail = [0.0, 0.6, 0.85, 0.3, -0.7, 0.0], 500, 24.0
+    t, _, column = _pwm_sampled(duties, hold, rail)
+    assert switched_swing(column) == 2 * rail
+    levels = held_levels(t, column)
+    assert levels.values.size == len(duties), levels.values
+    off = np.abs(levels.times - t[::hold]) * RATE
+    assert off[1] <= 3 and np.all(off <= 20), off  # a start from rest to a few samples
+    assert np.all(levels.se > 0)
+    z = (levels.values - rail * np.asarray(duties)) / levels.se
+    assert np.all(np.abs(z) < 4), z
+    assert levels.se[0] < 0.01 * rail < levels.se[1]  # a level that never switched
+
+
+@pytest.mark.parametrize("kind", ["held steps", "noisy steps", "quantised noise"])
+def test_a_held_or_noisy_column_is_not_taken_for_a_switching_output(kind):
+    t, clean, noisy = _staircase([0.0, 12.0, 0.0, 12.0, -12.0], 300, 0.05)
+    column = {"held steps": clean, "noisy steps": noisy,
+              "quantised noise": 0.05 * np.round(noisy / 0.05)}[kind]
+    assert switched_swing(column) == 0.0

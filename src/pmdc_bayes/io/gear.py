@@ -15,7 +15,7 @@ import dataclasses
 import numpy as np
 
 from .drag import Drag
-from .session import OperatingPoint, Schedule, SteadyTable, StepReading, Trace
+from .session import OperatingPoint, SteadyTable, StepReading, Trace
 
 __all__ = ["motor_shaft_trace", "motor_shaft_point", "motor_shaft_table",
            "motor_shaft_reading", "motor_shaft_drag"]
@@ -35,9 +35,11 @@ def motor_shaft_trace(tr: Trace, n: float) -> Trace:
     initial = tr.initial
     if isinstance(initial, tuple):
         initial = (initial[0], initial[1] * n)
-    se = tr.load_torque.se
-    load = Schedule(tr.load_torque.times, np.asarray(tr.load_torque.values) / n,
-                    None if se is None else np.asarray(se) / n)
+    held = tr.load_torque
+    load = dataclasses.replace(
+        held, values=np.asarray(held.values) / n,
+        se=None if held.se is None else np.asarray(held.se) / n,
+        noise=None if held.noise is None else held.noise / n)
     return dataclasses.replace(
         tr, speed=np.asarray(tr.speed) * n, load_torque=load, initial=initial,
         position=None if tr.position is None else np.asarray(tr.position) * n,

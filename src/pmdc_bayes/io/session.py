@@ -52,12 +52,16 @@ class Schedule:
     The last value holds to the end of the trace.  A logged input column is a
     schedule with one breakpoint per sample (zero-order hold), or, where the column is
     noisy, one per level it held (:mod:`.held_levels`), ``se`` each level's standard
-    error (its noise over the square root of its readings).
+    error (its noise over the square root of its readings), ``noise`` the readings' noise
+    sd, and ``switched`` whether the column sampled a switching driver's output (its
+    levels the duty's).
     """
 
     times: np.ndarray
     values: np.ndarray
     se: np.ndarray | None = None
+    noise: float | None = None
+    switched: bool = False
 
     def at(self, t: np.ndarray) -> np.ndarray:
         """Value of the input at times ``t`` (right-continuous)."""

@@ -95,12 +95,15 @@ def column_reading(seed: int, name: str, plan: dict) -> dict:
 
 
 def log_voltage_column(files: dict[str, str], plan: Plan, name: str, *,
-                       noise: float = 0.0, seed: int = 0) -> dict[str, str]:
+                       noise: float = 0.0, seed: int = 0,
+                       supply: float = 0.0) -> dict[str, str]:
     """``files`` with trace ``name``'s voltage schedule written as a column ``va`` of its
     CSV (the value at each sample, held to the next: exact when the schedule switches
     on samples) and the schedule removed from ``session.toml``; with ``noise`` (V), the
     column is the driver's output read by an ADC whose readings carry Gaussian noise of
-    that sd (drawn from ``seed``), rounded to a millivolt."""
+    that sd (drawn from ``seed``), rounded to a millivolt; with ``supply`` (V), the
+    output of a driver switching that supply, sampled far slower than it switches: each
+    reading the supply (of the voltage's sign) with the duty's probability, else 0."""
     spec = next(t for t in plan.traces if t.name == name)
     rows = files[f"{name}.csv"].rstrip("\n").split("\n")
     header = rows[0].split(",")
@@ -108,6 +111,9 @@ def log_voltage_column(files: dict[str, str], plan: Plan, name: str, *,
     t = data[:, header.index("t")]
     cols = {h: data[:, k] for k, h in enumerate(header)}
     cols["va"] = _held(spec.voltage, t)
+    if supply > 0.0:
+        on = np.random.default_rng(seed).uniform(size=t.size) < np.abs(cols["va"]) / supply
+        cols["va"] = np.where(on, np.sign(cols["va"]) * supply, 0.0)
     if noise > 0.0:
         read = cols["va"] + np.random.default_rng(seed).normal(0.0, noise, t.size)
         cols["va"] = np.round(read, 3)

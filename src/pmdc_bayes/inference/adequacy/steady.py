@@ -34,10 +34,10 @@ from ..model.noise import NU0
 from .calibrate import Test, logged_quantum
 from .findings import MATERIAL_FRACTION, Check, Finding, Severity
 
-__all__ = ["LineTest", "Noise", "line_columns", "line_test", "prior_test", "reading_quantum",
-           "steady_tests", "UNTESTED_MATERIAL"]
+__all__ = ["MissTest", "Noise", "line_columns", "line_test", "prior_test", "reading_quantum",
+           "steady_tests", "PRIOR_MATERIAL"]
 
-UNTESTED_MATERIAL = 0.03  # an untested channel's rms miss that warns, of the largest reading
+PRIOR_MATERIAL = 0.03  # a miss read on the noise prior that warns (rms, of the largest reading)
 RANK_TOL = 1e-9  # a column direction below this share of the largest is not in the span
 
 
@@ -49,10 +49,10 @@ class Noise(enum.StrEnum):
 
 
 @dataclass(frozen=True)
-class LineTest:
-    """The miss's part in the line's span tested against the line's scatter:
-    ``stat`` ~ F(``dof``) for an exact prediction; ``excess`` that part's rms as a share
-    of the largest reading."""
+class MissTest:
+    """A steady channel's miss, tested: ``stat`` ~ F(``dof``) for an exact prediction,
+    its ``p_value``, and ``excess`` the miss tested (its part in the line's span, or the
+    whole miss where read on the noise prior) as an rms share of the largest reading."""
 
     stat: float
     dof: tuple[int, int]
@@ -79,7 +79,7 @@ def line_columns(v, tl, i_model, w_model) -> np.ndarray:
     return np.column_stack(cols).astype(float) if cols else np.zeros((v.size, 0))
 
 
-def line_test(y, yhat, x, cov=None, quantum: float = 0.0) -> LineTest | None:
+def line_test(y, yhat, x, cov=None, quantum: float = 0.0) -> MissTest | None:
     """The F test of the prediction ``yhat`` against the readings ``y`` within the span of
     the columns ``x``, with ``cov`` the prediction's covariance and the scatter floored at
     a logged lattice's ``quantum²/12``; None where the line leaves no degree of freedom
@@ -108,10 +108,10 @@ def line_test(y, yhat, x, cov=None, quantum: float = 0.0) -> LineTest | None:
     if not np.isfinite(stat):
         return None
     excess = float(np.sqrt(u @ u / n)) / scale
-    return LineTest(stat, (p, n - p), float(f_dist.sf(stat, p, n - p)), excess)
+    return MissTest(stat, (p, n - p), float(f_dist.sf(stat, p, n - p)), excess)
 
 
-def prior_test(y, yhat, s0: float, cov=None) -> LineTest | None:
+def prior_test(y, yhat, s0: float, cov=None) -> MissTest | None:
     """The miss of readings too few to measure their own scatter, read on the steady
     channel's noise prior (the likelihood's: an inverse-gamma of ``NU0``
     pseudo-observations at the scale ``s0``), under which their mean square over
@@ -127,7 +127,7 @@ def prior_test(y, yhat, s0: float, cov=None) -> LineTest | None:
     stat = float(r @ np.linalg.solve(m, r)) / r.size
     scale = float(np.max(np.abs(y))) or 1.0
     excess = float(np.sqrt(np.mean(r**2))) / scale
-    return LineTest(stat, (r.size, int(NU0)), float(f_dist.sf(stat, r.size, NU0)), excess)
+    return MissTest(stat, (r.size, int(NU0)), float(f_dist.sf(stat, r.size, NU0)), excess)
 
 
 def reading_quantum(y) -> float:
@@ -162,7 +162,7 @@ def steady_tests(model, fit) -> tuple[dict, list, list]:
     """Per steady channel its row for the verdict's table, the tests that join the
     verdict's family (a material miss fails: beyond the readings' scatter about the
     line, or, for readings too few to show one, beyond their noise prior) and the
-    warnings of a miss above :data:`UNTESTED_MATERIAL` of the largest reading where the
+    warnings of a miss above :data:`PRIOR_MATERIAL` of the largest reading where the
     readings show no scatter of their own."""
     st = model.steady
     if not (st["w_mask"].any() or st["i_mask"].any()):
@@ -187,7 +187,7 @@ def steady_tests(model, fit) -> tuple[dict, list, list]:
                           "n": int(y.size), "rms_miss_fraction": rms,
                           "largest_miss_fraction": float(np.max(rel)),
                           "noise": str(noise), "p_value": None if t is None else t.p_value}
-        if noise is Noise.PRIOR and rms > UNTESTED_MATERIAL:
+        if noise is Noise.PRIOR and rms > PRIOR_MATERIAL:
             warns.append(Finding(
                 Check.STEADY_MISS, cid, Severity.WARN,
                 f"rms miss {100 * rms:.2g} % of the largest reading",
