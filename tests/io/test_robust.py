@@ -1,9 +1,10 @@
-"""The robust noise level and the first run beyond a threshold, read before any model."""
+"""The robust noise level, the first run beyond a threshold and where a signal leaves its
+first level, read before any model."""
 
 import numpy as np
 import pytest
 
-from pmdc_bayes.io.robust import difference_sd, first_run
+from pmdc_bayes.io.robust import departure, difference_sd, first_run
 
 
 @pytest.mark.parametrize("order", [1, 2])
@@ -34,3 +35,15 @@ def test_first_run_needs_every_sample_of_the_run():
     assert first_run(beyond, 2) == 1
     assert first_run(np.array([1, 1, 0, 1], bool)) is None
     assert first_run(np.array([], bool)) is None and first_run(np.ones(2, bool)) is None
+
+
+def test_a_signal_leaves_its_first_level_where_a_run_of_samples_clears_its_noise():
+    rng = np.random.default_rng(3)
+    rise = np.where(np.arange(400) < 100, 0.0, 1.0 - np.exp(-(np.arange(400) - 100) / 40.0))
+    noisy = rise + 0.002 * rng.standard_normal(400)
+    k = departure(noisy, 0.002, 10.0)  # 5 % of the swing: 2 samples after the step
+    assert 101 <= k <= 104, k
+    assert departure(noisy, 0.002, 3.0, share=0.0) < k
+    assert departure(-noisy, 0.002, 10.0, falling=True) == k
+    assert departure(noisy, 0.002, 10.0, falling=True) is None  # it only rises
+    assert departure(0.002 * rng.standard_normal(400), 0.002, 10.0) is None

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .robust import difference_sd, first_run
+from .robust import departure, difference_sd
 from .toml_tables import Table
 
 __all__ = ["check_run_down_start", "HOLD_Z"]
@@ -48,10 +48,8 @@ def check_run_down_start(t: Table, time: np.ndarray, speed: np.ndarray, unit: st
     sigma = max(difference_sd(w), quantum / np.sqrt(12.0))
     if w.size < 20 or sigma == 0.0:
         return
-    first = float(np.mean(w[:3]))
-    fall = first - w
-    k = first_run(fall > max(CLEAR * sigma, 0.05 * float(fall.max())))
-    began = first_run(fall > 3.0 * sigma)  # where it began to fall, by 3 sds
+    k = departure(w, sigma, CLEAR, falling=True)
+    began = departure(w, sigma, 3.0, share=0.0, falling=True)  # where it began to fall
     if k is None or began is None or time[began] < -2.0 * float(np.median(np.diff(time))):
         return  # it began to fall before the trigger: no hold up to it
     s = min(began, int((w.size - 1 - began) / 1.25))  # the windows' spacing

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .robust import difference_sd, first_run
+from .robust import departure, difference_sd
 from .session import Schedule
 from .toml_tables import Table as _Table
 from .units import to_si
@@ -27,9 +27,7 @@ def _start(time: np.ndarray, speed: np.ndarray) -> float | None:
     time, w = np.asarray(time, float)[ok], w[ok]
     if w.size < 10:
         return None
-    rest = float(np.median(w[:3]))
-    swing = np.abs(w - rest)
-    k = first_run(swing > max(CLEAR * difference_sd(w), 0.05 * float(swing.max()), 1e-300))
+    k = departure(w, difference_sd(w), CLEAR)
     return None if k is None else float(time[k])
 
 

@@ -8,7 +8,7 @@ from math import comb, sqrt
 
 import numpy as np
 
-__all__ = ["MAD_SD", "CONSECUTIVE", "difference_sd", "first_run"]
+__all__ = ["MAD_SD", "CONSECUTIVE", "difference_sd", "first_run", "departure"]
 
 MAD_SD = 1.482602218505602  # sd of a normal variable per median absolute deviation
 CONSECUTIVE = 3  # samples in a row beyond a threshold that count as having left a level
@@ -36,3 +36,17 @@ def first_run(beyond: np.ndarray, n: int = CONSECUTIVE) -> int | None:
     run = np.convolve(beyond, np.ones(n, int), mode="valid") == n
     k = np.flatnonzero(run)
     return int(k[0]) if k.size else None
+
+
+def departure(values, sigma: float, clear: float, share: float = 0.05,
+              falling: bool = False) -> int | None:
+    """Where ``values`` leave their first level (the median of their first three) for
+    good: the first of :data:`CONSECUTIVE` samples in a row beyond ``clear`` sds
+    ``sigma`` of their noise and ``share`` of their largest departure; with ``falling``,
+    only a fall below it counts.  None if they never do."""
+    v = np.asarray(values, dtype=float)
+    if v.size < CONSECUTIVE:
+        return None
+    level = float(np.median(v[:3]))
+    away = level - v if falling else np.abs(v - level)
+    return first_run(away > max(clear * sigma, share * float(away.max()), 1e-300))
