@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .robust import departure, difference_sd
+from .robust import departure, noise_floor, smallest_step
 from .toml_tables import Table
 
 __all__ = ["check_run_down_start", "HOLD_Z"]
@@ -43,9 +43,7 @@ def check_run_down_start(t: Table, time: np.ndarray, speed: np.ndarray, unit: st
     if not time[0] < 0.0:
         return
     time, w = np.asarray(time, float)[ok], np.abs(w[ok])
-    steps = np.abs(np.diff(w))
-    quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
-    sigma = max(difference_sd(w), quantum / np.sqrt(12.0))
+    quantum, sigma = smallest_step(w), noise_floor(w)
     if w.size < 20 or sigma == 0.0:
         return
     k = departure(w, sigma, CLEAR, falling=True)

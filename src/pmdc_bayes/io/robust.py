@@ -1,6 +1,7 @@
 """Robust statistics of a sampled signal, read before any model: the sd of its readings'
-noise from the median absolute deviation of its differences, and where it first leaves a
-level for good (a run of samples beyond a threshold)."""
+noise from the median absolute deviation of its differences (with a quantised signal's
+rounding as a floor), and where it first leaves a level for good (a run of samples
+beyond a threshold)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,8 @@ from math import comb, sqrt
 
 import numpy as np
 
-__all__ = ["MAD_SD", "CONSECUTIVE", "difference_sd", "first_run", "departure"]
+__all__ = ["MAD_SD", "CONSECUTIVE", "difference_sd", "smallest_step", "noise_floor", "first_run",
+           "departure"]
 
 MAD_SD = 1.482602218505602  # sd of a normal variable per median absolute deviation
 CONSECUTIVE = 3  # samples in a row beyond a threshold that count as having left a level
@@ -26,6 +28,24 @@ def difference_sd(values, order: int = 1) -> float:
     if d.size < 2:
         return 0.0
     return float(MAD_SD * np.median(np.abs(d - np.median(d))) / sqrt(comb(2 * order, order)))
+
+
+def smallest_step(values) -> float:
+    """The smallest change between successive readings (missing ones left out): a
+    quantised signal's quantum, a tiny figure for an analogue one; 0 for a signal that
+    never changes."""
+    y = np.asarray(values, dtype=float)
+    y = y[np.isfinite(y)]
+    d = np.abs(np.diff(y))
+    d = d[d > 1e-12 * max(1.0, float(np.abs(y).max()) if y.size else 0.0)]
+    return float(d.min()) if d.size else 0.0
+
+
+def noise_floor(values, order: int = 1) -> float:
+    """The sd of a signal's reading noise, :func:`difference_sd`, and at least the
+    rounding noise ``q/√12`` of its smallest step (a quantised signal whose readings
+    mostly repeat has no differences to read its noise from)."""
+    return max(difference_sd(values, order), smallest_step(values) / sqrt(12.0))
 
 
 def first_run(beyond: np.ndarray, n: int = CONSECUTIVE) -> int | None:

@@ -11,7 +11,7 @@ import numpy as np
 
 from ...io.channel import ChannelId
 from ...io.lattice import quantum
-from ...io.robust import difference_sd
+from ...io.robust import difference_sd, noise_floor
 
 __all__ = ["Channel", "noise_scale", "typical_level", "quantum", "effective_fraction",
            "quanta_passed", "run_fraction", "integrated_log_likelihood", "noise_weights",
@@ -31,11 +31,7 @@ def noise_scale(y: np.ndarray) -> float:
     q/√12 of its smallest step as a floor.
     """
     y = np.asarray(y, dtype=float)
-    mad = difference_sd(y, 2)
-    steps = np.abs(np.diff(y))
-    steps = steps[steps > 1e-12 * max(1.0, np.abs(y).max())]
-    quantum = steps.min() / np.sqrt(12.0) if steps.size else 0.0
-    return float(max(mad, quantum, 1e-9 * max(1e-12, np.abs(y).max())))
+    return float(max(noise_floor(y, 2), 1e-9 * max(1e-12, np.abs(y).max())))
 
 
 def _undithered(y: np.ndarray) -> float:

@@ -11,7 +11,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..._errors import SessionError
-from ...io.robust import difference_sd
+from ...io.robust import difference_sd, smallest_step
 from ...paper.changes import AT_REST, responses
 from .levels import unloaded_levels
 
@@ -87,10 +87,8 @@ def reversed_current(session) -> Reversal | None:
         if tr.current is None or tr.n < 8:
             continue
         current = np.asarray(tr.current, float)
-        steps = np.abs(np.diff(current[np.isfinite(current)]))
-        quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
-        clear = max(CLEAR_SWING * difference_sd(current),
-                    CLEAR_SWING * quantum)  # a quantised reading's steps, not its noise
+        clear = CLEAR_SWING * max(difference_sd(current),  # a quantised reading's steps,
+                                  smallest_step(current))  # not its noise
         against = []
         for which in ("voltage", "load_torque"):
             for r in responses(tr, which):
