@@ -225,3 +225,17 @@ def test_a_traces_speed_sensor_reading_high_is_found_on_the_steady_table(tmp_pat
     bad = _assessed(202, "speed gain", tmp_path)
     assert [f.check for f in bad.failures()] == [Check.STEADY_MISS], bad.headline()
     assert Proposal("speed_gain") in bad.proposals
+
+
+def test_a_prediction_that_is_not_finite_fails_and_a_held_rotor_is_read():
+    """A steady prediction the model cannot make fails the channel, it does not pass for
+    want of a test; a reading of zero speed (the rotor held) that the model sees turning
+    is read on the noise prior, not divided by its zero."""
+    model, fit = _fake([120.0, 180.0])
+    fit = SimpleNamespace(theta=np.array([np.nan]), cov_map=None, cov_log=np.zeros((1, 1)))
+    rows, tests, found = steady_tests(model, fit)
+    assert tests == [] and [f.severity for f in found] == [Severity.FAIL]
+    model, fit = _fake([0.0], s0=0.0)
+    rows, tests, found = steady_tests(model, fit)
+    (t,) = tests
+    assert rows["steady: speed"]["noise"] == Noise.PRIOR and t.p_value < 1e-6 and t.material

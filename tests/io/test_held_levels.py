@@ -51,9 +51,11 @@ def test_a_sag_a_few_noise_widths_deep_is_kept():
 def test_a_constant_noisy_column_is_split_no_more_often_than_stated(n, n_columns):
     """Also a short column, whose noise is known only roughly from its few readings."""
     rng = np.random.default_rng(2)
-    split = sum(held_levels(np.arange(n) / RATE, 5.0 + rng.normal(0.0, 0.01, n)).times.size > 1
-                for _ in range(n_columns))
+    read = [held_levels(np.arange(n) / RATE, 5.0 + rng.normal(0.0, 0.01, n), switching=True)
+            for _ in range(n_columns)]
+    split = sum(levels.times.size > 1 for levels in read)
     assert split <= stats.binom.isf(1e-3, n_columns, FALSE_SPLIT), split
+    assert not any(levels.switched for levels in read)
 
 
 def _pwm_sampled(duties, hold: int, rail: float, seed: int = 0):
@@ -69,7 +71,9 @@ def test_a_sampled_switching_output_is_read_as_the_levels_of_its_duty():
     duties, hold, rail = [0.0, 0.6, 0.85, 0.3, -0.7, 0.0], 500, 24.0
     t, _, column = _pwm_sampled(duties, hold, rail)
     assert switched_swing(column) == 2 * rail
-    levels = held_levels(t, column)
+    assert not held_levels(t, column).switched  # a load column is never a driver's output
+    levels = held_levels(t, column, switching=True)
+    assert levels.switched
     assert levels.values.size == len(duties), levels.values
     off = np.abs(levels.times - t[::hold]) * RATE
     assert off[1] <= 3 and np.all(off <= 20), off  # a start from rest to a few samples
@@ -79,9 +83,15 @@ def test_a_sampled_switching_output_is_read_as_the_levels_of_its_duty():
     assert levels.se[0] < 0.01 * rail < levels.se[1]  # a level that never switched
 
 
-@pytest.mark.parametrize("kind", ["held steps", "noisy steps", "quantised noise"])
+@pytest.mark.parametrize("kind", ["held steps", "noisy steps", "quantised noise",
+                                  "noisy constant", "noisy low staircase", "one-bit noise"])
 def test_a_held_or_noisy_column_is_not_taken_for_a_switching_output(kind):
     t, clean, noisy = _staircase([0.0, 12.0, 0.0, 12.0, -12.0], 300, 0.05)
+    rng = np.random.default_rng(7)
     column = {"held steps": clean, "noisy steps": noisy,
-              "quantised noise": 0.05 * np.round(noisy / 0.05)}[kind]
+              "quantised noise": 0.05 * np.round(noisy / 0.05),
+              "noisy constant": 5.0 + 0.1 * rng.standard_normal(1000),
+              "noisy low staircase": _staircase([10.0, 11.0, 12.0], 300, 0.2)[2],
+              "one-bit noise": 12.0 + 0.01 * rng.integers(0, 2, 1000)}[kind]
     assert switched_swing(column) == 0.0
+    assert not held_levels(np.arange(column.size) / RATE, column, switching=True).switched

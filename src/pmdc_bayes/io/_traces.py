@@ -221,7 +221,8 @@ def _trace(t: _Table, root: Path) -> Trace:
     for inp in ("voltage", "load_torque"):
         if inp in si:  # a duty is the command itself, exact however it moves
             exact = inp == "voltage" and duty is not None
-            inputs[inp] = Schedule(time, si[inp]) if exact else held_levels(time, si[inp])
+            inputs[inp] = (Schedule(time, si[inp]) if exact
+                           else held_levels(time, si[inp], switching=inp == "voltage"))
         elif inp in t.data:
             inputs[inp] = schedule(t, inp, u, _TRACE_KINDS[inp], t_raw, start,
                                     duty if inp == "voltage" else None)

@@ -39,7 +39,7 @@ SWITCH_TOLERANCE = 0.1  # a switched column's readings lie this share of its swi
 MIN_SWITCHES = 10  # ... or zero, and it flips for one or two samples this often at least
 
 
-def held_levels(time: np.ndarray, values: np.ndarray) -> Schedule:
+def held_levels(time: np.ndarray, values: np.ndarray, switching: bool = False) -> Schedule:
     """The levels a noisy column held (module docstring), each with its standard error;
     the column itself where it has no noise.  The levels are found by binary
     segmentation: a stretch of the column is cut where the standardised difference of
@@ -49,9 +49,11 @@ def held_levels(time: np.ndarray, values: np.ndarray) -> Schedule:
     union bound over the column's cuts; Student's t for σ's own error, with the degrees
     of freedom of :data:`MAD_EFFICIENCY` of the differences); then each side in turn.
     A step is cut at the first sample that shows it, and a drift (a sagging supply) into
-    levels that each hold within their readings' error."""
+    levels that each hold within their readings' error.  With ``switching`` (a voltage
+    column), one sampled from a switching driver's output (:func:`switched_swing`) is
+    read as the levels of its duty."""
     time, values = np.asarray(time, dtype=float), np.asarray(values, dtype=float)
-    switched = switched_swing(values) / 2.0
+    switched = switched_swing(values) / 2.0 if switching else 0.0
     sigma = switched or difference_sd(values)
     if sigma == 0.0 or values.size < 3:
         return Schedule(time, values)
@@ -77,19 +79,19 @@ def held_levels(time: np.ndarray, values: np.ndarray) -> Schedule:
 def switched_swing(values) -> float:
     """The swing of a column sampled from a switching driver's output, 0 for any other:
     every reading within :data:`SWITCH_TOLERANCE` of the swing of zero or of a rail (the
-    column's extremes, each beyond that share of the swing from zero), and the column
-    flipping between zero and a rail, or between the rails, for one or two samples at
-    least :data:`MIN_SWITCHES` times (a logged command or a driver's held output
-    flips only at its steps)."""
+    column's largest reading above zero, its smallest below, each one beyond that share
+    of the swing from zero), and the column flipping between zero and a rail, or between
+    the rails, for one or two samples at least :data:`MIN_SWITCHES` times (a logged
+    command or a driver's held output flips only at its steps, and a noisy level never
+    reaches zero)."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if v.size < 3:
         return 0.0
-    swing = float(max(v.max(), 0.0) - min(v.min(), 0.0))
-    if swing == 0.0:
-        return 0.0
+    hi, lo = max(float(v.max()), 0.0), min(float(v.min()), 0.0)
+    swing = hi - lo
     tol = SWITCH_TOLERANCE * swing
-    levels = np.array([0.0] + [x for x in (float(v.min()), float(v.max())) if abs(x) > tol])
+    levels = np.array([0.0] + [x for x in (lo, hi) if abs(x) > tol])
     if levels.size < 2:
         return 0.0
     gap = np.abs(v[:, None] - levels[None, :])

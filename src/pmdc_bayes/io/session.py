@@ -52,9 +52,9 @@ class Schedule:
     The last value holds to the end of the trace.  A logged input column is a
     schedule with one breakpoint per sample (zero-order hold), or, where the column is
     noisy, one per level it held (:mod:`.held_levels`), ``se`` each level's standard
-    error (its noise over the square root of its readings), ``noise`` the readings' noise
-    sd, and ``switched`` whether the column sampled a switching driver's output (its
-    levels the duty's).
+    error (what its readings leave of it), ``noise`` the readings' noise sd (both or
+    neither given), and ``switched`` whether the column sampled a switching driver's
+    output (its levels the duty's).
     """
 
     times: np.ndarray
@@ -62,6 +62,10 @@ class Schedule:
     se: np.ndarray | None = None
     noise: float | None = None
     switched: bool = False
+
+    def __post_init__(self):
+        if (self.se is None) != (self.noise is None):
+            raise ValueError("a schedule read as levels gives both their se and the noise")
 
     def at(self, t: np.ndarray) -> np.ndarray:
         """Value of the input at times ``t`` (right-continuous)."""

@@ -111,11 +111,14 @@ def log_voltage_column(files: dict[str, str], plan: Plan, name: str, *,
     t = data[:, header.index("t")]
     cols = {h: data[:, k] for k, h in enumerate(header)}
     cols["va"] = _held(spec.voltage, t)
+    rng = np.random.default_rng(seed)
     if supply > 0.0:
-        on = np.random.default_rng(seed).uniform(size=t.size) < np.abs(cols["va"]) / supply
-        cols["va"] = np.where(on, np.sign(cols["va"]) * supply, 0.0)
+        duty = np.abs(cols["va"]) / supply
+        if np.any(duty > 1.0):
+            raise ValueError(f"trace {name!r} applies more than the supply of {supply:g} V")
+        cols["va"] = np.where(rng.uniform(size=t.size) < duty, np.sign(cols["va"]) * supply, 0.0)
     if noise > 0.0:
-        read = cols["va"] + np.random.default_rng(seed).normal(0.0, noise, t.size)
+        read = cols["va"] + rng.normal(0.0, noise, t.size)
         cols["va"] = np.round(read, 3)
     out = dict(files)
     out[f"{name}.csv"] = csv_text(cols)

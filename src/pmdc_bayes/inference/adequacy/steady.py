@@ -52,7 +52,8 @@ class Noise(enum.StrEnum):
 class MissTest:
     """A steady channel's miss, tested: ``stat`` ~ F(``dof``) for an exact prediction,
     its ``p_value``, and ``excess`` the miss tested (its part in the line's span, or the
-    whole miss where read on the noise prior) as an rms share of the largest reading."""
+    whole miss where read on the noise prior) as an rms share of the largest reading or
+    prediction."""
 
     stat: float
     dof: tuple[int, int]
@@ -83,7 +84,10 @@ def line_test(y, yhat, x, cov=None, quantum: float = 0.0) -> MissTest | None:
     """The F test of the prediction ``yhat`` against the readings ``y`` within the span of
     the columns ``x``, with ``cov`` the prediction's covariance and the scatter floored at
     a logged lattice's ``quantum²/12``; None where the line leaves no degree of freedom
-    for the scatter or spans nothing."""
+    for the scatter or spans nothing, or a value is not finite.  A prediction fitted to
+    these readings meets them more closely than an exact one, and its covariance counts
+    their information a second time: the test is then conservative (at most its level
+    under the model)."""
     y, yhat = np.asarray(y, float), np.asarray(yhat, float)
     x = np.asarray(x, float)
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(yhat)) and x.shape[1]):
@@ -98,7 +102,7 @@ def line_test(y, yhat, x, cov=None, quantum: float = 0.0) -> MissTest | None:
     if n - p < 1:
         return None
     u = q.T @ (y - yhat)
-    scale = float(np.max(np.abs(y))) or 1.0
+    scale = _scale(y, yhat)
     rss = float(np.sum((y - q @ (q.T @ y)) ** 2))
     s2 = max(rss / (n - p), quantum**2 / 12.0, (1e-12 * scale) ** 2)
     m = s2 * np.eye(p)
@@ -125,9 +129,14 @@ def prior_test(y, yhat, s0: float, cov=None) -> MissTest | None:
     if cov is not None and np.all(np.isfinite(cov)):
         m = m + np.asarray(cov, float)
     stat = float(r @ np.linalg.solve(m, r)) / r.size
-    scale = float(np.max(np.abs(y))) or 1.0
+    scale = _scale(y, yhat)
     excess = float(np.sqrt(np.mean(r**2))) / scale
     return MissTest(stat, (r.size, int(NU0)), float(f_dist.sf(stat, r.size, NU0)), excess)
+
+
+def _scale(y, yhat) -> float:
+    """What a miss is a share of: the largest reading or prediction (1 where all are 0)."""
+    return float(max(np.max(np.abs(y)), np.max(np.abs(yhat)))) or 1.0
 
 
 def reading_quantum(y) -> float:
@@ -162,25 +171,31 @@ def steady_tests(model, fit) -> tuple[dict, list, list]:
     """Per steady channel its row for the verdict's table, the tests that join the
     verdict's family (a material miss fails: beyond the readings' scatter about the
     line, or, for readings too few to show one, beyond their noise prior) and the
-    warnings of a miss above :data:`PRIOR_MATERIAL` of the largest reading where the
-    readings show no scatter of their own."""
+    findings outside it: a warning of a miss above :data:`PRIOR_MATERIAL` of the largest
+    reading where the readings show no scatter of their own, a failure where the
+    prediction is not finite."""
     st = model.steady
     if not (st["w_mask"].any() or st["i_mask"].any()):
         return {}, [], []
     pred, v, cov = _prediction(model, fit)
     by_id = {c.id: c for c in model.channels}
-    rows, tests, warns = {}, [], []
+    rows, tests, found = {}, [], []
     for k, signal, mask in ((1, "speed", st["w_mask"]), (0, "current", st["i_mask"])):
         if not mask.any():
             continue
         cid = ChannelId(STEADY, signal)
         y, yhat = np.asarray(st["w" if k else "i"])[mask], pred[k][mask]
+        if not np.all(np.isfinite(pred[:, mask])):
+            found.append(Finding(Check.STEADY_MISS, cid, Severity.FAIL, "not finite",
+                                 f"the model's steady {signal}s are not finite at the MAP"))
+            continue
         x = line_columns(v[mask], np.asarray(st["tl"])[mask], pred[0][mask], pred[1][mask])
         c = None if cov is None else cov[k][np.ix_(mask, mask)]
+        scale = _scale(y, yhat)
         t, noise = line_test(y, yhat, x, c, reading_quantum(y)), Noise.SCATTER
         if t is None:
-            t, noise = prior_test(y, yhat, by_id[cid].s0, c), Noise.PRIOR
-        scale = max(float(np.max(np.abs(y))), 1e-300)
+            s0 = max(by_id[cid].s0, 1e-9 * scale)
+            t, noise = prior_test(y, yhat, s0, c), Noise.PRIOR
         rel = np.abs(y - yhat) / scale
         rms = float(np.sqrt(np.mean(rel**2)))
         rows[str(cid)] = {"trace": cid.trace, "signal": signal, "unit": by_id[cid].unit,
@@ -188,7 +203,7 @@ def steady_tests(model, fit) -> tuple[dict, list, list]:
                           "largest_miss_fraction": float(np.max(rel)),
                           "noise": str(noise), "p_value": None if t is None else t.p_value}
         if noise is Noise.PRIOR and rms > PRIOR_MATERIAL:
-            warns.append(Finding(
+            found.append(Finding(
                 Check.STEADY_MISS, cid, Severity.WARN,
                 f"rms miss {100 * rms:.2g} % of the largest reading",
                 f"the model misses the steady readings by {100 * rms:.2g} % of the "
@@ -204,4 +219,4 @@ def steady_tests(model, fit) -> tuple[dict, list, list]:
             f"the steady {signal}s miss the model by more than {against} (rms "
             f"{100 * t.excess:.2g} % of the largest reading)"), t.p_value,
             material=t.excess > MATERIAL_FRACTION))
-    return rows, tests, warns
+    return rows, tests, found
