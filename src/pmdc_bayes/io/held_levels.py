@@ -36,7 +36,7 @@ __all__ = ["held_levels", "switched_swing", "FALSE_SPLIT"]
 FALSE_SPLIT = 0.01  # the chance that a column of constant level is split anywhere
 MAD_EFFICIENCY = 0.37  # a MAD's σ is as good as a sample sd from this share of its readings
 SWITCH_TOLERANCE = 0.1  # a switched column's readings lie this share of its swing from a rail
-MIN_SWITCHES = 10  # ... or zero, and it flips for one or two samples this often at least
+MIN_SWITCHES = 5  # ... or zero, and it flips for one or two samples this often at least
 
 
 def held_levels(time: np.ndarray, values: np.ndarray, switching: bool = False) -> Schedule:
