@@ -225,6 +225,31 @@ def step(name: str, volts: float, *, duration: float, rate: float, at: float = 0
             "voltage": [[0.0, 0.0], [at, volts]], **keys}
 
 
+def logged_stairs(root: Path, *, seed: int, motor: str, truth: dict, levels, rate: float,
+                  friction: str = "viscous", **column):
+    """A staircase through ``levels`` (``(time, volts)`` pairs) at ``rate`` drawn by the
+    bench simulator's rig beside a steady sweep, its voltage logged as a column
+    (``log_voltage_column`` with ``column``: its noise, or a switching supply), written
+    under ``root`` and loaded."""
+    from pmdc_bayes.io.loader import load_session
+    from pmdc_bayes.simulate._fuzz_extra import log_voltage_column
+    from pmdc_bayes.simulate._write import write_session_files
+    from pmdc_bayes.simulate.plan import check_plan
+    from pmdc_bayes.simulate.session import render_session
+
+    stairs = {"name": "stairs", "kind": "free-form", "duration": 1.25, "rate": rate,
+              "voltage": [list(p) for p in levels], "speed_noise": 0.3,
+              "current_noise": 0.01}
+    spec = check_plan(plan(seed=seed, motor=motor, friction=friction, truth=truth,
+                           bench={"Ra": (0.05, "ohm")}, rig={},
+                           steady=(sweep([4.0, 8.0, 12.0], 0.3, 0.005),),
+                           traces=(stairs,)))
+    files = log_voltage_column(render_session(spec, seed), spec, "stairs", seed=seed,
+                               **column)
+    write_session_files(files, root / "s", force=False)
+    return load_session(root / "s")
+
+
 def plan_toml(plan: dict) -> str:
     """``plan`` as the TOML file a user writes."""
     def value(v) -> str:

@@ -4,14 +4,9 @@ as the levels the driver held, and the stick-slip model fits it."""
 
 import numpy as np
 import pytest
-from conftest import fit_and_assess, plan, sweep
+from conftest import fit_and_assess, logged_stairs
 
 from pmdc_bayes._headline import level_lines
-from pmdc_bayes.io.loader import load_session
-from pmdc_bayes.simulate._fuzz_extra import log_voltage_column
-from pmdc_bayes.simulate._write import write_session_files
-from pmdc_bayes.simulate.plan import check_plan
-from pmdc_bayes.simulate.session import render_session
 from pmdc_bayes.stage_summary import columns_as_levels
 
 TRUTH = {"Ra": 2.2, "La": 1.5e-3, "K": 0.045, "B": 2e-5, "J": 3e-5, "Tc": 4e-3}
@@ -21,17 +16,8 @@ COLUMN_SD = 0.05  # V
 
 
 def _session(tmp_path):
-    stairs = {"name": "stairs", "kind": "free-form", "duration": 1.25, "rate": RATE,
-              "voltage": [list(p) for p in LEVELS], "speed_noise": 0.3,
-              "current_noise": 0.01}
-    spec = check_plan(plan(seed=4, motor="noisy column", friction="coulomb", truth=TRUTH,
-                           bench={"Ra": (0.05, "ohm")}, rig={},
-                           steady=(sweep([4.0, 8.0, 12.0], 0.3, 0.005),),
-                           traces=(stairs,)))
-    files = log_voltage_column(render_session(spec, 4), spec, "stairs", noise=COLUMN_SD,
-                               seed=4)
-    write_session_files(files, tmp_path / "s", force=False)
-    return load_session(tmp_path / "s")
+    return logged_stairs(tmp_path, seed=4, motor="noisy column", friction="coulomb",
+                         truth=TRUTH, levels=LEVELS, rate=RATE, noise=COLUMN_SD)
 
 
 @pytest.mark.compiles
