@@ -2,7 +2,6 @@
 
 from types import SimpleNamespace
 
-import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy import stats
@@ -160,10 +159,11 @@ def _fake(speeds, s0=None):
           "w_mask": np.ones(v.size, bool), "i_mask": np.zeros(v.size, bool)}
     channel = SimpleNamespace(id=ChannelId(STEADY, "speed"), unit="rad/s",
                               s0=0.01 * speeds[0] if s0 is None else s0)
-    model = SimpleNamespace(
-        steady=st, channels=(channel,),
-        steady_at=lambda th, va, tl: (jnp.ones_like(va), th[0] * va),
-        driven=lambda th, va: va)
+    def with_jacobian(th):
+        pred = np.stack([np.ones_like(v), th[0] * v])
+        return pred, np.stack([np.zeros_like(v), v])[:, :, None], v
+
+    model = SimpleNamespace(steady=st, channels=(channel,), steady_with_jacobian=with_jacobian)
     fit = SimpleNamespace(theta=np.array([30.0]), cov_map=None, cov_log=np.zeros((1, 1)))
     return model, fit
 

@@ -24,8 +24,6 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 from scipy.stats import f as f_dist
 
@@ -152,18 +150,10 @@ def _prediction(model, fit):
     """The steady ``(ia, ω)`` at the MAP, the driven voltages, and their covariance
     from the Laplace curvature (the MAP's own where ``cov_log`` spans several optima);
     None for the covariance where it is not finite."""
-    st = model.steady
-    theta = jnp.asarray(fit.theta)
-
-    def predict(th):
-        return jnp.stack(model.steady_at(th, st["v"], st["tl"]))
-
-    pred = np.asarray(predict(theta))
-    v = np.asarray(model.driven(theta, st["v"]), float)
+    pred, jac, v = model.steady_with_jacobian(fit.theta)
     cov = fit.cov_map if fit.cov_map is not None else fit.cov_log
     if cov is None or not np.all(np.isfinite(cov)):
         return pred, v, None
-    jac = np.asarray(jax.jacfwd(predict)(theta))  # (2, n, P)
     return pred, v, np.einsum("knp,pq,kmq->knm", jac, np.asarray(cov), jac)
 
 

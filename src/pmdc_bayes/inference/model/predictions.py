@@ -1,9 +1,11 @@
 """What the fitted model predicts the sensors read: the traces' currents, speeds and
-angles at a θ, for the adequacy checks, the residual tables and the report."""
+angles at a θ, and the steady readings with their Jacobian, for the adequacy checks, the
+residual tables and the report."""
 
 from __future__ import annotations
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from ..._x64 import to_device, x64
@@ -84,6 +86,22 @@ class Predictions:
         flags = self._predicted(theta)[3]
         seg_trace, t0 = np.asarray(self.exp.seg_trace), np.asarray(self.exp.seg_t0)
         return [t0[(seg_trace == k) & flags] for k in range(len(self.session.traces))]
+
+    @x64
+    def steady_with_jacobian(self, theta):
+        """The steady readings' ``(ia, ω)`` at θ (shape ``(2, n)``), their Jacobian in θ
+        (``(2, n, P)``) and the voltages the driver puts out for them, from one compiled
+        program."""
+        def run(t, d):
+            st = d["steady"]
+
+            def steady(th):
+                return jnp.stack(self.steady_at(th, st["v"], st["tl"]))
+
+            return steady(t), jax.jacfwd(steady)(t), self.driven(t, st["v"])
+
+        out = self.compiled("steady", lambda: jax.jit(run))(to_device(theta), self.data)
+        return tuple(np.asarray(x) for x in out)
 
     def _predicted(self, theta):
         """``(ia, ω, angle)`` of every trace in time order, from the trace block's own
