@@ -95,3 +95,49 @@ def test_a_held_or_noisy_column_is_not_taken_for_a_switching_output(kind):
               "one-bit noise": 12.0 + 0.01 * rng.integers(0, 2, 1000)}[kind]
     assert switched_swing(column) == 0.0
     assert not held_levels(np.arange(column.size) / RATE, column, switching=True).switched
+
+
+@pytest.mark.parametrize("duty, n, n_columns", [(0.5, 2000, 300), (0.15, 300, 1000),
+                                                (-0.8, 100, 1000)])
+def test_a_constant_duty_is_split_no_more_often_than_stated(duty, n, n_columns):
+    read = [held_levels(*_pwm_sampled([duty], n, 12.0, seed=s)[::2], switching=True)
+            for s in range(n_columns)]
+    assert all(levels.switched for levels in read)
+    split = sum(levels.times.size > 1 for levels in read)
+    assert split <= stats.binom.isf(1e-3, n_columns, FALSE_SPLIT), split
+
+
+def test_a_change_of_direction_is_cut_where_the_zeros_between_belong():
+    """The zeros between the last reading of one sign and the first of the other go to
+    the duty that makes them likely: here the low duty after the change."""
+    hits = []
+    for seed in range(50):
+        t, _, column = _pwm_sampled([0.7, -0.15], 200, 12.0, seed=seed)
+        levels = held_levels(t, column, switching=True)
+        assert levels.values[0] > 0 > levels.values[-1]
+        hits.append(np.flatnonzero(levels.values < 0)[0] == 1 and
+                    abs(levels.times[1] * RATE - 200) <= 4)
+    assert np.mean(hits) > 0.9, hits
+
+
+def test_a_rest_before_a_low_duty_is_a_level_of_its_own():
+    """A hundred readings at zero then a duty of 0.2: a run of zeros that long is
+    improbable at that duty, however little the mean moves against the rail."""
+    t, _, column = _pwm_sampled([0.0, 0.2], 100, 8.0, seed=3)
+    t, column = np.arange(600) / RATE, np.concatenate([column[:100], _pwm_sampled(
+        [0.2], 500, 8.0, seed=4)[2]])
+    levels = held_levels(t, column, switching=True)
+    assert levels.values.size == 2 and levels.values[0] == 0.0, levels.values
+    assert abs(levels.times[1] * RATE - 100) <= 10
+
+
+def test_a_driver_that_never_rests_is_read_from_its_two_rails():
+    """Locked anti-phase: each reading one rail or the other, the mean the duty's."""
+    duties, hold, rail = [0.2, -0.4, 0.6], 500, 12.0
+    t = np.arange(len(duties) * hold) / RATE
+    d = np.repeat(duties, hold)
+    up = np.random.default_rng(5).uniform(size=t.size) < (1.0 + d) / 2.0
+    levels = held_levels(t, np.where(up, rail, -rail), switching=True)
+    assert levels.switched and levels.values.size == len(duties), levels.values
+    z = (levels.values - rail * np.asarray(duties)) / levels.se
+    assert np.all(np.abs(z) < 4), z
