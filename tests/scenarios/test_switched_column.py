@@ -41,3 +41,51 @@ def test_a_switched_voltage_column_fits_the_ideal_motor(tmp_path):
     assert verdict.verdict == "adequate", verdict.findings
     for name in ("K", "B", "J"):
         assert abs(fit.values[name] - TRUTH[name]) < 3 * fit.sd[name], name
+
+
+SMALL_STEPS = ((0.0, 3.0), (0.3, 6.75), (0.6, 10.5), (0.9, 6.75))  # duties 0.2 to 0.7
+
+
+def test_a_switched_column_places_its_changes_to_several_samples_only(tmp_path):
+    """A change of duty shows in the readings only over the samples its two duties'
+    draws take to differ: the lead's prior is that wide; a noisy column's is not."""
+    from pmdc_bayes.inference.model.switch_lead import change_times, placement_sd
+
+    switched = logged_stairs(tmp_path / "a", seed=6, motor="switched", truth=TRUTH,
+                             levels=SMALL_STEPS, rate=RATE, supply=SUPPLY).traces[0]
+    noisy = logged_stairs(tmp_path / "b", seed=6, motor="noisy", truth=TRUTH,
+                          levels=SMALL_STEPS, rate=RATE, noise=0.05).traces[0]
+    sd = placement_sd(switched, change_times(switched))
+    assert sd.size == len(SMALL_STEPS) and sd[0] == 0.0, sd  # the start is the trace's
+    assert np.all(sd[1:] > 1.5 / RATE), sd * RATE
+    assert not np.any(placement_sd(noisy, change_times(noisy)))
+
+
+def _fuzzed_with_switched_columns(root, seed: int):
+    """Fuzzed session ``seed`` (the bench simulator) with each voltage column it logs
+    sampled from a driver switching 1.25 × the trace's largest voltage."""
+    from pmdc_bayes.io.loader import load_session
+    from pmdc_bayes.simulate import fuzz
+
+    plan, extras = fuzz.fuzz_plan(seed)
+    spec = fuzz.check_plan(plan)
+    files = fuzz.render_session(spec, seed)
+    for name in extras["columns"]:
+        trace = next(t for t in spec.traces if t.name == name)
+        supply = 1.25 * max(abs(v) for _, v in trace.voltage)
+        files = fuzz.log_voltage_column(files, spec, name, supply=supply)
+    fuzz.write_session_files(files, root, force=False)
+    return load_session(root), plan["truth"]
+
+
+@pytest.mark.compiles
+def test_a_step_from_steady_through_a_switched_column_fits_where_the_current_shows_it(
+        tmp_path):
+    """Fuzzed seed 25: a step from steady whose change of duty the column places only to
+    several samples, the current logged; the step-start check failed it while the lead's
+    prior was a sample interval wide."""
+    session, truth = _fuzzed_with_switched_columns(tmp_path / "s", 25)
+    _, _, fit, verdict = fit_and_assess(session, seed=25)
+    assert verdict.verdict == "adequate", verdict.findings
+    for name in ("K", "B", "J"):
+        assert abs(fit.values[name] - truth[name]) < 3 * fit.sd[name], name

@@ -25,6 +25,8 @@ two ways a rig logs a column: switching at the sample that shows the change (a l
 median sample interval: mean Δ/4, sd Δ·√(5/48).  Fitted in value, so a slightly
 negative lead (a change shown a sample late) is not excluded.  A trace's first segment
 is a change too where the trace starts from rest under a column already away from zero.
+A column sampled from a switching driver places a change of duty only to several
+samples (:func:`placement_sd`): that change's lead has its prior widened by as much.
 
 Where the armature's time constant is much shorter than Δ, the density in the lead is
 a box: flat where the first current sample after a change reads the current risen (or
@@ -43,7 +45,7 @@ from ...io.session import Session, Trace
 from .params import ParamSpec, Prior, identifier
 
 __all__ = ["lead_name", "lead_names", "lead_specs", "leading_traces", "lead_scans",
-           "segment_leads", "lead_data", "session_lead_names", "change_times",
+           "segment_leads", "lead_data", "placement_sd", "session_lead_names", "change_times",
            "SCAN_SHARES", "MAX_CHANGES", "TIMING", "PRIOR_MEAN", "PRIOR_SD"]
 
 # an even mixture of a lead of 0 and a uniform one over the interval, as shares of it
@@ -122,12 +124,14 @@ def lead_specs(session: Session) -> list[ParamSpec]:
     for tr in session.traces:
         times = change_times(tr)
         names = _named(tr, times.size)
+        placed = placement_sd(tr, times)
         for j, name in enumerate(names):
             when = "each change" if len(names) < times.size else \
                 f"the change at {float(times[j]):.6g} s"
+            spread = float(np.max(placed)) if len(names) < times.size else float(placed[j])
+            sd = float(np.hypot(PRIOR_SD * tr.dt, spread))
             specs.append(ParamSpec(name, "s", "trace",
-                                   Prior("normal", PRIOR_MEAN * tr.dt, PRIOR_SD * tr.dt,
-                                         TIMING),
+                                   Prior("normal", PRIOR_MEAN * tr.dt, sd, TIMING),
                                    PRIOR_MEAN * tr.dt, transform="identity", trace=tr.name,
                                    description=f"how long before the first sample showing "
                                                f"it trace {tr.name!r}'s input made "
@@ -135,10 +139,45 @@ def lead_specs(session: Session) -> list[ParamSpec]:
     return specs
 
 
+def placement_sd(tr: Trace, times: np.ndarray) -> np.ndarray:
+    """Per change of ``tr`` at ``times``, how far (sd, s) its column's readings leave
+    where it fell, beyond the sample interval: 0 but for a change of a column sampled
+    from a switching driver (:mod:`pmdc_bayes.io.held_levels`), whose readings show a
+    change of duty only over the samples it takes the two duties' draws to differ.  A
+    change point between two levels of per-reading sd σ₁, σ₂ that differ by δ is
+    placed to about (σ₁² + σ₂²)/(2δ²) samples, at most half the shorter level."""
+    out = np.zeros(np.size(times))
+    s = tr.voltage
+    if not (tr.voltage_logged and s.switched and s.se is not None and s.values.size > 1):
+        return out
+    start = np.asarray(s.times, dtype=float)
+    n = np.diff(np.searchsorted(tr.time, np.append(start, np.inf))).clip(min=1)
+    var = np.asarray(s.se, dtype=float) ** 2 * n  # each level's per-reading variance
+    delta = np.diff(np.asarray(s.values, dtype=float))
+    with np.errstate(divide="ignore"):
+        samples = (var[:-1] + var[1:]) / (2.0 * delta**2)
+    samples = np.nan_to_num(np.minimum(samples, np.minimum(n[:-1], n[1:]) / 2.0))
+    at = np.searchsorted(start, np.asarray(times, dtype=float))
+    hit = (at >= 1) & (at < start.size)
+    hit[hit] &= np.isclose(start[at[hit]], np.asarray(times)[hit])
+    out[hit] = samples[at[hit] - 1] * tr.dt
+    return out
+
+
 def lead_scans(session: Session) -> dict[str, np.ndarray]:
     """Per lead of :func:`lead_specs`, the values (s) a fit's start is chosen among:
-    :data:`SCAN_SHARES` × Δ."""
-    return {name: SCAN_SHARES * tr.dt for tr in session.traces for name in lead_names(tr)}
+    :data:`SCAN_SHARES` × Δ, and where a switched column places its change only to
+    several samples, as many again across twice that sd either way."""
+    out = {}
+    for tr in session.traces:
+        times = change_times(tr)
+        names = _named(tr, times.size)
+        placed = placement_sd(tr, times)
+        for j, name in enumerate(names):
+            spread = float(np.max(placed)) if len(names) < times.size else float(placed[j])
+            wide = np.linspace(-2.0, 2.0, SCAN_SHARES.size) * spread if spread > tr.dt else []
+            out[name] = np.concatenate([SCAN_SHARES * tr.dt, wide])
+    return out
 
 
 def segment_leads(session: Session, seg_t0, seg_trace) -> np.ndarray | None:
