@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from .._format import row_format
 from ..inference.adequacy.findings import Severity
+from ..inference.adequacy.steady import Noise
 from ..inference.model.channels import STEADY_RELATIVE_NOISE
 from ..io.units import display_unit
 from ._doc import Bullets, Paragraph, Section, Table, fmt
@@ -50,7 +51,7 @@ def adequacy_section(ctx) -> Section | None:
     for name, c in a["channels"].items():
         if "whiteness" not in c:
             label = "of the largest reading" + (", on its noise prior"
-                                                if c.get("noise") == "prior" else "")
+                                                if c.get("noise") == Noise.PRIOR else "")
             rows.append((name, "—", "—", "—", "—",
                          f"{100 * c['rms_miss_fraction']:.2g} (rms miss {label})",
                          _p(c.get("p_value")), "—", "—"))

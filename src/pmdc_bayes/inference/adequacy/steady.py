@@ -103,14 +103,8 @@ def line_test(y, yhat, x, cov=None, quantum: float = 0.0) -> MissTest | None:
     scale = _scale(y, yhat)
     rss = float(np.sum((y - q @ (q.T @ y)) ** 2))
     s2 = max(rss / (n - p), quantum**2 / 12.0, (1e-12 * scale) ** 2)
-    m = s2 * np.eye(p)
-    if cov is not None and np.all(np.isfinite(cov)):
-        m = m + q.T @ np.asarray(cov, float) @ q
-    stat = float(u @ np.linalg.solve(m, u)) / p
-    if not np.isfinite(stat):
-        return None
-    excess = float(np.sqrt(u @ u / n)) / scale
-    return MissTest(stat, (p, n - p), float(f_dist.sf(stat, p, n - p)), excess)
+    c = None if cov is None else q.T @ np.asarray(cov, float) @ q
+    return _miss(u, s2, c, (p, n - p), float(np.sqrt(u @ u / n)) / scale)
 
 
 def prior_test(y, yhat, s0: float, cov=None) -> MissTest | None:
@@ -123,13 +117,21 @@ def prior_test(y, yhat, s0: float, cov=None) -> MissTest | None:
     r = y - yhat
     if not (r.size and np.all(np.isfinite(r)) and s0 > 0):
         return None
-    m = s0**2 * np.eye(r.size)
+    excess = float(np.sqrt(np.mean(r**2))) / _scale(y, yhat)
+    return _miss(r, s0**2, cov, (r.size, int(NU0)), excess)
+
+
+def _miss(u, s2: float, cov, dof: tuple[int, int], excess: float) -> MissTest | None:
+    """The test of the miss ``u`` against white noise of variance ``s2`` plus the
+    prediction's covariance ``cov`` (where finite): ``uᵀM⁻¹u / dof[0]`` ~ F(``dof``);
+    None where that is not finite."""
+    m = s2 * np.eye(u.size)
     if cov is not None and np.all(np.isfinite(cov)):
         m = m + np.asarray(cov, float)
-    stat = float(r @ np.linalg.solve(m, r)) / r.size
-    scale = _scale(y, yhat)
-    excess = float(np.sqrt(np.mean(r**2))) / scale
-    return MissTest(stat, (r.size, int(NU0)), float(f_dist.sf(stat, r.size, NU0)), excess)
+    stat = float(u @ np.linalg.solve(m, u)) / dof[0]
+    if not np.isfinite(stat):
+        return None
+    return MissTest(stat, dof, float(f_dist.sf(stat, *dof)), excess)
 
 
 def _scale(y, yhat) -> float:
