@@ -270,3 +270,23 @@ def test_the_rig_s_parameters_are_explained_in_words_under_the_table():
     assert table.rows[-1][:4] == (name, "×1e-3 s", "— (none)", "2.10 ± 0.12")
     assert table.note.endswith("The rig's parameters (named as in summary.json): "
                                "dead_time_step_12v: dead time of trace 'step_12v'.")
+
+
+def test_a_steady_row_says_when_its_miss_was_read_on_the_noise_prior():
+    from types import SimpleNamespace
+
+    from pmdc_bayes.report.adequacy import adequacy_section
+
+    def row(noise):
+        return {"trace": "steady", "signal": "speed", "unit": "rad/s", "n": 1,
+                "rms_miss_fraction": 0.02, "largest_miss_fraction": 0.02,
+                "noise": noise, "p_value": 0.4}
+
+    summary = {"adequacy": {"findings": [], "diagnosis": [], "level": 0.05,
+                            "channels": {"point: speed": row("prior"),
+                                         "steady: speed": row("scatter")}}}
+    sec = adequacy_section(SimpleNamespace(summary=summary))
+    (table,) = [x for x in sec.blocks if getattr(x, "title", "") == "Per channel"]
+    cells = {r[0]: r[5] for r in table.rows}
+    assert cells["point: speed"].endswith("on its noise prior)"), cells
+    assert "noise prior" not in cells["steady: speed"], cells
