@@ -141,3 +141,32 @@ def test_a_driver_that_never_rests_is_read_from_its_two_rails():
     assert levels.switched and levels.values.size == len(duties), levels.values
     z = (levels.values - rail * np.asarray(duties)) / levels.se
     assert np.all(np.abs(z) < 4), z
+
+
+def test_a_driver_that_never_rests_is_not_cut_at_a_lone_zero_or_at_each_change_of_sign():
+    rng = np.random.default_rng(8)
+    t = np.arange(2000) / RATE
+    column = np.where(rng.uniform(size=t.size) < 0.65, 12.0, -12.0)
+    column[700] = 0.0
+    assert held_levels(t, column, switching=True).values.size == 1
+    column[:200] = 0.0  # the driver enabled after 0.2 s
+    levels = held_levels(t, column, switching=True)
+    assert levels.values.size == 2 and levels.values[0] == 0.0, levels.values
+    assert abs(levels.times[1] * RATE - 200) <= 2
+
+
+def test_a_lone_reading_of_the_other_sign_is_not_a_level():
+    t, _, column = _pwm_sampled([0.5], 2000, 12.0, seed=9)
+    column[900] = -12.0
+    assert held_levels(t, column, switching=True).values.size == 1
+
+
+def test_a_change_of_direction_after_a_long_rest_is_cut_where_the_readings_show_it():
+    hits = 0
+    for seed in range(50):
+        t, _, column = _pwm_sampled([0.0] * 10 + [0.7, -0.15], 200, 12.0, seed=seed)
+        levels = held_levels(t, column, switching=True)
+        negative = np.flatnonzero(levels.values < 0)
+        hits += (levels.values.size == 3 and negative.size == 1
+                 and abs(levels.times[negative[0]] * RATE - 2200) <= 4)
+    assert hits >= 45, hits

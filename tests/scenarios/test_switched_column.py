@@ -3,11 +3,15 @@ an ADC far slower than it switches: each reading the supply or zero), on a stair
 both signs drawn by the independent bench simulator: the column is read as the levels of
 its duty, and the ideal motor fits it."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from conftest import fit_and_assess, logged_stairs
 
 from pmdc_bayes._headline import level_lines
+from pmdc_bayes.inference.model.switch_lead import change_times, placement_sd
+from pmdc_bayes.io.held_levels import held_levels
 from pmdc_bayes.stage_summary import columns_as_levels
 
 TRUTH = {"Ra": 2.2, "La": 1.5e-3, "K": 0.045, "B": 2e-5, "J": 3e-5}
@@ -49,8 +53,6 @@ SMALL_STEPS = ((0.0, 3.0), (0.3, 6.75), (0.6, 10.5), (0.9, 6.75))  # duties 0.2 
 def test_a_switched_column_places_its_changes_to_several_samples_only(tmp_path):
     """A change of duty shows in the readings only over the samples its two duties'
     draws take to differ: the lead's prior is that wide; a noisy column's is not."""
-    from pmdc_bayes.inference.model.switch_lead import change_times, placement_sd
-
     switched = logged_stairs(tmp_path / "a", seed=6, motor="switched", truth=TRUTH,
                              levels=SMALL_STEPS, rate=RATE, supply=SUPPLY).traces[0]
     noisy = logged_stairs(tmp_path / "b", seed=6, motor="noisy", truth=TRUTH,
@@ -59,6 +61,27 @@ def test_a_switched_column_places_its_changes_to_several_samples_only(tmp_path):
     assert sd.size == len(SMALL_STEPS) and sd[0] == 0.0, sd  # the start is the trace's
     assert np.all(sd[1:] > 1.5 / RATE), sd * RATE
     assert not np.any(placement_sd(noisy, change_times(noisy)))
+
+
+@pytest.mark.parametrize("duties", [(0.3, 0.6), (0.2, 0.45), (0.8, -0.4)])
+def test_the_placement_sd_is_the_spread_of_where_the_readings_cut(duties):
+    """Over many columns, the sd of where the change is cut (samples) against the mean
+    of :func:`placement_sd`: the same within the Monte Carlo's and the formula's error."""
+    hold, rail, errors, predicted = 400, 12.0, [], []
+    for seed in range(400):
+        rng = np.random.default_rng(seed)
+        d = np.repeat(duties, hold)
+        on = rng.uniform(size=d.size) < np.abs(d)
+        t = np.arange(d.size) / RATE
+        column = held_levels(t, np.where(on, np.sign(d) * rail, 0.0), switching=True)
+        if column.values.size != 2:
+            continue
+        trace = SimpleNamespace(voltage=column, voltage_logged=True, time=t, dt=1 / RATE)
+        errors.append(column.times[1] * RATE - hold)
+        predicted.append(placement_sd(trace, column.times)[1] * RATE)
+    assert len(errors) > 300
+    ratio = np.std(errors) / np.mean(predicted)
+    assert 0.7 < ratio < 1.4, (ratio, np.std(errors), np.mean(predicted))
 
 
 def _fuzzed_with_switched_columns(root, seed: int):

@@ -16,12 +16,12 @@ does not send it here: it is the command itself, however it moves).
 A column sampled from a switching driver's output (an H-bridge's PWM read by an ADC
 far slower than it switches) holds no level at all: each reading is a rail or zero, and
 the motor, whose inductance and inertia average the switching, sees the duty.  Such a
-column (:func:`switched_swing`) is read as the levels of its duty: each reading a
-Bernoulli draw of the duty, the column cut where its readings change sign and where
-the binomial likelihood says the duty changed (:func:`_duty_levels`), each level's
-error the duty's binomial error from its readings.  Where a change falls is known
-only to the samples its two duties' draws take to differ; the fit's lead of each
-change carries that (:func:`pmdc_bayes.inference.model.switch_lead.placement_sd`).
+column (:func:`switched_swing`) is read as the levels of its duty: each reading a draw
+of the duty among the driver's states, the column cut where the readings' multinomial
+likelihood says the duty changed (:func:`_duty_levels`), each level's error the duty's
+own from its readings.  Where a change falls is known only to the samples its two
+duties' draws take to differ; the fit's lead of each change carries that
+(:func:`pmdc_bayes.inference.model.switch_lead.placement_sd`).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ def held_levels(time: np.ndarray, values: np.ndarray, switching: bool = False) -
     column), one sampled from a switching driver's output (:func:`switched_swing`) is
     read as the levels of its duty."""
     time, values = np.asarray(time, dtype=float), np.asarray(values, dtype=float)
-    swing = switched_swing(values) if switching else 0.0
+    swing = switched_swing(values) if switching and np.all(np.isfinite(values)) else 0.0
     if swing:
         return _duty_levels(time, values, swing)
     sigma = difference_sd(values)
@@ -71,74 +71,49 @@ def held_levels(time: np.ndarray, values: np.ndarray, switching: bool = False) -
 def _duty_levels(time: np.ndarray, values: np.ndarray, swing: float) -> Schedule:
     """The levels of the duty a switched column's readings held (module docstring).
 
-    Each reading is one of the driver's states: zero or a rail for a bridge that
-    switches between its output and zero, one rail or the other for one that never
-    rests at zero.  Where it rests at zero, a level's readings are of one sign, so the
-    column is first cut where its non-zero readings change sign (at the first reading
-    of the new sign); within each part a reading is at its rail or not, a Bernoulli
-    draw of the level's duty, and the part is cut by binary segmentation on the
-    binomial likelihood ratio (2·Δlog L, χ²(1) at any one cut of a constant duty),
-    such that a constant duty is cut anywhere with probability :data:`FALSE_SPLIT` at
-    most (a union bound over the column's cuts).  Each level is the mean of its
-    readings, its error the duty's binomial error from its readings (with half a
-    reading each way, so that a level its readings never left is known to about 1/n
-    of the rail) and their scatter about the states they read."""
-    hi, lo = max(float(values.max()), 0.0), min(float(values.min()), 0.0)
+    Each reading is one of the driver's states (zero and the rails it reaches: zero or
+    a rail for a bridge that switches between its output and zero, one rail or the other
+    for one that never rests), a categorical draw of the level's duty.  The column is
+    cut by binary segmentation on the multinomial likelihood ratio of two duties against
+    one (2·Δlog L, χ² with a degree of freedom per state beyond the first at any one cut
+    of a constant duty), such that a constant duty is cut anywhere with probability
+    :data:`FALSE_SPLIT` at most (a union bound over the column's cuts): a change of
+    direction, a rest and a change of duty alike, each cut where the readings make it
+    most likely.  Each level is the mean of its readings, its error the duty's
+    multinomial error from its readings (with half a reading more in each state, so that
+    a level its readings never left is known to about 1/n of the rail) and their scatter
+    about the states they read."""
     tol = SWITCH_TOLERANCE * swing
-    rails = np.array([r for r in (lo, hi) if abs(r) > tol])
-    rests = bool(np.any(np.abs(values) <= tol)) or rails.size < 2
-    states = np.concatenate([[0.0], rails]) if rests else rails
-    state = states[np.abs(values[:, None] - states[None, :]).argmin(axis=1)]
-    on = state != 0.0 if rests else state > 0.0
-    c2 = float(stats.chi2.isf(FALSE_SPLIT / values.size, 1))
-    bounds = [0]
-    for a, b in _sign_parts(state) if rests else [(0, values.size)]:
-        bounds += [a + j for j in _cuts(on[a:b].astype(float), _binomial_ratio, c2)] + [b]
+    rails = [r for r in (float(values.min()), float(values.max())) if abs(r) > tol]
+    states = np.array(sorted(set(rails) | ({0.0} if np.any(np.abs(values) <= tol) else set())))
+    code = np.abs(values[:, None] - states[None, :]).argmin(axis=1)
+    onehot = (code[:, None] == np.arange(states.size)[None, :]).astype(float)
+    c2 = float(stats.chi2.isf(FALSE_SPLIT / values.size, max(states.size - 1, 1)))
+    bounds = np.array([0, *_cuts(onehot, _multinomial_ratio, c2), values.size])
     levels, se = [], []
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-        n, x, s = b - a, values[a:b], state[a:b]
-        span = (float(np.max(np.abs(s))) or float(np.max(np.abs(rails)))) if rests else hi - lo
-        p = (np.count_nonzero(on[a:b]) + 0.5) / (n + 1.0)
-        levels.append(float(x.mean()))
-        se.append(float(np.sqrt((span**2 * p * (1.0 - p) + np.mean((x - s) ** 2)) / n)))
+        n = b - a
+        p = (onehot[a:b].sum(axis=0) + 0.5) / (n + 0.5 * states.size)
+        spread = float(p @ states**2 - (p @ states) ** 2)
+        scatter = float(np.mean((values[a:b] - states[code[a:b]]) ** 2))
+        levels.append(float(values[a:b].mean()))
+        se.append(float(np.sqrt((spread + scatter) / n)))
     return Schedule(time[bounds[:-1]], np.array(levels), np.array(se), swing / 2.0, True)
 
 
-def _sign_parts(state: np.ndarray) -> list[tuple[int, int]]:
-    """``state`` cut where its non-zero readings change sign: each cut placed in the
-    zeros between the last reading of one sign and the first of the other where the
-    two runs' duties make those zeros most likely."""
-    k = np.flatnonzero(state)
-    if not k.size:
-        return [(0, state.size)]
-    change = np.flatnonzero(np.sign(state[k[1:]]) != np.sign(state[k[:-1]]))
-    starts = np.concatenate([[k[0]], k[change + 1]])  # each run's first non-zero reading
-    ends = np.concatenate([k[change], [k[-1]]]) + 1  # ... and one past its last
-    counts = np.diff(np.concatenate([[0], np.cumsum(state != 0)[ends - 1]]))
-    bounds = [0]
-    for r in range(starts.size - 1):
-        c = np.arange(ends[r], starts[r + 1] + 1)
-        fit = (_loglik(counts[r], c - bounds[-1])
-               + _loglik(counts[r + 1], ends[r + 1] - c))
-        bounds.append(int(c[np.argmax(fit)]))
-    bounds.append(state.size)
-    return list(zip(bounds[:-1], bounds[1:], strict=True))
+def _loglik(k: np.ndarray) -> np.ndarray:
+    """The multinomial log-likelihood of the counts ``k`` (last axis: the states) at
+    their best shares."""
+    n = k.sum(axis=-1, keepdims=True)
+    return np.sum(xlogy(k, k / np.where(n > 0, n, 1.0)), axis=-1)
 
 
-def _loglik(k, n):
-    """The binomial log-likelihood of ``k`` of ``n`` readings on, at its best duty."""
-    k, n = np.asarray(k, dtype=float), np.asarray(n, dtype=float)
-    return xlogy(k, k / n) + xlogy(n - k, (n - k) / n)
-
-
-def _binomial_ratio(on: np.ndarray) -> np.ndarray:
-    """At each cut of a part whose readings are ``on`` (a rail) or not, the binomial
+def _multinomial_ratio(onehot: np.ndarray) -> np.ndarray:
+    """At each cut of a part whose readings are ``onehot`` (one column per state), the
     likelihood ratio ``2·Δlog L`` of two duties against one (:func:`_duty_levels`)."""
-    m = on.size
-    n1 = np.arange(1, m)
-    k1 = np.cumsum(on)[:-1]
-    total = float(on.sum())
-    return 2.0 * (_loglik(k1, n1) + _loglik(total - k1, m - n1) - _loglik(total, m))
+    left = np.cumsum(onehot, axis=0)[:-1]
+    total = onehot.sum(axis=0)
+    return 2.0 * (_loglik(left) + _loglik(total - left) - _loglik(total))
 
 
 def switched_swing(values) -> float:

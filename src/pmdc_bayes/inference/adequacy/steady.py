@@ -54,7 +54,7 @@ class MissTest:
     prediction."""
 
     stat: float
-    dof: tuple[int, int]
+    dof: tuple[int, float]
     p_value: float
     excess: float
 
@@ -118,10 +118,10 @@ def prior_test(y, yhat, s0: float, cov=None) -> MissTest | None:
     if not (r.size and np.all(np.isfinite(r)) and s0 > 0):
         return None
     excess = float(np.sqrt(np.mean(r**2))) / _scale(y, yhat)
-    return _miss(r, s0**2, cov, (r.size, int(NU0)), excess)
+    return _miss(r, s0**2, cov, (r.size, NU0), excess)
 
 
-def _miss(u, s2: float, cov, dof: tuple[int, int], excess: float) -> MissTest | None:
+def _miss(u, s2: float, cov, dof: tuple[int, float], excess: float) -> MissTest | None:
     """The test of the miss ``u`` against white noise of variance ``s2`` plus the
     prediction's covariance ``cov`` (where finite): ``uᵀM⁻¹u / dof[0]`` ~ F(``dof``);
     None where that is not finite."""

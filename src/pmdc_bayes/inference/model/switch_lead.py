@@ -124,11 +124,9 @@ def lead_specs(session: Session) -> list[ParamSpec]:
     for tr in session.traces:
         times = change_times(tr)
         names = _named(tr, times.size)
-        placed = placement_sd(tr, times)
-        for j, name in enumerate(names):
+        for j, (name, spread) in enumerate(zip(names, _spreads(tr, times), strict=True)):
             when = "each change" if len(names) < times.size else \
                 f"the change at {float(times[j]):.6g} s"
-            spread = float(np.max(placed)) if len(names) < times.size else float(placed[j])
             sd = float(np.hypot(PRIOR_SD * tr.dt, spread))
             specs.append(ParamSpec(name, "s", "trace",
                                    Prior("normal", PRIOR_MEAN * tr.dt, sd, TIMING),
@@ -143,25 +141,35 @@ def placement_sd(tr: Trace, times: np.ndarray) -> np.ndarray:
     """Per change of ``tr`` at ``times``, how far (sd, s) its column's readings leave
     where it fell, beyond the sample interval: 0 but for a change of a column sampled
     from a switching driver (:mod:`pmdc_bayes.io.held_levels`), whose readings show a
-    change of duty only over the samples it takes the two duties' draws to differ.  A
-    change point between two levels of per-reading sd σ₁, σ₂ that differ by δ is
-    placed to about (σ₁² + σ₂²)/(2δ²) samples, at most half the shorter level."""
+    change of duty only over the samples it takes the two duties' draws to differ.  The
+    cut between two levels whose per-reading sds σ₁, σ₂ differ by δ falls about the
+    change with the scale s = (σ₁² + σ₂²)/(2δ²) samples and the sd √26·s (the argmax of
+    a two-sided random walk with drift, Hinkley 1970), at most half the shorter level."""
     out = np.zeros(np.size(times))
-    s = tr.voltage
-    if not (tr.voltage_logged and s.switched and s.se is not None and s.values.size > 1):
+    col = tr.voltage
+    if not (tr.voltage_logged and col.switched and col.se is not None
+            and col.values.size > 1):
         return out
-    start = np.asarray(s.times, dtype=float)
+    start = np.asarray(col.times, dtype=float)
     n = np.diff(np.searchsorted(tr.time, np.append(start, np.inf))).clip(min=1)
-    var = np.asarray(s.se, dtype=float) ** 2 * n  # each level's per-reading variance
-    delta = np.diff(np.asarray(s.values, dtype=float))
+    var = np.asarray(col.se, dtype=float) ** 2 * n  # each level's per-reading variance
+    delta = np.diff(np.asarray(col.values, dtype=float))
     with np.errstate(divide="ignore"):
-        samples = (var[:-1] + var[1:]) / (2.0 * delta**2)
-    samples = np.nan_to_num(np.minimum(samples, np.minimum(n[:-1], n[1:]) / 2.0))
-    at = np.searchsorted(start, np.asarray(times, dtype=float))
-    hit = (at >= 1) & (at < start.size)
-    hit[hit] &= np.isclose(start[at[hit]], np.asarray(times)[hit])
+        samples = np.sqrt(26.0) * (var[:-1] + var[1:]) / (2.0 * delta**2)
+    samples = np.minimum(samples, np.minimum(n[:-1], n[1:]) / 2.0)
+    times = np.asarray(times, dtype=float)
+    at = np.clip(np.searchsorted(start, times), 1, start.size - 1)
+    hit = np.abs(start[at] - times) <= 1e-3 * tr.dt
     out[hit] = samples[at[hit] - 1] * tr.dt
     return out
+
+
+def _spreads(tr: Trace, times: np.ndarray) -> np.ndarray:
+    """Per lead of ``tr`` (:func:`lead_names`), :func:`placement_sd` of its change; 0 for
+    a lead its changes share (each change's misplacement is its own, which one lead
+    cannot take up)."""
+    names = _named(tr, times.size)
+    return placement_sd(tr, times) if len(names) == times.size else np.zeros(len(names))
 
 
 def lead_scans(session: Session) -> dict[str, np.ndarray]:
@@ -172,9 +180,7 @@ def lead_scans(session: Session) -> dict[str, np.ndarray]:
     for tr in session.traces:
         times = change_times(tr)
         names = _named(tr, times.size)
-        placed = placement_sd(tr, times)
-        for j, name in enumerate(names):
-            spread = float(np.max(placed)) if len(names) < times.size else float(placed[j])
+        for name, spread in zip(names, _spreads(tr, times), strict=True):
             wide = np.linspace(-2.0, 2.0, SCAN_SHARES.size) * spread if spread > tr.dt else []
             out[name] = np.concatenate([SCAN_SHARES * tr.dt, wide])
     return out
