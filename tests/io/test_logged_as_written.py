@@ -265,6 +265,45 @@ def test_a_unit_in_a_columns_header_is_checked_against_session_toml(session_dir,
         and "set trace['step'].units." in text)
 
 
+@pytest.mark.parametrize(("header", "says"), [
+    ("t,Speed [Hz],ia", 'set trace[\'step\'].units.speed = "Hz"'),
+    ("t,Speed [deg/s],ia", 'set trace[\'step\'].units.speed = "deg/s"'),
+    ("t,gyro_dps,ia", 'set trace[\'step\'].units.speed = "deg/s"'),
+    ("t,Speed [krpm],ia", 'set trace[\'step\'].units.speed = "krpm"'),
+    ("t,Tacho [V],ia", "a speed logged as a sensor's or driver's output"),
+    ("t,speed_rpm,I_shunt [mV]", "trace['step'].current_sensitivity"),
+    ("t,Speed [ms],ia", "which is not a unit a speed is read in"),
+])
+def test_a_header_unit_the_column_is_not_read_in_is_refused(session_dir, header, says):
+    """A header whose bracketed unit is one session.toml does not read the column in,
+    of its kind or another (a tachometer's volts, a shunt's millivolts), is refused: read
+    as the SI quantity, it would be silently wrong by the unit's factor."""
+    names = header.split(",")
+    toml = session_dir / "session.toml"
+    replace_once(toml, 'columns = { time = "t", speed = "speed_rpm", current = "ia" }',
+                 f'columns = {{ time = "{names[0]}", speed = "{names[1]}", '
+                 f'current = "{names[2]}" }}')
+    if "rpm" not in names[1]:
+        replace_once(toml, 'speed = "rpm"', 'speed = "rad/s"')
+    lines = _rows(session_dir)
+    _write(session_dir, [header, *lines[1:]])
+    text = _refusal(session_dir)
+    assert text is not None and "step.csv:header: column" in text and says in text, text
+
+
+@pytest.mark.parametrize("header", ["t,Speed (2),ia", "t,Speed [filtered],ia",
+                                    "t,speed_rpm,Current (1)"])
+def test_a_bracketed_note_that_is_no_unit_is_not_refused(session_dir, header):
+    names = header.split(",")
+    toml = session_dir / "session.toml"
+    replace_once(toml, 'columns = { time = "t", speed = "speed_rpm", current = "ia" }',
+                 f'columns = {{ time = "{names[0]}", speed = "{names[1]}", '
+                 f'current = "{names[2]}" }}')
+    lines = _rows(session_dir)
+    _write(session_dir, [header, *lines[1:]])
+    assert _refusal(session_dir) is None
+
+
 @pytest.mark.parametrize(("unit", "hint"), [
     ("s", 's, a thousand times the time the schedule\'s voltage first changes (0.1 s): '
           'is the time column in ms? Then set units.time = "ms"'),

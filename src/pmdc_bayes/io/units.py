@@ -13,12 +13,15 @@ import numpy as np
 __all__ = ["KINDS", "SI_UNIT", "DISPLAY", "display_unit", "to_si", "from_si", "unit_factor",
            "unit_named"]
 
+OUNCE_INCH = 0.45359237 / 16.0 * 9.80665 * 0.0254  # N·m: an ounce-force at an inch
 _TORQUE = {"N*m": 1.0, "N.m": 1.0, "N·m": 1.0, "Nm": 1.0, "mN*m": 1e-3, "mN.m": 1e-3,
-           "mN·m": 1e-3, "mNm": 1e-3}
+           "mN·m": 1e-3, "mNm": 1e-3, "N*cm": 1e-2, "N.cm": 1e-2, "N·cm": 1e-2, "Ncm": 1e-2,
+           "oz*in": OUNCE_INCH, "oz-in": OUNCE_INCH, "oz.in": OUNCE_INCH, "ozin": OUNCE_INCH}
 
 KINDS: dict[str, dict[str, float]] = {
     "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6},
-    "speed": {"rad/s": 1.0, "rpm": 2.0 * math.pi / 60.0, "rev/s": 2.0 * math.pi},
+    "speed": {"rad/s": 1.0, "rpm": 2.0 * math.pi / 60.0, "rev/s": 2.0 * math.pi,
+              "Hz": 2.0 * math.pi, "krpm": 2.0 * math.pi * 1e3 / 60.0, "deg/s": math.pi / 180.0},
     "current": {"A": 1.0, "mA": 1e-3},
     "voltage": {"V": 1.0, "mV": 1e-3},
     "torque": _TORQUE,
@@ -59,7 +62,8 @@ _ALIASES: dict[str, dict[str, str]] = {
     "time": {"sec": "s", "secs": "s", "second": "s", "seconds": "s", "msec": "ms",
              "usec": "us", "μs": "µs"},
     "speed": {"1/min": "rpm", "u/min": "rpm", "min^-1": "rpm", "min-1": "rpm",
-              "r/min": "rpm", "rev/min": "rpm", "rad/sec": "rad/s", "rps": "rev/s"},
+              "r/min": "rpm", "rev/min": "rpm", "rad/sec": "rad/s", "rps": "rev/s",
+              "°/s": "deg/s", "deg/sec": "deg/s", "dps": "deg/s"},
     "voltage": {"volt": "V", "volts": "V"},
     "current": {"amp": "A", "amps": "A"},
     "angle": {"°": "deg", "degrees": "deg", "revs": "rev"},
