@@ -170,3 +170,27 @@ def test_a_change_of_direction_after_a_long_rest_is_cut_where_the_readings_show_
         hits += (levels.values.size == 3 and negative.size == 1
                  and abs(levels.times[negative[0]] * RATE - 2200) <= 4)
     assert hits >= 45, hits
+
+
+@pytest.mark.parametrize("digits", [None, 4])
+def test_a_command_that_moves_smoothly_is_read_as_written(digits):
+    """A logged chirp (exact, or written to a few decimals) changes at every sample; its
+    changes are no noise and its value no held level."""
+    t = np.arange(1000) / RATE
+    chirp = 6.0 + np.sin(2 * np.pi * (1.0 * t + 5.0 * t**2))
+    column = chirp if digits is None else np.round(chirp, digits)
+    read = held_levels(t, column, switching=True)
+    assert read.se is None and np.array_equal(read.values, column)
+
+
+def test_filtered_reading_noise_is_still_read_as_levels():
+    """An ADC behind a filter: noise correlated from sample to sample (AR(1), 0.9) about
+    a staircase; the column is still a noisy one, read as levels with their errors, not
+    as a smooth command written exactly."""
+    rng = np.random.default_rng(11)
+    t, clean, _ = _staircase([0.0, 6.0, 12.0], 700, 0.0)
+    e = np.zeros(t.size)
+    for k in range(1, t.size):
+        e[k] = 0.9 * e[k - 1] + rng.normal(0.0, 0.01)
+    read = held_levels(t, clean + e)
+    assert read.se is not None and read.values.size < t.size
