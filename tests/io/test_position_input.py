@@ -196,11 +196,28 @@ def test_a_16_bit_position_counter_that_wraps_reads_as_the_angle_it_counted(tmp_
                                * 2 * math.pi / 400)
 
 
-def test_a_position_counter_that_wraps_unstated_names_the_fix(tmp_path):
-    logged = [(65000 + 90 * k) % 65536 for k in range(40)]
-    with pytest.raises(SessionError, match=r"about 2\^16: a counter that wraps; add "
-                                           r"position_wrap = 65536"):
-        load_session(_wrapping(tmp_path, logged))
+@pytest.mark.parametrize("modulus,step,n,unit", [
+    (65536, 90, 40, "counts"),  # a 16-bit timer, wrapping once
+    (65536, 2900, 100, "counts"),  # ... four times
+    (4096, 130, 100, "counts"),  # a 12-bit absolute sensor: steps of 3 % of a turn
+    (360, 11.5, 100, "deg"),  # an angle in degrees within a turn
+])
+def test_a_position_that_wraps_unstated_names_the_fix(tmp_path, modulus, step, n, unit):
+    logged = [round((modulus - 3 * step + step * k) % modulus, 3) for k in range(n)]
+    csv_unit = f'units = {{ position = "{unit}" }}\n'
+    root = _wrapping(tmp_path, logged)
+    toml = root / "session.toml"
+    toml.write_text(toml.read_text().replace('units = { position = "counts" }\n', csv_unit))
+    with pytest.raises(SessionError, match=rf"about {modulus} {unit}, and stays within that "
+                                           rf"range: a sensor or counter that wraps; add "
+                                           rf"position_wrap = {modulus}"):
+        load_session(root)
+
+
+def test_a_position_that_turns_and_comes_back_is_not_taken_for_a_wrap(tmp_path):
+    """Forth and back by a few hundred counts, in steps of a few dozen: no jump."""
+    logged = [int(300 * math.sin(k / 6.0)) for k in range(40)]
+    assert load_session(_wrapping(tmp_path, logged)).traces[0].position is not None
 
 
 def test_a_position_wrap_without_a_position_column_is_one_line(tmp_path):

@@ -55,26 +55,52 @@ def unwrap_time(t: Table, path: Path, t_raw: np.ndarray) -> np.ndarray:
 def unwrap_position(t: Table, path: Path, raw: np.ndarray, unit: str) -> np.ndarray:
     """A position counter that wraps at ``position_wrap`` (in the position's unit, e.g.
     65536 for a 16-bit timer counting encoder edges, signed or not) made continuous: a
-    step between rows of more than half the modulus is a wrap.  In counts, a step of
-    about 2^k counts where every other step is small is a counter that wraps unstated:
-    refused with the fix."""
+    step between rows of more than half the modulus is a wrap.  A position that wraps
+    unstated (:func:`_unstated_wrap`) is refused with the fix."""
     if "position_wrap" in t.data:
         wrap = t.number("position_wrap", positive=True)
         steps = np.diff(raw)
         turns = np.where(np.abs(steps) > 0.5 * wrap, np.sign(steps), 0.0)
         return raw - wrap * np.concatenate([[0.0], np.cumsum(turns)])
-    if unit == "counts" and raw.size > 2:
-        steps = np.abs(np.diff(raw))
-        k = int(np.argmax(steps))
-        rest = np.delete(steps, k)
-        for bits in (8, 12, 16, 24, 32):
-            wrap = 2.0**bits
-            if abs(steps[k] - wrap) < 0.1 * wrap and float(np.max(rest)) < 0.01 * wrap:
-                raise SessionError(path, f"the position jumps by {steps[k]:.0f} counts between "
-                                   f"rows {k + 1} and {k + 2} (of the data), about 2^{bits}: "
-                                   f"a counter that wraps; add position_wrap = {wrap:.0f} to "
-                                   "the trace")
+    cpr = t.number("counts_per_rev", positive=True) if "counts_per_rev" in t.data else None
+    found = _unstated_wrap(raw, _moduli(unit, cpr))
+    if found is not None:
+        k, wrap = found
+        raise SessionError(path, f"the position jumps by {abs(raw[k + 1] - raw[k]):.6g} "
+                           f"{unit} between rows {k + 1} and {k + 2} (of the data), about "
+                           f"{wrap:.6g} {unit}, and stays within that range: a sensor or "
+                           f"counter that wraps; add position_wrap = {wrap:.6g} to the trace")
     return raw
+
+
+def _moduli(unit: str, counts_per_rev: float | None) -> tuple[float, ...]:
+    """What a position logged in ``unit`` may wrap at: a turn (an absolute angle
+    sensor), and in counts a binary counter's 2^k."""
+    turn = {"rad": 2.0 * math.pi, "deg": 360.0, "rev": 1.0}.get(unit)
+    if unit == "counts":
+        binary = tuple(2.0**bits for bits in (8, 10, 12, 14, 16, 24, 32))
+        return binary + ((counts_per_rev,) if counts_per_rev else ())
+    return (turn,) if turn else ()
+
+
+def _unstated_wrap(raw: np.ndarray, moduli) -> tuple[int, float] | None:
+    """The first row of a wrap and its modulus where ``raw`` wraps at one of ``moduli``:
+    it spans no more than the modulus, steps by more than half of it at least once, and
+    read with those steps as wraps moves less than a quarter of it from row to row (a
+    jump that no turning rotor makes between two samples); None where it does not."""
+    y = np.asarray(raw, dtype=float)
+    y = y[np.isfinite(y)]
+    if y.size < 3:
+        return None
+    steps = np.diff(y)
+    for wrap in sorted(moduli):
+        jumps = np.flatnonzero(np.abs(steps) > 0.5 * wrap)
+        if not jumps.size or float(np.ptp(y)) > 1.001 * wrap:
+            continue
+        moved = steps - wrap * np.round(steps / wrap)
+        if float(np.max(np.abs(moved))) < 0.25 * wrap:
+            return int(jumps[0]), wrap
+    return None
 
 
 def angle_si(t: Table, raw: np.ndarray, unit: str) -> tuple[np.ndarray, float]:
