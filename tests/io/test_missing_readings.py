@@ -45,6 +45,25 @@ def test_a_channel_missing_in_many_rows_is_refused_naming_it(session_dir):
         load_session(session_dir)
 
 
+def test_a_trace_that_ends_before_its_files_time_column_ends_there(session_dir):
+    """A file shared with a longer run: this trace's cells are empty after its last
+    reading.  It ends there; those rows are not readings it missed."""
+    tail = int(3 * MISSING_SHARE * STEP_N)
+    for line in range(STEP_N + 2 - tail, STEP_N + 2):
+        for column in ("speed_rpm", "ia"):
+            set_csv_cell(session_dir / "step.csv", line, column, "")
+    tr = load_session(session_dir).trace("step")
+    assert tr.time.size == STEP_N - tail and tr.rows_left_out == ()
+    np.testing.assert_allclose(tr.time[-1], (STEP_N - tail - 1) * STEP_DT, atol=1e-12)
+
+
+def test_one_channel_ending_early_is_still_a_channel_missing_in_many_rows(session_dir):
+    for line in range(STEP_N + 2 - int(3 * MISSING_SHARE * STEP_N), STEP_N + 2):
+        set_csv_cell(session_dir / "step.csv", line, "ia", "")
+    with pytest.raises(SessionError, match=r"column 'ia' has no reading in"):
+        load_session(session_dir)
+
+
 def test_a_few_missing_rows_are_allowed_up_to_the_share(session_dir):
     for line in range(2, 2 + int(MISSING_SHARE * STEP_N)):
         set_csv_cell(session_dir / "step.csv", line, "ia", "NaN")
