@@ -377,3 +377,19 @@ def test_a_row_logged_twice_is_read_once(session_dir):
     _write(session_dir, lines[:12] + [",".join([cells[0], "1", cells[2]])] + lines[12:])
     with pytest.raises(SessionError, match="line 13: time column 't' is not strictly increasing"):
         load_session(session_dir)
+
+
+@pytest.mark.parametrize(("first", "per_second", "refused"), [
+    (45413.5, 1 / 86400, True),  # a spreadsheet's date serial: days since 1899-12-30
+    (1714571587.0, 1.0, False),  # epoch seconds
+    (45413.5, 1.0, False),  # seconds since the logger started, 12.6 hours before
+])
+def test_a_time_column_written_as_a_date_serial_is_refused(session_dir, first, per_second,
+                                                           refused):
+    lines = _rows(session_dir)
+    rows = [",".join([repr(first + float(line.split(",")[0]) * per_second),
+                      *line.split(",")[1:]]) for line in lines[1:]]
+    _write(session_dir, [lines[0], *rows])
+    text = _refusal(session_dir) or ""
+    assert ("reads as a spreadsheet's date serial" in text
+            and "45413.5 is 2024-05-01 12:00:00" in text) is refused, text

@@ -4,13 +4,14 @@ sampling), and the fix, in the one line the loader refuses it with."""
 
 from __future__ import annotations
 
+from datetime import datetime, timedelta
 from pathlib import Path
 
 import numpy as np
 
 from .._errors import SessionError
 
-__all__ = ["check_increasing", "STRAY_REPEATS"]
+__all__ = ["check_date_serial", "check_increasing", "STRAY_REPEATS"]
 
 STRAY_REPEATS = 3  # a time repeated this often or less is a stray, not a coarse clock
 
@@ -79,3 +80,22 @@ def _counter_wrap(before: float, after: float) -> int | None:
         if 0.9 * wrap <= before < wrap and 0 <= after < 0.1 * wrap:
             return wrap
     return None
+
+
+def check_date_serial(path: Path, column: str, t_raw: np.ndarray, second: float) -> None:
+    """Refuse a time column that reads as a spreadsheet's date serial (days since
+    1899-12-30, a day's fraction the time: 45413.5 is noon on 2024-05-01), where read in
+    the trace's unit (``second`` of it to the second) its samples would come less than a
+    microsecond apart, and as days no closer than that: the time in days, not the unit."""
+    if t_raw.size < 3 or not 20000.0 <= float(t_raw[0]) <= 80000.0:
+        return
+    step = float(np.median(np.diff(t_raw)))
+    if not (step * second < 1e-6 and step * 86400.0 >= 1e-6):
+        return
+    day = datetime(1899, 12, 30) + timedelta(days=float(t_raw[0]))
+    raise SessionError(path, f"the time column {column!r} reads as a spreadsheet's date "
+                       f"serial (days since 1899-12-30: {t_raw[0]:.9g} is "
+                       f"{day:%Y-%m-%d %H:%M:%S}), its samples {step * 86400.0:.3g} s apart "
+                       f"as days, {step * second:.3g} s as written; write the time in "
+                       "seconds ((date - first date) × 86400) or as clock times "
+                       "(hh:mm:ss.fff)", where="header")

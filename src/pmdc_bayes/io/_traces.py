@@ -15,7 +15,7 @@ from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
 from ._missing import MISSABLE, without_missing, without_repeats
 from ._run_down import check_run_down_start
 from ._step_timing import check_step_timing
-from ._time_order import check_increasing
+from ._time_order import check_date_serial, check_increasing
 from ._units_row import check_column_units
 from .drag import check_curve_reach, read_drag
 from .held_levels import held_levels
@@ -110,6 +110,8 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
                            "samples (log a longer record)")
     check_increasing(path, cols.get("time"), raw, t_raw, lines, t_raw.size + len(left_out),
                      second, wrap_given="time_wrap" in t.data)
+    if "time" in cols:
+        check_date_serial(path, cols["time"], t_raw, second)
     for role in ("speed", "position"):
         y = raw.get(role)
         if y is not None and np.all(y == y[0]):
