@@ -217,6 +217,23 @@ def test_a_thousands_separator_is_refused_not_read_as_decimals(session_dir, sep,
     assert "thousands separator" in text
 
 
+@pytest.mark.parametrize(("cell", "refused"), [("1.014", True), ("1.0140", False),
+                                             ("0.014", False)])
+def test_a_thousands_point_beside_whole_numbers_is_refused(session_dir, cell, refused):
+    """A semicolon file from a locale whose thousands mark is a point: speeds below 1000
+    written whole (933), above with the point (1.014, read as 1.014 rpm); a column whose
+    points are decimals (1.0140, 0.014) is read."""
+    lines = _rows(session_dir)
+    out = [lines[0].replace(",", ";")]
+    for k, line in enumerate(lines[1:]):
+        cells = line.split(",")
+        cells[1] = str(100 + k) if k != 120 else cell  # speeds written whole, as a locale does
+        out.append(";".join(cells))
+    _write(session_dir, out)
+    text = _refusal(session_dir) or ""
+    assert (f"{cell!r} may be a thousands separator" in text and "line 122" in text) is refused
+
+
 def test_a_quoted_number_that_may_be_grouped_is_refused(session_dir):
     """In a comma-separated file whose numbers have no decimals, "1,800" is 1800 or 1.8:
     refused; beside a decimal comma elsewhere in the file it is 1.8."""

@@ -19,6 +19,8 @@ OVERRANGE = 9.9e37  # an instrument's code for a reading out of range (SCPI: 9.9
 
 _CLOCK = re.compile(r"\d{1,2}:\d{2}(:\d{2}([.,]\d*)?)?")  # 12:00:01.250, as loggers stamp
 _GROUPED = re.compile(r"[+-]?[1-9]\d{0,2}(,\d{3})+")  # 1,800: thousands, or 1.8 in a locale
+_DOT_GROUPED = re.compile(r"[+-]?[1-9]\d{0,2}(\.\d{3})+")  # 1.014: or 1014 in a locale
+_WHOLE = re.compile(r"[+-]?[1-9]\d{2,}")  # 933: a whole number of three digits at least
 _MINUS = str.maketrans({"\u2212": "-",  # the minus sign some exports write for a hyphen
                         "\u221e": "inf"})  # an oscilloscope's overrange, written ∞
 
@@ -28,11 +30,15 @@ class DecimalMarks:
     point, or a comma (a spreadsheet's locale; in a comma-separated file, inside quotes).
     :meth:`check`, once the file is read, refuses a file that uses both (one of them is
     a thousands separator: 1.800 read as 1.8), or, in a comma-separated file, only
-    commas that may be thousands separators (``"1,800"``)."""
+    commas that may be thousands separators (``"1,800"``), or a column whose only points
+    fall before three digits (``1.014``) beside whole numbers of three digits or more
+    written without one (``933``): a locale's thousands point, 1014 read as 1.014."""
 
     def __init__(self, path: Path, separator: str):
         self.path, self.separator = path, separator
         self.point = self.comma = self.grouped = None  # (line, column, text), first seen
+        self.dotted: dict = {}  # column -> its first cell like 1.014, or False: a decimal
+        self.whole: dict = {}  # column -> its first cell like 933
 
     def read(self, text: str, line: int, column: str) -> float:
         """``text`` as a float, its mark noted; ValueError when it is no number."""
@@ -47,6 +53,11 @@ class DecimalMarks:
         value = float(text)
         if "." in text:
             self.point = self.point or (line, column, text)
+            grouped = _DOT_GROUPED.fullmatch(text) is not None
+            if self.dotted.get(column) is None or not grouped:
+                self.dotted[column] = (line, text) if grouped else False
+        elif _WHOLE.fullmatch(text):
+            self.whole.setdefault(column, text)
         return value
 
     def check(self) -> None:
@@ -59,6 +70,14 @@ class DecimalMarks:
                 f"{first[2]!r} has a decimal {'point' if first is self.point else 'comma'}: "
                 "one of them is a thousands separator; write every number with one "
                 "decimal mark and no thousands separators", where=f"line {later[0]}")
+        for column, seen in self.dotted.items():
+            if seen and column in self.whole:
+                line, text = seen
+                raise SessionError(
+                    self.path, f"column {column!r}: {text!r} may be a thousands separator "
+                    f"({text.replace('.', '')}), as {self.whole[column]!r} in the same "
+                    "column is written without a point; write numbers without thousands "
+                    "separators", where=f"line {line}")
         if self.separator == "," and self.comma is None and self.grouped is not None:
             line, column, text = self.grouped
             raise SessionError(
