@@ -183,14 +183,25 @@ def test_a_command_that_moves_smoothly_is_read_as_written(digits):
     assert read.se is None and np.array_equal(read.values, column)
 
 
-def test_filtered_reading_noise_is_still_read_as_levels():
-    """An ADC behind a filter: noise correlated from sample to sample (AR(1), 0.9) about
-    a staircase; the column is still a noisy one, read as levels with their errors, not
-    as a smooth command written exactly."""
+@pytest.mark.parametrize("kind", ["AR(1) 0.9", "two-pole 0.2", "two-pole 0.02",
+                                  "the column filtered"])
+def test_filtered_reading_noise_is_still_read_as_levels(kind):
+    """An ADC behind a filter: noise correlated from sample to sample about a staircase
+    (AR(1); a two-pole low-pass at 0.2 or 0.02 of the Nyquist rate, on the noise or on
+    the whole column, its steps rounded too); the column is still a noisy one, read as
+    levels with their errors, not as a smooth command written exactly."""
+    from scipy.signal import butter, lfilter
+
     rng = np.random.default_rng(11)
     t, clean, _ = _staircase([0.0, 6.0, 12.0], 700, 0.0)
-    e = np.zeros(t.size)
-    for k in range(1, t.size):
-        e[k] = 0.9 * e[k - 1] + rng.normal(0.0, 0.01)
-    read = held_levels(t, clean + e)
+    if kind.startswith("AR"):
+        e = np.zeros(t.size)
+        for k in range(1, t.size):
+            e[k] = 0.9 * e[k - 1] + rng.normal(0.0, 0.01)
+        column = clean + e
+    elif kind.startswith("two-pole"):
+        column = clean + lfilter(*butter(2, float(kind.split()[1])), rng.normal(0, 0.05, t.size))
+    else:
+        column = lfilter(*butter(2, 0.02), clean + rng.normal(0.0, 0.05, t.size))
+    read = held_levels(t, column)
     assert read.se is not None and read.values.size < t.size

@@ -5,6 +5,8 @@ readings where they were taken; what cannot be read unambiguously (a thousands
 separator, a row of units that contradicts session.toml, a schedule on another clock)
 is refused with one line naming the file, the line and the fix, never read wrong."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import STEP_N, replace_once, step_rows
@@ -218,11 +220,12 @@ def test_a_thousands_separator_is_refused_not_read_as_decimals(session_dir, sep,
 
 
 @pytest.mark.parametrize(("cell", "refused"), [("1.014", True), ("1.0140", False),
-                                             ("0.014", False)])
+                                             ("0.014", False), ("220.125", False)])
 def test_a_thousands_point_beside_whole_numbers_is_refused(session_dir, cell, refused):
     """A semicolon file from a locale whose thousands mark is a point: speeds below 1000
     written whole (933), above with the point (1.014, read as 1.014 rpm); a column whose
-    points are decimals (1.0140, 0.014) is read."""
+    points are decimals (1.0140, 0.014), or one that meets its neighbours as written
+    (220.125 after 219: a logger that drops trailing zeros), is read."""
     lines = _rows(session_dir)
     out = [lines[0].replace(",", ";")]
     for k, line in enumerate(lines[1:]):
@@ -289,7 +292,7 @@ def test_a_unit_in_a_columns_header_is_checked_against_session_toml(session_dir,
     ("t,Speed [krpm],ia", 'set trace[\'step\'].units.speed = "krpm"'),
     ("t,Tacho [V],ia", "a speed logged as a sensor's or driver's output"),
     ("t,speed_rpm,I_shunt [mV]", "trace['step'].current_sensitivity"),
-    ("t,Speed [ms],ia", "which is not a unit a speed is read in"),
+    ("t,Speed [Hz],ia", "(Hz read as revolutions per second)"),
 ])
 def test_a_header_unit_the_column_is_not_read_in_is_refused(session_dir, header, says):
     """A header whose bracketed unit is one session.toml does not read the column in,
@@ -309,7 +312,9 @@ def test_a_header_unit_the_column_is_not_read_in_is_refused(session_dir, header,
 
 
 @pytest.mark.parametrize("header", ["t,Speed (2),ia", "t,Speed [filtered],ia",
-                                    "t,speed_rpm,Current (1)"])
+                                    "t,speed_rpm,Current (1)", "t,Speed (rev),ia",
+                                    "t,speed_rpm,Current (S)", "t,speed_rpm,Current (H)",
+                                    "t,speed_rpm,Current [A0]"])
 def test_a_bracketed_note_that_is_no_unit_is_not_refused(session_dir, header):
     names = header.split(",")
     toml = session_dir / "session.toml"
@@ -410,3 +415,22 @@ def test_a_time_column_written_as_a_date_serial_is_refused(session_dir, first, p
     text = _refusal(session_dir) or ""
     assert ("reads as a spreadsheet's date serial" in text
             and "45413.5 is 2024-05-01 12:00:00" in text) is refused, text
+
+
+@pytest.mark.parametrize(("first", "interval", "per_second", "refused"), [
+    (45413.5, 0.1, 1 / 86400, True),  # a slow logger's date serial: 0.1 s apart as days
+    (45413.5, 1e-3, 1 / 86400, True),
+    (30000.0, 1e-7, 1.0, False),  # a fast DAQ's seconds since it started, 10 MS/s
+    (45413.5, 1e-3, 1.0, False),  # seconds, 12.6 hours after the logger started
+])
+def test_a_date_serial_is_told_from_seconds_by_its_round_sample_interval(first, interval,
+                                                                          per_second, refused):
+    from pmdc_bayes.io._time_order import check_date_serial
+
+    t_raw = first + np.arange(500) * interval * per_second
+    try:
+        check_date_serial(Path("t.csv"), "t", t_raw, 1.0)
+    except SessionError as err:
+        assert refused and "date serial" in str(err)
+    else:
+        assert not refused

@@ -214,9 +214,11 @@ def test_a_position_that_wraps_unstated_names_the_fix(tmp_path, modulus, step, n
         load_session(root)
 
 
-def test_a_position_that_turns_and_comes_back_is_not_taken_for_a_wrap(tmp_path):
-    """Forth and back by a few hundred counts, in steps of a few dozen: no jump."""
-    logged = [int(300 * math.sin(k / 6.0)) for k in range(40)]
+@pytest.mark.parametrize("logged", [
+    [int(300 * math.sin(k / 6.0)) for k in range(40)],  # steps of a few dozen counts
+    [int(round(125 * math.sin(1.3 * k))) + 125 for k in range(40)],  # within 2^8, steps
+])  # beyond half of it that no wrap explains (a quarter of it from a whole turn at least)
+def test_a_position_that_turns_and_comes_back_is_not_taken_for_a_wrap(tmp_path, logged):
     assert load_session(_wrapping(tmp_path, logged)).traces[0].position is not None
 
 

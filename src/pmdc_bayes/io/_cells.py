@@ -31,14 +31,16 @@ class DecimalMarks:
     :meth:`check`, once the file is read, refuses a file that uses both (one of them is
     a thousands separator: 1.800 read as 1.8), or, in a comma-separated file, only
     commas that may be thousands separators (``"1,800"``), or a column whose only points
-    fall before three digits (``1.014``) beside whole numbers of three digits or more
-    written without one (``933``): a locale's thousands point, 1014 read as 1.014."""
+    fall before three digits (``1.014``) next to whole numbers of three digits or more
+    written without one (``933``) that they meet as thousands: a locale's thousands
+    point, 1014 read as 1.014."""
 
     def __init__(self, path: Path, separator: str):
         self.path, self.separator = path, separator
         self.point = self.comma = self.grouped = None  # (line, column, text), first seen
-        self.dotted: dict = {}  # column -> its first cell like 1.014, or False: a decimal
-        self.whole: dict = {}  # column -> its first cell like 933
+        self.dotted: dict = {}  # column -> (line, cell, neighbour) of a thousands point,
+        # or False where the column has another decimal
+        self.last: dict = {}  # column -> its last cell read: (text, value, its kind)
 
     def read(self, text: str, line: int, column: str) -> float:
         """``text`` as a float, its mark noted; ValueError when it is no number."""
@@ -53,12 +55,30 @@ class DecimalMarks:
         value = float(text)
         if "." in text:
             self.point = self.point or (line, column, text)
-            grouped = _DOT_GROUPED.fullmatch(text) is not None
-            if self.dotted.get(column) is None or not grouped:
-                self.dotted[column] = (line, text) if grouped else False
-        elif _WHOLE.fullmatch(text):
-            self.whole.setdefault(column, text)
+        self._note_grouping(text, value, line, column)
         return value
+
+    def _note_grouping(self, text: str, value: float, line: int, column: str) -> None:
+        """Note a cell like ``1.014`` next to a whole number like ``933`` in the same
+        column (either before the other) that it meets better read as a thousand times
+        its value (1014) than as written: a locale's thousands point; any other decimal
+        in the column clears it."""
+        grouped = "." in text and _DOT_GROUPED.fullmatch(text) is not None
+        if "." in text and not grouped:
+            self.dotted[column] = False
+        whole = "." not in text and _WHOLE.fullmatch(text) is not None
+        before = self.last.get(column)  # the column's cell before: (text, value, kind)
+        self.last[column] = (text, value, "grouped" if grouped else "whole" if whole
+                              else None)
+        if before is None or self.dotted.get(column) is False or value == 0 or before[1] == 0:
+            return
+        pair = {before[2], "grouped" if grouped else "whole" if whole else None}
+        if pair != {"grouped", "whole"}:
+            return
+        dotted, plain = (value, before[1]) if grouped else (before[1], value)
+        if abs(math.log(abs(1000.0 * dotted / plain))) < abs(math.log(abs(dotted / plain))):
+            cell, other = (text, before[0]) if grouped else (before[0], text)
+            self.dotted.setdefault(column, (line, cell, other))
 
     def check(self) -> None:
         comma = self.comma or self.grouped
@@ -71,13 +91,13 @@ class DecimalMarks:
                 "one of them is a thousands separator; write every number with one "
                 "decimal mark and no thousands separators", where=f"line {later[0]}")
         for column, seen in self.dotted.items():
-            if seen and column in self.whole:
-                line, text = seen
+            if seen:
+                line, text, other = seen
                 raise SessionError(
                     self.path, f"column {column!r}: {text!r} may be a thousands separator "
-                    f"({text.replace('.', '')}), as {self.whole[column]!r} in the same "
-                    "column is written without a point; write numbers without thousands "
-                    "separators", where=f"line {line}")
+                    f"({text.replace('.', '')}), next to {other!r} written without a "
+                    "point; write numbers without thousands separators",
+                    where=f"line {line}")
         if self.separator == "," and self.comma is None and self.grouped is not None:
             line, column, text = self.grouped
             raise SessionError(

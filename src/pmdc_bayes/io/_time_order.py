@@ -84,13 +84,16 @@ def _counter_wrap(before: float, after: float) -> int | None:
 
 def check_date_serial(path: Path, column: str, t_raw: np.ndarray, second: float) -> None:
     """Refuse a time column that reads as a spreadsheet's date serial (days since
-    1899-12-30, a day's fraction the time: 45413.5 is noon on 2024-05-01), where read in
-    the trace's unit (``second`` of it to the second) its samples would come less than a
-    microsecond apart, and as days no closer than that: the time in days, not the unit."""
+    1899-12-30, a day's fraction the time: 45413.5 is noon on 2024-05-01): its first
+    time a day of the years 1954–2119, and its sample interval a round period (1, 2 or 5
+    × 10^k s, to 1 %) read as days but not read in the trace's unit (``second`` of it to
+    the second)."""
     if t_raw.size < 3 or not 20000.0 <= float(t_raw[0]) <= 80000.0:
         return
     step = float(np.median(np.diff(t_raw)))
-    if not (step * second < 1e-6 and step * 86400.0 >= 1e-6):
+    mean = float(t_raw[-1] - t_raw[0]) / (t_raw.size - 1)
+    step = mean if abs(mean - step) <= 0.05 * step else step  # each time rounded alike
+    if not (_round_period(step * 86400.0) and not _round_period(step * second)):
         return
     day = datetime(1899, 12, 30) + timedelta(days=float(t_raw[0]))
     raise SessionError(path, f"the time column {column!r} reads as a spreadsheet's date "
@@ -99,3 +102,11 @@ def check_date_serial(path: Path, column: str, t_raw: np.ndarray, second: float)
                        f"as days, {step * second:.3g} s as written; write the time in "
                        "seconds ((date - first date) × 86400) or as clock times "
                        "(hh:mm:ss.fff)", where="header")
+
+
+def _round_period(seconds: float) -> bool:
+    """Whether a sample interval is 1, 2 or 5 × 10^k s, to 1 %."""
+    if not seconds > 0.0:
+        return False
+    mantissa = seconds / 10.0 ** np.floor(np.log10(seconds))
+    return any(abs(mantissa / m - 1.0) <= 0.01 for m in (1.0, 2.0, 5.0, 10.0))

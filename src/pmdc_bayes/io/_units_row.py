@@ -65,8 +65,8 @@ def check_header_units(path: Path, cols: dict, read_in: dict, kinds: dict,
                        where: str) -> None:
     """Refuse a column whose header name gives a unit of its kind (:func:`header_unit`)
     other than the one session.toml reads it in (``read_in``: role -> unit), or gives
-    in brackets a unit of another kind: a sensor's output (a tachometer's volts, a duty)
-    read as if it were the quantity, or a unit the column cannot be read in."""
+    in brackets the unit of a sensor's or driver's output (a tachometer's volts, a duty)
+    where session.toml reads it as the quantity itself."""
     for role, name in cols.items():
         kind, unit = kinds.get(role), read_in.get(role)
         if not (kind and isinstance(name, str) and unit in KINDS.get(kind, {})):
@@ -76,39 +76,30 @@ def check_header_units(path: Path, cols: dict, read_in: dict, kinds: dict,
             raise SessionError(
                 path, f"column {name!r} gives its unit in its header, {named!r}, where "
                 f"session.toml reads it in {unit!r} ({where}.units.{role}, SI when not "
-                f"given); set {where}.units.{role} = "
-                f"\"{named}\" (or correct the header)", where="header")
+                f"given); set {where}.units.{role} = \"{named}\""
+                + (" (Hz read as revolutions per second)" if named == "Hz" else "")
+                + " (or correct the header)", where="header")
         other = None if named is not None else _bracketed_other(kind, name)
         if other is None:
             continue
-        output, key = _OUTPUTS.get(kind, (None, None))
-        if other[0] == output:
-            raise SessionError(
-                path, f"column {name!r} gives its unit in its header, {other[1]!r}: a "
-                f"{kind} logged as a sensor's or driver's output, where session.toml "
-                f"reads it as the {kind} in {unit!r}; set {where}.units.{role} = "
-                f"\"{other[1]}\" and {where}.{key} (or correct the header)",
-                where="header")
         raise SessionError(
-            path, f"column {name!r} gives its unit in its header, {other[1]!r}, which is "
-            f"not a unit a {kind} is read in ({', '.join(u for u in KINDS[kind] if u)}); "
-            f"convert the column, or correct the header if that is not its unit",
-            where="header")
+            path, f"column {name!r} gives its unit in its header, {other[1]!r}: a {kind} "
+            f"logged as a sensor's or driver's output, where session.toml reads it as the "
+            f"{kind} in {unit!r}; set {where}.units.{role} = \"{other[1]}\" and "
+            f"{where}.{_OUTPUTS[kind][1]} (or correct the header)", where="header")
 
 
 def _bracketed_other(kind: str, name: str) -> tuple[str, str] | None:
-    """The (kind, unit) of another kind that a header name's bracketed text names
-    (``Tacho [V]`` for a speed); None where it names none, or only a number or a
-    dimensionless ``1`` (a channel's index)."""
+    """The (kind, unit) a header name's bracketed text names, written exactly, where a
+    column of ``kind`` may be logged as a sensor's or driver's output in it (``Tacho [V]``
+    for a speed, ``Duty [%]`` for a voltage); None where it names none (a note: ``(rev)``,
+    ``[A0]``, ``(ch1)``, a channel's index)."""
     found = _BRACKETED.search(name)
-    text = found.group(1).strip() if found else ""
-    if not text or text.replace(".", "").isdigit():
+    output = _OUTPUTS.get(kind, (None,))[0]
+    if not (found and output):
         return None
-    for other in KINDS:
-        unit = unit_named(other, text) if other != kind else None
-        if unit:
-            return other, unit
-    return None
+    unit = unit_named(output, found.group(1).strip(), exact=True)
+    return (output, unit) if unit and unit != "1" else None
 
 
 def check_column_units(path: Path, cols: dict, read, read_in: dict, kinds: dict,

@@ -11,10 +11,9 @@ readings, starting at the first sample that shows it (as a held column's change 
 A change the readings show beyond their noise (a step, a driver's overshoot, a supply
 that sags under load, in levels that each hold within their error) is kept; a column
 without noise (a logged command) is read as written, and so is one that moves smoothly
-from sample to sample (a logged chirp or controller output: its successive differences
-correlated beyond :data:`SMOOTH`, where white reading noise gives −½ and AR(1) noise
-at most 0; :func:`~.robust.difference_correlation`), and so is a duty (the trace reader
-does not send it here: it is the command itself, however it moves).
+from sample to sample without a step (a logged chirp or sine: :func:`~.robust.smooth`),
+and so is a duty (the trace reader does not send it here: it is the command itself,
+however it moves).
 
 A column sampled from a switching driver's output (an H-bridge's PWM read by an ADC
 far slower than it switches) holds no level at all: each reading is a rail or zero, and
@@ -33,7 +32,7 @@ import numpy as np
 from scipy import stats
 from scipy.special import xlogy
 
-from .robust import difference_correlation, difference_sd
+from .robust import difference_sd, smooth
 from .session import Schedule
 
 __all__ = ["held_levels", "switched_swing", "FALSE_SPLIT"]
@@ -42,7 +41,6 @@ FALSE_SPLIT = 0.01  # the chance that a column of constant level is split anywhe
 MAD_EFFICIENCY = 0.37  # a MAD's σ is as good as a sample sd from this share of its readings
 SWITCH_TOLERANCE = 0.1  # a switched column's readings lie this share of its swing from a rail
 MIN_SWITCHES = 5  # ... or zero, and it flips for one or two samples this often at least
-SMOOTH = 0.5  # differences correlated beyond this from one sample to the next: no noise
 
 
 def held_levels(time: np.ndarray, values: np.ndarray, switching: bool = False) -> Schedule:
@@ -63,7 +61,7 @@ def held_levels(time: np.ndarray, values: np.ndarray, switching: bool = False) -
     if swing:
         return _duty_levels(time, values, swing)
     sigma = difference_sd(values)
-    if sigma == 0.0 or values.size < 3 or difference_correlation(values) > SMOOTH:
+    if sigma == 0.0 or values.size < 3 or smooth(values):
         return Schedule(time, values)
     dof = max(1.0, MAD_EFFICIENCY * (values.size - 1))  # σ's own error, as Student's t
     c = float(stats.t.isf(FALSE_SPLIT / (2.0 * values.size), dof))

@@ -9,7 +9,7 @@ from math import comb, sqrt
 
 import numpy as np
 
-__all__ = ["MAD_SD", "CONSECUTIVE", "difference_sd", "difference_correlation", "smallest_step",
+__all__ = ["MAD_SD", "CONSECUTIVE", "difference_sd", "smooth", "smallest_step",
            "noise_floor", "first_run", "departure"]
 
 MAD_SD = 1.482602218505602  # sd of a normal variable per median absolute deviation
@@ -30,23 +30,25 @@ def difference_sd(values, order: int = 1) -> float:
     return float(MAD_SD * np.median(np.abs(d - np.median(d))) / sqrt(comb(2 * order, order)))
 
 
-def difference_correlation(values) -> float:
-    """The lag-1 correlation of a signal's first differences, each clipped to three
-    robust sds about their median so that the signal's own few steps do not weigh: −½
-    for white reading noise (about a level, a step or a ramp), −(1 − φ)/2 for AR(1)
-    noise of lag-1 correlation φ, near 1 for a signal that moves smoothly from sample
-    to sample (a logged command's chirp, a controller's output); 0 where the differences
-    do not vary."""
+def smooth(values, correlated: float = 0.5, jump: float = 10.0) -> bool:
+    """Whether a signal moves smoothly from sample to sample, with no reading noise: the
+    lag-1 correlation of its first differences, each clipped to three robust sds about
+    their median, above ``correlated`` (−½ for white reading noise about a level, a step
+    or a ramp; −(1 − φ)/2 for AR(1) noise of lag-1 correlation φ; near 1 for a logged
+    command's chirp), and no difference beyond ``jump`` robust sds of their median (a
+    step, however a filter rounds it, stands out of noise that a filter has smoothed)."""
     y = np.asarray(values, dtype=float)
     d = np.diff(y[np.isfinite(y)])
     if d.size < 3:
-        return 0.0
+        return False
     centre = np.median(d)
     spread = MAD_SD * np.median(np.abs(d - centre))
+    if spread == 0.0 or float(np.max(np.abs(d - centre))) > jump * spread:
+        return False
     c = np.clip(d - centre, -3.0 * spread, 3.0 * spread)
     c = c - c.mean()
     power = float(c @ c)
-    return float(c[1:] @ c[:-1]) / power if power > 0 else 0.0
+    return power > 0 and float(c[1:] @ c[:-1]) / power > correlated
 
 
 def smallest_step(values) -> float:
