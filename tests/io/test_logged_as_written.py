@@ -27,6 +27,17 @@ def _write(d, lines, end="\n"):
     (d / "step.csv").write_text(end.join(lines) + end, encoding="utf-8")
 
 
+def _with_header(d, header: str) -> None:
+    """The step trace's CSV under ``header`` (time, speed, current), session.toml's
+    columns named by it."""
+    names = header.split(",")
+    replace_once(d / "session.toml",
+                 'columns = { time = "t", speed = "speed_rpm", current = "ia" }',
+                 f'columns = {{ time = "{names[0]}", speed = "{names[1]}", '
+                 f'current = "{names[2]}" }}')
+    _write(d, [header, *_rows(d)[1:]])
+
+
 def _refusal(d) -> str | None:
     """The session at ``d`` loaded whole (every trace of it read in full), or its
     refusal's one line."""
@@ -272,13 +283,7 @@ def test_a_unit_in_a_columns_header_is_checked_against_session_toml(session_dir,
     """A header that names its column's unit (in brackets, after a slash or after an
     underscore) and names another than session.toml's is refused with the line to add;
     a subscript (``I_a``) is not a unit."""
-    names = header.split(",")
-    toml = session_dir / "session.toml"
-    replace_once(toml, 'columns = { time = "t", speed = "speed_rpm", current = "ia" }',
-                 f'columns = {{ time = "{names[0]}", speed = "{names[1]}", '
-                 f'current = "{names[2]}" }}')
-    lines = _rows(session_dir)
-    _write(session_dir, [header, *lines[1:]])
+    _with_header(session_dir, header)
     text = _refusal(session_dir)
     assert text is None if ok else (
         "step.csv:header: column" in text and "gives its unit in its header" in text
@@ -298,15 +303,9 @@ def test_a_header_unit_the_column_is_not_read_in_is_refused(session_dir, header,
     """A header whose bracketed unit is one session.toml does not read the column in,
     of its kind or another (a tachometer's volts, a shunt's millivolts), is refused: read
     as the SI quantity, it would be silently wrong by the unit's factor."""
-    names = header.split(",")
-    toml = session_dir / "session.toml"
-    replace_once(toml, 'columns = { time = "t", speed = "speed_rpm", current = "ia" }',
-                 f'columns = {{ time = "{names[0]}", speed = "{names[1]}", '
-                 f'current = "{names[2]}" }}')
-    if "rpm" not in names[1]:
-        replace_once(toml, 'speed = "rpm"', 'speed = "rad/s"')
-    lines = _rows(session_dir)
-    _write(session_dir, [header, *lines[1:]])
+    if "rpm" not in header.split(",")[1]:
+        replace_once(session_dir / "session.toml", 'speed = "rpm"', 'speed = "rad/s"')
+    _with_header(session_dir, header)
     text = _refusal(session_dir)
     assert text is not None and "step.csv:header: column" in text and says in text, text
 
@@ -316,13 +315,7 @@ def test_a_header_unit_the_column_is_not_read_in_is_refused(session_dir, header,
                                     "t,speed_rpm,Current (S)", "t,speed_rpm,Current (H)",
                                     "t,speed_rpm,Current [A0]"])
 def test_a_bracketed_note_that_is_no_unit_is_not_refused(session_dir, header):
-    names = header.split(",")
-    toml = session_dir / "session.toml"
-    replace_once(toml, 'columns = { time = "t", speed = "speed_rpm", current = "ia" }',
-                 f'columns = {{ time = "{names[0]}", speed = "{names[1]}", '
-                 f'current = "{names[2]}" }}')
-    lines = _rows(session_dir)
-    _write(session_dir, [header, *lines[1:]])
+    _with_header(session_dir, header)
     assert _refusal(session_dir) is None
 
 
