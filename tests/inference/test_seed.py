@@ -2,11 +2,14 @@
 whatever response the session has (a load change, a voltage reversal, a coast-down),
 over the span up to the next change, and J follows from it."""
 
+import numpy as np
 import pytest
 
 from pmdc_bayes._errors import SessionError
+from pmdc_bayes.inference.model.first_order import integral_fit
 from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.io.session import Schedule
 from pmdc_bayes.simulate.session import simulate_session
 
 TRUTH = {"Ra": 2.0, "La": 2e-3, "K": 0.05, "B": 2e-5, "J": 2e-5, "Tc": 0.0}
@@ -62,3 +65,40 @@ def test_stuck_at_no_steady_level_is_still_refused(tmp_path):
                                    voltage=[[0.0, 0.0]])], steady=False)
     with pytest.raises(SessionError, match="no steady speed"):
         fit_seed(s)
+
+
+def _chirp(t_end=0.4, n=400):
+    """A voltage sweeping 1 → 40 Hz around 6 V, as a schedule of ``n`` held levels."""
+    t = np.linspace(0.0, t_end, n, endpoint=False)
+    v = 6.0 + 4.0 * np.sin(2 * np.pi * (1.0 * t + 0.5 * 39.0 * t**2 / t_end))
+    return [[float(a), float(round(b, 4))] for a, b in zip(t, v, strict=True)]
+
+
+@pytest.mark.parametrize("steady", [True, False])
+def test_a_swept_input_seeds_the_time_constant_from_its_integral_form(tmp_path, steady):
+    """A chirp on the independent bench: no level is held long enough to read a response
+    from, so τ (and without a steady table the gain) come from a first-order model
+    fitted to the whole trace; J follows within a few per cent of the truth."""
+    plan = {"seed": 3, "motor": {"name": "chirp motor", "friction": "viscous"},
+            "truth": TRUTH, "rig": {}, "bench": {"Ra": {"sd": 0.05, "unit": "ohm"}},
+            "steady_table": [STEADY] if steady else [],
+            "trace": [_trace("sweep", kind="free-form", initial="rest", duration=0.4,
+                             voltage=_chirp())]}
+    s = load_session(simulate_session(plan, tmp_path / "s"))
+    cf = fit_seed(s)
+    assert "'sweep' in integral form" in cf.used["tau"]
+    tau_m = TRUTH["J"] * TRUTH["Ra"] / (TRUTH["Ra"] * TRUTH["B"] + TRUTH["K"] ** 2)
+    assert cf.tau == pytest.approx(tau_m, rel=0.1)
+    assert cf.J == pytest.approx(TRUTH["J"], rel=0.15)
+    assert cf.K == pytest.approx(TRUTH["K"], rel=0.15)
+
+
+def test_the_integral_form_refuses_a_record_without_a_decay():
+    """Speed that does not follow its input (a constant reading under a varying one, or
+    one that runs away with none) gives no time constant rather than a negative or
+    endless one."""
+    t = np.linspace(0.0, 0.4, 400)
+    sched = Schedule(np.array([0.0, 0.1, 0.2, 0.3]), np.array([1.0, 5.0, 2.0, 8.0]))
+    assert integral_fit(t, np.full(t.size, 3.0), sched) is None
+    rising = 50.0 * t**2
+    assert integral_fit(t, rising, Schedule(np.array([0.0]), np.array([0.0]))) is None

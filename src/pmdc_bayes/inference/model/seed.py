@@ -7,9 +7,10 @@ import numpy as np
 
 from ..._errors import NotApplicable, SessionError
 from ...io.session import LA_ASSUMED
-from ...paper.changes import responses
+from ...paper.changes import RESPONSE_SHARE, responses
 from ...paper.closed_form import ClosedForm, closed_form, j_from_tau, read_time_constant
 from ...physics.motor import gain
+from .first_order import first_order
 from .levels import settled, unloaded_levels, voltage_intercept
 
 __all__ = ["fit_seed", "seed_from_data", "motor_seed", "drop_seed",
@@ -28,27 +29,37 @@ def fit_seed(session) -> ClosedForm:
         return seed_from_data(session, exc.message)
 
 
-def _changes(session) -> list:
+def _holds(tr, r, which: str) -> bool:
+    """Whether the input ``which`` stays near the level a change took it to over the
+    change's response: nine in ten of its samples there within
+    :data:`~pmdc_bayes.paper.changes.RESPONSE_SHARE` of the change (a step, not the
+    first move of a sweep whose response is no step's)."""
+    t = tr.time[r.start:r.stop]
+    x = getattr(tr, which).at(t[t >= r.time])
+    return x.size == 0 or bool(np.quantile(np.abs(x - r.after), 0.9)
+                               <= RESPONSE_SHARE * r.size)
+
+
+def _changes(session, held: bool = True) -> list:
     """``(trace, response)`` for every change of a driven trace's voltage, largest first
     over all traces, then every change of a load
     (:func:`pmdc_bayes.paper.changes.responses`: each with the span until the next
-    change comparable to it)."""
+    change comparable to it); with ``held`` those after which the input holds
+    (:func:`_holds`), else the others."""
     out = []
     for which in ("voltage", "load_torque"):
-        out += sorted(((tr, r) for tr in session.traces for r in responses(tr, which)),
+        out += sorted(((tr, r) for tr in session.traces for r in responses(tr, which)
+                       if _holds(tr, r, which) == held),
                       key=lambda pair: -pair[1].size)
     return out
 
 
-def _time_constant(session, toml) -> tuple[float, str]:
-    """τ and where it was read: a step reading; the largest input change of a driven
-    trace whose response settles before the next change comparable to it (else the
-    largest that crosses 63.2 % of its change at all); or a coast-down's 63.2 % decay
-    time."""
-    if session.step_readings:
-        return session.step_readings[0].tau, f"step reading {session.step_readings[0].name!r}"
+def _read_changes(pairs) -> tuple[tuple[float, str] | None, tuple | None]:
+    """The τ of the first of ``pairs`` whose response settles before the next change
+    comparable to it (else of the first that crosses 63.2 % of its change at all), and
+    the first failure to read one."""
     readings, failure = [], None
-    for tr, r in _changes(session):
+    for tr, r in pairs:
         t, y = tr.time[r.start:r.stop], tr.speed[r.start:r.stop]
         try:
             tau = read_time_constant(t, y, t_step=r.time).tau
@@ -57,31 +68,50 @@ def _time_constant(session, toml) -> tuple[float, str]:
             continue
         where = f"63.2 % point of trace {tr.name!r} after its change at {r.time:g} s"
         if settled(y[t >= r.time]):
-            return tau, where
+            return (tau, where), failure
         readings.append((tau, where))
-    if readings:
-        return readings[0]
-    if failure is not None:
-        tr, exc = failure
-        raise SessionError(tr.file, f"cannot read a time constant from trace {tr.name!r}: "
-                           f"{exc}; log the response until the speed settles")
+    return (readings[0] if readings else None), failure
+
+
+def _time_constant(session, toml) -> tuple[float, str]:
+    """τ and where it was read: a step reading; the largest input change of a driven
+    trace whose response settles before the next change comparable to it (else the
+    largest that crosses 63.2 % of its change at all); a coast-down's 63.2 % decay
+    time; a first-order model fitted to a trace whose input varies; or, last, a change
+    after which the input does not hold."""
+    if session.step_readings:
+        return session.step_readings[0].tau, f"step reading {session.step_readings[0].name!r}"
+    got, failure = _read_changes(_changes(session))
+    if got is not None:
+        return got
     for cd in session.coast_downs:
         try:
             return (read_time_constant(cd.time, cd.speed).tau,
                     f"63.2 % decay of coast-down {cd.name!r} (J/B, the viscous part)")
         except ValueError:
             continue
+    mixed = first_order(session)
+    if mixed is not None:
+        return mixed[1], mixed[2]
+    got, unheld = _read_changes(_changes(session, held=False))
+    if got is not None:
+        return got
+    if (failure or unheld) is not None:
+        tr, exc = failure or unheld
+        raise SessionError(tr.file, f"cannot read a time constant from trace {tr.name!r}: "
+                           f"{exc}; log the response until the speed settles")
     raise SessionError(toml, "no response to read a time constant from: add a [[trace]] "
                        "whose voltage or load changes, a coast-down, or a [[step_reading]]",
                        where="trace")
 
 
-def _extrapolated(session) -> tuple[float, float, str] | None:
+def _extrapolated(session, held: bool = True) -> tuple[float, float, str] | None:
     """The steady gain and τ of the largest voltage change of a driven trace with a
-    logged speed, from a first-order rise fitted to its response (the level it heads for
-    and its time constant), for a session in which no level settles; None without one
-    that rises at all."""
-    for tr, r in _changes(session):
+    logged speed (after which the input holds, or with ``held`` False does not), from a
+    first-order rise fitted to its response (the level it heads for and its time
+    constant), for a session in which no level settles; None without one that rises at
+    all."""
+    for tr, r in _changes(session, held):
         if r.after == r.before or r.stop - r.start < 8:
             continue
         t, y = tr.time[r.start:r.stop], tr.speed[r.start:r.stop]
@@ -134,7 +164,9 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
     data decide).  τ is a step reading's, or the 63.2 % time of the response to the
     largest voltage (else load) change of any driven trace that settles before the next
     change comparable to it, and J follows from (9);
-    with neither, J = B·τ from a coast-down's decay.
+    with neither, J = B·τ from a coast-down's decay; without one, τ (and G where no
+    level settles) from a first-order model fitted to a trace whose input varies
+    (:func:`.first_order.first_order`).
     """
     toml = session.root / "session.toml"
     Ra, La = session.Ra.value, session.La.value
@@ -146,7 +178,8 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
         rows = _turning(unloaded_levels(session, with_drag=True, held=True)[0])
     extrapolated = None
     if not rows.size:  # no level settles: where the largest step's rise is heading
-        extrapolated = _extrapolated(session)
+        extrapolated = (_extrapolated(session) or first_order(session)
+                        or _extrapolated(session, held=False))
         if extrapolated is None:
             raise SessionError(toml, "no steady speed to start the fit from: log a step "
                                "until the speed settles, or add a [[steady_table]]",
