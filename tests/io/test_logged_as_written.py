@@ -427,3 +427,30 @@ def test_a_date_serial_is_told_from_seconds_by_its_round_sample_interval(first, 
         assert refused and "date serial" in str(err)
     else:
         assert not refused
+
+
+@pytest.mark.parametrize(("unit", "header", "step"), [
+    ("", "t", None), ('time = "ms", ', "t", 0.01), ("", "t [s]", 10.0),
+])
+def test_whole_numbers_in_a_time_column_without_a_unit_are_not_read_as_seconds(
+        session_dir, unit, header, step):
+    """A logger's millisecond counter (0, 10, 20, ...) under a header that names no
+    unit, with none in session.toml, read as seconds would make every time constant a
+    thousand times too long: it is refused, naming the key to add; given a unit in
+    session.toml or the header, it is read in it."""
+    lines = _rows(session_dir)
+    _write(session_dir, [header + ",speed_rpm,ia"]
+           + [",".join([str(10 * k), *line.split(",")[1:]])
+              for k, line in enumerate(lines[1:])])
+    toml = session_dir / "session.toml"
+    replace_once(toml, 'columns = { time = "t",', f'columns = {{ time = "{header}",')
+    replace_once(toml, 'units = { time = "s", ', f"units = {{ {unit}")
+    replace_once(toml, "[[0.0, 0.0], [0.1, 6.0]]", "[[0.0, 0.0], [100.0, 6.0]]")
+    if step is not None:
+        assert load_session(session_dir).trace("step").time[1] == pytest.approx(step)
+        return
+    with pytest.raises(SessionError) as err:
+        load_session(session_dir)
+    assert ("step.csv:header: the time column 't' gives no unit and holds whole numbers "
+            "10 apart" in str(err.value)
+            and "set trace['step'].units.time = \"ms\"" in str(err.value))

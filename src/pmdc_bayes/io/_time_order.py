@@ -110,3 +110,24 @@ def _round_period(seconds: float) -> bool:
         return False
     mantissa = seconds / 10.0 ** np.floor(np.log10(seconds))
     return any(abs(mantissa / m - 1.0) <= 0.01 for m in (1.0, 2.0, 5.0, 10.0))
+
+
+def check_whole_time(path: Path, column: str, t_raw: np.ndarray, stated: bool,
+                     where: str) -> None:
+    """Refuse a time column that gives no unit (none in session.toml, its header or a
+    row of units) and holds only whole numbers at least 1 apart: read as seconds its
+    samples are seconds apart, as a motor's step is not logged, while a logger's
+    millisecond or microsecond counter (an Arduino's ``millis()``, ``micros()``) or a
+    sample count writes exactly that (``where``: the trace's table in session.toml)."""
+    finite = t_raw[np.isfinite(t_raw)]
+    if stated or finite.size < 3 or np.any(finite != np.round(finite)):
+        return
+    step = float(np.median(np.diff(finite)))
+    if step < 1.0:
+        return
+    raise SessionError(path, f"the time column {column!r} gives no unit and holds whole "
+                       f"numbers {step:g} apart: read as seconds, its samples are {step:g} s "
+                       "apart, as a logger's millisecond or microsecond counter or a sample "
+                       f"count would write them; set {where}.units.time = \"ms\" (or "
+                       "\"us\"; \"s\" if they are seconds), or, for a sample count, give "
+                       "sample_rate and leave time out of columns", where="header")
