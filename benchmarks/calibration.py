@@ -254,7 +254,11 @@ def main(argv=None) -> int:
                     help="also sample each adequate in-class session's posterior")
     ap.add_argument("--between-samples", action="store_true",
                     help="logged voltage columns from a rig that switches between samples")
+    ap.add_argument("--shapes", default=None,
+                    help="trace shapes to draw from, comma-separated (default: the "
+                         "fuzzer's TRACE_SHAPES; EXCITATION_SHAPES on request)")
     args = ap.parse_args(argv)
+    shapes = tuple(x.strip() for x in args.shapes.split(",")) if args.shapes else None
     n, m = (12, 1) if args.quick else (args.n, args.misspecified)
     jobs = [(s, None) for s in range(args.start, args.start + n)]
     jobs += [(args.start + k, key) for k in range(m) for key in NON_IDEALITIES]
@@ -268,7 +272,7 @@ def main(argv=None) -> int:
         for seed, key in jobs:
             r = done.get((seed, key)) or run_one(
                 seed, key, Path(tmp), mcmc=args.mcmc and key is None,
-                between_samples=args.between_samples)
+                between_samples=args.between_samples, shapes=shapes)
             if (seed, key) not in done and args.log:
                 with args.log.open("a") as fh:
                     fh.write(json.dumps(r) + "\n")

@@ -10,6 +10,7 @@ import pytest
 
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import (
+    EXCITATION_SHAPES,
     NON_IDEALITIES,
     TRACE_SHAPES,
     column_reading,
@@ -83,6 +84,25 @@ def test_every_shape_loads_with_its_truth(tmp_path):
         if "rpm" in labels:
             assert 'speed = "rpm"' in (f.path / "session.toml").read_text()
     assert (set(TRACE_SHAPES) | FEATURES) - {"step reading"} <= seen
+
+
+@pytest.mark.parametrize("shape", EXCITATION_SHAPES)
+def test_an_excitation_holds_no_level_long_enough_to_read_a_step_from(shape, tmp_path):
+    """A sweep or a random sequence loads as a driven trace whose voltage stays within
+    the motor's nominal range, changes many times and holds each level for well under
+    the mechanical time constant on the median, with both of its levels' signs where
+    it reverses."""
+    for seed in range(3):
+        plan, _ = fuzz_plan(seed, shapes=(shape,))
+        truth = plan["truth"]
+        tau_m = truth["J"] * truth["Ra"] / (truth["K"] ** 2 + truth["Ra"] * truth["B"])
+        f = fuzz_session(seed, shapes=(shape,), out=tmp_path / f"{shape}{seed}")
+        for tr in load_session(f.path).traces:
+            changes = tr.voltage.change_times()
+            assert changes.size >= 5
+            assert np.median(np.diff(changes)) < tau_m
+            top = max(abs(x) for t in plan["trace"] for _, x in t["voltage"])
+            assert np.all(np.abs(tr.voltage.values) <= top + 1e-12)
 
 
 def test_sizes_rates_and_noise_span_the_promised_ranges():

@@ -5,17 +5,19 @@ final speed read off a plot of the rig's step response)."""
 
 from __future__ import annotations
 
+import math
 import re
 import zlib
 
 import numpy as np
 
 from ._text import csv_text, inline, number
+from .bench import BenchMotor, steady_point
 from .plan import Plan, TraceSpec
 from .rig import rig_steady, rig_trace
 
 __all__ = ["NON_IDEALITIES", "rig_table", "column_reading", "log_voltage_column",
-           "add_step_reading", "STEP_READING_SD"]
+           "add_step_reading", "STEP_READING_SD", "draw_sensors", "log_uniform"]
 
 NON_IDEALITIES = ("dead time", "speed lag", "voltage drop", "source resistance",
                   "current limit", "unknown load", "encoder speed", "speed gain",
@@ -173,3 +175,33 @@ def add_step_reading(files: dict[str, str], plan: Plan, seed: int) -> dict[str, 
         first -= 1
     return dict(files, **{"session.toml": "\n".join(text[:first] + block + text[first:])
                           + "\n"})
+
+
+def log_uniform(rng, lo, hi) -> float:
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def draw_sensors(rng, t: dict, motor: BenchMotor, v: float, features: set) -> None:
+    """Noise, quantum, unit, encoder and current channel of a driven trace."""
+    span = steady_point(motor, v)[1]
+    i_span = v / motor.Ra
+    edges_ok = t["initial"] == "rest" and t["kind"] == "step"
+    u = rng.uniform()
+    if u < 0.12 or (u < 0.24 and edges_ok):
+        revs = span * t["duration"] / (2 * math.pi)
+        output = "position" if u < 0.12 else "edges"
+        cap = 20_000 if output == "edges" else 1e9
+        counts = int(max(1, min(int(rng.choice([16, 64, 256, 1024, 4096])), cap / revs)))
+        t["encoder"] = {"counts_per_rev": counts, "output": output}
+        features.add(f"encoder {output}")
+    else:
+        t["speed_noise"] = float(f"{log_uniform(rng, 1e-3, 5e-2) * span:.4g}")
+        if rng.uniform() < 0.3:
+            t["speed_quantum"] = float(f"{log_uniform(rng, 1e-3, 2e-2) * span:.4g}")
+            features.add("quantised speed")
+        if rng.uniform() < 0.3:
+            t["speed_unit"] = "rpm"
+    record = rng.uniform() < 0.5
+    t["record_current"] = bool(record)
+    if record:
+        t["current_noise"] = float(f"{log_uniform(rng, 1e-3, 5e-2) * i_span:.4g}")

@@ -3,7 +3,8 @@
 :func:`fuzz_plan` draws a motor over four decades of size and a plan for it: one to
 three traces of the kinds real benches log (a step from rest or from a steady speed,
 an up-down, a staircase of many levels of both signs, a load change at constant voltage
-with several load steps, a coast-down), sample rates of 0.2–20 kHz, short and long
+with several load steps, a coast-down; on request a sweep or a random sequence,
+:mod:`._fuzz_shapes`), sample rates of 0.2–20 kHz, short and long
 records, speed noise of 0.1–5 % of the trace's span (sometimes quantised, in rad/s or
 rpm, or counted by an encoder at the samples or at its edges), current channels or
 not, a steady table (with or without currents), an operating point, a step reading.
@@ -22,7 +23,6 @@ same seed gives the same bytes.
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,16 +32,19 @@ from ._fuzz_extra import (
     NON_IDEALITIES,
     add_step_reading,
     column_reading,
+    draw_sensors,
+    log_uniform,
     log_voltage_column,
     rig_table,
 )
+from ._fuzz_shapes import EXCITATION_SHAPES, excitation
 from ._write import write_session_files
 from .bench import BenchMotor, steady_point
 from .plan import check_plan
 from .session import render_session
 
-__all__ = ["NON_IDEALITIES", "TRACE_SHAPES", "FuzzedSession", "fuzz_motor", "fuzz_plan",
-           "column_reading", "fuzz_files", "fuzz_session"]
+__all__ = ["NON_IDEALITIES", "TRACE_SHAPES", "EXCITATION_SHAPES", "FuzzedSession",
+           "fuzz_motor", "fuzz_plan", "column_reading", "fuzz_files", "fuzz_session"]
 
 TRACE_SHAPES = ("step from rest", "step from steady", "up-down", "staircase",
                 "load change", "coast-down")
@@ -61,23 +64,19 @@ class FuzzedSession:
     features: frozenset  # "speed only", "quantised", "encoder position", ...
 
 
-def _log_uniform(rng, lo, hi) -> float:
-    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
-
-
 def fuzz_motor(rng: np.random.Generator, coulomb: bool) -> tuple[dict, float]:
     """True parameters over four decades of size, and the motor's nominal voltage.
 
     Nominal voltage 3–200 V, stall current 0.5–500 A (about 2 W to 100 kW), no-load
     speed 50–2000 rad/s, La/Ra 0.1–5 ms, mechanical time constant 5 ms–1 s, viscous
     friction 2–30 % of the damping; Coulomb friction 5–30 % of the no-load torque."""
-    v = _log_uniform(rng, 3.0, 200.0)
-    ra = v / _log_uniform(rng, 0.5, 500.0)
-    k = v / _log_uniform(rng, 50.0, 2000.0)
-    la = ra * _log_uniform(rng, 1e-4, 5e-3)
+    v = log_uniform(rng, 3.0, 200.0)
+    ra = v / log_uniform(rng, 0.5, 500.0)
+    k = v / log_uniform(rng, 50.0, 2000.0)
+    la = ra * log_uniform(rng, 1e-4, 5e-3)
     damping = float(rng.uniform(0.02, 0.3))
     b = damping * k * k / ra / (1 - damping)
-    j = _log_uniform(rng, 5e-3, 1.0) * (k * k + ra * b) / ra
+    j = log_uniform(rng, 5e-3, 1.0) * (k * k + ra * b) / ra
     tc = 0.0
     if coulomb:
         tc = float(rng.uniform(0.05, 0.3)) * b * k * v / (ra * b + k * k)
@@ -88,7 +87,7 @@ def _rate_and_duration(rng, tau_m: float, holds: float) -> tuple[float, float]:
     """A sample rate (Hz) of 0.2–20 kHz and a record of ``holds`` mechanical time
     constants, the rate lowered (or raised) to keep 60–MAX_SAMPLES samples."""
     duration = holds * tau_m
-    rate = _log_uniform(rng, 200.0, 20_000.0)
+    rate = log_uniform(rng, 200.0, 20_000.0)
     rate = min(max(rate, 60.0 / duration), MAX_SAMPLES / duration)
     return float(f"{rate:.6g}"), float(f"{duration:.6g}")
 
@@ -122,12 +121,16 @@ def _trace(rng, shape: str, name: str, truth: dict, v: float, tau_m: float,
         t.update(kind="load_change", initial="steady", voltage=[[0.0, top]],
                  load_torque=[[0.0, 0.0]] + [[float(a), float(b)] for a, b in
                                              zip(times, loads, strict=True)])
+    elif shape in EXCITATION_SHAPES:
+        rate, duration = _rate_and_duration(rng, tau_m, float(rng.uniform(6.0, 15.0)))
+        t.update(kind="free-form",
+                 voltage=excitation(rng, shape, top, v, tau_m, duration, rate))
     elif shape == "coast-down":
         rate, duration = _rate_and_duration(rng, tau_m, float(rng.uniform(1.0, 4.0)))
         w0 = steady_point(motor, abs(top))[1]
         return {"name": name, "kind": "coast-down", "duration": duration, "rate": rate,
                 "initial": {"speed": float(f"{w0:.6g}")},
-                "speed_noise": float(f"{_log_uniform(rng, 1e-3, 5e-2) * w0:.4g}")}
+                "speed_noise": float(f"{log_uniform(rng, 1e-3, 5e-2) * w0:.4g}")}
     else:
         rate, duration = _rate_and_duration(rng, tau_m, float(rng.uniform(1.5, 12.0)))
         t0 = float(rng.uniform(0.02, 0.2)) * duration
@@ -148,32 +151,6 @@ def _trace(rng, shape: str, name: str, truth: dict, v: float, tau_m: float,
     return t
 
 
-def _sensors(rng, t: dict, motor: BenchMotor, v: float, features: set) -> None:
-    """Noise, quantum, unit, encoder and current channel of a driven trace."""
-    span = steady_point(motor, v)[1]
-    i_span = v / motor.Ra
-    edges_ok = t["initial"] == "rest" and t["kind"] == "step"
-    u = rng.uniform()
-    if u < 0.12 or (u < 0.24 and edges_ok):
-        revs = span * t["duration"] / (2 * math.pi)
-        output = "position" if u < 0.12 else "edges"
-        cap = 20_000 if output == "edges" else 1e9
-        counts = int(max(1, min(int(rng.choice([16, 64, 256, 1024, 4096])), cap / revs)))
-        t["encoder"] = {"counts_per_rev": counts, "output": output}
-        features.add(f"encoder {output}")
-    else:
-        t["speed_noise"] = float(f"{_log_uniform(rng, 1e-3, 5e-2) * span:.4g}")
-        if rng.uniform() < 0.3:
-            t["speed_quantum"] = float(f"{_log_uniform(rng, 1e-3, 2e-2) * span:.4g}")
-            features.add("quantised speed")
-        if rng.uniform() < 0.3:
-            t["speed_unit"] = "rpm"
-    record = rng.uniform() < 0.5
-    t["record_current"] = bool(record)
-    if record:
-        t["current_noise"] = float(f"{_log_uniform(rng, 1e-3, 5e-2) * i_span:.4g}")
-
-
 def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, shapes=None,
               trace_current: bool | None = None, steady: str | None = None,
               between_samples: bool = False) -> tuple[dict, dict]:
@@ -184,7 +161,8 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
     seed : the draw (``numpy.random.default_rng(seed)``) and the plan's noise seed.
     misspecified : a key of :data:`NON_IDEALITIES`, a tuple of them (a rig carrying
         each), or None for an in-class session.
-    shapes : the trace shapes to draw from (default :data:`TRACE_SHAPES`).
+    shapes : the trace shapes to draw from (default :data:`TRACE_SHAPES`; also
+        :data:`EXCITATION_SHAPES`).
     trace_current : force (True) or forbid (False) the driven traces' current channels.
     steady : ``"table"``, ``"table without current"`` or ``"point"`` to force that
         steady reading (and no other); default a random mix.
@@ -218,7 +196,7 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
         t = _trace(rng, shape, f"tr{n}_{shape.replace(' ', '_').replace('-', '_')}", truth,
                    v, tau_m, motor, column, between_samples)
         if shape != "coast-down":
-            _sensors(rng, t, motor, v, features)
+            draw_sensors(rng, t, motor, v, features)
             if trace_current is not None:
                 t["record_current"] = trace_current
                 t.setdefault("current_noise", 0.01 * v / truth["Ra"])
@@ -240,16 +218,16 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
     if want_table:
         volts = np.sort(v * rng.uniform(0.25, 1.0, int(rng.integers(3, 9))))
         tab = {"name": "steady", "voltages": [float(f"{x:.5g}") for x in volts],
-               "speed_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * w_top:.4g}")}
+               "speed_sd": float(f"{log_uniform(rng, 1e-3, 5e-2) * w_top:.4g}")}
         if (draw[1] < 0.5 if steady is None else steady == "table"):
-            tab["current_sd"] = float(f"{_log_uniform(rng, 1e-3, 5e-2) * i_level:.4g}")
+            tab["current_sd"] = float(f"{log_uniform(rng, 1e-3, 5e-2) * i_level:.4g}")
         plan["steady_table"] = [tab]
     if (draw[2] < 0.4 if steady is None else steady == "point"):
         plan["operating_point"] = [{
             "name": "point", "supply_voltage": float(f"{1.25 * v:.5g}"),
             "duty": float(f"{rng.uniform(0.3, 0.8):.3g}"),
-            "speed_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * w_top:.4g}"),
-            "current_sd": float(f"{_log_uniform(rng, 1e-3, 5e-2) * i_level:.4g}")}]
+            "speed_sd": float(f"{log_uniform(rng, 1e-3, 5e-2) * w_top:.4g}"),
+            "current_sd": float(f"{log_uniform(rng, 1e-3, 5e-2) * i_level:.4g}")}]
     step = steady is None and rng.uniform() < 0.15
     plan["rig"] = {}
     for key in keys:
