@@ -99,16 +99,18 @@ def _away(schedule) -> bool:
 def lead_names(tr: Trace) -> tuple[str, ...]:
     """The names of ``tr``'s leads: one per change, or one shared (:func:`lead_name`)
     where it changes once or more than :data:`MAX_CHANGES` times."""
-    return _named(tr, change_times(tr).size)
+    return _changes(tr)[1]
 
 
-def _named(tr: Trace, n: int) -> tuple[str, ...]:
-    """:func:`lead_names` of ``tr`` given its number of changes ``n``."""
+def _changes(tr: Trace) -> tuple[np.ndarray, tuple[str, ...]]:
+    """:func:`change_times` of ``tr`` and :func:`lead_names` for them."""
+    times = change_times(tr)
+    n = times.size
     if n == 0:
-        return ()
+        return times, ()
     if n == 1 or n > MAX_CHANGES:
-        return (lead_name(tr.name),)
-    return tuple(f"{lead_name(tr.name)}_{j}" for j in range(n))
+        return times, (lead_name(tr.name),)
+    return times, tuple(f"{lead_name(tr.name)}_{j}" for j in range(n))
 
 
 def leading_traces(session: Session) -> tuple[str, ...]:
@@ -122,9 +124,9 @@ def lead_specs(session: Session) -> list[ParamSpec]:
     seeded at the prior's centre."""
     specs = []
     for tr in session.traces:
-        times = change_times(tr)
-        names = _named(tr, times.size)
-        for j, (name, spread) in enumerate(zip(names, _spreads(tr, times), strict=True)):
+        times, names = _changes(tr)
+        for j, (name, spread) in enumerate(zip(names, _spreads(tr, times, names),
+                                               strict=True)):
             when = "each change" if len(names) < times.size else \
                 f"the change at {float(times[j]):.6g} s"
             sd = float(np.hypot(PRIOR_SD * tr.dt, spread))
@@ -164,11 +166,10 @@ def placement_sd(tr: Trace, times: np.ndarray) -> np.ndarray:
     return out
 
 
-def _spreads(tr: Trace, times: np.ndarray) -> np.ndarray:
-    """Per lead of ``tr`` (:func:`lead_names`), :func:`placement_sd` of its change; 0 for
-    a lead its changes share (each change's misplacement is its own, which one lead
-    cannot take up)."""
-    names = _named(tr, times.size)
+def _spreads(tr: Trace, times: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+    """Per lead ``names`` of ``tr`` whose changes fall at ``times`` (:func:`_changes`),
+    :func:`placement_sd` of its change; 0 for a lead its changes share (each change's
+    misplacement is its own, which one lead cannot take up)."""
     return placement_sd(tr, times) if len(names) == times.size else np.zeros(len(names))
 
 
@@ -178,9 +179,8 @@ def lead_scans(session: Session) -> dict[str, np.ndarray]:
     several samples, as many again across twice that sd either way."""
     out = {}
     for tr in session.traces:
-        times = change_times(tr)
-        names = _named(tr, times.size)
-        for name, spread in zip(names, _spreads(tr, times), strict=True):
+        times, names = _changes(tr)
+        for name, spread in zip(names, _spreads(tr, times, names), strict=True):
             wide = np.linspace(-2.0, 2.0, SCAN_SHARES.size) * spread if spread > tr.dt else []
             out[name] = np.concatenate([SCAN_SHARES * tr.dt, wide])
     return out
@@ -195,8 +195,7 @@ def segment_leads(session: Session, seg_t0, seg_trace) -> np.ndarray | None:
     out = np.full(seg_t0.size, -1, dtype=np.int32)
     base = 0
     for k, tr in enumerate(session.traces):
-        times = change_times(tr)
-        names = _named(tr, times.size)
+        times, names = _changes(tr)
         if not names:
             continue
         mine = np.flatnonzero(seg_trace == k)
