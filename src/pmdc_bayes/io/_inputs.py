@@ -12,9 +12,10 @@ from .toml_tables import Table as _Table
 from .toml_tables import describe as _describe
 from .units import to_si
 
-__all__ = ["schedule", "duty_scale", "duty_to_volts", "DUTY_UNITS"]
+__all__ = ["schedule", "duty_scale", "duty_to_volts", "DUTY_UNITS", "SUPPLY"]
 
 DUTY_UNITS = {"1": 1.0, "%": 100.0}  # a voltage logged as a duty: its full scale
+SUPPLY = "supply_voltage"  # the key a duty is read against
 
 
 def schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray, start: float,
@@ -77,9 +78,9 @@ def duty_scale(t: _Table, u: dict) -> tuple[float, float] | None:
     fraction, a percentage, or PWM counts of ``pwm_full_scale``) of ``supply_voltage``;
     None when it is a voltage."""
     duty_unit = u["voltage"] in (*DUTY_UNITS, "pwm")
-    if "supply_voltage" not in t.data:
+    if SUPPLY not in t.data:
         if duty_unit:
-            t.fail("supply_voltage", f"the voltage is logged as a duty (units.voltage = "
+            t.fail(SUPPLY, f"the voltage is logged as a duty (units.voltage = "
                    f"\"{u['voltage']}\") but no supply_voltage is given; add the driver's "
                    "supply, e.g. supply_voltage = 12.0")
         if "pwm_full_scale" in t.data:
@@ -87,10 +88,10 @@ def duty_scale(t: _Table, u: dict) -> tuple[float, float] | None:
                    "units.voltage = \"pwm\" and supply_voltage, or remove it")
         return None
     if not duty_unit:
-        t.fail("supply_voltage", "is only read with a voltage logged as a duty; set "
+        t.fail(SUPPLY, "is only read with a voltage logged as a duty; set "
                "units.voltage = \"%\", \"1\" (a fraction) or \"pwm\" (with pwm_full_scale), "
                "or remove supply_voltage")
-    supply = t.number("supply_voltage", "voltage", u["supply_voltage"], positive=True)
+    supply = t.number(SUPPLY, "voltage", u[SUPPLY], positive=True)
     if u["voltage"] == "pwm":
         return supply, t.number("pwm_full_scale", positive=True)
     if "pwm_full_scale" in t.data:

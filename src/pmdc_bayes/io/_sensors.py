@@ -18,12 +18,14 @@ import numpy as np
 from .toml_tables import Table
 from .units import to_si
 
-__all__ = ["UNIT_KINDS", "KEYS", "VOLTS", "speed_si", "current_si", "check_unused", "physical"]
+__all__ = ["UNIT_KINDS", "KEYS", "VOLTS", "CONSTANT", "speed_si", "current_si", "check_unused",
+           "physical"]
 
 VOLTS = ("V", "mV")
 UNIT_KINDS = {"tacho_constant": "motor_constant", "current_sensitivity": "resistance",
               "current_zero": "voltage"}
 KEYS = tuple(UNIT_KINDS)
+CONSTANT = {"speed": "tacho_constant", "current": "current_sensitivity"}  # volts to SI
 _EXAMPLES = {"tacho_constant": 'tacho_constant = 2.5 with units.tacho_constant = "V/krpm"',
              "current_sensitivity": 'current_sensitivity = 0.185 with '
                                     'units.current_sensitivity = "V/A" (or a shunt\'s ohms)'}
@@ -44,21 +46,21 @@ def speed_si(t: Table, raw: np.ndarray, u: dict) -> np.ndarray:
     """A speed column in SI: from a tachogenerator's volts when logged so."""
     if u["speed"] not in VOLTS:
         return to_si(raw, "speed", u["speed"])
-    return to_si(raw, "voltage", u["speed"]) / _constant(t, "tacho_constant", u, "speed")
+    return to_si(raw, "voltage", u["speed"]) / _constant(t, CONSTANT["speed"], u, "speed")
 
 
 def current_si(t: Table, raw: np.ndarray, u: dict) -> np.ndarray:
     """A current column in SI: from a current sensor's volts when logged so."""
     if u["current"] not in VOLTS:
         return to_si(raw, "current", u["current"])
-    scale = _constant(t, "current_sensitivity", u, "current")
+    scale = _constant(t, CONSTANT["current"], u, "current")
     zero = t.number("current_zero", "voltage", u["current_zero"], default=0.0)
     return (to_si(raw, "voltage", u["current"]) - zero) / scale
 
 
 def check_unused(t: Table, u: dict, columns: dict) -> None:
     """A sensor's constant given where no column is logged in volts is bad input."""
-    for key, what in (("tacho_constant", "speed"), ("current_sensitivity", "current"),
+    for key, what in ((CONSTANT["speed"], "speed"), (CONSTANT["current"], "current"),
                       ("current_zero", "current")):
         if key in t.data and not (what in columns and u.get(what) in VOLTS):
             t.fail(key, f"is only read with a {what} column logged in volts; set "

@@ -9,6 +9,8 @@ import re
 from pathlib import Path
 
 from .._errors import SessionError
+from ._inputs import SUPPLY
+from ._sensors import CONSTANT
 from .units import KINDS, unit_factor, unit_named
 
 __all__ = ["check_column_units", "check_units_row", "check_header_units", "header_unit"]
@@ -57,8 +59,8 @@ def header_unit(kind: str, name: str) -> str | None:
 
 # a column of the first kind may be logged as a sensor's output in a unit of the second,
 # read so with that unit and the key named
-_OUTPUTS = {"speed": ("voltage", "tacho_constant"), "current": ("voltage", "current_sensitivity"),
-            "voltage": ("duty", "supply_voltage")}
+_OUTPUTS = {**{role: ("voltage", key) for role, key in CONSTANT.items()},
+            "voltage": ("duty", SUPPLY)}  # kind -> (its output's kind, the key reading it)
 
 
 def check_header_units(path: Path, cols: dict, read_in: dict, kinds: dict,
