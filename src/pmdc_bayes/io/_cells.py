@@ -63,17 +63,17 @@ class DecimalMarks:
         column (either before the other) that it meets better read as a thousand times
         its value (1014) than as written: a locale's thousands point; any other decimal
         in the column clears it."""
+        if self.dotted.get(column) is False:
+            return
         grouped = "." in text and _DOT_GROUPED.fullmatch(text) is not None
         if "." in text and not grouped:
             self.dotted[column] = False
-        whole = "." not in text and _WHOLE.fullmatch(text) is not None
-        before = self.last.get(column)  # the column's cell before: (text, value, kind)
-        self.last[column] = (text, value, "grouped" if grouped else "whole" if whole
-                              else None)
-        if before is None or self.dotted.get(column) is False or value == 0 or before[1] == 0:
             return
-        pair = {before[2], "grouped" if grouped else "whole" if whole else None}
-        if pair != {"grouped", "whole"}:
+        kind = "grouped" if grouped else "whole" if _WHOLE.fullmatch(text) else None
+        before = self.last.get(column)  # the column's cell before: (text, value, kind)
+        self.last[column] = (text, value, kind)
+        if (before is None or value == 0 or before[1] == 0
+                or {before[2], kind} != {"grouped", "whole"}):
             return
         dotted, plain = (value, before[1]) if grouped else (before[1], value)
         if abs(math.log(abs(1000.0 * dotted / plain))) < abs(math.log(abs(dotted / plain))):
