@@ -102,3 +102,16 @@ def test_the_integral_form_refuses_a_record_without_a_decay():
     assert integral_fit(t, np.full(t.size, 3.0), sched) is None
     rising = 50.0 * t**2
     assert integral_fit(t, rising, Schedule(np.array([0.0]), np.array([0.0]))) is None
+
+
+def test_a_response_of_a_few_samples_is_not_judged_settled():
+    """Fewer than two windows of three samples say nothing of a level reached (and
+    raise no warning of an empty mean)."""
+    import warnings
+
+    from pmdc_bayes.inference.model.levels import settled
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert not settled(np.array([1.0, 1.0, 1.0, 1.0, 1.0]))
+        assert settled(np.ones(6))

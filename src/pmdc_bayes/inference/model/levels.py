@@ -18,11 +18,14 @@ _SE_FLOOR = 1e-9  # a level's standard error, at least this fraction of the larg
 
 def settled(y) -> bool:
     """Whether a trace has reached its steady level: the means of its last two tenths
-    agree within 0.5 % of the level plus what the noise allows."""
+    agree within 0.5 % of the level plus what the noise allows (of three samples each
+    at least: a shorter trace is not judged settled)."""
     from .noise import noise_scale
 
     y = np.asarray(y, float)
     n = max(3, y.size // 10)
+    if y.size < 2 * n:
+        return False
     a, b = float(np.mean(y[-2 * n:-n])), float(np.mean(y[-n:]))
     return abs(b - a) <= 0.005 * abs(b) + 4 * noise_scale(y) / np.sqrt(n)
 
