@@ -16,7 +16,7 @@ from ._missing import MISSABLE, without_missing, without_repeats
 from ._run_down import check_run_down_start
 from ._step_timing import check_step_timing
 from ._time_order import check_date_serial, check_increasing, check_whole_time
-from ._units_row import check_column_units, header_unit
+from ._units_row import check_column_units, time_unit_stated
 from .drag import check_curve_reach, read_drag
 from .held_levels import held_levels
 from .position import (
@@ -31,7 +31,7 @@ from .position import (
 from .session import COAST_DOWN, Schedule, Trace
 from .toml_tables import Table as _Table
 from .toml_tables import describe as _describe
-from .units import to_si, unit_named
+from .units import to_si
 
 __all__ = ["read_traces"]
 
@@ -85,16 +85,6 @@ class _TraceFile(NamedTuple):
     lines: list
 
 
-def _time_unit_stated(t: _Table, cols: dict, read) -> bool:
-    """Whether a trace's time column has a unit given: in session.toml, its header
-    name or the file's row of units."""
-    name = cols["time"]
-    given = t.data.get("units")
-    return bool((isinstance(given, dict) and "time" in given)
-                or (isinstance(name, str) and header_unit("time", name) is not None)
-                or unit_named("time", read.units.get("time", "")) is not None)
-
-
 def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
     """A trace's CSV file (at least 3 samples, strictly increasing in time; rows left
     out for a missing reading, :func:`._missing.without_missing`)."""
@@ -122,8 +112,8 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
                      second, wrap_given="time_wrap" in t.data)
     if "time" in cols:
         check_date_serial(path, cols["time"], t_raw, second)
-        check_whole_time(path, cols["time"], t_raw, _time_unit_stated(t, cols, read),
-                         t.where)
+        stated = time_unit_stated(t.data.get("units"), cols["time"], read.units)
+        check_whole_time(path, cols["time"], t_raw, stated, t.where)
     for role in ("speed", "position"):
         y = raw.get(role)
         if y is not None and np.all(y == y[0]):

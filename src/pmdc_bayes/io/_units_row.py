@@ -13,7 +13,8 @@ from ._inputs import SUPPLY
 from ._sensors import CONSTANT
 from .units import KINDS, unit_factor, unit_named
 
-__all__ = ["check_column_units", "check_units_row", "check_header_units", "header_unit"]
+__all__ = ["check_column_units", "check_units_row", "check_header_units", "header_unit",
+           "time_unit_stated"]
 
 
 def check_units_row(path: Path, cols: dict, row: dict, line: int | None, read_in: dict,
@@ -111,3 +112,12 @@ def check_column_units(path: Path, cols: dict, read, read_in: dict, kinds: dict,
     against those session.toml reads its columns in."""
     check_header_units(path, cols, read_in, kinds, where)
     check_units_row(path, cols, read.units, read.units_line, read_in, kinds, where)
+
+
+def time_unit_stated(given, name, row: dict) -> bool:
+    """Whether a trace's time column has a unit given: in session.toml (``given``, the
+    trace's ``units``), its header ``name`` or the file's row of units (``row``: role ->
+    text)."""
+    return bool((isinstance(given, dict) and "time" in given)
+                or (isinstance(name, str) and header_unit("time", name) is not None)
+                or unit_named("time", row.get("time", "")) is not None)
