@@ -4,6 +4,7 @@ integrated by SciPy (not by the package's model)."""
 
 import json
 import shutil
+from types import SimpleNamespace
 
 import jax.numpy as jnp
 import numpy as np
@@ -12,9 +13,12 @@ from conftest import plan, plan_toml, step, sweep
 from scipy.integrate import solve_ivp
 
 from pmdc_bayes._errors import SessionError
+from pmdc_bayes.inference.adequacy.findings import Check, Finding, Severity
+from pmdc_bayes.inference.adequacy.model_checks import coast_start_notes
 from pmdc_bayes.io.bundled import bundled_session_dir
 from pmdc_bayes.io.channel import ChannelId
 from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.io.run_down import hold_then_fall
 from pmdc_bayes.physics import motor
 from pmdc_bayes.simulate.session import simulate_session
 
@@ -145,3 +149,42 @@ def test_a_coulomb_run_down_rejects_the_viscous_model(tmp_path):
     assert res.adequacy.verdict == "adequate", [f.message for f in res.adequacy.findings]
     for name, true in (("Tc", 2e-3), ("B", B), ("J", J)):
         assert abs(fit.values[name] - true) < 3 * fit.sd[name], (name, fit.values[name])
+
+
+def _held_run_down(hold, rng, *, sd=0.3, w0=241.6, dt=0.01, span=8.5):
+    """A run-down of the demo's motor from ``hold`` s into a record from 0 (the speed
+    held at ``w0`` before), read with white noise of ``sd``."""
+    t = np.arange(0.0, span, dt)
+    w = np.where(t < hold, w0, _ode_coast(4.5e-5, 5.9e-4, 2.5e-3, w0,
+                                         np.clip(t - hold, 0.0, None)))
+    return t, w + rng.normal(0.0, sd, t.size)
+
+
+@pytest.mark.parametrize("hold", [0.15, 0.5, 2.0])
+def test_a_hold_before_the_opening_is_found_in_a_record_from_zero(hold):
+    rng = np.random.default_rng(7)
+    for _ in range(10):
+        t, w = _held_run_down(hold, rng)
+        h = hold_then_fall(t, w)
+        assert h is not None and hold - 0.02 <= h.opened <= hold + 0.1
+        assert h.ratio > 1.5
+    for _ in range(30):  # the armature opened at the record's start: nothing held
+        t, w = _held_run_down(0.0, rng)
+        assert hold_then_fall(t, w) is None
+
+
+def test_the_fits_finding_on_a_held_coast_down_names_when_it_was_opened():
+    rng = np.random.default_rng(3)
+    t, w = _held_run_down(0.5, rng)
+    t2, w2 = _held_run_down(0.0, rng)
+    coasts = [SimpleNamespace(name="held", time=t, speed=w),
+              SimpleNamespace(name="plain", time=t2, speed=w2)]
+    model = SimpleNamespace(session=SimpleNamespace(coast_downs=coasts))
+    findings = [Finding(Check.RESIDUAL_WHITENESS, ChannelId(name, "speed"), Severity.WARN,
+                        "", "not white", suggestion)
+                for name, suggestion in (("held", ""), ("plain", ""), ("held", "keep"))]
+    out = coast_start_notes(model, findings)
+    assert out[1] == findings[1] and out[2] == findings[2]  # the first on a channel told
+    note = out[0].suggestion
+    assert "trace['held'].opened" in note and "until t = 0.5" in note
+    assert out[0].where == findings[0].where and out[0].severity is Severity.WARN

@@ -13,7 +13,6 @@ from . import _sensors as sensors
 from ._csv import read_columns
 from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
 from ._missing import MISSABLE, without_missing, without_repeats
-from ._run_down import check_run_down_start
 from ._step_timing import check_step_timing
 from ._time_order import check_date_serial, check_increasing, check_whole_time
 from ._units_row import check_column_units, time_unit_stated
@@ -28,6 +27,7 @@ from .position import (
     unwrap_position,
     unwrap_time,
 )
+from .run_down import check_run_down_start
 from .session import COAST_DOWN, Schedule, Trace
 from .toml_tables import Table as _Table
 from .toml_tables import describe as _describe

@@ -1,17 +1,22 @@
 """Checks of the model itself at the MAP rather than of its fit to the data: a motor
 parameter pressed against zero (its physical bound), a segment whose regime changes
 more often than the exact solution follows, a trace that outruns its known load's
-curve."""
+curve; a coast-down whose misfit is a hold before the armature was opened."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from ...io.channel import ChannelId
+from ...io.run_down import hold_then_fall
 from ...io.units import display_unit
 from ...physics.limited import PHASES
 from .findings import Check, Finding, Severity
 
-__all__ = ["bound_checks", "solver_checks", "drag_checks", "BOUND_Z", "CURVE_REACH"]
+__all__ = ["bound_checks", "solver_checks", "drag_checks", "coast_start_notes", "BOUND_Z",
+           "CURVE_REACH"]
 
 BOUND_Z = 2.0  # a motor parameter this many prior sd below its prior's centre, prior-bound
 CURVE_REACH = 1.05  # a trace this much faster than its drag curve's last point is warned
@@ -94,3 +99,31 @@ def _bound_suggestion(name: str) -> str:
     return ("check what else carries it (a declared load too strong, a friction model "
             "the data do not need: --friction viscous for Tc); if it is truly "
             "negligible, rerun with --allow-inadequate")
+
+
+def coast_start_notes(model, findings: list) -> list:
+    """``findings`` with the first one on each coast-down's speed told, where its record
+    holds at its first level and then falls faster (:func:`...io.run_down.hold_then_fall`,
+    as a coasting rotor cannot), when the armature was most likely opened.  The loader
+    refuses such a record only where its time starts before 0 (an oscilloscope's
+    trigger); one from 0 is fitted, and a hold there misfits as much as a lagging
+    sensor's, so it is named only once the fit has missed it."""
+    held = {}
+    for tr in model.session.coast_downs:
+        h = hold_then_fall(tr.time, tr.speed)
+        if h is not None:
+            held[str(ChannelId(tr.name, "speed"))] = (tr.name, h)
+    out = []
+    for f in findings:
+        name, h = held.pop(str(f.where), (None, None))
+        if h is None:
+            out.append(f)
+            continue
+        note = (f"{name}: the speed holds its first level until t = {h.opened:.4g} s and "
+                f"then falls {h.ratio:.3g}x as much as over the same time before, as a "
+                "coasting rotor cannot: if the armature was opened then, give "
+                f"trace['{name}'].opened = that time (in the trace's unit of time) or remove "
+                "the rows before it; a lagging speed sensor also holds its reading at first "
+                "(--add speed-lag)")
+        out.append(replace(f, suggestion="; ".join(x for x in (f.suggestion, note) if x)))
+    return out

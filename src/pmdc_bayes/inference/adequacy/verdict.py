@@ -46,7 +46,7 @@ from .calibrate import FAMILY_LEVEL, holm, logged_quantum, session_rng
 from .checks import bench_checks, search_checks, step_start_test
 from .diagnosis import diagnose
 from .findings import Check, Finding, Verdict
-from .model_checks import bound_checks, drag_checks, solver_checks
+from .model_checks import bound_checks, coast_start_notes, drag_checks, solver_checks
 from .plausibility import plausibility_tests
 from .residual_stats import fit_percent, systematic_misfit, whiteness
 from .steady import steady_tests
@@ -202,6 +202,7 @@ def assess(model, fit, closed_form=None) -> Adequacy:
     findings += solver_checks(model, fit)
     findings += drag_checks(model)
     findings += bound_checks(model, fit)
+    findings = coast_start_notes(model, findings)
     findings.sort(key=lambda f: not f.failed)
     verdict = Verdict.INADEQUATE if any(f.failed for f in findings) else Verdict.ADEQUATE
     if verdict is Verdict.ADEQUATE:

@@ -14,12 +14,14 @@ fits the lag.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .robust import departure, noise_floor, smallest_step
 from .toml_tables import Table
 
-__all__ = ["check_run_down_start", "HOLD_Z"]
+__all__ = ["check_run_down_start", "hold_then_fall", "Hold", "HOLD_Z"]
 
 CLEAR = 10.0  # a departure this many noise sds from the first level (and 5 % of the fall)
 HOLD_Z = 6.0  # sds of its noise by which the later fall must exceed the earlier one
@@ -29,41 +31,62 @@ def _mean(x: np.ndarray, at: int, half: int) -> float:
     return float(np.nanmean(x[max(0, at - half):at + half + 1]))
 
 
-def check_run_down_start(t: Table, time: np.ndarray, speed: np.ndarray, unit: str,
-                         per_unit: float) -> None:
-    """Refuse a coast-down whose record starts before 0 and whose speed holds at its
-    first level up to 0 and then falls faster (module docstring): ``k`` samples to leave its
-    first level by :data:`CLEAR` sds and 5 % of its fall, and its fall over the ``s``
-    samples after ``k`` more than that over the ``s`` before (``s`` ≤ ``k``, as the
-    record allows; means over windows of ``s/4`` samples) by :data:`HOLD_Z` sds of the
-    difference and a quantum of a quantised speed.  ``time`` in s, ``unit`` the trace's
-    unit of time, ``per_unit`` seconds per unit."""
+class Hold(NamedTuple):
+    """A speed that holds at its first level and then falls faster: the time (s) it
+    began to fall (``began``), the sample before (``opened``), and the fall's ratio over
+    two equal stretches, ``t1`` to ``t2`` after against the same before."""
+
+    began: float
+    opened: float
+    ratio: float
+    t1: float
+    t2: float
+
+
+def hold_then_fall(time: np.ndarray, speed: np.ndarray) -> Hold | None:
+    """The hold a coasting rotor cannot show (module docstring), or None: ``k`` samples
+    to leave its first level by :data:`CLEAR` sds and 5 % of its fall, and its fall over
+    the ``s`` samples after ``k`` more than that over the ``s`` before (``s`` ≤ ``k``, as
+    the record allows; means over windows of ``s/4`` samples) by :data:`HOLD_Z` sds of the
+    difference and a quantum of a quantised speed."""
     w = np.asarray(speed, float)
     ok = np.isfinite(w)
-    if not time[0] < 0.0:
-        return
     time, w = np.asarray(time, float)[ok], np.abs(w[ok])
     quantum, sigma = smallest_step(w), noise_floor(w)
     if w.size < 20 or sigma == 0.0:
-        return
+        return None
     k = departure(w, sigma, CLEAR, falling=True)
     began = departure(w, sigma, 3.0, share=0.0, falling=True)  # where it began to fall
-    if k is None or began is None or time[began] < -2.0 * float(np.median(np.diff(time))):
-        return  # it began to fall before the trigger: no hold up to it
+    if k is None or began is None:
+        return None
     s = min(began, int((w.size - 1 - began) / 1.25))  # the windows' spacing
     half = s // 8
     if s < 8:
-        return
+        return None
     m = 2 * half + 1
     at = (began - s + half, began + half, began + s + half)  # equally spaced centres
     lv = [_mean(w, i, half) for i in at]
     excess = (lv[1] - lv[2]) - (lv[0] - lv[1])
     if excess <= HOLD_Z * sigma * np.sqrt(6.0 / m) + quantum:  # a lattice's means: ±q/2
-        return
-    opened = time[max(0, began - 1)] / per_unit
+        return None
     ratio = (lv[1] - lv[2]) / max(lv[0] - lv[1], sigma)
-    t.fail("file", f"the speed falls {ratio:.3g}× as much from {time[at[1]] / per_unit:.4g} "
-           f"to {time[at[2]] / per_unit:.4g} {unit} as in the same time before, as a "
+    return Hold(float(time[began]), float(time[max(0, began - 1)]), float(ratio),
+                float(time[at[1]]), float(time[at[2]]))
+
+
+def check_run_down_start(t: Table, time: np.ndarray, speed: np.ndarray, unit: str,
+                         per_unit: float) -> None:
+    """Refuse a coast-down whose record starts before 0 and whose speed holds at its
+    first level up to 0 and then falls faster (:func:`hold_then_fall`).  ``time`` in s,
+    ``unit`` the trace's unit of time, ``per_unit`` seconds per unit."""
+    if not time[0] < 0.0:
+        return
+    h = hold_then_fall(time, speed)
+    if h is None or h.began < -2.0 * float(np.median(np.diff(time))):
+        return  # it began to fall before the trigger: no hold up to it
+    opened = h.opened / per_unit
+    t.fail("file", f"the speed falls {h.ratio:.3g}× as much from {h.t1 / per_unit:.4g} "
+           f"to {h.t2 / per_unit:.4g} {unit} as in the same time before, as a "
            "coasting rotor cannot (it slows fastest at its start): the record holds rows "
            "from before the armature was opened (an oscilloscope's pre-trigger?); give "
            f"opened = {opened:.4g} (where it began to fall, in {unit}; 0 if the scope "
