@@ -429,18 +429,24 @@ def test_a_date_serial_is_told_from_seconds_by_its_round_sample_interval(first, 
         assert not refused
 
 
-@pytest.mark.parametrize(("unit", "header", "step"), [
-    ("", "t", None), ('time = "ms", ', "t", 0.01), ("", "t [s]", 10.0),
+def _clock(seconds: int) -> str:
+    return f"12:{seconds // 60:02d}:{seconds % 60:02d}"
+
+
+@pytest.mark.parametrize(("unit", "header", "written", "step"), [
+    ("", "t", str, None), ('time = "ms", ', "t", str, 0.01), ("", "t [s]", str, 10.0),
+    ("", "t", "{:.1f}".format, 10.0), ("", "t", _clock, 10.0),
 ])
 def test_whole_numbers_in_a_time_column_without_a_unit_are_not_read_as_seconds(
-        session_dir, unit, header, step):
+        session_dir, unit, header, written, step):
     """A logger's millisecond counter (0, 10, 20, ...) under a header that names no
     unit, with none in session.toml, read as seconds would make every time constant a
     thousand times too long: it is refused, naming the key to add; given a unit in
-    session.toml or the header, it is read in it."""
+    session.toml or the header, it is read in it.  Times written as decimals (10.0) or
+    as clock times (12:00:10) are not a counter's: they are read as written."""
     lines = _rows(session_dir)
     _write(session_dir, [header + ",speed_rpm,ia"]
-           + [",".join([str(10 * k), *line.split(",")[1:]])
+           + [",".join([written(10 * k), *line.split(",")[1:]])
               for k, line in enumerate(lines[1:])])
     toml = session_dir / "session.toml"
     replace_once(toml, 'columns = { time = "t",', f'columns = {{ time = "{header}",')

@@ -4,6 +4,7 @@ last line cut off mid-write each taken for what they are."""
 
 from __future__ import annotations
 
+import re
 from array import array
 from pathlib import Path
 from typing import NamedTuple
@@ -17,6 +18,7 @@ from ._stamps import duration_seconds, elapsed, stamp_seconds
 __all__ = ["Columns", "read_rows"]
 
 SEPARATOR_NAMES = {",": "commas", ";": "semicolons", "\t": "tabs"}
+_INTEGER = re.compile(r"[+-]?\d+")
 
 
 class Columns(NamedTuple):
@@ -28,6 +30,8 @@ class Columns(NamedTuple):
         with a time column (no time to place them at), or a last line cut off mid-write.
     units : role -> the text of a row of units under the header, when there is one, and
         ``units_line`` its line.
+    whole_stamps : whether every cell of the time column is an integer as written (a
+        counter's or a sample number's, not a clock time, a duration or a decimal).
     """
 
     values: dict
@@ -35,6 +39,7 @@ class Columns(NamedTuple):
     skipped: tuple = ()
     units: dict = {}
     units_line: int | None = None
+    whole_stamps: bool = False  # the time column written as integers (no point, no unit)
 
 
 class _Row(NamedTuple):
@@ -101,6 +106,7 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
     missable = bool(missing) and set(wanted) - {"time"} <= set(missing)
     timed = "time" in wanted
     kinds: set[str] = set()  # the stamped column's cells: clock, duration or plain
+    fractional = False  # a plain cell of the stamped column written other than an integer
     lines: list[int] = []
     skipped: list[int] = []
     pending: list[int] = []  # rows of missed readings, placed once a sample follows
@@ -161,6 +167,7 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
             if role == stamped:
                 kinds.add("plain" if stamp is None else
                           "duration" if duration_seconds(cell) is not None else "clock")
+                fractional = fractional or (stamp is None and not _INTEGER.fullmatch(cell))
                 if len(kinds) > 1:
                     raise SessionError(path, f"column {wanted[role]!r}: {cell!r} is written "
                                        "unlike the rows before it (time stamps and plain "
@@ -176,7 +183,8 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
         out[stamped] = elapsed(out[stamped], stamps[1])
     elif "duration" in kinds:  # as written, in the column's unit
         out[stamped] = out[stamped] / stamps[1]
-    return Columns(out, lines, tuple(skipped), units, units_line)
+    whole = kinds == {"plain"} and not fractional
+    return Columns(out, lines, tuple(skipped), units, units_line, whole)
 
 
 def _index(path, header, sep, wanted, asked_by, line) -> dict:

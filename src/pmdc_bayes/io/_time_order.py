@@ -112,15 +112,15 @@ def _round_period(seconds: float) -> bool:
     return any(abs(mantissa / m - 1.0) <= 0.01 for m in (1.0, 2.0, 5.0, 10.0))
 
 
-def check_whole_time(path: Path, column: str, t_raw: np.ndarray, stated: bool,
-                     where: str) -> None:
-    """Refuse a time column that gives no unit (none in session.toml, its header or a
-    row of units) and holds only whole numbers at least 1 apart: read as seconds its
-    samples are seconds apart, as a motor's step is not logged, while a logger's
-    millisecond or microsecond counter (an Arduino's ``millis()``, ``micros()``) or a
-    sample count writes exactly that (``where``: the trace's table in session.toml)."""
+def check_whole_time(path: Path, column: str, t_raw: np.ndarray, where: str) -> None:
+    """Refuse a time column written as integers with no unit given (none in
+    session.toml, its header or a row of units: the caller's to judge) that are at
+    least 1 apart: read as seconds its samples are seconds apart, as a motor's step is
+    not logged, while a logger's millisecond or microsecond counter (an Arduino's
+    ``millis()``, ``micros()``) or a sample count writes exactly that (``where``: the
+    trace's table in session.toml)."""
     finite = t_raw[np.isfinite(t_raw)]
-    if stated or finite.size < 3 or np.any(finite != np.round(finite)):
+    if finite.size < 3 or np.any(finite != np.round(finite)):
         return
     step = float(np.median(np.diff(finite)))
     if step < 1.0:
