@@ -245,7 +245,8 @@ def _trace(t: _Table, root: Path) -> Trace:
                  load_torque=inputs["load_torque"], voltage_logged="voltage" in si,
                  load_logged="load_torque" in si, initial=initial,
                  position=m["position"], speed_logged="speed" in raw and not m["differenced"],
-                 encoder_step=m["encoder_step"], drag=drag, rows_left_out=left_out)
+                 encoder_step=m["encoder_step"], drag=drag, rows_left_out=left_out,
+                 time_unit=u["time"])
 
 
 def _coast_down(t: _Table, root: Path) -> Trace:
@@ -277,7 +278,8 @@ def _coast_down(t: _Table, root: Path) -> Trace:
         check_run_down_start(t, time, speed, u["time"], per_unit)
     none = Schedule(time[:1].copy(), np.zeros(1))
     return Trace(name=name, kind=COAST_DOWN, file=f.path, time=time, speed=speed,
-                 current=None, voltage=none, load_torque=none, rows_left_out=left_out)
+                 current=None, voltage=none, load_torque=none, rows_left_out=left_out,
+                 time_unit=u["time"])
 
 
 def read_traces(top: _Table, root: Path) -> tuple[tuple, tuple]:

@@ -106,6 +106,8 @@ class Trace:
         a brake, a generator into a known resistor), on top of ``load_torque``.
     rows_left_out : the file lines of the CSV's rows left out for a reading the logger
         missed (an empty or ``NaN`` cell in a channel).
+    time_unit : the unit its file and ``session.toml`` give its times in (``time`` is
+        in s), for messages that name a time the user writes back.
     """
 
     name: str
@@ -124,6 +126,7 @@ class Trace:
     encoder_step: float = 0.0
     drag: Drag = NO_DRAG
     rows_left_out: tuple[int, ...] = ()
+    time_unit: str = "s"
 
     def __repr__(self) -> str:
         logged = [c for c, y in (("speed", self.speed if self.speed_logged else None),

@@ -11,7 +11,7 @@ import numpy as np
 
 from ...io.channel import ChannelId
 from ...io.run_down import hold_then_fall
-from ...io.units import display_unit
+from ...io.units import display_unit, to_si
 from ...physics.limited import PHASES
 from .findings import Check, Finding, Severity
 
@@ -112,18 +112,19 @@ def coast_start_notes(model, findings: list) -> list:
     for tr in model.session.coast_downs:
         h = hold_then_fall(tr.time, tr.speed)
         if h is not None:
-            held[str(ChannelId(tr.name, "speed"))] = (tr.name, h)
+            held[ChannelId(tr.name, "speed")] = (tr, h)
     out = []
     for f in findings:
-        name, h = held.pop(str(f.where), (None, None))
+        tr, h = held.pop(f.where, (None, None)) if isinstance(f.where, ChannelId) else (None, None)
         if h is None:
             out.append(f)
             continue
-        note = (f"{name}: the speed holds its first level until t = {h.opened:.4g} s and "
-                f"then falls {h.ratio:.3g}x as much as over the same time before, as a "
-                "coasting rotor cannot: if the armature was opened then, give "
-                f"trace['{name}'].opened = that time (in the trace's unit of time) or remove "
-                "the rows before it; a lagging speed sensor also holds its reading at first "
-                "(--add speed-lag)")
+        per_unit = float(to_si(np.array([1.0]), "time", tr.time_unit)[0])
+        opened = f"{h.opened / per_unit:.4g}"
+        note = (f"{tr.name}: the speed holds its first level until t = {opened} "
+                f"{tr.time_unit} and then falls {h.ratio:.3g}x as much as over the same time "
+                "before, as a coasting rotor cannot: if the armature was opened then, give "
+                f"trace['{tr.name}'].opened = {opened} or remove the rows before it; a "
+                "lagging speed sensor also holds its reading at first (--add speed-lag)")
         out.append(replace(f, suggestion="; ".join(x for x in (f.suggestion, note) if x)))
     return out
