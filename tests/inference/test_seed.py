@@ -74,16 +74,33 @@ def _chirp(t_end=0.4, n=400):
     return [[float(a), float(round(b, 4))] for a, b in zip(t, v, strict=True)]
 
 
+def _random_sequence(t_end=0.4, seed=5):
+    """Two voltages, 2 and 10 V, each held 2–10 ms (the motor's τ is 16 ms): a random
+    binary sequence none of whose levels settles."""
+    rng = np.random.default_rng(seed)
+    out, t, level = [], 0.0, 2.0
+    while t < t_end:
+        out.append([round(t, 6), level])
+        t, level = t + float(rng.uniform(0.002, 0.01)), 12.0 - level
+    return out
+
+
+@pytest.mark.parametrize(("rate", "voltage"), [
+    (2000.0, _chirp()), (2000.0, _chirp(n=399)), (2500.0, _chirp()), (1000.0, _chirp(n=100)),
+    (5000.0, _chirp(n=60)), (2000.0, _random_sequence()), (5000.0, _random_sequence(seed=6)),
+])
 @pytest.mark.parametrize("steady", [True, False])
-def test_a_swept_input_seeds_the_time_constant_from_its_integral_form(tmp_path, steady):
-    """A chirp on the independent bench: no level is held long enough to read a response
-    from, so τ (and without a steady table the gain) come from a first-order model
+def test_a_swept_input_seeds_the_time_constant_from_its_integral_form(tmp_path, steady, rate,
+                                                                      voltage):
+    """A chirp (of several sample rates and numbers of held levels) or a random binary
+    sequence on the independent bench: no response settles before the input next
+    changes, so τ (and without a steady table the gain) come from a first-order model
     fitted to the whole trace; J follows within a few per cent of the truth."""
     plan = {"seed": 3, "motor": {"name": "chirp motor", "friction": "viscous"},
             "truth": TRUTH, "rig": {}, "bench": {"Ra": {"sd": 0.05, "unit": "ohm"}},
             "steady_table": [STEADY] if steady else [],
             "trace": [_trace("sweep", kind="free-form", initial="rest", duration=0.4,
-                             voltage=_chirp())]}
+                             rate=rate, voltage=voltage)]}
     s = load_session(simulate_session(plan, tmp_path / "s"))
     cf = fit_seed(s)
     assert "'sweep' in integral form" in cf.used["tau"]

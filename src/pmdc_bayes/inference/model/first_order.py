@@ -17,7 +17,7 @@ import numpy as np
 
 __all__ = ["integral_fit", "first_order"]
 
-MIN_LEVELS = 3  # distinct input values a trace must hold to read τ from their mixture
+MIN_LEVELS = 2  # distinct input values a trace must hold to read τ from their mixture
 MIN_SAMPLES = 20
 
 
@@ -34,7 +34,8 @@ def _input_integral(schedule, t: np.ndarray) -> np.ndarray:
 def integral_fit(time: np.ndarray, speed: np.ndarray, voltage) -> tuple[float, float] | None:
     """``(τ, G)`` of the integral form (module docstring) fitted to a speed logged at
     ``time`` under the schedule ``voltage``; None when the fit gives no decay (τ not
-    positive, or outside two samples to ten times the record) or no gain."""
+    positive, or outside two samples to ten times the record) or no motor's gain (a
+    speed that does not follow its voltage's sign)."""
     ok = np.isfinite(speed)
     t, w = np.asarray(time, float)[ok], np.asarray(speed, float)[ok]
     if t.size < MIN_SAMPLES:
@@ -49,7 +50,7 @@ def integral_fit(time: np.ndarray, speed: np.ndarray, voltage) -> tuple[float, f
         return None
     tau, gain = -1.0 / coef[2], -coef[1] / coef[2]
     span = t[-1] - t[0]
-    if not (2.0 * float(np.median(np.diff(t))) < tau < 10.0 * span) or gain == 0.0:
+    if not (2.0 * float(np.median(np.diff(t))) < tau < 10.0 * span) or not gain > 0.0:
         return None
     return float(tau), float(gain)
 
@@ -72,6 +73,6 @@ def first_order(session) -> tuple[float, float, str] | None:
         if got is not None:
             tau, gain = got
             return (gain, tau, f"a first-order model fitted to trace {tr.name!r} in "
-                    "integral form (its input holds no level long enough to read a "
-                    "response from)")
+                    "integral form (no response to its input settles before the input next "
+                    "changes)")
     return None

@@ -6,18 +6,23 @@ from __future__ import annotations
 import numpy as np
 
 from ..._errors import NotApplicable, SessionError
+from ...io.robust import smallest_step
 from ...io.session import LA_ASSUMED
 from ...paper.changes import RESPONSE_SHARE, responses
 from ...paper.closed_form import ClosedForm, closed_form, j_from_tau, read_time_constant
 from ...physics.motor import gain
 from .first_order import first_order
 from .levels import settled, unloaded_levels, voltage_intercept
+from .noise import noise_scale
 
 __all__ = ["fit_seed", "seed_from_data", "motor_seed", "drop_seed",
            "FRICTION_SHARE"]
 
 FRICTION_SHARE = 0.1  # without a current, viscous friction is taken as this share of Ra·B + K²
 AT_REST = 0.02  # a steady level below this share of the largest is the motor at rest
+CLEAR_CHANGE = 10.0  # noise levels a response must move by to read its 63.2 % point
+MIN_RESPONSE = 20  # samples after a change to read its response from
+SHARE_MOVED = 0.25  # of its share of the voltage range a change's response moves the speed
 
 
 def fit_seed(session) -> ClosedForm:
@@ -41,63 +46,85 @@ def _holds(tr, r, which: str) -> bool:
 
 
 def _changes(session, held: bool = True) -> list:
-    """``(trace, response)`` for every change of a driven trace's voltage, largest first
-    over all traces, then every change of a load
-    (:func:`pmdc_bayes.paper.changes.responses`: each with the span until the next
-    change comparable to it); with ``held`` those after which the input holds
+    """``(trace, response, sign)`` for every change of a driven trace's voltage (sign
+    +1: the speed follows it), largest first over all traces, then every change of a
+    load (sign −1) (:func:`pmdc_bayes.paper.changes.responses`: each with the span until
+    the next change comparable to it); with ``held`` those after which the input holds
     (:func:`_holds`), else the others."""
     out = []
-    for which in ("voltage", "load_torque"):
-        out += sorted(((tr, r) for tr in session.traces for r in responses(tr, which)
+    for which, sign in (("voltage", 1.0), ("load_torque", -1.0)):
+        out += sorted(((tr, r, sign) for tr in session.traces for r in responses(tr, which)
                        if _holds(tr, r, which) == held),
                       key=lambda pair: -pair[1].size)
     return out
 
 
-def _read_changes(pairs) -> tuple[tuple[float, str] | None, tuple | None]:
+def _complete(read, tr, r, sign: float, t: np.ndarray, y: np.ndarray) -> bool:
+    """Whether a 63.2 % reading of the response ``y`` at ``t`` (of trace ``tr``) to the
+    change ``r`` is of a whole response: over :data:`MIN_RESPONSE` samples, its speed
+    moves the way the change drives it (``sign``) by :data:`CLEAR_CHANGE` noise levels (a
+    quantised speed's at least its quantum's) and, for a voltage's change, by at least
+    :data:`SHARE_MOVED` of the share of the trace's speed range that the change is of its
+    voltage range (a motor's speed follows its voltage in proportion once settled);
+    it settles, and reaches 63.2 % of its change within a third of the span after the
+    change (a first-order response is at 95 % after three τ; a ramp cut short, as a
+    sweep's or a short pulse's, crosses late)."""
+    after = y[t >= read.t_step]
+    moved = (read.final - read.initial) * sign * np.sign(r.after - r.before)
+    noise = max(noise_scale(y), smallest_step(y) / np.sqrt(12.0))
+    if after.size < MIN_RESPONSE or moved < CLEAR_CHANGE * noise:
+        return False
+    if sign > 0:
+        v, w = tr.voltage.at(tr.time), tr.speed[np.isfinite(tr.speed)]
+        if moved * np.ptp(v) < SHARE_MOVED * abs(r.after - r.before) * np.ptp(w):
+            return False
+    return bool(settled(after) and read.tau <= (t[-1] - read.t_step) / 3.0)
+
+
+def _read_changes(pairs) -> tuple[tuple[float, str] | None, list, tuple | None]:
     """The τ of the first of ``pairs`` whose response settles before the next change
-    comparable to it (else of the first that crosses 63.2 % of its change at all), and
-    the first failure to read one."""
+    comparable to it, the readings of those that cross 63.2 % of their change without
+    settling, and the first failure to read one."""
     readings, failure = [], None
-    for tr, r in pairs:
+    for tr, r, sign in pairs:
         t, y = tr.time[r.start:r.stop], tr.speed[r.start:r.stop]
         try:
-            tau = read_time_constant(t, y, t_step=r.time).tau
+            read = read_time_constant(t, y, t_step=r.time)
         except ValueError as exc:
             failure = failure or (tr, exc)
             continue
         where = f"63.2 % point of trace {tr.name!r} after its change at {r.time:g} s"
-        if settled(y[t >= r.time]):
-            return (tau, where), failure
-        readings.append((tau, where))
-    return (readings[0] if readings else None), failure
+        if _complete(read, tr, r, sign, t, y):
+            return (read.tau, where), readings, failure
+        readings.append((read.tau, where))
+    return None, readings, failure
 
 
 def _time_constant(session, toml) -> tuple[float, str]:
     """τ and where it was read: a step reading; the largest input change of a driven
-    trace whose response settles before the next change comparable to it (else the
-    largest that crosses 63.2 % of its change at all); a coast-down's 63.2 % decay
-    time; a first-order model fitted to a trace whose input varies; or, last, a change
-    after which the input does not hold."""
+    trace whose response settles before the next change comparable to it; a first-order
+    model fitted to a trace's whole record (:func:`.first_order.first_order`); a
+    coast-down's 63.2 % decay time; or, last, the 63.2 % point of the largest
+    response that does not settle (one after which the input holds, else any)."""
     if session.step_readings:
         return session.step_readings[0].tau, f"step reading {session.step_readings[0].name!r}"
-    got, failure = _read_changes(_changes(session))
+    got, unsettled, failure = _read_changes(_changes(session))
     if got is not None:
         return got
+    mixed = first_order(session)
+    if mixed is not None:
+        return mixed[1], mixed[2]
     for cd in session.coast_downs:
         try:
             return (read_time_constant(cd.time, cd.speed).tau,
                     f"63.2 % decay of coast-down {cd.name!r} (J/B, the viscous part)")
         except ValueError:
             continue
-    mixed = first_order(session)
-    if mixed is not None:
-        return mixed[1], mixed[2]
-    got, unheld = _read_changes(_changes(session, held=False))
-    if got is not None:
-        return got
-    if (failure or unheld) is not None:
-        tr, exc = failure or unheld
+    got, unheld, other = _read_changes(_changes(session, held=False))
+    if got is not None or unsettled or unheld:
+        return got or (unsettled + unheld)[0]
+    if (failure or other) is not None:
+        tr, exc = failure or other
         raise SessionError(tr.file, f"cannot read a time constant from trace {tr.name!r}: "
                            f"{exc}; log the response until the speed settles")
     raise SessionError(toml, "no response to read a time constant from: add a [[trace]] "
@@ -111,8 +138,8 @@ def _extrapolated(session, held: bool = True) -> tuple[float, float, str] | None
     first-order rise fitted to its response (the level it heads for and its time
     constant), for a session in which no level settles; None without one that rises at
     all."""
-    for tr, r in _changes(session, held):
-        if r.after == r.before or r.stop - r.start < 8:
+    for tr, r, sign in _changes(session, held):
+        if sign < 0 or r.after == r.before or r.stop - r.start < 8:
             continue
         t, y = tr.time[r.start:r.stop], tr.speed[r.start:r.stop]
         pre, post = t < r.time, t >= r.time
@@ -163,10 +190,11 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
     back-emf; the fit's priors are wide and the identifiability section says what the
     data decide).  τ is a step reading's, or the 63.2 % time of the response to the
     largest voltage (else load) change of any driven trace that settles before the next
-    change comparable to it, and J follows from (9);
-    with neither, J = B·τ from a coast-down's decay; without one, τ (and G where no
-    level settles) from a first-order model fitted to a trace whose input varies
-    (:func:`.first_order.first_order`).
+    change comparable to it (:func:`_complete`), and J follows from (9); with neither,
+    τ from a first-order model fitted to a trace's whole record
+    (:func:`.first_order.first_order`), else J = B·τ from a coast-down's decay.  Where
+    no level settles, G and τ come from that first-order model, else from a first-order
+    rise fitted to the largest voltage change's response.
     """
     toml = session.root / "session.toml"
     Ra, La = session.Ra.value, session.La.value
@@ -178,7 +206,7 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
         rows = _turning(unloaded_levels(session, with_drag=True, held=True)[0])
     extrapolated = None
     if not rows.size:  # no level settles: where the largest step's rise is heading
-        extrapolated = (_extrapolated(session) or first_order(session)
+        extrapolated = (first_order(session) or _extrapolated(session)
                         or _extrapolated(session, held=False))
         if extrapolated is None:
             raise SessionError(toml, "no steady speed to start the fit from: log a step "
@@ -202,7 +230,7 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
         used["B"] = "the same assumption"
     if extrapolated is not None:
         tau, used["tau"] = tau_x, where_x
-        used["K"] += "; the gain extrapolated from the same rise (no level settles)"
+        used["K"] += "; the gain read with τ (no level settles)"
     else:
         tau, used["tau"] = _time_constant(session, toml)
     if used["tau"].startswith("63.2 % decay"):  # a run-down: J/B, the circuit open
