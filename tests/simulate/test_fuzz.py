@@ -15,6 +15,7 @@ from pmdc_bayes.simulate.fuzz import (
     TRACE_SHAPES,
     column_reading,
     fuzz_files,
+    fuzz_motor,
     fuzz_plan,
     fuzz_session,
 )
@@ -90,19 +91,27 @@ def test_every_shape_loads_with_its_truth(tmp_path):
 def test_an_excitation_holds_no_level_long_enough_to_read_a_step_from(shape, tmp_path):
     """A sweep or a random sequence loads as a driven trace whose voltage stays within
     the motor's nominal range, changes many times and holds each level for well under
-    the mechanical time constant on the median, with both of its levels' signs where
-    it reverses."""
-    for seed in range(3):
+    the mechanical time constant on the median, and takes both signs in some sessions."""
+    reversed_ = 0
+    for seed in range(6):
         plan, _ = fuzz_plan(seed, shapes=(shape,))
         truth = plan["truth"]
         tau_m = truth["J"] * truth["Ra"] / (truth["K"] ** 2 + truth["Ra"] * truth["B"])
+        rng = np.random.default_rng(seed)  # the plan's first draws: its motor
+        nominal = fuzz_motor(rng, rng.uniform() < 0.3)[1]
         f = fuzz_session(seed, shapes=(shape,), out=tmp_path / f"{shape}{seed}")
         for tr in load_session(f.path).traces:
             changes = tr.voltage.change_times()
             assert changes.size >= 5
             assert np.median(np.diff(changes)) < tau_m
-            top = max(abs(x) for t in plan["trace"] for _, x in t["voltage"])
-            assert np.all(np.abs(tr.voltage.values) <= top + 1e-12)
+            assert np.all(np.abs(tr.voltage.values) <= nominal * (1.0 + 1e-9))
+            reversed_ += bool(tr.voltage.values.min() < 0.0 < tr.voltage.values.max())
+    assert reversed_ > 0
+
+
+def test_a_shape_the_fuzzer_does_not_know_is_refused_naming_those_it_does():
+    with pytest.raises(ValueError, match="unknown trace shape 'random'.*'random sequence'"):
+        fuzz_plan(0, shapes=("random",))
 
 
 def test_sizes_rates_and_noise_span_the_promised_ranges():

@@ -187,6 +187,10 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
     tau_m = truth["J"] * truth["Ra"] / (truth["K"] ** 2 + truth["Ra"] * truth["B"])
     features: set = set()
     pool = tuple(shapes or TRACE_SHAPES)
+    for shape in pool:
+        if shape not in TRACE_SHAPES + EXCITATION_SHAPES:
+            raise ValueError(f"unknown trace shape {shape!r}; use one of "
+                             f"{TRACE_SHAPES + EXCITATION_SHAPES}")
     kinds = [str(rng.choice(pool)) for _ in range(int(rng.integers(1, 4)))]
     if all(k == "coast-down" for k in kinds):
         kinds[0] = "step from rest"
