@@ -6,6 +6,7 @@ bootstrap at the MAP through the data's sensor path, or from the level's own noi
 from __future__ import annotations
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 from scipy.stats import norm
 from scipy.stats import t as student_t
 
@@ -33,7 +34,7 @@ def _as_logged(trace, w):
         return w
     t = np.asarray(trace.time, dtype=float)
     w = np.asarray(w, dtype=float)
-    angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
+    angle = cumulative_trapezoid(w, t, initial=0.0)
     angle = np.where(np.isfinite(trace.position), angle, np.nan)
     return speed_estimate(t, angle, speed_window(t, trace.position))
 
@@ -60,7 +61,7 @@ def _logged_speeds(model, k, tr, w, sigma, quantum, rng, rho=0.0):
             yield from block
         return
     t, ok = np.asarray(tr.time, float), np.isfinite(tr.position)
-    angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
+    angle = cumulative_trapezoid(w, t, initial=0.0)
     width = speed_window(t, tr.position)
     first = float(tr.position[ok][0])
     for block in replicates(angle[ok] + first, sigma, rng, quantum=tr.encoder_step,

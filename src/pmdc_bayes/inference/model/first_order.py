@@ -14,6 +14,7 @@ estimate: the fit starts from it and its priors are wide.
 from __future__ import annotations
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 
 __all__ = ["integral_fit", "first_order"]
 
@@ -40,7 +41,7 @@ def integral_fit(time: np.ndarray, speed: np.ndarray, voltage) -> tuple[float, f
     t, w = np.asarray(time, float)[ok], np.asarray(speed, float)[ok]
     if t.size < MIN_SAMPLES:
         return None
-    int_w = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
+    int_w = cumulative_trapezoid(w, t, initial=0.0)
     basis = np.column_stack([np.ones_like(t), _input_integral(voltage, t), int_w, t - t[0]])
     scale = np.max(np.abs(basis), axis=0)
     scale[scale == 0.0] = 1.0
@@ -65,8 +66,8 @@ def _readable(tr) -> bool:
             and np.unique(tr.load_torque.at(tr.time)).size == 1)
 
 
-def first_order(session) -> tuple[float, float, str] | None:
-    """``(G, τ, where)`` from the driven trace with the most samples that
+def first_order(session) -> tuple[float, float, str, object] | None:
+    """``(G, τ, where, trace)`` from the driven trace with the most samples that
     :func:`integral_fit` reads, G in rad/s per V; None without one."""
     for tr in sorted(filter(_readable, session.traces), key=lambda tr: -tr.n):
         got = integral_fit(tr.time, tr.speed, tr.voltage)
@@ -74,5 +75,5 @@ def first_order(session) -> tuple[float, float, str] | None:
             tau, gain = got
             return (gain, tau, f"a first-order model fitted to trace {tr.name!r} in "
                     "integral form (no response to its input settles before the input next "
-                    "changes)")
+                    "changes)", tr)
     return None

@@ -22,6 +22,9 @@ FRICTION_SHARE = 0.1  # without a current, viscous friction is taken as this sha
 AT_REST = 0.02  # a steady level below this share of the largest is the motor at rest
 CLEAR_CHANGE = 10.0  # noise levels a response must move by to read its 63.2 % point
 MIN_RESPONSE = 20  # samples after a change to read its response from
+STEP_SHARE = 0.5  # of a trace's voltage range, a change whose rise is read as a step's
+REACH = 2.0  # time constants a rise's level is extrapolated over, at most, per span seen
+RICH = 8  # input changes of a trace whose whole record reads better than one step's rise
 SHARE_MOVED = 0.25  # of its share of the voltage range a change's response moves the speed
 
 
@@ -134,13 +137,15 @@ def _time_constant(session, toml) -> tuple[float, str]:
 
 def _extrapolated(session, held: bool = True) -> tuple[float, float, str] | None:
     """The steady gain and τ of the largest voltage change of a driven trace with a
-    logged speed (after which the input holds, or with ``held`` False does not), from a
+    logged speed, a step (:data:`STEP_SHARE` of its voltage range or more; after which
+    the input holds, or with ``held`` False does not), from a
     first-order rise fitted to its response (the level it heads for and its time
-    constant), for a session in which no level settles; None without one that rises at
-    all."""
+    constant, at most :data:`REACH` times the span it is read over), for a session in
+    which no level settles; None without one that rises at all."""
     for tr, r, sign in _changes(session, held):
-        if sign < 0 or r.after == r.before or r.stop - r.start < 8:
-            continue
+        if (sign < 0 or r.stop - r.start < 8
+                or abs(r.after - r.before) < STEP_SHARE * np.ptp(tr.voltage.at(tr.time))):
+            continue  # not a step: a sweep's next level
         t, y = tr.time[r.start:r.stop], tr.speed[r.start:r.stop]
         pre, post = t < r.time, t >= r.time
         y0 = float(np.mean(y[pre])) if pre.any() else float(y[0])
@@ -160,8 +165,8 @@ def _extrapolated(session, held: bool = True) -> tuple[float, float, str] | None
             if best is None or cost < best[0]:
                 best = (cost, float(coef[0]), float(tau))
         _, delta, tau = best
-        if delta * (r.after - r.before) <= 0:
-            continue
+        if delta * (r.after - r.before) <= 0 or tau > REACH * tt[-1]:
+            continue  # falling, or a level extrapolated from too little of its rise
         return (delta / (r.after - r.before), tau,
                 f"a first-order rise fitted to trace {tr.name!r} after its change at "
                 f"{r.time:g} s (it does not settle)")
@@ -193,8 +198,9 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
     change comparable to it (:func:`_complete`), and J follows from (9); with neither,
     τ from a first-order model fitted to a trace's whole record
     (:func:`.first_order.first_order`), else J = B·τ from a coast-down's decay.  Where
-    no level settles, G and τ come from that first-order model, else from a first-order
-    rise fitted to the largest voltage change's response.
+    no level settles, G and τ come from that first-order model where its trace's input
+    changes :data:`RICH` times or more (a sweep, a random sequence), else from a
+    first-order rise fitted to the largest voltage step's response.
     """
     toml = session.root / "session.toml"
     Ra, La = session.Ra.value, session.La.value
@@ -206,13 +212,16 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
         rows = _turning(unloaded_levels(session, with_drag=True, held=True)[0])
     extrapolated = None
     if not rows.size:  # no level settles: where the largest step's rise is heading
-        extrapolated = (first_order(session) or _extrapolated(session)
-                        or _extrapolated(session, held=False))
+        mixed, rise = first_order(session), _extrapolated(session)
+        if rise is not None and (mixed is None
+                                 or mixed[3].voltage.change_times().size < RICH):
+            mixed = None  # a step's rise, where no trace holds a richer input
+        extrapolated = mixed or rise or _extrapolated(session, held=False)
         if extrapolated is None:
             raise SessionError(toml, "no steady speed to start the fit from: log a step "
                                "until the speed settles, or add a [[steady_table]]",
                                where="trace")
-        G, tau_x, where_x = extrapolated
+        G, tau_x, where_x = extrapolated[:3]
         rows = np.empty((0, 3))
     else:
         G = float(np.sum(rows[:, 0] * rows[:, 1]) / np.sum(rows[:, 0] ** 2))
@@ -230,7 +239,8 @@ def seed_from_data(session, reason: str = "") -> ClosedForm:
         used["B"] = "the same assumption"
     if extrapolated is not None:
         tau, used["tau"] = tau_x, where_x
-        used["K"] += "; the gain read with τ (no level settles)"
+        used["K"] += ("; the gain read with τ by the same first-order model" if mixed
+                      else "; the gain extrapolated from the same rise") + " (no level settles)"
     else:
         tau, used["tau"] = _time_constant(session, toml)
     if used["tau"].startswith("63.2 % decay"):  # a run-down: J/B, the circuit open
