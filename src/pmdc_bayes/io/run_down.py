@@ -8,8 +8,9 @@ whose time starts before 0 (an oscilloscope's, from its trigger), whose speed ho
 the trigger and then falls faster, starts before the armature was opened; fitted as a
 coast-down from its first row, its level start would be read as friction.  A lagging
 speed sensor's reading also holds at first, from the record's start, so a record whose
-speed begins to fall before 0, or one whose time starts at 0, is not judged: the search
-fits the lag.
+speed begins to fall before 0, or one whose time starts at 0, is not refused here: the
+search fits the lag, and where the fit misses such a hold the finding on its speed names
+the opening (:func:`hold_then_fall`, read by the adequacy checks).
 """
 
 from __future__ import annotations
