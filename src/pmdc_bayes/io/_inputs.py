@@ -10,7 +10,7 @@ from .position import edges_flag
 from .session import Schedule
 from .toml_tables import Table as _Table
 from .toml_tables import describe as _describe
-from .units import to_si
+from .units import to_si, unit_factor
 
 __all__ = ["schedule", "duty_scale", "duty_to_volts", "DUTY_UNITS", "SUPPLY"]
 
@@ -60,7 +60,7 @@ def schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray, start: 
                f"at {start:g} {tu}, and is constant over the samples; write the "
                "schedule's times on the time column's clock (a time column that does not "
                "start at 0 is read as written)")
-    per_second = 1.0 / float(to_si(np.array([1.0]), "time", tu)[0])  # 1000 for ms
+    per_second = 1.0 / unit_factor("time", tu)  # 1000 for ms
     if (changes and t_raw.size > 10 and not edges_flag(t) and per_second > 1.5
             and all(t_raw[0] < tk < t_raw[1] for tk in changes)
             and all(t_raw[1] < tk * per_second < t_raw[-1] for tk in changes)):

@@ -10,7 +10,7 @@ import numpy as np
 from .robust import departure, difference_sd
 from .session import Schedule
 from .toml_tables import Table as _Table
-from .units import to_si
+from .units import unit_factor
 
 __all__ = ["check_step_timing"]
 
@@ -52,7 +52,7 @@ def check_step_timing(t: _Table, time: np.ndarray, speed, voltage: Schedule,
     if moved - step < 10 * float(np.median(np.diff(time))) or np.any(
             (between > step) & (between < moved)):
         return
-    per = float(to_si(np.array([1.0]), "time", unit)[0])
+    per = unit_factor("time", unit)
     at, first = moved / per, step / per
     fix = (f"is the time column in ms? Then set units.time = \"ms\" and write the "
            f"schedule's times in ms ({first * 1000:g} for {first:g} s)" if unit == "s" else

@@ -31,7 +31,7 @@ from .run_down import check_run_down_start
 from .session import COAST_DOWN, Schedule, Trace
 from .toml_tables import Table as _Table
 from .toml_tables import describe as _describe
-from .units import to_si
+from .units import to_si, unit_factor
 
 __all__ = ["read_traces"]
 
@@ -89,7 +89,7 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
     """A trace's CSV file (at least 3 samples, strictly increasing in time; rows left
     out for a missing reading, :func:`._missing.without_missing`)."""
     path = root / t.string("file")
-    second = float(to_si(np.array([1.0]), "time", u["time"])[0])
+    second = unit_factor("time", u["time"])
     read = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}",
                         stamps=("time", second), missing=MISSABLE)
     check_column_units(path, cols, read, u, _TRACE_KINDS, t.where)
@@ -261,7 +261,7 @@ def _coast_down(t: _Table, root: Path) -> Trace:
     sensors.check_unused(t, u, cols)
     f = _read_trace_file(t, root, cols, u)
     time, speed, left_out = f.time, sensors.speed_si(t, f.raw["speed"], u), f.left_out
-    per_unit = float(to_si(np.array([1.0]), "time", u["time"])[0])
+    per_unit = unit_factor("time", u["time"])
     if "opened" in t.data:  # in the trace's unit of time, as its time column
         opened = t.number("opened") * per_unit
         step = float(np.median(np.diff(time)))

@@ -11,7 +11,7 @@ import numpy as np
 
 from ...io.channel import ChannelId
 from ...io.run_down import hold_then_fall
-from ...io.units import display_unit, to_si
+from ...io.units import display_unit, unit_factor
 from ...physics.limited import PHASES
 from .findings import Check, Finding, Severity
 
@@ -119,7 +119,7 @@ def coast_start_notes(model, findings: list) -> list:
         if h is None:
             out.append(f)
             continue
-        per_unit = float(to_si(np.array([1.0]), "time", tr.time_unit)[0])
+        per_unit = unit_factor("time", tr.time_unit)
         opened = f"{h.opened / per_unit:.4g}"
         note = (f"{tr.name}: the speed holds its first level until t = {opened} "
                 f"{tr.time_unit} and then falls {h.ratio:.3g}x as much as over the same time "

@@ -62,6 +62,12 @@ def _changes(session, held: bool = True) -> list:
     return out
 
 
+def _share(tr, r) -> float:
+    """The share of trace ``tr``'s voltage range that its voltage change ``r`` spans."""
+    span = float(np.ptp(tr.voltage.at(tr.time)))
+    return abs(r.after - r.before) / span if span > 0 else 0.0
+
+
 def _complete(read, tr, r, sign: float, t: np.ndarray, y: np.ndarray) -> bool:
     """Whether a 63.2 % reading of the response ``y`` at ``t`` (of trace ``tr``) to the
     change ``r`` is of a whole response: over :data:`MIN_RESPONSE` samples, its speed
@@ -77,10 +83,8 @@ def _complete(read, tr, r, sign: float, t: np.ndarray, y: np.ndarray) -> bool:
     noise = max(noise_scale(y), smallest_step(y) / np.sqrt(12.0))
     if after.size < MIN_RESPONSE or moved < CLEAR_CHANGE * noise:
         return False
-    if sign > 0:
-        v, w = tr.voltage.at(tr.time), tr.speed[np.isfinite(tr.speed)]
-        if moved * np.ptp(v) < SHARE_MOVED * abs(r.after - r.before) * np.ptp(w):
-            return False
+    if sign > 0 and moved < SHARE_MOVED * _share(tr, r) * np.ptp(tr.speed[np.isfinite(tr.speed)]):
+        return False
     return bool(settled(after) and read.tau <= (t[-1] - read.t_step) / 3.0)
 
 
@@ -144,7 +148,7 @@ def _extrapolated(session, held: bool = True) -> tuple[float, float, str] | None
     which no level settles; None without one that rises at all."""
     for tr, r, sign in _changes(session, held):
         if (sign < 0 or r.stop - r.start < 8
-                or abs(r.after - r.before) < STEP_SHARE * np.ptp(tr.voltage.at(tr.time))):
+                or _share(tr, r) < STEP_SHARE):
             continue  # not a step: a sweep's next level
         t, y = tr.time[r.start:r.stop], tr.speed[r.start:r.stop]
         pre, post = t < r.time, t >= r.time
