@@ -1,5 +1,6 @@
 """The joint MAP fit, its Laplace uncertainty, identifiability and the fit command."""
 
+import copy
 import json
 
 import jax
@@ -98,6 +99,7 @@ def test_demo_identifiability_does_not_flag_la(demo_fit):
     s, model, fit = demo_fit
     ident = identifiability(model, fit)
     assert not any(f.startswith("La is") for f in ident["findings"])
+    assert not any("speed sensor's scale" in f for f in ident["findings"])  # a known load
     assert "La" not in ident["prior_dominated"]
 
 
@@ -202,6 +204,20 @@ def test_speed_only_steps_flag_the_j_b_k_degeneracy():
             f"{name} is determined by its prior alone" in text), (name, text)
     assert "load step or a coast-down" in text
     assert "La is determined by the bench prior alone: no trace logs the current" in text
+    # a gain on a sensed speed is K/g, B/g², J/g² exactly: said while nothing fixes it
+    assert "The speed sensor's scale is taken as exact" in text
+    from pmdc_bayes.io.readings import Measurement
+    fixed = [dataclasses.replace(only_speed, bench={"J": Measurement(1e-5, 1e-6, "kg*m^2")}),
+             dataclasses.replace(only_speed, nuisances=("speed_gain",)),
+             dataclasses.replace(only_speed, traces=tuple(
+                 dataclasses.replace(tr, load_torque=dataclasses.replace(
+                     tr.load_torque, values=np.full(np.shape(tr.load_torque.values), 1e-3)))
+                 for tr in steps))]
+    for session in fixed:
+        other = copy.copy(model)
+        other.session = session
+        ident = identifiability(other, fit)
+        assert not any("speed sensor's scale" in f for f in ident["findings"])
 
 
 def test_optima_of_nearly_equal_density_span_the_uncertainty():

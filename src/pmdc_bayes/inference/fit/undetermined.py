@@ -63,6 +63,9 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
     la_finding = _la_finding(model, fit, "La" in prior_bound, ratio[names.index("La")])
     if la_finding:
         findings.append(la_finding)
+    scale = _speed_scale_finding(model.session)
+    if scale:
+        findings.append(scale)
     mech = [n for n in ("K", "B", "J", "Tc") if n in names]
     for a in range(len(mech)):
         for b in range(a + 1, len(mech)):
@@ -122,6 +125,31 @@ def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: f
     dt = min(tr.dt for tr in with_current)
     return (f"La is determined by {_la_prior(model)} alone: no trace samples the current fast "
             f"enough (τe = {tau_e * 1e3:.2g} ms, sampling {dt * 1e3:.3g} ms).")
+
+
+def _speed_scale_finding(session) -> str | None:
+    """That no reading of the session fixes the scale of a speed sensor, where its traces
+    read the speed from one (a tacho, a driver's output; not an encoder's counts): a gain
+    g on every logged speed fits as well as the true motor with K/g, B/g², J/g² and Tc/g
+    (Ra, La and the voltage equation unchanged), so K, B and J carry it.  A measured K,
+    B or J, a known load torque not proportional to the speed, or a fitted sensor gain
+    (``speed_gain``) breaks that; so does a steady reading's speed from another
+    instrument, which the session does not say."""
+    sensed = [tr for tr in session.traces
+              if tr.speed_logged and tr.position is None and tr.encoder_step == 0.0]
+    known_load = (
+        any(np.any(np.asarray(tr.load_torque.values) != 0.0) or tr.drag.constant != 0.0
+            or tr.drag.curved for tr in session.traces)
+        or any(op.load_torque != 0.0 for op in session.operating_points)
+        or any(np.any(tab.load_torque != 0.0) for tab in session.steady_tables))
+    if (not sensed or known_load or "speed_gain" in session.nuisances
+            or any(name in session.bench for name in ("K", "B", "J"))):
+        return None
+    return ("The speed sensor's scale is taken as exact: an error g in it (a tacho "
+            "constant a few per cent off) fits these data as well as the true motor, with "
+            "K/g, B/g² and J/g² in place of K, B and J, and Ra and La unchanged, so K, B "
+            "and J carry any such error. A measured K, B or J, a known load torque, or "
+            "speeds counted by an encoder fix the scale.")
 
 
 def _separate_hint(model: SessionModel, a: str, b: str) -> str:
