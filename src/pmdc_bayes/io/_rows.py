@@ -30,8 +30,9 @@ class Columns(NamedTuple):
         with a time column (no time to place them at), or a last line cut off mid-write.
     units : role -> the text of a row of units under the header, when there is one, and
         ``units_line`` its line.
-    whole_stamps : whether every cell of the time column is an integer as written (a
-        counter's or a sample number's, not a clock time, a duration or a decimal).
+    plain_stamps : whether the time column is written as plain numbers (not clock times
+        or durations), and ``whole_stamps`` whether as integers (a counter's or a sample
+        number's).
     """
 
     values: dict
@@ -40,6 +41,7 @@ class Columns(NamedTuple):
     units: dict = {}
     units_line: int | None = None
     whole_stamps: bool = False  # the time column written as integers (no point, no unit)
+    plain_stamps: bool = False  # the time column written as numbers (no clock, no unit)
 
 
 class _Row(NamedTuple):
@@ -183,8 +185,9 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
         out[stamped] = elapsed(out[stamped], stamps[1])
     elif "duration" in kinds:  # as written, in the column's unit
         out[stamped] = out[stamped] / stamps[1]
-    whole = kinds == {"plain"} and not fractional
-    return Columns(out, lines, tuple(skipped), units, units_line, whole)
+    plain = kinds == {"plain"}
+    return Columns(out, lines, tuple(skipped), units, units_line, plain and not fractional,
+                   plain)
 
 
 def _index(path, header, sep, wanted, asked_by, line) -> dict:

@@ -112,22 +112,29 @@ def _round_period(seconds: float) -> bool:
     return any(abs(mantissa / m - 1.0) <= 0.01 for m in (1.0, 2.0, 5.0, 10.0))
 
 
-def check_whole_time(path: Path, column: str, t_raw: np.ndarray, where: str) -> None:
-    """Refuse a time column written as integers with no unit given (none in
-    session.toml, its header or a row of units: the caller's to judge) that are at
-    least 1 apart: read as seconds its samples are seconds apart, as a motor's step is
-    not logged, while a logger's millisecond or microsecond counter (an Arduino's
-    ``millis()``, ``micros()``) or a sample count writes exactly that (``where``: the
-    trace's table in session.toml)."""
+SLOW_SAMPLES = 0.5  # s: samples this far apart log no motor's step
+
+
+def check_whole_time(path: Path, column: str, t_raw: np.ndarray, where: str, *,
+                     whole: bool = True) -> None:
+    """Refuse a time column written as plain numbers with no unit given (none in
+    session.toml, its header or a row of units: the caller's to judge) whose samples are
+    :data:`SLOW_SAMPLES` or more apart: read as seconds they are that many seconds apart,
+    as a motor's step is not logged, while a logger's millisecond or microsecond
+    counter (an Arduino's ``millis()``, ``micros()``, ``whole``) or its milliseconds as
+    decimals (``micros() / 1000.0``), or a sample count, write exactly that (``where``:
+    the trace's table in session.toml)."""
     finite = t_raw[np.isfinite(t_raw)]
-    if finite.size < 3 or np.any(finite != np.round(finite)):
+    if finite.size < 3:
         return
     step = float(np.median(np.diff(finite)))
-    if step < 1.0:
+    if step < SLOW_SAMPLES:
         return
-    raise SessionError(path, f"the time column {column!r} gives no unit and holds whole "
-                       f"numbers {step:g} apart: read as seconds, its samples are {step:g} s "
-                       "apart, as a logger's millisecond or microsecond counter or a sample "
-                       f"count would write them; set {where}.units.time = \"ms\" (or "
-                       "\"us\"; \"s\" if they are seconds), or, for a sample count, give "
+    written = (f"holds whole numbers {step:g} apart" if whole else
+               f"holds numbers {step:.3g} apart (the median)")
+    raise SessionError(path, f"the time column {column!r} gives no unit and {written}: read "
+                       f"as seconds, its samples are {step:.3g} s apart, as a logger's "
+                       "millisecond or microsecond counter or a sample count would write "
+                       f"them; set {where}.units.time = \"ms\" (or \"us\"; \"s\" if they "
+                       "are seconds), or, for a sample count, give "
                        "sample_rate and leave time out of columns", where="header")

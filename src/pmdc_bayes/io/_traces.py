@@ -112,9 +112,9 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
                      second, wrap_given="time_wrap" in t.data)
     if "time" in cols:
         check_date_serial(path, cols["time"], t_raw, second)
-        if read.whole_stamps and not time_unit_stated(t.data.get("units"), cols["time"],
+        if read.plain_stamps and not time_unit_stated(t.data.get("units"), cols["time"],
                                                       read.units):
-            check_whole_time(path, cols["time"], t_raw, t.where)
+            check_whole_time(path, cols["time"], t_raw, t.where, whole=read.whole_stamps)
     for role in ("speed", "position"):
         y = raw.get(role)
         if y is not None and np.all(y == y[0]):
