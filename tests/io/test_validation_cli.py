@@ -67,6 +67,15 @@ def _coarse_clock(d):
         f"{int(round(float(r[0]) * 100)) // 2 / 50:.2f},{r[1]},{r[2]}\n" for r in rows))
 
 
+def _long_format(d):
+    """One row per channel and time: each time written twice, the speed's and the
+    current's readings swapping columns on the second."""
+    lines = (d / "step.csv").read_text().splitlines()
+    rows = [x.split(",") for x in lines[1:]]
+    (d / "step.csv").write_text(lines[0] + "\n" + "".join(
+        f"{t},{w},{i}\n{t},{i},{w}\n" for t, w, i in rows))
+
+
 def _stray_stamp(d):
     """A second reading logged at line 20's time stamp (two readings under one stamp)."""
     lines = (d / "step.csv").read_text().splitlines(keepends=True)
@@ -175,6 +184,9 @@ CASES = [
     ("time-coarse-clock", _coarse_clock,
      ["step.csv:line 3", "not strictly increasing", "coarser than the sampling",
       "sample_rate = 100 "]),
+    ("time-long-format", _long_format,
+     ["step.csv:line 3", "not strictly increasing", "a long format: every time is written "
+      "2 times over", "give each channel a column of its own"]),
     ("time-stray-repeat", _stray_stamp,
      ["step.csv:line 21", "not strictly increasing", "(line 20)",
       "the time repeats the line before at line 21 only", "remove or mend it",

@@ -54,9 +54,22 @@ def check_increasing(path: Path, column: str | None, raw: dict, t_raw: np.ndarra
                "logger's millisecond stamps); if the rows are samples at a steady rate, "
                f"remove columns.time and give sample_rate = {rate:.4g} (Hz, the rows over "
                "the record's span), or log a finer time")
+        each = _repeats_each(t_raw)
+        if each:
+            fix += (f"; but if the file holds one row per channel and time (a long format: "
+                    f"every time is written {each} times over, a column naming the "
+                    "channel), give each channel a column of its own, one row per time")
     raise SessionError(path, f"time column {column!r} is not strictly increasing: "
                        f"{t_raw[k]:.12g} follows {t_raw[k - 1]:.12g} (line {lines[k - 1]}); "
                        f"{fix}", where=f"line {lines[k]}")
+
+
+def _repeats_each(t_raw: np.ndarray) -> int | None:
+    """The number of rows each time is written on, where every time but the last is
+    written on as many (2 or more); None where they differ."""
+    starts = np.flatnonzero(np.concatenate([[True], np.diff(t_raw) != 0]))
+    runs = np.diff(np.concatenate([starts, [t_raw.size]]))[:-1]
+    return int(runs[0]) if runs.size >= 3 and runs[0] >= 2 and np.all(runs == runs[0]) else None
 
 
 def _restarts(t_raw: np.ndarray, k: int) -> bool:
