@@ -129,6 +129,21 @@ def test_a_trace_counting_the_other_way_is_refused_before_the_fit():
 
 
 @pytest.mark.compiles
+def test_a_current_sensor_reading_off_zero_is_flagged():
+    """A Hall sensor's zero set wrong: every current reads 1 % of the inrush high, at
+    rest too.  Against a span the inrush sets the slow misfit is small, but the fit takes
+    it for noise several times the data's own: inadequate, not an answer with B off."""
+    import dataclasses
+
+    s = case_session()
+    offset = 0.01 * max(float(np.ptp(tr.current)) for tr in s.traces)
+    shifted = tuple(dataclasses.replace(tr, current=tr.current + offset) for tr in s.traces)
+    a = _verdict(dataclasses.replace(s, traces=shifted, steady_tables=()))
+    assert a.verdict == "inadequate", [f.message for f in a.findings]
+    assert any(f.check == "noise inflation" for f in a.failures()), a.failures()
+
+
+@pytest.mark.compiles
 def test_a_ripple_aliased_near_half_the_sampling_rate_is_named():
     """A PWM ripple sampled out of step with it: the current's residuals alternate from
     sample to sample; the likelihood's white noise is wrong, and the diagnosis says so

@@ -26,7 +26,8 @@ def test_a_weak_direction_names_a_dead_time_without_a_log():
     model = SimpleNamespace(
         prior_sd=np.ones(6),
         registry={n: _spec("identity" if n == "dead_time_step" else "log") for n in NAMES},
-        session=SimpleNamespace(traces=[SimpleNamespace(current=np.zeros(3), dt=1e-4)],
+        session=SimpleNamespace(traces=[SimpleNamespace(current=np.zeros(3), dt=1e-4,
+                                                        speed_logged=False)],
                                 coast_downs=(), nuisances=()))
     (finding,) = [f for f in identifiability(model, fit)["findings"] if "fix the combination" in f]
     assert "·log J" in finding and "·dead_time_step" in finding
@@ -36,7 +37,7 @@ def test_a_weak_direction_names_a_dead_time_without_a_log():
 def _log_model(names):
     """A Coulomb model of log-transformed parameters with one step trace logging the
     current fast."""
-    trace = SimpleNamespace(current=np.zeros(3), dt=1e-4, kind="step",
+    trace = SimpleNamespace(current=np.zeros(3), dt=1e-4, kind="step", speed_logged=False,
                             load_torque=SimpleNamespace(values=np.zeros(1)))
     session = SimpleNamespace(traces=[trace], coast_downs=(), nuisances=(),
                               La=SimpleNamespace(source=""))

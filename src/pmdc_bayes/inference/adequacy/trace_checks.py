@@ -6,9 +6,11 @@ them that jumps off its neighbours and back), residual whiteness (Ljung–Box), 
 inflation (the fitted against the model-free level) and the residual's correlation with
 the input.
 
-The first three can fail a model, each only when its effect is also material (a slow
-part or a jump above :data:`MATERIAL_FRACTION` of the span; a lag-1 autocorrelation
-below :data:`ANTI_CORRELATION`); the others warn.
+The first three and noise inflation can fail a model, each only when its effect is also
+material (a slow part or a jump above :data:`MATERIAL_FRACTION` of the span; a lag-1
+autocorrelation below :data:`ANTI_CORRELATION`; a fitted noise sd over
+:data:`MATERIAL_INFLATION` times the data's own, as a misfit small against a span a
+current's inrush sets leaves it); else inflation and the others warn.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ __all__ = ["channel_tests", "slow_ratio", "autocorrelation", "MATERIAL_FRACTION"
            "ANTI_CORRELATION"]
 
 ANTI_CORRELATION = -0.3  # a lag-1 autocorrelation this negative: not the assumed noise
+MATERIAL_INFLATION = 2.0  # a fitted noise sd this many times the data's own: a misfit
 
 
 def smoothing_window(n: int) -> int:
@@ -122,6 +125,10 @@ def channel_tests(channel, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, 
                            f"the noise is strongly anti-correlated (lag-1 autocorrelation "
                            f"{white['rho1']:.2f}), so it is not the white noise the "
                            "likelihood assumes"), p_anti, white["rho1"] < ANTI_CORRELATION)]
+    fails.append(Test(Finding(Check.NOISE_INFLATION, channel, Severity.FAIL, size,
+                              f"the fitted noise sd is x{inflation:.3g} the data's own: the "
+                              "model misses the data by more than their noise, and takes the "
+                              "misfit for noise"), p_infl, inflation > MATERIAL_INFLATION))
     if glitch is not None:
         fails.append(glitch)
         row["outlier_p"] = glitch.p_value

@@ -26,7 +26,8 @@ MAP through the data's sensor path).  The checks that can fail the model form on
 family, corrected by Holm's step-down so that a correct model is called inadequate in
 at most :data:`~.calibrate.FAMILY_LEVEL` of sessions; a check fails when the family
 rejects it *and* its effect is material (a systematic part above
-:data:`~.trace_checks.MATERIAL_FRACTION` of the span, ...).  The warnings are a family
+:data:`~.trace_checks.MATERIAL_FRACTION` of the span, a fitted noise sd above
+:data:`~.trace_checks.MATERIAL_INFLATION` times the data's own, ...).  The warnings are a family
 of their own at the same level.  Any failure makes the verdict "inadequate";
 :mod:`.diagnosis` says what the pattern suggests and lists the non-idealities the
 model lacks (``proposals``).

@@ -135,14 +135,15 @@ def _speed_scale_finding(session) -> str | None:
     B or J, a known load torque not proportional to the speed, or a fitted sensor gain
     (``speed_gain``) breaks that; so does a steady reading's speed from another
     instrument, which the session does not say."""
-    sensed = [tr for tr in session.traces
-              if tr.speed_logged and tr.position is None and tr.encoder_step == 0.0]
+    if not any(tr.speed_logged and tr.position is None and tr.encoder_step == 0.0
+               for tr in session.traces):
+        return None
     known_load = (
         any(np.any(np.asarray(tr.load_torque.values) != 0.0) or tr.drag.constant != 0.0
             or tr.drag.curved for tr in session.traces)
         or any(op.load_torque != 0.0 for op in session.operating_points)
         or any(np.any(tab.load_torque != 0.0) for tab in session.steady_tables))
-    if (not sensed or known_load or "speed_gain" in session.nuisances
+    if (known_load or "speed_gain" in session.nuisances
             or any(name in session.bench for name in ("K", "B", "J"))):
         return None
     return ("The speed sensor's scale is taken as exact: an error g in it (a tacho "
