@@ -57,23 +57,6 @@ def test_a_trace_that_ends_before_its_files_time_column_ends_there(session_dir):
     np.testing.assert_allclose(tr.time[-1], (STEP_N - tail - 1) * STEP_DT, atol=1e-12)
 
 
-def test_a_trace_that_begins_after_its_files_time_column_begins_there(session_dir):
-    """A file shared with a run that started first: this trace's cells are empty before
-    its first reading.  It begins there; those rows are not readings it missed."""
-    head, t0 = int(3 * MISSING_SHARE * STEP_N), 0.6
-    lines = ["t,speed_rpm,ia"]
-    for k in range(STEP_N):
-        t = k * STEP_DT
-        x = 0.0 if t < t0 else 1.0 - np.exp(-(t - t0) / 0.2)
-        cells = ("", "") if k < head else (f"{1000 * x:.3f}", f"{0.05 + 0.5 * (1 - x):.4f}")
-        lines.append(f"{t:.2f},{cells[0]},{cells[1]}")
-    (session_dir / "step.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
-    replace_once(session_dir / "session.toml", "[0.1, 6.0]", f"[{t0}, 6.0]")
-    tr = load_session(session_dir).trace("step")
-    assert tr.time.size == STEP_N - head and tr.rows_left_out == ()
-    np.testing.assert_allclose(tr.time[0], head * STEP_DT, atol=1e-12)
-
-
 def test_one_channel_ending_early_is_still_a_channel_missing_in_many_rows(session_dir):
     for line in range(STEP_N + 2 - int(3 * MISSING_SHARE * STEP_N), STEP_N + 2):
         set_csv_cell(session_dir / "step.csv", line, "ia", "")

@@ -18,21 +18,19 @@ MISSING_SHARE = 0.1  # at most this share of a trace's rows may be left out
 
 def without_missing(path: Path, raw: dict, t_raw: np.ndarray, lines: list, cols: dict):
     """``raw``, ``t_raw`` and ``lines`` without the rows where a channel's reading is
-    missing (NaN), and the file lines of those rows; the rows before the first and after
-    the last that hold any of the trace's readings (a trace that began after, or ended
-    before, the time column its file shares with a longer one) dropped, not counted as
-    missed.  More than :data:`MISSING_SHARE` of
+    missing (NaN), and the file lines of those rows; the rows after the last that holds
+    any of the trace's readings (a trace that ended before the time column its file
+    shares with a longer one) dropped, not counted as missed.  More than :data:`MISSING_SHARE` of
     the rows missing is an error naming the column that misses most (a channel logged at
     a lower rate than the trace, whose gaps would take the other channels' readings
     with them)."""
     gaps = {role: ~np.isfinite(raw[role]) for role in MISSABLE & raw.keys()}
     ended = np.logical_and.reduce(list(gaps.values())) if gaps else np.zeros(t_raw.size, bool)
-    start, end = (0, t_raw.size) if ended.all() else (
-        int(np.argmin(ended)), t_raw.size - int(np.argmin(ended[::-1])))
-    if (start, end) != (0, t_raw.size):  # the trace spans less of the time column it shares
-        raw = {role: v[start:end] for role, v in raw.items()}
-        t_raw, lines = t_raw[start:end], lines[start:end]
-        gaps = {role: g[start:end] for role, g in gaps.items()}
+    end = t_raw.size - int(np.argmin(ended[::-1])) if not ended.all() else t_raw.size
+    if end < t_raw.size:  # the trace ended before the time column its file shares
+        raw = {role: v[:end] for role, v in raw.items()}
+        t_raw, lines = t_raw[:end], lines[:end]
+        gaps = {role: g[:end] for role, g in gaps.items()}
     bad = np.zeros(t_raw.size, bool)
     for g in gaps.values():
         bad |= g
