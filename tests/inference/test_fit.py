@@ -209,6 +209,7 @@ def test_speed_only_steps_flag_the_j_b_k_degeneracy():
     from pmdc_bayes.io.readings import Measurement
     fixed = [dataclasses.replace(only_speed, bench={"J": Measurement(1e-5, 1e-6, "kg*m^2")}),
              dataclasses.replace(only_speed, nuisances=("speed_gain",)),
+             dataclasses.replace(only_speed, operating_points=s.operating_points),
              dataclasses.replace(only_speed, traces=tuple(
                  dataclasses.replace(tr, load_torque=dataclasses.replace(
                      tr.load_torque, values=np.full(np.shape(tr.load_torque.values), 1e-3)))

@@ -9,8 +9,10 @@ the input.
 The first three and noise inflation can fail a model, each only when its effect is also
 material (a slow part or a jump above :data:`MATERIAL_FRACTION` of the span; a lag-1
 autocorrelation below :data:`ANTI_CORRELATION`; a fitted noise sd over
-:data:`MATERIAL_INFLATION` times the data's own, as a misfit small against a span a
-current's inrush sets leaves it); else inflation and the others warn.
+:data:`MATERIAL_INFLATION` times the data's own, the excess over it
+:data:`MATERIAL_EXCESS` of the span at least, as a current sensor's offset leaves it
+against a span an inrush sets; never on an angle, whose integrated misfit dwarfs its
+quantum at any size); else inflation and the others warn.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ __all__ = ["channel_tests", "slow_ratio", "autocorrelation", "MATERIAL_FRACTION"
 
 ANTI_CORRELATION = -0.3  # a lag-1 autocorrelation this negative: not the assumed noise
 MATERIAL_INFLATION = 2.0  # a fitted noise sd this many times the data's own: a misfit
+MATERIAL_EXCESS = 0.005  # of the span, the sd the misfit adds to the data's own noise
 
 
 def smoothing_window(n: int) -> int:
@@ -128,7 +131,9 @@ def channel_tests(channel, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, 
     fails.append(Test(Finding(Check.NOISE_INFLATION, channel, Severity.FAIL, size,
                               f"the fitted noise sd is x{inflation:.3g} the data's own: the "
                               "model misses the data by more than their noise, and takes the "
-                              "misfit for noise"), p_infl, inflation > MATERIAL_INFLATION))
+                              "misfit for noise"), p_infl,
+                      inflation > MATERIAL_INFLATION and channel.signal != "position"
+                      and np.sqrt(max(sigma**2 - s0**2, 0.0)) > MATERIAL_EXCESS * span))
     if glitch is not None:
         fails.append(glitch)
         row["outlier_p"] = glitch.p_value

@@ -128,29 +128,34 @@ def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: f
 
 
 def _speed_scale_finding(session) -> str | None:
-    """That no reading of the session fixes the scale of a speed sensor, where its traces
-    read the speed from one (a tacho, a driver's output; not an encoder's counts): a gain
-    g on every logged speed fits as well as the true motor with K/g, B/g², J/g² and Tc/g
-    (Ra, La and the voltage equation unchanged), so K, B and J carry it.  A measured K,
-    B or J, a known load torque not proportional to the speed, or a fitted sensor gain
-    (``speed_gain``) breaks that; so does a steady reading's speed from another
-    instrument, which the session does not say."""
-    if not any(tr.speed_logged and tr.position is None and tr.encoder_step == 0.0
-               for tr in session.traces):
+    """That nothing in the session fixes the scale of the traces' speed sensor (a tacho,
+    a driver's output): a gain g on every logged speed fits as well as the true motor
+    with K/g, B/g², J/g² (and Tc/g), Ra, La and the voltage equation unchanged, so K, B
+    and J carry it.  What fixes it: a trace that counts its angle (an encoder), a
+    measured K, B or J, a steady reading (read by another instrument, without the
+    traces' gain), a known load torque that Tc or B cannot take up (one that changes
+    within a trace or from trace to trace, a curved drag; with viscous friction any);
+    with ``speed_gain`` fitted, its width says the same."""
+    traces = session.traces
+    if (not any(tr.speed_logged for tr in traces) or "speed_gain" in session.nuisances
+            or any(tr.position is not None or tr.encoder_step > 0.0 for tr in traces)
+            or any(name in session.bench for name in ("K", "B", "J"))
+            or session.operating_points or session.steady_tables or session.step_readings):
         return None
-    known_load = (
-        any(np.any(np.asarray(tr.load_torque.values) != 0.0) or tr.drag.constant != 0.0
-            or tr.drag.curved for tr in session.traces)
-        or any(op.load_torque != 0.0 for op in session.operating_points)
-        or any(np.any(tab.load_torque != 0.0) for tab in session.steady_tables))
-    if (known_load or "speed_gain" in session.nuisances
-            or any(name in session.bench for name in ("K", "B", "J"))):
+    constants = {float(v) for tr in traces
+                 for v in np.append(np.asarray(tr.load_torque.values, float), tr.drag.constant)}
+    changing = any(np.ptp(np.asarray(tr.load_torque.values, float)) > 0.0 or tr.drag.curved
+                   for tr in traces)
+    absorbed = constants <= {0.0} or (session.friction == "coulomb" and len(constants) == 1)
+    if changing or not absorbed:
         return None
+    tc = " and Tc/g" if session.friction == "coulomb" else ""
     return ("The speed sensor's scale is taken as exact: an error g in it (a tacho "
             "constant a few per cent off) fits these data as well as the true motor, with "
-            "K/g, B/g² and J/g² in place of K, B and J, and Ra and La unchanged, so K, B "
-            "and J carry any such error. A measured K, B or J, a known load torque, or "
-            "speeds counted by an encoder fix the scale.")
+            f"K/g, B/g² and J/g²{tc} in place of the motor's own, Ra and La unchanged, so "
+            "K, B and J carry any such error. A measured K, B or J, a steady reading, a "
+            "known load torque, or speeds counted by an encoder fix the scale; "
+            "`--add speed-gain` fits it, as wide as its prior.")
 
 
 def _separate_hint(model: SessionModel, a: str, b: str) -> str:
