@@ -128,7 +128,7 @@ def _round_period(seconds: float) -> bool:
 SLOW_SAMPLES = 0.5  # s: samples this far apart log no motor's step
 
 
-def check_whole_time(path: Path, column: str, t_raw: np.ndarray, where: str, *,
+def check_slow_time(path: Path, column: str, t_raw: np.ndarray, where: str, *,
                      whole: bool = True) -> None:
     """Refuse a time column written as plain numbers with no unit given (none in
     session.toml, its header or a row of units: the caller's to judge) whose samples are

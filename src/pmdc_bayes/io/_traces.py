@@ -14,7 +14,7 @@ from ._csv import read_columns
 from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
 from ._missing import MISSABLE, without_missing, without_repeats
 from ._step_timing import check_step_timing
-from ._time_order import check_date_serial, check_increasing, check_whole_time
+from ._time_order import check_date_serial, check_increasing, check_slow_time
 from ._units_row import check_column_units, time_unit_stated
 from .drag import check_curve_reach, read_drag
 from .held_levels import held_levels
@@ -114,7 +114,7 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
         check_date_serial(path, cols["time"], t_raw, second)
         if read.plain_stamps and not time_unit_stated(t.data.get("units"), cols["time"],
                                                       read.units):
-            check_whole_time(path, cols["time"], t_raw, t.where, whole=read.whole_stamps)
+            check_slow_time(path, cols["time"], t_raw, t.where, whole=read.whole_stamps)
     for role in ("speed", "position"):
         y = raw.get(role)
         if y is not None and np.all(y == y[0]):
