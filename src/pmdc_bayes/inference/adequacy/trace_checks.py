@@ -128,15 +128,15 @@ def channel_tests(channel, y, yhat, u, s0, sigma, rng, *, quantum=0.0, rho=0.0, 
                            f"the noise is strongly anti-correlated (lag-1 autocorrelation "
                            f"{white['rho1']:.2f}), so it is not the white noise the "
                            "likelihood assumes"), p_anti, white["rho1"] < ANTI_CORRELATION)]
+    if glitch is not None:
+        fails.append(glitch)
+        row["outlier_p"] = glitch.p_value
     fails.append(Test(Finding(Check.NOISE_INFLATION, channel, Severity.FAIL, size,
                               f"the fitted noise sd is x{inflation:.3g} the data's own: the "
                               "model misses the data by more than their noise, and takes the "
                               "misfit for noise"), p_infl,
                       inflation > MATERIAL_INFLATION and channel.signal != "position"
                       and np.sqrt(max(sigma**2 - s0**2, 0.0)) > MATERIAL_EXCESS * span))
-    if glitch is not None:
-        fails.append(glitch)
-        row["outlier_p"] = glitch.p_value
     warns = [Test(Finding(Check.RESIDUAL_WHITENESS, channel, Severity.WARN, size,
                            "the residuals are not white but the misfit is small; "
                            "intervals may be somewhat optimistic"), p_white),

@@ -114,9 +114,12 @@ class Adequacy:
 
 # -- the statistics --------------------------------------------------------------------
 def _data_fault(findings) -> bool:
-    """Whether some check fails and every one that does is one of :data:`DATA_FAULTS`."""
-    fails = [f.check for f in findings if f.failed]
-    return bool(fails) and all(c in DATA_FAULTS for c in fails)
+    """Whether some check fails and every one that does is one of :data:`DATA_FAULTS`,
+    or the noise inflation of a channel one of them fails (a bad reading inflates it)."""
+    fails = [f for f in findings if f.failed]
+    faulty = {f.where for f in fails if f.check in DATA_FAULTS}
+    return bool(faulty) and all(f.check in DATA_FAULTS or (
+        f.check is Check.NOISE_INFLATION and f.where in faulty) for f in fails)
 
 
 def _judge(tests: list, key: str) -> tuple[list, list]:
