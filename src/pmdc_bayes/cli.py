@@ -26,13 +26,13 @@ __all__ = ["main"]
 
 
 def _cmd_closed_form(args) -> int:
-    from .inference.model.reversal import refuse_reversed
+    from .inference.model.contradictions import refuse_contradictions
     from .io.loader import load_session
     from .paper.closed_form import closed_form
 
     _note_bundled(args.session)
     session = load_session(session_path(args.session))
-    refuse_reversed(session)  # before the method reads a wiring error as the motor
+    refuse_contradictions(session)  # before the method reads a wiring error as the motor
     cf = closed_form(session)
     code = _closed_form_warnings(cf)
     if args.json:

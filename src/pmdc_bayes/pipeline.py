@@ -19,8 +19,8 @@ from .inference import StageClock, announcing
 from .inference.adequacy.verdict import assess
 from .inference.fit.joint import fit_map
 from .inference.fit.undetermined import identifiability
+from .inference.model.contradictions import refuse_contradictions
 from .inference.model.objective import build_model
-from .inference.model.reversal import refuse_reversed
 from .inference.model.seed import fit_seed
 from .inference.warmup import WarmUp
 from .io.loader import load_session
@@ -115,7 +115,7 @@ def _map_stages(session: Session, options: FitOptions, fitted: Fitted | None,
             return fitted, identifiability(fitted.model, fitted.fit), warm
     with clock.stage("closed_form"):
         say("closed form (the paper's method), or a seed from the data")
-        refuse_reversed(session)
+        refuse_contradictions(session)
         cf = fit_seed(session)
     with clock.stage("map"):
         coulomb = None if options.friction is None else options.friction == "coulomb"

@@ -50,7 +50,7 @@ import math
 
 from ._x64 import x64
 from .candidate import Candidate, Fitted, Searched, Stop, nested_start
-from .inference.model.reversal import refuse_reversed
+from .inference.model.contradictions import refuse_contradictions
 from .io.session import Session
 from .search_state import SearchState
 from .terms import is_noise, label, model_table, ordered, terms_of
@@ -162,7 +162,7 @@ def run_search(session: Session, *, friction: str | None = None, seed: int = 0,
                max_fits: int = MAX_FITS, say=None, only_if_rejected: bool = False) -> Searched:
     """:func:`search_model`'s record and the chosen candidate's fit."""
     say = say or (lambda text: None)
-    refuse_reversed(session)
+    refuse_contradictions(session)
     if friction is not None:
         import dataclasses
 

@@ -119,13 +119,13 @@ def test_a_trace_counting_the_other_way_is_refused_before_the_fit():
     import dataclasses
 
     from pmdc_bayes._errors import SessionError
-    from pmdc_bayes.inference.model.reversal import refuse_reversed
+    from pmdc_bayes.inference.model.contradictions import refuse_contradictions
 
     session = case_session()
     traces = tuple(dataclasses.replace(tr, speed=-tr.speed)
                    if tr.name == "step_6v" else tr for tr in session.traces)
     with pytest.raises(SessionError, match="'step_6v' turns against its voltage"):
-        refuse_reversed(dataclasses.replace(session, traces=traces))
+        refuse_contradictions(dataclasses.replace(session, traces=traces))
 
 
 @pytest.mark.compiles

@@ -8,7 +8,8 @@ import shutil
 import pytest
 
 from pmdc_bayes._errors import SessionError
-from pmdc_bayes.inference.model.reversal import refuse_reversed, reversed_current, reversed_speed
+from pmdc_bayes.inference.model.contradictions import refuse_contradictions
+from pmdc_bayes.inference.model.reversal import reversed_current, reversed_speed
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.simulate.fuzz import fuzz_session
 
@@ -38,7 +39,7 @@ def test_a_trace_whose_sensor_is_reversed_is_named(speed_only, tmp_path):
     assert reversed_speed(load_session(d)) is None
     _negate(next(d.glob("tr0_*.csv")), "speed")
     with pytest.raises(SessionError) as err:
-        refuse_reversed(load_session(d))
+        refuse_contradictions(load_session(d))
     assert err.value.path.name.startswith("tr0_step_from_rest")
     assert "negate this file's speed column" in str(err.value)
 
@@ -60,7 +61,7 @@ def test_a_steady_table_written_with_the_other_sign_is_named(speed_only, tmp_pat
     shutil.copytree(speed_only, d)
     _negate(d / "steady.csv", "w")
     with pytest.raises(SessionError) as err:
-        refuse_reversed(load_session(d))
+        refuse_contradictions(load_session(d))
     assert err.value.path == d / "steady.csv"
     assert "negate its speed column" in str(err.value)
 
@@ -100,7 +101,7 @@ def test_a_current_sensor_wired_the_other_way_round_is_named(tmp_path, seed, tra
     assert reversed_current(load_session(d)) is None
     _negate(d / f"{trace}.csv", "ia")
     with pytest.raises(SessionError) as err:
-        refuse_reversed(load_session(d))
+        refuse_contradictions(load_session(d))
     assert err.value.path.name == f"{trace}.csv"
     assert "negate this file's current column" in str(err.value)
 

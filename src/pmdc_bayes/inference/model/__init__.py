@@ -12,13 +12,13 @@ import the rest.
 from ..._lazy import lazy_names
 
 __all__ = ["SessionModel", "build_model", "Registry", "ParamSpec", "Prior",
-           "motor_registry", "nuisance_specs", "fit_seed", "refuse_reversed",
+           "motor_registry", "nuisance_specs", "fit_seed", "refuse_contradictions",
            "Predictions", "Pointwise"]
 
 _LAZY = {"SessionModel": ".objective", "build_model": ".objective", "Registry":
          ".params", "ParamSpec": ".params", "Prior": ".params", "motor_registry":
          ".params", "nuisance_specs": ".nuisances", "fit_seed": ".seed",
-         "refuse_reversed": ".reversal", "Predictions": ".predictions", "Pointwise":
+         "refuse_contradictions": ".contradictions", "Predictions": ".predictions", "Pointwise":
          ".pointwise"}
 
 

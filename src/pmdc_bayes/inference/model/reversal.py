@@ -1,7 +1,7 @@
 """A session whose speed turns against its voltage (its leads or a sensor wired the other
 way round), found from its steady levels, or whose current swings against its voltage's
-changes (a current sensor wired the other way round): what :func:`refuse_reversed`
-refuses."""
+changes (a current sensor wired the other way round): what
+:func:`.contradictions.refuse_contradictions` refuses."""
 
 from __future__ import annotations
 
@@ -10,17 +10,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..._errors import SessionError
 from ...io.robust import difference_sd, smallest_step
 from ...paper.changes import AT_REST, responses
 from .levels import unloaded_levels
 
-__all__ = ["Reversal", "reversed_speed", "reversed_current", "refuse_reversed"]
+__all__ = ["Reversal", "reversed_speed", "reversed_current", "CLEAR_SWING"]
 
 
 class Reversal(NamedTuple):
-    """Where a session's speed turns against its voltage: ``file`` and ``where`` name
-    the place to mend (``where`` None for a whole file), ``why`` says so and how."""
+    """Where a session's readings contradict its inputs (a sensor wired the other way
+    round, a voltage late against the motor): ``file`` and ``where`` name the place to
+    mend (``where`` None for a whole file), ``why`` says so and how."""
 
     file: Path
     where: str | None
@@ -123,13 +123,3 @@ def _slows(tr, r) -> bool:
         return False
     settled = np.nanmean(after[-max(3, after.size // 10):]) - np.nanmean(before)
     return bool(np.sign(settled) == -np.sign(r.after - r.before))
-
-
-def refuse_reversed(session) -> None:
-    """Raise :class:`~pmdc_bayes.SessionError` where the session's speed turns against
-    its voltage (:func:`reversed_speed`) or a trace's current swings against
-    it (:func:`reversed_current`): no motor does that, and a fit would take
-    the wiring for noise.  Checked once per session, before its first fit."""
-    backwards = reversed_speed(session) or reversed_current(session)
-    if backwards is not None:
-        raise SessionError(backwards.file, backwards.why, where=backwards.where)
