@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .position import edges_flag
+from .position import direction_signs, edges_flag
 from .session import Schedule
 from .toml_tables import Table as _Table
 from .toml_tables import describe as _describe
 from .units import to_si, unit_factor
 
-__all__ = ["schedule", "duty_scale", "duty_to_volts", "DUTY_UNITS", "SUPPLY"]
+__all__ = ["schedule", "duty_scale", "duty_to_volts", "signed_voltage", "DUTY_UNITS", "SUPPLY"]
 
 DUTY_UNITS = {"1": 1.0, "%": 100.0}  # a voltage logged as a duty: its full scale
 SUPPLY = "supply_voltage"  # the key a duty is read against
@@ -108,3 +108,18 @@ def duty_to_volts(t: _Table, where: str, duty: np.ndarray, scale) -> np.ndarray:
         t.fail(where, f"a duty of {worst:g} is beyond full scale ({full:g}); check "
                "units.voltage (\"1\" for a fraction, \"%\", or \"pwm\" with pwm_full_scale)")
     return duty / full * supply
+
+
+def signed_voltage(t: _Table, path, voltage: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """A voltage column logged as a magnitude (a driver's PWM and direction pins: a duty,
+    or a voltage, and a direction bit) signed by the trace's ``direction`` column (1
+    forward; 0 or −1 backward).  A voltage column with negative readings is signed
+    already: refused, as the two would disagree on the sign."""
+    v = np.asarray(voltage, dtype=float)
+    negative = np.nonzero(np.isfinite(v) & (v < 0))[0]
+    if negative.size:
+        t.fail("columns.direction", f"the voltage column is signed already (row "
+               f"{negative[0] + 1} reads {v[negative[0]]:g}), where a direction column gives "
+               "the sign of a voltage logged as a magnitude; remove columns.direction")
+    return v * direction_signs(path, direction)
+

@@ -11,7 +11,7 @@ import numpy as np
 from .._errors import SessionError
 from . import _sensors as sensors
 from ._csv import read_columns
-from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule
+from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule, signed_voltage
 from ._missing import MISSABLE, without_missing, without_repeats
 from ._step_timing import check_step_timing
 from ._time_order import check_date_serial, check_increasing, check_slow_time
@@ -149,9 +149,10 @@ def _motion_columns(t: _Table, cols: dict, edges: bool) -> None:
     if "position_wrap" in t.data and "position" not in cols:
         t.fail("position_wrap", "is only read with a position column (columns.position); "
                "remove it")
-    if "direction" in cols and not edges:
-        t.fail("columns.direction", "a direction column belongs to an encoder-edge trace; set "
-               "edges = true, or remove it")
+    if "direction" in cols and not (edges or "voltage" in cols):
+        t.fail("columns.direction", "a direction column signs a voltage column logged as a "
+               "magnitude (add columns.voltage), or an encoder-edge trace's edges (set "
+               "edges = true); else remove it")
 
 
 def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: bool,
@@ -222,6 +223,8 @@ def _trace(t: _Table, root: Path) -> Trace:
         si["current"] = sensors.current_si(t, raw["current"], u)
     if "voltage" in raw and duty is not None:
         si["voltage"] = duty_to_volts(t, "columns.voltage", raw["voltage"], duty)
+    if "direction" in raw and not edges:  # a driver's PWM and direction pins
+        si["voltage"] = signed_voltage(t, path, si["voltage"], raw["direction"])
     inputs = {}
     for inp in ("voltage", "load_torque"):
         if inp in si:  # a duty is the command itself, exact however it moves

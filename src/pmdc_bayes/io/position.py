@@ -20,8 +20,8 @@ from .toml_tables import Table
 from .toml_tables import describe as _describe
 from .units import to_si
 
-__all__ = ["unwrap_time", "unwrap_position", "angle_si", "edge_angles", "speed_estimate",
-           "speed_window", "counts_step", "differenced_angle",
+__all__ = ["direction_signs", "unwrap_time", "unwrap_position", "angle_si", "edge_angles",
+           "speed_estimate", "speed_window", "counts_step", "differenced_angle",
            "SPEED_WINDOW", "WHOLE_COUNT", "edges_flag"]
 
 SPEED_WINDOW = 0.005  # half-width of the speed estimate's difference, as a share of the samples
@@ -149,16 +149,23 @@ def edge_angles(t: Table, path: Path, n: int, direction: np.ndarray | None) -> t
     forward edge into count k lies at k counts, a backward edge into count k at k + 1
     (the boundary it left by), so a rotor that turns back re-crosses the same angles."""
     q = counts_step(t, "an encoder-edge trace (edges = true)")
-    if direction is None:
-        steps = np.ones(n)
-    else:
-        bad = np.nonzero(~np.isin(direction, (-1.0, 0.0, 1.0)))[0]
-        if bad.size:
-            raise SessionError(path, f"direction {direction[bad[0]]:g} (row {bad[0] + 1}) is "
-                               "not 1 (forward), 0 or -1 (backward); write the decoder's "
-                               "direction bit")
-        steps = np.where(direction > 0, 1.0, -1.0)
+    steps = np.ones(n) if direction is None else direction_signs(path, direction)
+    if np.isnan(steps).any():
+        raise SessionError(path, f"no direction in row {int(np.argmax(np.isnan(steps))) + 1}"
+                           ": an edge's direction says which count it reached; write it")
     return q * (np.cumsum(steps) + (steps < 0)), q
+
+
+def direction_signs(path: Path, direction: np.ndarray) -> np.ndarray:
+    """A direction column as signs: +1 for 1 (forward), −1 for 0 or −1 (backward); NaN
+    where a row left it out.  Anything else is refused with its row."""
+    d = np.asarray(direction, dtype=float)
+    bad = np.nonzero(np.isfinite(d) & ~np.isin(d, (-1.0, 0.0, 1.0)))[0]
+    if bad.size:
+        raise SessionError(path, f"direction {d[bad[0]]:g} (row {bad[0] + 1}) is not 1 "
+                           "(forward), 0 or -1 (backward); write the driver's or the "
+                           "decoder's direction bit")
+    return np.where(np.isfinite(d), np.where(d > 0, 1.0, -1.0), np.nan)
 
 
 def edges_flag(t: Table) -> bool:

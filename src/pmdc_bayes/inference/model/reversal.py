@@ -52,14 +52,16 @@ def reversed_speed(session) -> Reversal | None:
         return Reversal(toml, None, (
             "the speed turns against the voltage at every steady level (a positive "
             "voltage, a negative speed): the motor's leads, or its speed sensor, are wired "
-            "the other way round; negate the speeds (or the voltages) and fit again"))
+            "the other way round; negate the speeds (or the voltages) and fit again"
+            + _magnitude_hint(session.traces)))
     name = next((g for g in names if g in reversed_ and g is not None), None)
     if name is not None:
         tr = next(t for t in session.traces if t.name == name)
         return Reversal(tr.file, None, (
             f"the speed of trace {name!r} turns against its voltage at every level it "
             "holds, where the rest of the session turns with it: its speed sensor is "
-            "wired the other way round; negate this file's speed column and fit again"))
+            "wired the other way round; negate this file's speed column and fit again"
+            + _magnitude_hint([tr])))
     tables = [t for t in session.steady_tables if np.any(t.load_torque == 0)]
     points = [p for p in session.operating_points if p.load_torque == 0]
     one_table = len(tables) == 1 and not points
@@ -68,6 +70,17 @@ def reversed_speed(session) -> Reversal | None:
         "the steady readings' speeds turn against their voltages, where the traces turn "
         "with theirs: the steady speeds are written with the other sign; negate "
         f"{'its speed column' if one_table else 'the steady speeds'} and fit again"))
+
+
+def _magnitude_hint(traces) -> str:
+    """Where a trace's logged voltage never goes negative: it may be a magnitude whose
+    sign a driver's direction pin gives, logged in a column of its own."""
+    if any(tr.voltage_logged and np.all(np.asarray(tr.voltage.values) >= 0)
+           for tr in traces):
+        return ("; or, where the voltage column is a magnitude (a PWM duty) and a driver's "
+                "direction pin gives its sign in another column, name that column "
+                "columns.direction")
+    return ""
 
 
 CLEAR_SWING = 10.0  # a current's swing this many of its noise's sds above it is clear

@@ -1,0 +1,103 @@
+"""A driver logged by its pins: the PWM duty (or a voltage) as a magnitude and a
+direction bit in a column of its own.  Named as ``columns.direction``, the bit signs the
+voltage, so a motor driven both ways reads as the signed column would; a column that is
+signed already, a bit that is neither 1, 0 nor -1, or a direction with no voltage column
+to sign is refused with the field and the fix."""
+
+import numpy as np
+import pytest
+
+from pmdc_bayes._errors import SessionError
+from pmdc_bayes.inference.model.reversal import reversed_speed
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.simulate.fuzz import fuzz_session
+
+COLUMNS = 'columns = { time = "t", speed = "speed", current = "ia", voltage = "va" }'
+UNITS = 'units = { time = "s", speed = "rad/s", current = "A", voltage = "V"'
+
+
+@pytest.fixture(scope="module")
+def both_ways(tmp_path_factory):
+    """An up-down step (to each sign of the voltage) logged with its signed voltage."""
+    d = tmp_path_factory.mktemp("direction") / "s"
+    fuzz_session(22, out=d, shapes=("up-down",))
+    return d
+
+
+def _as_pins(src, dst, *, duty: float | None = None, bit=lambda v: 1 if v >= 0 else 0,
+             declare: bool = True, signed: bool = False, name="tr0_up_down.csv") -> None:
+    """``src``'s session with its voltage column written as a magnitude (a duty in % of
+    ``duty`` volts, where given) and a ``dir`` column of ``bit``."""
+    dst.mkdir()
+    for f in src.iterdir():
+        if f.name != name:
+            (dst / f.name).write_bytes(f.read_bytes())
+    lines = (src / name).read_text().splitlines()
+    head = lines[0].split(",")
+    j = head.index("va")
+    out = [",".join([*head, "dir"])]
+    for line in lines[1:]:
+        cells = line.split(",")
+        v = float(cells[j])
+        m = v if signed else abs(v)
+        cells[j] = repr(m / duty * 100.0 if duty else m)
+        out.append(",".join([*cells, str(bit(v))]))
+    (dst / name).write_text("\n".join(out) + "\n")
+    toml = (src / "session.toml").read_text()
+    assert toml.count(COLUMNS) == 1 and toml.count(UNITS) == 1
+    if declare:
+        toml = toml.replace(COLUMNS, COLUMNS[:-2] + ', direction = "dir" }')
+    if duty:
+        toml = toml.replace(UNITS, f"supply_voltage = {duty!r}\n"
+                            + UNITS.replace('voltage = "V"', 'voltage = "%"'))
+    (dst / "session.toml").write_text(toml)
+
+
+@pytest.mark.parametrize("duty", [None, 90.0])
+def test_a_magnitude_and_its_direction_bit_read_as_the_signed_voltage(both_ways, tmp_path,
+                                                                     duty):
+    _as_pins(both_ways, tmp_path / "pins", duty=duty)
+    want = load_session(both_ways).traces[0].voltage
+    got = load_session(tmp_path / "pins").traces[0].voltage
+    assert want.values.min() < 0 < want.values.max()
+    np.testing.assert_allclose(got.times, want.times)
+    np.testing.assert_allclose(got.values, want.values, rtol=1e-9, atol=1e-12)
+
+
+def test_an_undeclared_direction_is_refused_as_a_reversal_naming_the_column(tmp_path):
+    """Without columns.direction a step driven in reverse reads a positive voltage and
+    a negative speed, where the steady table turns with its voltage: refused, the
+    trace and the fix named."""
+    name = "tr0_step_from_rest.csv"
+    fuzz_session(5, out=tmp_path / "s", shapes=("step from rest",), trace_current=True)
+    want = load_session(tmp_path / "s").traces[0].voltage
+    assert want.values.min() < 0 and reversed_speed(load_session(tmp_path / "s")) is None
+    _as_pins(tmp_path / "s", tmp_path / "pins", declare=False, name=name)
+    found = reversed_speed(load_session(tmp_path / "pins"))
+    assert found is not None and found.file.name == name
+    assert "name that column columns.direction" in found.why
+    _as_pins(tmp_path / "s", tmp_path / "declared", name=name)
+    assert reversed_speed(load_session(tmp_path / "declared")) is None
+
+
+@pytest.mark.parametrize(("kw", "says"), [
+    ({"signed": True}, "signed already"),
+    ({"bit": lambda v: 2 if v >= 0 else 0}, "direction 2 (row "),
+])
+def test_a_direction_that_cannot_sign_the_voltage_is_refused(both_ways, tmp_path, kw, says):
+    _as_pins(both_ways, tmp_path / "pins", **kw)
+    with pytest.raises(SessionError, match="direction") as err:
+        load_session(tmp_path / "pins")
+    assert says in str(err.value)
+
+
+def test_a_direction_with_no_voltage_column_is_refused(both_ways, tmp_path):
+    d = tmp_path / "pins"
+    _as_pins(both_ways, d)
+    toml = (d / "session.toml").read_text()
+    (d / "session.toml").write_text(toml.replace(', voltage = "va", direction = "dir" }',
+                                                 ', direction = "dir" }\nvoltage = '
+                                                 '[[0.0, 1.0]]'))
+    with pytest.raises(SessionError, match="columns.direction") as err:
+        load_session(d)
+    assert "add columns.voltage" in str(err.value)
