@@ -444,6 +444,7 @@ def _millis_as_decimals(ms: int) -> str:
     ("", "t", "{:.1f}".format, None, "holds numbers 10 apart (the median)"),
     ("", "t", _millis_as_decimals, None, "holds numbers 10 apart (the median)"),
     ('time = "ms", ', "t", str, 0.01, ""), ("", "t [s]", str, 10.0, ""),
+    ("", "time_s", str, 10.0, ""),
     ('time = "s", ', "t", "{:.1f}".format, 10.0, ""), ("", "t", _clock, 10.0, ""),
 ])
 def test_plain_numbers_far_apart_in_a_time_column_without_a_unit_are_not_read_as_seconds(
@@ -468,3 +469,33 @@ def test_plain_numbers_far_apart_in_a_time_column_without_a_unit_are_not_read_as
         load_session(session_dir)
     assert (f"step.csv:header: the time column 't' gives no unit and {said}" in str(err.value)
             and "set trace['step'].units.time = \"ms\"" in str(err.value))
+
+
+@pytest.mark.parametrize(("unit", "scale", "refused"), [
+    ("", 1000.0, True), ('voltage = "mV", ', 1000.0, False), ("", 1.0, False),
+    ('voltage = "V", ', 1000.0, False),
+])
+def test_a_voltage_column_of_thousands_without_a_unit_is_not_read_as_volts(
+        session_dir, unit, scale, refused):
+    """A 6 V step logged in millivolts (6000) under a header that names no unit, with
+    none in session.toml, would read as 6 kV: it is refused, naming the key to add;
+    given a unit, it is read in it (a kilovolt when the session says so)."""
+    lines = _rows(session_dir)
+    _write(session_dir, [lines[0] + ",va"] + [
+        line + "," + repr(scale * (6.0 if float(line.split(",")[0]) >= 0.1 else 0.0))
+        for line in lines[1:]])
+    toml = session_dir / "session.toml"
+    replace_once(toml, 'current = "ia" }', 'current = "ia", voltage = "va" }')
+    replace_once(toml, 'voltage = [[0.0, 0.0], [0.1, 6.0]]\n', "")
+    replace_once(toml, 'current = "A", voltage = "V" }', f'current = "A", {unit}}}'.replace(
+        ", }", " }"))
+    if refused:
+        with pytest.raises(SessionError) as err:
+            load_session(session_dir)
+        assert ("step.csv:header: the voltage column 'va' gives no unit and reads up to "
+                "6000" in str(err.value))
+        assert "set trace['step'].units.voltage = \"mV\"" in str(err.value)
+        return
+    v = load_session(session_dir).trace("step").voltage.values
+    want = 6.0 * (1000.0 if unit.endswith('"V", ') and scale > 1 else 1.0)
+    assert v.max() == pytest.approx(want)

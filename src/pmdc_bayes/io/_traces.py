@@ -15,7 +15,7 @@ from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule, signed_vol
 from ._missing import MISSABLE, without_missing, without_repeats
 from ._step_timing import check_step_timing
 from ._time_order import check_date_serial, check_increasing, check_slow_time
-from ._units_row import check_column_units, time_unit_stated
+from ._units_row import check_column_units, check_unstated_volts, unit_stated
 from .drag import check_curve_reach, read_drag
 from .held_levels import held_levels
 from .position import (
@@ -112,9 +112,12 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
                      second, wrap_given="time_wrap" in t.data)
     if "time" in cols:
         check_date_serial(path, cols["time"], t_raw, second)
-        if read.plain_stamps and not time_unit_stated(t.data.get("units"), cols["time"],
-                                                      read.units):
+        if read.plain_stamps and not unit_stated("time", t.data.get("units"), cols["time"],
+                                                 read.units):
             check_slow_time(path, cols["time"], t_raw, t.where, whole=read.whole_stamps)
+    if "voltage" in raw and not unit_stated("voltage", t.data.get("units"), cols["voltage"],
+                                            read.units):
+        check_unstated_volts(path, cols["voltage"], raw["voltage"], t.where)
     for role in ("speed", "position"):
         y = raw.get(role)
         if y is not None and np.all(y == y[0]):

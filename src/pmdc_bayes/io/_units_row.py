@@ -8,13 +8,15 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
+
 from .._errors import SessionError
 from ._inputs import SUPPLY
 from ._sensors import CONSTANT
 from .units import KINDS, unit_factor, unit_named
 
 __all__ = ["check_column_units", "check_units_row", "check_header_units", "header_unit",
-           "time_unit_stated"]
+           "unit_stated", "check_unstated_volts", "KILOVOLT"]
 
 
 def check_units_row(path: Path, cols: dict, row: dict, line: int | None, read_in: dict,
@@ -44,14 +46,15 @@ def header_unit(kind: str, name: str) -> str | None:
     """The unit of ``kind`` a column's header name gives: in brackets at its end
     (``time (ms)``, ``Speed [RPM]``), after a slash (``t/ms``, the quantity over its unit)
     or after its last underscore (``t_ms``, ``i_mA``; written exactly, and at least two
-    letters, so that ``I_a`` is a subscript, not amperes); None when it gives none."""
+    letters, so that ``I_a`` is a subscript, not amperes, but for a time's ``s``:
+    ``time_s``); None when it gives none."""
     found = _BRACKETED.search(name)
     if found:
         return unit_named(kind, found.group(1))
     for sep, shortest in (("/", 1), ("_", 2)):
         head, _, tail = name.partition(sep) if sep == "/" else name.rpartition(sep)
         tail = tail.strip()
-        if head.strip() and len(tail) >= shortest:
+        if head.strip() and (len(tail) >= shortest or (kind, tail) == ("time", "s")):
             named = unit_named(kind, tail, exact=True)
             if named is not None:
                 return named
@@ -114,10 +117,30 @@ def check_column_units(path: Path, cols: dict, read, read_in: dict, kinds: dict,
     check_units_row(path, cols, read.units, read.units_line, read_in, kinds, where)
 
 
-def time_unit_stated(given, name, row: dict) -> bool:
-    """Whether a trace's time column has a unit given: in session.toml (``given``, the
-    trace's ``units``), its header ``name`` or the file's row of units (``row``: role ->
-    text)."""
-    return bool((isinstance(given, dict) and "time" in given)
-                or (isinstance(name, str) and header_unit("time", name) is not None)
-                or unit_named("time", row.get("time", "")) is not None)
+def unit_stated(role: str, given, name, row: dict) -> bool:
+    """Whether a trace's column of ``role`` (its kind's name: ``time``, ``voltage``)
+    has a unit given: in session.toml (``given``, the trace's ``units``), its header
+    ``name`` or the file's row of units (``row``: role -> text)."""
+    return bool((isinstance(given, dict) and role in given)
+                or (isinstance(name, str) and header_unit(role, name) is not None)
+                or unit_named(role, row.get(role, "")) is not None)
+
+
+KILOVOLT = 1000.0  # no bench drives a permanent-magnet DC motor at a kilovolt
+
+
+def check_unstated_volts(path: Path, column: str, values, where: str) -> None:
+    """Refuse a voltage column with no unit given (the caller's to judge,
+    :func:`unit_stated`) that reads :data:`KILOVOLT` or more: read as volts it is a
+    kilovolt, as millivolts or a PWM timer's or an ADC's counts written as numbers are
+    (``where``: the trace's table in session.toml)."""
+    finite = np.abs(np.asarray(values, dtype=float))
+    finite = finite[np.isfinite(finite)]
+    if not finite.size or finite.max() < KILOVOLT:
+        return
+    top = float(finite.max())
+    raise SessionError(path, f"the voltage column {column!r} gives no unit and reads up to "
+                       f"{top:g}, {top / KILOVOLT:.3g} kV if these were volts: millivolts, "
+                       "or a PWM timer's or an ADC's counts, read so; set "
+                       f"{where}.units.voltage = \"mV\" (or \"pwm\" with pwm_full_scale "
+                       "and supply_voltage; \"V\" if they are volts)", where="header")
