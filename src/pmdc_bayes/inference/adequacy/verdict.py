@@ -27,8 +27,9 @@ family, corrected by Holm's step-down so that a correct model is called inadequa
 at most :data:`~.calibrate.FAMILY_LEVEL` of sessions; a check fails when the family
 rejects it *and* its effect is material (a systematic part above
 :data:`~.trace_checks.MATERIAL_FRACTION` of the span, a fitted noise sd above
-:data:`~.trace_checks.MATERIAL_INFLATION` times the data's own, ...).  The warnings are a family
-of their own at the same level.  Any failure makes the verdict "inadequate";
+:data:`~.trace_checks.MATERIAL_INFLATION` times the data's own, the excess over it
+:data:`~.trace_checks.MATERIAL_EXCESS` of the span at least, ...).  The warnings are a
+family of their own at the same level.  Any failure makes the verdict "inadequate";
 :mod:`.diagnosis` says what the pattern suggests and lists the non-idealities the
 model lacks (``proposals``).
 """
