@@ -66,3 +66,41 @@ def test_the_bench_simulators_sessions_do_not_move_early(tmp_path, seed):
         fuzz_session(seed, misspecified=what, out=d, between_samples=seed % 2 == 1)
         found = moves_early(load_session(d))
         assert found is None, (what, found)
+
+
+def test_a_run_down_that_ended_before_the_switch_on_is_not_early_motion(tmp_path):
+    """A record that opens on the motor running down from a previous run, at rest well
+    before the switch-on: its first readings are far from rest, the last ones before the
+    switch-on a level, not a motion."""
+    d = tmp_path / "s"
+    fuzz_session(5, out=d, shapes=("step from rest",))
+    csv = next(d.glob("tr0_*.csv"))
+    lines = csv.read_text().splitlines()
+    out = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        t = float(cells[0])
+        cells[1] = repr(float(cells[1]) + 500.0 * float(np.exp(-t / 0.004)))
+        out.append(",".join(cells))
+    csv.write_text("\n".join(out) + "\n")
+    session = load_session(d)
+    tr = session.traces[0]
+    first = tr.time < 0.3 * float(tr.voltage.change_times()[0])
+    assert np.median(tr.speed[first]) > 50.0  # the rest reading is off rest
+    assert moves_early(session) is None
+
+
+def test_a_late_schedule_is_named_in_session_toml(tmp_path):
+    """A voltage written in session.toml that switches on after the motor moves: the
+    schedule is the place to mend."""
+    d = tmp_path / "s"
+    fuzz_session(6, out=d, shapes=("step from rest",))
+    toml = (d / "session.toml").read_text()
+    was = "voltage = [[0, 0], [0.364267533, 5.46677]]"
+    assert toml.count(was) == 1
+    (d / "session.toml").write_text(toml.replace(was, was.replace("0.364267533", "0.52")))
+    with pytest.raises(SessionError) as err:
+        refuse_contradictions(load_session(d))
+    assert err.value.path == d / "session.toml"
+    assert err.value.where == "trace['tr0_step_from_rest'].voltage"
+    assert "before its scheduled voltage switches on" in str(err.value)

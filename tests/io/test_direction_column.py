@@ -81,14 +81,40 @@ def test_an_undeclared_direction_is_refused_as_a_reversal_naming_the_column(tmp_
 
 
 @pytest.mark.parametrize(("kw", "says"), [
-    ({"signed": True}, "signed already"),
-    ({"bit": lambda v: 2 if v >= 0 else 0}, "direction 2 (row "),
+    ({"signed": True}, "it is signed already"),
+    ({"bit": lambda v: 2 if v >= 0 else 0}, "direction 2 is not 1 (forward)"),
 ])
 def test_a_direction_that_cannot_sign_the_voltage_is_refused(both_ways, tmp_path, kw, says):
+    """With the line of the file that shows it."""
     _as_pins(both_ways, tmp_path / "pins", **kw)
     with pytest.raises(SessionError, match="direction") as err:
         load_session(tmp_path / "pins")
     assert says in str(err.value)
+    lines = (tmp_path / "pins" / "tr0_up_down.csv").read_text().splitlines()
+    cells = lines[int(err.value.where.removeprefix("line ")) - 1].split(",")
+    if "signed" in kw:
+        assert float(cells[-2]) < 0
+    else:
+        assert cells[-1] == "2"
+
+
+def test_a_measured_magnitude_reading_a_little_below_zero_at_rest_is_signed(both_ways,
+                                                                           tmp_path):
+    """A voltage measured as a magnitude whose zero sits a little below 0 V (an ADC's
+    offset, within its noise) is not a signed column."""
+    _as_pins(both_ways, tmp_path / "pins")
+    csv = tmp_path / "pins" / "tr0_up_down.csv"
+    lines = csv.read_text().splitlines()
+    noise = np.random.default_rng(3).normal(-0.03, 0.02, len(lines) - 1)
+    out = [lines[0]]
+    for line, e in zip(lines[1:], noise, strict=True):
+        cells = line.split(",")
+        cells[-2] = repr(float(cells[-2]) + float(e))
+        out.append(",".join(cells))
+    csv.write_text("\n".join(out) + "\n")
+    assert min(float(c.split(",")[-2]) for c in out[1:]) < 0
+    v = load_session(tmp_path / "pins").traces[0].voltage.values
+    assert v.min() < -1.0 < 1.0 < v.max()
 
 
 def test_a_direction_with_no_voltage_column_is_refused(both_ways, tmp_path):

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .position import direction_signs, edges_flag
+from .._errors import SessionError
+from .position import edges_flag
+from .robust import difference_sd
 from .session import Schedule
 from .toml_tables import Table as _Table
 from .toml_tables import describe as _describe
@@ -16,6 +18,8 @@ __all__ = ["schedule", "duty_scale", "duty_to_volts", "signed_voltage", "DUTY_UN
 
 DUTY_UNITS = {"1": 1.0, "%": 100.0}  # a voltage logged as a duty: its full scale
 SUPPLY = "supply_voltage"  # the key a duty is read against
+SIGNED_NOISE = 5.0  # a magnitude column's noise reads below zero by less than this many sds
+REST_SHARE = 0.02  # ... and its offset at rest by less than this share of its largest
 
 
 def schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray, start: float,
@@ -110,16 +114,20 @@ def duty_to_volts(t: _Table, where: str, duty: np.ndarray, scale) -> np.ndarray:
     return duty / full * supply
 
 
-def signed_voltage(t: _Table, path, voltage: np.ndarray, direction: np.ndarray) -> np.ndarray:
+def signed_voltage(path, voltage: np.ndarray, signs: np.ndarray, lines) -> np.ndarray:
     """A voltage column logged as a magnitude (a driver's PWM and direction pins: a duty,
-    or a voltage, and a direction bit) signed by the trace's ``direction`` column (1
-    forward; 0 or −1 backward).  A voltage column with negative readings is signed
-    already: refused, as the two would disagree on the sign."""
+    or a voltage, and a direction bit) signed by the trace's direction column's ``signs``
+    (:func:`.position.direction_signs`).  A column reading below zero by more than
+    :data:`SIGNED_NOISE` sds of its noise and :data:`REST_SHARE` of its largest reading
+    (a measured magnitude's zero offset) is signed already: refused, with its line
+    (``lines``: each row's), as the two would disagree on the sign."""
     v = np.asarray(voltage, dtype=float)
-    negative = np.nonzero(np.isfinite(v) & (v < 0))[0]
-    if negative.size:
-        t.fail("columns.direction", f"the voltage column is signed already (row "
-               f"{negative[0] + 1} reads {v[negative[0]]:g}), where a direction column gives "
-               "the sign of a voltage logged as a magnitude; remove columns.direction")
-    return v * direction_signs(path, direction)
-
+    top = float(np.nanmax(np.abs(v))) if np.isfinite(v).any() else 0.0
+    below = np.nonzero(v < -max(SIGNED_NOISE * difference_sd(v), REST_SHARE * top))[0]
+    if below.size:
+        k = below[0]
+        raise SessionError(path, f"the voltage column reads {v[k]:g} V here: it is signed "
+                           "already, where a direction column gives the sign of a voltage "
+                           "logged as a magnitude; remove columns.direction from "
+                           "session.toml (or log the magnitude)", where=f"line {lines[k]}")
+    return np.abs(v) * signs

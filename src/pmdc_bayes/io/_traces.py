@@ -20,7 +20,9 @@ from .drag import check_curve_reach, read_drag
 from .held_levels import held_levels
 from .position import (
     angle_si,
+    check_motion_columns,
     differenced_angle,
+    direction_signs,
     edge_angles,
     edges_flag,
     speed_estimate,
@@ -136,28 +138,6 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
     return _TraceFile(path, raw, t_raw, time, left_out, start, lines)
 
 
-def _motion_columns(t: _Table, cols: dict, edges: bool) -> None:
-    """A driven trace logs a speed, an angle, or one row per encoder edge."""
-    if edges:
-        for role in ("speed", "position", "voltage", "load_torque", "current"):
-            if role in cols:
-                t.fail(f"columns.{role}", "a trace with edges = true has one row per encoder "
-                       "edge (time and, optionally, direction); log the "
-                       f"{role} in a trace of its own" + (
-                           ", or give it as a schedule" if role in ("voltage", "load_torque")
-                           else ""))
-    elif "speed" not in cols and "position" not in cols:
-        t.fail("columns", 'no speed or position column; add columns.speed = "<header>" or '
-               'columns.position = "<header>", or set edges = true for one row per encoder edge')
-    if "position_wrap" in t.data and "position" not in cols:
-        t.fail("position_wrap", "is only read with a position column (columns.position); "
-               "remove it")
-    if "direction" in cols and not (edges or "voltage" in cols):
-        t.fail("columns.direction", "a direction column signs a voltage column logged as a "
-               "magnitude (add columns.voltage), or an encoder-edge trace's edges (set "
-               "edges = true); else remove it")
-
-
 def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: bool,
             voltage: Schedule, initial, left_out: tuple) -> dict:
     """The trace's time, speed and angle (SI), and the angle of one count.  An edge
@@ -179,7 +159,7 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
         else:
             out["speed"] = speed_estimate(time, out["position"])
         return out
-    angle, q = edge_angles(t, path, time.size, raw.get("direction"))
+    angle, q = edge_angles(t, time.size, raw.get("direction"))
     if initial == "rest":
         if not voltage.times[0] < time[0]:
             t.fail("voltage", "an encoder-edge trace starting at rest starts at its voltage "
@@ -211,7 +191,7 @@ def _trace(t: _Table, root: Path) -> Trace:
     cols = _columns(t, _COLUMNS)
     sensors.check_unused(t, u, cols)
     edges = edges_flag(t)
-    _motion_columns(t, cols, edges)
+    check_motion_columns(t, cols, edges)
     for inp in ("voltage", "load_torque"):
         if inp in cols and inp in t.data:
             t.fail(inp, f"{inp} is given both as a column (columns.{inp}) and as a schedule; "
@@ -219,7 +199,9 @@ def _trace(t: _Table, root: Path) -> Trace:
     if "voltage" not in cols and "voltage" not in t.data:
         t.fail("voltage", "no armature voltage given; add a column (columns.voltage = "
                "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
-    path, raw, t_raw, time, left_out, start, _ = _read_trace_file(t, root, cols, u)
+    path, raw, t_raw, time, left_out, start, lines = _read_trace_file(t, root, cols, u)
+    if "direction" in raw:  # a decoder's or a driver's direction bit, row by row
+        raw["direction"] = direction_signs(path, raw["direction"], lines)
     si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw
           if role == "load_torque" or (role == "voltage" and duty is None)}
     if "current" in raw:
@@ -227,7 +209,7 @@ def _trace(t: _Table, root: Path) -> Trace:
     if "voltage" in raw and duty is not None:
         si["voltage"] = duty_to_volts(t, "columns.voltage", raw["voltage"], duty)
     if "direction" in raw and not edges:  # a driver's PWM and direction pins
-        si["voltage"] = signed_voltage(t, path, si["voltage"], raw["direction"])
+        si["voltage"] = signed_voltage(path, si["voltage"], raw["direction"], lines)
     inputs = {}
     for inp in ("voltage", "load_torque"):
         if inp in si:  # a duty is the command itself, exact however it moves

@@ -20,9 +20,9 @@ from .toml_tables import Table
 from .toml_tables import describe as _describe
 from .units import to_si
 
-__all__ = ["direction_signs", "unwrap_time", "unwrap_position", "angle_si", "edge_angles",
-           "speed_estimate", "speed_window", "counts_step", "differenced_angle",
-           "SPEED_WINDOW", "WHOLE_COUNT", "edges_flag"]
+__all__ = ["check_motion_columns", "direction_signs", "unwrap_time", "unwrap_position",
+           "angle_si", "edge_angles", "speed_estimate", "speed_window", "counts_step",
+           "differenced_angle", "SPEED_WINDOW", "WHOLE_COUNT", "edges_flag"]
 
 SPEED_WINDOW = 0.005  # half-width of the speed estimate's difference, as a share of the samples
 WHOLE_COUNT = 0.05  # a differenced speed's counts per interval lie this close to whole numbers
@@ -142,30 +142,49 @@ def differenced_angle(t: Table, time: np.ndarray, speed: np.ndarray,
     return q * np.concatenate([[0.0], np.cumsum(np.rint(n))]), q
 
 
-def edge_angles(t: Table, path: Path, n: int, direction: np.ndarray | None) -> tuple:
+def edge_angles(t: Table, n: int, signs: np.ndarray | None) -> tuple:
     """The angle at each edge (rad) and the angle of one count: one count per row,
-    forward unless the ``direction`` column says backward (1 forward; 0 or −1
-    backward).  An edge is the boundary between two counts that the rotor crosses: a
+    forward unless the direction column's ``signs`` (:func:`direction_signs`) say
+    backward.  An edge is the boundary between two counts that the rotor crosses: a
     forward edge into count k lies at k counts, a backward edge into count k at k + 1
     (the boundary it left by), so a rotor that turns back re-crosses the same angles."""
     q = counts_step(t, "an encoder-edge trace (edges = true)")
-    steps = np.ones(n) if direction is None else direction_signs(path, direction)
-    if np.isnan(steps).any():
-        raise SessionError(path, f"no direction in row {int(np.argmax(np.isnan(steps))) + 1}"
-                           ": an edge's direction says which count it reached; write it")
+    steps = np.ones(n) if signs is None else signs
     return q * (np.cumsum(steps) + (steps < 0)), q
 
 
-def direction_signs(path: Path, direction: np.ndarray) -> np.ndarray:
-    """A direction column as signs: +1 for 1 (forward), −1 for 0 or −1 (backward); NaN
-    where a row left it out.  Anything else is refused with its row."""
+def direction_signs(path: Path, direction: np.ndarray, lines) -> np.ndarray:
+    """A direction column (1 forward; 0 or −1 backward) as signs, +1 or −1; anything
+    else is refused with its line of the file (``lines``: each row's)."""
     d = np.asarray(direction, dtype=float)
-    bad = np.nonzero(np.isfinite(d) & ~np.isin(d, (-1.0, 0.0, 1.0)))[0]
+    bad = np.nonzero(~np.isin(d, (-1.0, 0.0, 1.0)))[0]
     if bad.size:
-        raise SessionError(path, f"direction {d[bad[0]]:g} (row {bad[0] + 1}) is not 1 "
-                           "(forward), 0 or -1 (backward); write the driver's or the "
-                           "decoder's direction bit")
-    return np.where(np.isfinite(d), np.where(d > 0, 1.0, -1.0), np.nan)
+        raise SessionError(path, f"direction {d[bad[0]]:g} is not 1 (forward), 0 or -1 "
+                           "(backward); write the driver's or the decoder's direction bit",
+                           where=f"line {lines[bad[0]]}")
+    return np.where(d > 0, 1.0, -1.0)
+
+
+def check_motion_columns(t: Table, cols: dict, edges: bool) -> None:
+    """A driven trace logs a speed, an angle, or one row per encoder edge."""
+    if edges:
+        for role in ("speed", "position", "voltage", "load_torque", "current"):
+            if role in cols:
+                t.fail(f"columns.{role}", "a trace with edges = true has one row per encoder "
+                       "edge (time and, optionally, direction); log the "
+                       f"{role} in a trace of its own" + (
+                           ", or give it as a schedule" if role in ("voltage", "load_torque")
+                           else ""))
+    elif "speed" not in cols and "position" not in cols:
+        t.fail("columns", 'no speed or position column; add columns.speed = "<header>" or '
+               'columns.position = "<header>", or set edges = true for one row per encoder edge')
+    if "position_wrap" in t.data and "position" not in cols:
+        t.fail("position_wrap", "is only read with a position column (columns.position); "
+               "remove it")
+    if "direction" in cols and not (edges or "voltage" in cols):
+        t.fail("columns.direction", "a direction column signs a voltage column logged as a "
+               "magnitude (add columns.voltage), or an encoder-edge trace's edges (set "
+               "edges = true); else remove it")
 
 
 def edges_flag(t: Table) -> bool:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...io.robust import difference_sd, smallest_step
+from ...io.robust import MAD_SD, difference_sd, smallest_step
 from ...paper.changes import AT_REST
 from .reversal import CLEAR_SWING, Reversal
 
@@ -36,31 +36,35 @@ def _switch_on(tr) -> tuple[int, float] | None:
 
 
 def _lead(tr, y: np.ndarray, on: int, t_on: float) -> float | None:
-    """How long before ``t_on`` the reading ``y`` last stood clear of its rest reading
-    (the median of the first third before the switch-on) in every sample: beyond
-    :data:`~.reversal.CLEAR_SWING` sds of its noise (or of its quantum), and beyond what
-    the levels held before the switch-on would drive, pro rata to the swing after it.
-    None where fewer than :data:`EARLY_RUN` samples before the switch-on do so."""
+    """How long before ``t_on`` the reading ``y`` stood clear of its rest reading (the
+    median of the quietest third of the samples before the switch-on: a record may
+    open on a run-down from a previous run) in every sample, on the side its largest
+    swing after the switch-on takes: beyond :data:`~.reversal.CLEAR_SWING` sds of its
+    noise (the largest of its sample-to-sample noise, its quantum and its scatter in
+    that third, a slow noise's) and beyond what the levels held before the switch-on
+    would drive, pro rata to that swing.  None where fewer than :data:`EARLY_RUN`
+    samples before the switch-on do so."""
     y = np.asarray(y, dtype=float)
     before = np.nonzero(tr.time < t_on)[0]
-    if before.size < 3 * EARLY_RUN:
-        return None
-    rest = y[before[: before.size // 3]]
     after = y[tr.time >= t_on]
-    if not (np.isfinite(rest).any() and np.isfinite(after).any()):
+    if before.size < 3 * EARLY_RUN or not np.isfinite(after).any():
         return None
+    thirds = [y[k] for k in np.array_split(before, 3) if np.isfinite(y[k]).any()]
+    if not thirds:
+        return None
+    spread = [float(np.nanmedian(np.abs(r - np.nanmedian(r)))) for r in thirds]
+    rest = thirds[int(np.argmin(spread))]
     base = float(np.nanmedian(rest))
+    swing = after[np.nanargmax(np.abs(after - base))] - base
     values = np.asarray(tr.voltage.values, dtype=float)
     held = float(np.max(np.abs(values[:on]))) / abs(float(values[on]))
-    swing = float(np.nanmax(np.abs(after - base)))
-    allowed = CLEAR_SWING * max(difference_sd(y), smallest_step(y)) + 2.0 * held * swing
-    clear = np.abs(y[before] - base) > allowed
+    noise = max(difference_sd(y), smallest_step(y), MAD_SD * min(spread))
+    allowed = CLEAR_SWING * noise + 2.0 * held * abs(float(swing))
+    clear = (y[before] - base) * np.sign(swing) > allowed
     if clear.all():  # no rest reading to move from
         return None
     run = int(np.argmin(clear[::-1]))  # the samples clear in a row up to the switch-on
-    if run < EARLY_RUN:
-        return None
-    return t_on - float(tr.time[before[before.size - run]])
+    return t_on - float(tr.time[before[before.size - run]]) if run >= EARLY_RUN else None
 
 
 def moves_early(session) -> Reversal | None:
@@ -78,13 +82,22 @@ def moves_early(session) -> Reversal | None:
                            ("current", tr.current)):
             lead = None if y is None else _lead(tr, y, *found)
             if lead is not None:
-                given = "logged" if tr.voltage_logged else "scheduled"
-                return Reversal(tr.file, None, (
-                    f"the {channel} of trace {tr.name!r} moves at least {lead:.2g} s before its "
-                    f"{given} voltage switches on from rest: the voltage is late against "
-                    "the motor's readings (a supply's read-back, a logger that writes "
-                    "the command after applying it, a schedule on another clock); log "
-                    "the command itself, or move the voltage's switch-on that much earlier "
-                    "(or more: the readings stand clear of their noise only some time "
-                    "after the motor starts), and fit again"))
+                return _refusal(session, tr, channel, lead)
     return None
+
+
+def _refusal(session, tr, channel: str, lead: float) -> Reversal:
+    """The place to mend (the trace's file for a logged voltage, its schedule in
+    session.toml for a written one) and why."""
+    said = (f"the {channel} of trace {tr.name!r} moves at least {lead:.2g} s before its "
+            f"{'logged' if tr.voltage_logged else 'scheduled'} voltage switches on from "
+            "rest: the voltage is late against the motor's readings")
+    more = "(or more: the readings stand clear of their noise only after the motor starts)"
+    if tr.voltage_logged:
+        return Reversal(tr.file, None, (
+            f"{said} (a supply's read-back, a logger that writes the command after "
+            "applying it); log the command itself, or move the voltage's switch-on that "
+            f"much earlier {more}, and fit again"))
+    return Reversal(session.root / "session.toml", f"trace[{tr.name!r}].voltage", (
+        f"{said} (a schedule on another clock, or a switch-on time misread); move the "
+        f"schedule's switch-on that much earlier {more}, and fit again"))
