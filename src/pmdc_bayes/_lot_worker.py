@@ -2,9 +2,11 @@
 process as it starts, and again in one the nanny restarts).
 
 A Ctrl-C at the terminal reaches every process of its group: the workers ignore it,
-and log only Dask's errors, so that a worker's own interrupt or its warnings about the
-work the command then cancels are not printed; the command stops the lot and closes
-its workers (:func:`pmdc_bayes.lot.run_lot`).
+and log only Dask's critical messages, so that a worker's own interrupt, its warnings
+about the work the command then cancels and its errors on finding the scheduler gone
+while it is closed are not printed; the command stops the lot and closes its workers
+(:func:`pmdc_bayes.lot.run_lot`).  A motor whose fit fails in a worker reaches the
+command as its future's exception, and is reported there.
 """
 
 from __future__ import annotations
@@ -20,4 +22,5 @@ def dask_setup(worker) -> None:
     """Called by Dask with the worker it sets up."""
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-    logging.getLogger("distributed").setLevel(logging.ERROR)
+    for name in ("distributed", "tornado"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
