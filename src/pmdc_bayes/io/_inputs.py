@@ -8,7 +8,7 @@ import numpy as np
 
 from .._errors import SessionError
 from .position import edges_flag
-from .robust import difference_sd
+from .robust import AT_REST, difference_sd
 from .session import Schedule
 from .toml_tables import Table as _Table
 from .toml_tables import describe as _describe
@@ -19,7 +19,6 @@ __all__ = ["schedule", "duty_scale", "duty_to_volts", "signed_voltage", "DUTY_UN
 DUTY_UNITS = {"1": 1.0, "%": 100.0}  # a voltage logged as a duty: its full scale
 SUPPLY = "supply_voltage"  # the key a duty is read against
 SIGNED_NOISE = 5.0  # a magnitude column's noise reads below zero by less than this many sds
-REST_SHARE = 0.02  # ... and its offset at rest by less than this share of its largest
 
 
 def schedule(t: _Table, key: str, u: dict, kind: str, t_raw: np.ndarray, start: float,
@@ -118,12 +117,12 @@ def signed_voltage(path, voltage: np.ndarray, signs: np.ndarray, lines) -> np.nd
     """A voltage column logged as a magnitude (a driver's PWM and direction pins: a duty,
     or a voltage, and a direction bit) signed by the trace's direction column's ``signs``
     (:func:`.position.direction_signs`).  A column reading below zero by more than
-    :data:`SIGNED_NOISE` sds of its noise and :data:`REST_SHARE` of its largest reading
+    :data:`SIGNED_NOISE` sds of its noise and :data:`AT_REST` of its largest reading
     (a measured magnitude's zero offset) is signed already: refused, with its line
     (``lines``: each row's), as the two would disagree on the sign."""
     v = np.asarray(voltage, dtype=float)
     top = float(np.nanmax(np.abs(v))) if np.isfinite(v).any() else 0.0
-    below = np.nonzero(v < -max(SIGNED_NOISE * difference_sd(v), REST_SHARE * top))[0]
+    below = np.nonzero(v < -max(SIGNED_NOISE * difference_sd(v), AT_REST * top))[0]
     if below.size:
         k = below[0]
         raise SessionError(path, f"the voltage column reads {v[k]:g} V here: it is signed "

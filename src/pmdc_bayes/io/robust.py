@@ -9,11 +9,12 @@ from math import comb, sqrt
 
 import numpy as np
 
-__all__ = ["MAD_SD", "CONSECUTIVE", "difference_sd", "smooth", "smallest_step",
-           "noise_floor", "first_run", "departure"]
+__all__ = ["MAD_SD", "CONSECUTIVE", "AT_REST", "difference_sd", "smooth", "smallest_step",
+           "noise_floor", "resolution", "first_run", "departure"]
 
 MAD_SD = 1.482602218505602  # sd of a normal variable per median absolute deviation
 CONSECUTIVE = 3  # samples in a row beyond a threshold that count as having left a level
+AT_REST = 0.02  # a level below this share of a signal's largest is its rest (0 V, no speed)
 
 
 def difference_sd(values, order: int = 1) -> float:
@@ -67,6 +68,13 @@ def noise_floor(values, order: int = 1) -> float:
     rounding noise ``q/√12`` of its smallest step (a quantised signal whose readings
     mostly repeat has no differences to read its noise from)."""
     return max(difference_sd(values, order), smallest_step(values) / sqrt(12.0))
+
+
+def resolution(values) -> float:
+    """The smallest change a signal's readings resolve: the sd of its noise,
+    :func:`difference_sd`, or its smallest step if larger (a quantised reading moves by
+    whole steps, whatever its noise)."""
+    return max(difference_sd(values), smallest_step(values))
 
 
 def first_run(beyond: np.ndarray, n: int = CONSECUTIVE) -> int | None:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import median_filter
 
-from ..io.robust import MAD_SD
+from ..io.robust import AT_REST, MAD_SD
 
 __all__ = ["WINDOW", "CHANGE_OVER_NOISE", "RESPONSE_SHARE", "AT_REST", "Plateau", "Response",
            "plateaus", "responses"]
@@ -28,7 +28,6 @@ __all__ = ["WINDOW", "CHANGE_OVER_NOISE", "RESPONSE_SHARE", "AT_REST", "Plateau"
 WINDOW = 9  # samples of the running median a logged input is read through
 CHANGE_OVER_NOISE = 8.0  # a logged input's change stands this far above its median's noise
 RESPONSE_SHARE = 0.25  # a later change this share of the one read ends its response
-AT_REST = 0.02  # a trace started at rest on a level below this share of its largest: 0 V
 
 
 @dataclass(frozen=True)

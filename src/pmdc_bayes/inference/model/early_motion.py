@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...io.robust import MAD_SD, difference_sd, smallest_step
+from ...io.robust import MAD_SD, resolution
 from ...paper.changes import AT_REST
 from .reversal import CLEAR_SWING, Reversal
 
@@ -58,7 +58,7 @@ def _lead(tr, y: np.ndarray, on: int, t_on: float) -> float | None:
     swing = after[np.nanargmax(np.abs(after - base))] - base
     values = np.asarray(tr.voltage.values, dtype=float)
     held = float(np.max(np.abs(values[:on]))) / abs(float(values[on]))
-    noise = max(difference_sd(y), smallest_step(y), MAD_SD * min(spread))
+    noise = max(resolution(y), MAD_SD * min(spread))
     allowed = CLEAR_SWING * noise + 2.0 * held * abs(float(swing))
     clear = (y[before] - base) * np.sign(swing) > allowed
     if clear.all():  # no rest reading to move from

@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...io.robust import difference_sd, smallest_step
+from ...io.robust import resolution
 from ...paper.changes import AT_REST, responses
 from .levels import unloaded_levels
 
@@ -94,14 +94,14 @@ def reversed_current(session) -> Reversal | None:
     ``ΔTL/(K + B·Ra/K)`` higher, where its speed falls as a load's does), so a trace
     whose current falls on every step up reads it through a sensor wired the other way
     round.  None when every trace's current
-    follows its inputs, or none swings clearly (by :data:`CLEAR_SWING` sds of its
-    sample-to-sample noise, and as many of its smallest steps, a quantised reading's)."""
+    follows its inputs, or none swings clearly (by :data:`CLEAR_SWING` times its
+    :func:`~pmdc_bayes.io.robust.resolution`: its noise's sd, or a quantised reading's
+    step)."""
     for tr in session.traces:
         if tr.current is None or tr.n < 8:
             continue
         current = np.asarray(tr.current, float)
-        clear = CLEAR_SWING * max(difference_sd(current),  # a quantised reading's steps,
-                                  smallest_step(current))  # not its noise
+        clear = CLEAR_SWING * resolution(current)
         against = []
         for which in ("voltage", "load_torque"):
             for r in responses(tr, which):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..._errors import NotApplicable, SessionError
-from ...io.robust import smallest_step
+from ...io.robust import AT_REST, smallest_step
 from ...io.session import LA_ASSUMED
 from ...paper.changes import RESPONSE_SHARE, responses
 from ...paper.closed_form import ClosedForm, closed_form, j_from_tau, read_time_constant
@@ -19,7 +19,6 @@ __all__ = ["fit_seed", "seed_from_data", "motor_seed", "drop_seed",
            "FRICTION_SHARE"]
 
 FRICTION_SHARE = 0.1  # without a current, viscous friction is taken as this share of Ra·B + K²
-AT_REST = 0.02  # a steady level below this share of the largest is the motor at rest
 CLEAR_CHANGE = 10.0  # noise levels a response must move by to read its 63.2 % point
 MIN_RESPONSE = 20  # samples after a change to read its response from
 STEP_SHARE = 0.5  # of a trace's voltage range, a change whose rise is read as a step's
