@@ -499,3 +499,33 @@ def test_a_voltage_column_of_thousands_without_a_unit_is_not_read_as_volts(
     v = load_session(session_dir).trace("step").voltage.values
     want = 6.0 * (1000.0 if unit.endswith('"V", ') and scale > 1 else 1.0)
     assert v.max() == pytest.approx(want)
+
+
+@pytest.mark.parametrize(("units", "header", "refused"), [
+    ('units = { speed = "rad/s" }', "Va,w", True),
+    ('units = { voltage = "mV", speed = "rad/s" }', "Va,w", False),
+    ('units = { speed = "rad/s" }', "Va [V],w", False),
+])
+def test_a_steady_table_of_millivolts_without_a_unit_is_not_read_as_kilovolts(
+        session_dir, units, header, refused):
+    """A steady table's voltages logged in millivolts under a header naming no unit, with
+    none in session.toml, would read as kilovolts: refused, naming the table's key to add
+    (and no PWM duty, which a table does not read); with a unit, in session.toml or its
+    header, they are read in it (kilovolts when the header says volts)."""
+    (session_dir / "sweep.csv").write_text(f"{header}\n2000,10.0\n4000,30.0\n6000,50.0\n")
+    replace_once(session_dir / "session.toml", 'units = { voltage = "V", speed = "rad/s" }',
+                 units)
+    replace_once(session_dir / "session.toml", 'voltage = "Va", speed = "w"',
+                 f'voltage = "{header.split(",")[0]}", speed = "w"')
+    if refused:
+        with pytest.raises(SessionError) as err:
+            load_session(session_dir)
+        said = str(err.value)
+        assert "sweep.csv:header: the voltage column 'Va' gives no unit and reads up to 6000" \
+            in said
+        assert "set steady_table['sweep'].units.voltage = \"mV\" (or \"V\" if" in said
+        assert "pwm" not in said
+        return
+    table = load_session(session_dir).steady_tables[0]
+    scale = 1.0 if "mV" in units else 1000.0
+    assert table.voltage == pytest.approx([2.0 * scale, 4.0 * scale, 6.0 * scale])

@@ -129,18 +129,21 @@ def unit_stated(role: str, given, name, row: dict) -> bool:
 KILOVOLT = 1000.0  # no bench drives a permanent-magnet DC motor at a kilovolt
 
 
-def check_unstated_volts(path: Path, column: str, values, where: str) -> None:
+def check_unstated_volts(path: Path, column: str, values, where: str, *,
+                         duty: bool = True) -> None:
     """Refuse a voltage column with no unit given (the caller's to judge,
     :func:`unit_stated`) that reads :data:`KILOVOLT` or more: read as volts it is a
     kilovolt, as millivolts or a PWM timer's or an ADC's counts written as numbers are
-    (``where``: the trace's table in session.toml)."""
+    (``where``: the column's table in session.toml; ``duty``: whether that table reads
+    a PWM duty, as a trace does)."""
     finite = np.abs(np.asarray(values, dtype=float))
     finite = finite[np.isfinite(finite)]
     if not finite.size or finite.max() < KILOVOLT:
         return
     top = float(finite.max())
+    other = "\"pwm\" with pwm_full_scale and supply_voltage; " if duty else ""
     raise SessionError(path, f"the voltage column {column!r} gives no unit and reads up to "
                        f"{top:g}, {top / KILOVOLT:.3g} kV if these were volts: millivolts, "
                        "or a PWM timer's or an ADC's counts, read so; set "
-                       f"{where}.units.voltage = \"mV\" (or \"pwm\" with pwm_full_scale "
-                       "and supply_voltage; \"V\" if they are volts)", where="header")
+                       f"{where}.units.voltage = \"mV\" (or {other}\"V\" if they are "
+                       "volts)", where="header")
