@@ -1,8 +1,9 @@
 """A driver logged by its pins: the PWM duty (or a voltage) as a magnitude and a
 direction bit in a column of its own.  Named as ``columns.direction``, the bit signs the
-voltage, so a motor driven both ways reads as the signed column would; a column that is
-signed already, a bit that is neither 1, 0 nor -1, or a direction with no voltage column
-to sign is refused with the field and the fix."""
+voltage (and a driver's current sense beside it), so a motor driven both ways reads as
+the signed columns would; a voltage column that is signed already, a bit that is neither
+1, 0 nor -1, or a direction with no voltage column to sign is refused with the field and
+the fix."""
 
 import numpy as np
 import pytest
@@ -25,9 +26,11 @@ def both_ways(tmp_path_factory):
 
 
 def _as_pins(src, dst, *, duty: float | None = None, bit=lambda v: 1 if v >= 0 else 0,
-             declare: bool = True, signed: bool = False, name="tr0_up_down.csv") -> None:
+             declare: bool = True, signed: bool = False, name="tr0_up_down.csv",
+             sensed: bool = False) -> None:
     """``src``'s session with its voltage column written as a magnitude (a duty in % of
-    ``duty`` volts, where given) and a ``dir`` column of ``bit``."""
+    ``duty`` volts, where given) and a ``dir`` column of ``bit``; with ``sensed``, its
+    current as a magnitude too (a driver's current-sense pin)."""
     dst.mkdir()
     for f in src.iterdir():
         if f.name != name:
@@ -41,6 +44,9 @@ def _as_pins(src, dst, *, duty: float | None = None, bit=lambda v: 1 if v >= 0 e
         v = float(cells[j])
         m = v if signed else abs(v)
         cells[j] = repr(m / duty * 100.0 if duty else m)
+        if sensed:
+            ia = head.index("ia")
+            cells[ia] = repr(abs(float(cells[ia])))
         out.append(",".join([*cells, str(bit(v))]))
     (dst / name).write_text("\n".join(out) + "\n")
     toml = (src / "session.toml").read_text()
@@ -127,3 +133,26 @@ def test_a_direction_with_no_voltage_column_is_refused(both_ways, tmp_path):
     with pytest.raises(SessionError, match="columns.direction") as err:
         load_session(d)
     assert "add columns.voltage" in str(err.value)
+
+
+@pytest.mark.parametrize("sensed", [True, False])
+def test_a_current_sense_beside_the_direction_bit_reads_as_the_signed_current(
+        both_ways, tmp_path, sensed):
+    """A driver's current-sense pin reads the current's magnitude whichever way it
+    drives: beside its direction bit it is signed by it, as the signed current; a current
+    sensor that reads both ways (negative readings beyond its offset) is kept as logged."""
+    _as_pins(both_ways, tmp_path / "pins", sensed=sensed)
+    want = load_session(both_ways).traces[0]
+    got = load_session(tmp_path / "pins").traces[0]
+    v = want.voltage.at(want.time)
+    driven = np.abs(v) > 0.5 * np.abs(v).max()
+    assert np.any(want.current[driven & (v < 0)] < 0)  # driven backwards, a negative current
+    if not sensed:
+        np.testing.assert_array_equal(got.current, want.current)
+        return
+    agree = np.sign(want.current) == np.sign(v)
+    assert agree[driven].mean() > 0.9
+    np.testing.assert_allclose(got.current[driven & agree], want.current[driven & agree],
+                               rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(np.abs(got.current), np.abs(want.current), rtol=1e-9,
+                               atol=1e-12)

@@ -14,7 +14,8 @@ from .toml_tables import Table as _Table
 from .toml_tables import describe as _describe
 from .units import to_si, unit_factor
 
-__all__ = ["schedule", "duty_scale", "duty_to_volts", "signed_voltage", "DUTY_UNITS", "SUPPLY"]
+__all__ = ["schedule", "duty_scale", "duty_to_volts", "signed_voltage", "signed_current",
+           "DUTY_UNITS", "SUPPLY"]
 
 DUTY_UNITS = {"1": 1.0, "%": 100.0}  # a voltage logged as a duty: its full scale
 SUPPLY = "supply_voltage"  # the key a duty is read against
@@ -113,20 +114,35 @@ def duty_to_volts(t: _Table, where: str, duty: np.ndarray, scale) -> np.ndarray:
     return duty / full * supply
 
 
+def _first_negative(values: np.ndarray) -> int | None:
+    """The first row where a column reads below zero by more than :data:`SIGNED_NOISE`
+    sds of its noise and :data:`AT_REST` of its largest reading (more than a measured
+    magnitude's zero offset), or None: the column is a magnitude."""
+    top = float(np.nanmax(np.abs(values))) if np.isfinite(values).any() else 0.0
+    below = np.nonzero(values < -max(SIGNED_NOISE * difference_sd(values), AT_REST * top))[0]
+    return int(below[0]) if below.size else None
+
+
 def signed_voltage(path, voltage: np.ndarray, signs: np.ndarray, lines) -> np.ndarray:
     """A voltage column logged as a magnitude (a driver's PWM and direction pins: a duty,
     or a voltage, and a direction bit) signed by the trace's direction column's ``signs``
-    (:func:`.position.direction_signs`).  A column reading below zero by more than
-    :data:`SIGNED_NOISE` sds of its noise and :data:`AT_REST` of its largest reading
-    (a measured magnitude's zero offset) is signed already: refused, with its line
-    (``lines``: each row's), as the two would disagree on the sign."""
+    (:func:`.position.direction_signs`).  A column signed already (it reads below zero
+    beyond a magnitude's offset) is refused, with its line (``lines``: each row's), as
+    the two would disagree on the sign."""
     v = np.asarray(voltage, dtype=float)
-    top = float(np.nanmax(np.abs(v))) if np.isfinite(v).any() else 0.0
-    below = np.nonzero(v < -max(SIGNED_NOISE * difference_sd(v), AT_REST * top))[0]
-    if below.size:
-        k = below[0]
+    k = _first_negative(v)
+    if k is not None:
         raise SessionError(path, f"the voltage column reads {v[k]:g} V here: it is signed "
                            "already, where a direction column gives the sign of a voltage "
                            "logged as a magnitude; remove columns.direction from "
                            "session.toml (or log the magnitude)", where=f"line {lines[k]}")
     return np.abs(v) * signs
+
+
+def signed_current(current: np.ndarray, signs: np.ndarray) -> np.ndarray:
+    """A current column beside a driver's direction bit: a magnitude (a driver's current
+    sense, which reads the same whichever way the motor is driven) signed by ``signs``;
+    a column that reads below zero beyond a magnitude's offset (a sensor that reads both
+    ways) as it is."""
+    i = np.asarray(current, dtype=float)
+    return i if _first_negative(i) is not None else np.abs(i) * signs

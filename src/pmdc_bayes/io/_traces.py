@@ -11,7 +11,14 @@ import numpy as np
 from .._errors import SessionError
 from . import _sensors as sensors
 from ._csv import read_columns
-from ._inputs import DUTY_UNITS, duty_scale, duty_to_volts, schedule, signed_voltage
+from ._inputs import (
+    DUTY_UNITS,
+    duty_scale,
+    duty_to_volts,
+    schedule,
+    signed_current,
+    signed_voltage,
+)
 from ._missing import MISSABLE, without_missing, without_repeats
 from ._step_timing import check_step_timing
 from ._time_order import check_date_serial, check_increasing, check_slow_time
@@ -208,8 +215,10 @@ def _trace(t: _Table, root: Path) -> Trace:
         si["current"] = sensors.current_si(t, raw["current"], u)
     if "voltage" in raw and duty is not None:
         si["voltage"] = duty_to_volts(t, "columns.voltage", raw["voltage"], duty)
-    if "direction" in raw and not edges:  # a driver's PWM and direction pins
+    if "direction" in raw and not edges:  # a driver's PWM, direction and sense pins
         si["voltage"] = signed_voltage(path, si["voltage"], raw["direction"], lines)
+        if "current" in si:
+            si["current"] = signed_current(si["current"], raw["direction"])
     inputs = {}
     for inp in ("voltage", "load_torque"):
         if inp in si:  # a duty is the command itself, exact however it moves
