@@ -11,6 +11,7 @@ import pytest
 from pmdc_bayes._errors import SessionError
 from pmdc_bayes.inference.model.reversal import reversed_speed
 from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.io.robust import difference_sd
 from pmdc_bayes.simulate.fuzz import fuzz_session
 
 COLUMNS = 'columns = { time = "t", speed = "speed", current = "ia", voltage = "va" }'
@@ -156,3 +157,19 @@ def test_a_current_sense_beside_the_direction_bit_reads_as_the_signed_current(
                                rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(np.abs(got.current), np.abs(want.current), rtol=1e-9,
                                atol=1e-12)
+
+
+def test_a_current_sense_at_0_v_reads_the_braking_current(tmp_path):
+    """At 0 V after driving, the driver shorts the armature and the motor, still turning,
+    brakes: its current runs against the direction last driven, and a current sense's
+    magnitude is signed so."""
+    name = "tr1_up_down.csv"
+    fuzz_session(44, out=tmp_path / "s", shapes=("up-down",), trace_current=True)
+    _as_pins(tmp_path / "s", tmp_path / "pins", sensed=True, name=name)
+    want = load_session(tmp_path / "s").traces[1]
+    got = load_session(tmp_path / "pins").traces[1]
+    v = want.voltage.at(want.time)
+    rest = (np.abs(v) < 0.02 * np.abs(v).max()) & (np.cumsum(v > 0) > 0)  # after driving
+    braking = rest & (want.current < -10.0 * difference_sd(want.current))
+    assert braking.sum() >= 100 and np.all(v >= 0)
+    np.testing.assert_allclose(got.current[braking], want.current[braking], rtol=1e-9)

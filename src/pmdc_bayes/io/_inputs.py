@@ -139,10 +139,19 @@ def signed_voltage(path, voltage: np.ndarray, signs: np.ndarray, lines) -> np.nd
     return np.abs(v) * signs
 
 
-def signed_current(current: np.ndarray, signs: np.ndarray) -> np.ndarray:
+def signed_current(current: np.ndarray, signs: np.ndarray, voltage: np.ndarray) -> np.ndarray:
     """A current column beside a driver's direction bit: a magnitude (a driver's current
-    sense, which reads the same whichever way the motor is driven) signed by ``signs``;
-    a column that reads below zero beyond a magnitude's offset (a sensor that reads both
-    ways) as it is."""
+    sense, which reads the same whichever way the motor is driven) signed by ``signs``
+    where the (signed) ``voltage`` drives the motor, and against the last direction
+    driven where it is at rest (within :data:`AT_REST` of its largest, or its noise: the
+    driver shorts the armature, and the motor, still turning that way, brakes); a column that reads
+    below zero beyond a magnitude's offset (a sensor that reads both ways) as it is."""
     i = np.asarray(current, dtype=float)
-    return i if _first_negative(i) is not None else np.abs(i) * signs
+    if _first_negative(i) is not None:
+        return i
+    v = np.asarray(voltage, dtype=float)
+    top = float(np.nanmax(np.abs(v))) if np.isfinite(v).any() else 0.0
+    driven = np.abs(v) > max(AT_REST * top, SIGNED_NOISE * difference_sd(v))
+    last = np.maximum.accumulate(np.where(driven, np.arange(v.size), 0))
+    braking = np.where(driven[last], -signs[last], signs)
+    return np.abs(i) * np.where(driven, signs, braking)

@@ -20,6 +20,7 @@ from ._inputs import (
     signed_voltage,
 )
 from ._missing import MISSABLE, without_missing, without_repeats
+from ._steady_clock import steady_times
 from ._step_timing import check_step_timing
 from ._time_order import check_date_serial, check_increasing, check_slow_time
 from ._units_row import check_column_units, check_unstated_volts, unit_stated
@@ -207,6 +208,9 @@ def _trace(t: _Table, root: Path) -> Trace:
         t.fail("voltage", "no armature voltage given; add a column (columns.voltage = "
                "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
     path, raw, t_raw, time, left_out, start, lines = _read_trace_file(t, root, cols, u)
+    if "time" in cols and not edges:  # a steady rate's times, from a coarse clock's stamps
+        t_raw = steady_times(t_raw, lines)
+        time = to_si(t_raw, "time", u["time"])
     if "direction" in raw:  # a decoder's or a driver's direction bit, row by row
         raw["direction"] = direction_signs(path, raw["direction"], lines)
     si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw
@@ -218,7 +222,7 @@ def _trace(t: _Table, root: Path) -> Trace:
     if "direction" in raw and not edges:  # a driver's PWM, direction and sense pins
         si["voltage"] = signed_voltage(path, si["voltage"], raw["direction"], lines)
         if "current" in si:
-            si["current"] = signed_current(si["current"], raw["direction"])
+            si["current"] = signed_current(si["current"], raw["direction"], si["voltage"])
     inputs = {}
     for inp in ("voltage", "load_torque"):
         if inp in si:  # a duty is the command itself, exact however it moves

@@ -1,0 +1,56 @@
+"""A time column written by a clock coarse against its sampling: a steady rate's times
+read back from its rounded stamps.
+
+A logger that samples at a steady rate and stamps each row with a coarse clock (an
+Arduino's ``millis()`` at a few hundred hertz, seconds written to the millisecond at
+a kilohertz) writes each sample's time rounded to the clock's resolution ``q``: an
+error uniform over ``±q/2`` that the model would read as the motor's, at the fast
+changes (an electrical transient, a switch) above all.  Where every stamp lies within
+:data:`WITHIN` of ``q`` of one straight line through the row numbers, the rows are that
+steady rate rounded, and the line gives their times; a sampling whose interval itself
+varies (a loop timed by the same clock, stamps 2 or 3 ms apart as it happens) strays
+further, and its stamps are kept.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["COARSE", "WITHIN", "stamp_resolution", "steady_times"]
+
+COARSE = 0.1  # a clock resolution this share of the sample interval or more is coarse
+WITHIN = 0.6  # stamps within this share of the resolution of a line are a steady rate
+
+
+def stamp_resolution(t_raw: np.ndarray) -> float:
+    """The largest power of ten (10⁻⁹ … 10³ of the column's unit) every stamp is a whole
+    number of: the resolution the times were written to; 0 when none is."""
+    t = np.asarray(t_raw, dtype=float)
+    for k in range(3, -10, -1):
+        r = t / 10.0**k
+        if np.all(np.abs(r - np.round(r)) <= 1e-9 * np.maximum(1.0, np.abs(r))):
+            return 10.0**k
+    return 0.0
+
+
+def steady_times(t_raw: np.ndarray, rows) -> np.ndarray:
+    """``t_raw`` (strictly increasing stamps, in the column's unit) at the steady rate
+    through ``rows`` (each sample's row number in its file) that they round, when their
+    resolution is coarse (:data:`COARSE`) and every stamp lies within :data:`WITHIN`
+    of it of the straight line fitted to them; ``t_raw`` itself otherwise (and where it
+    lies on that line already).  The times start at the first stamp, the origin a
+    trace's schedule is written from."""
+    t = np.asarray(t_raw, dtype=float)
+    k = np.asarray(rows, dtype=float)
+    if t.size < 8:
+        return t
+    q = stamp_resolution(t)
+    step = float(np.median(np.diff(t)))
+    if not (q > 0.0 and step > 0.0 and q >= COARSE * step):
+        return t
+    slope, origin = np.polyfit(k - k[0], t, 1)
+    line = origin + slope * (k - k[0])
+    off = float(np.max(np.abs(t - line)))
+    if slope <= 0.0 or off > WITHIN * q or off <= 1e-6 * q:  # not a steady rate, or exact
+        return t
+    return t[0] + slope * (k - k[0])

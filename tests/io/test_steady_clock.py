@@ -1,0 +1,71 @@
+"""A steady sampling rate stamped by a coarse clock (an Arduino's ``millis()`` at a few
+hundred hertz): its rows are read at the steady rate's times, not at the stamps' rounding;
+stamps of a rate that itself varies, or of a fine clock, are read as written."""
+
+import numpy as np
+import pytest
+
+from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.simulate.fuzz import fuzz_session
+
+NAME = "tr0_up_down.csv"
+
+
+@pytest.fixture(scope="module")
+def logged(tmp_path_factory):
+    """A bench-simulator session of one up-down trace, its samples at a steady rate."""
+    d = tmp_path_factory.mktemp("clock") / "s"
+    fuzz_session(22, out=d, shapes=("up-down",))
+    return d
+
+
+def _restamped(src, dst, stamps, unit="ms", every=4):
+    """``src`` with every ``every``-th row of its trace kept, each stamped by
+    ``stamps(t)`` (t its time in s) in ``unit``."""
+    dst.mkdir()
+    for f in src.iterdir():
+        if f.name != NAME:
+            (dst / f.name).write_bytes(f.read_bytes())
+    head, *rows = (src / NAME).read_text().splitlines()
+    rows = rows[::every]
+    t = np.array([float(r.split(",")[0]) for r in rows])
+    out = [head] + [",".join([s, *r.split(",")[1:]]) for s, r in zip(stamps(t), rows,
+                                                                      strict=True)]
+    (dst / NAME).write_text("\n".join(out) + "\n")
+    toml = (src / "session.toml").read_text()
+    (dst / "session.toml").write_text(toml.replace('units = { time = "s",',
+                                                   f'units = {{ time = "{unit}",', 1))
+    return t
+
+
+def test_millisecond_stamps_of_a_steady_rate_read_at_its_times(logged, tmp_path):
+    """Rows 2.2 ms apart stamped in whole milliseconds are each up to 0.5 ms off: read at
+    the line they round, each within a few microseconds of its time."""
+    t = _restamped(logged, tmp_path / "ms", lambda t: [str(round(x * 1e3)) for x in t])
+    got = load_session(tmp_path / "ms").traces[0].time
+    stamped = np.round(t * 1e3) / 1e3
+    assert np.max(np.abs(stamped - t)) > 4e-4  # the stamps themselves: up to 0.5 ms off
+    assert np.max(np.abs(got - t)) < 2e-5
+
+
+def test_seconds_written_to_the_millisecond_read_at_the_steady_rate_too(logged, tmp_path):
+    t = _restamped(logged, tmp_path / "s3", lambda t: [f"{x:.3f}" for x in t], unit="s")
+    got = load_session(tmp_path / "s3").traces[0].time
+    assert np.max(np.abs(got - t)) < 2e-5
+
+
+def test_stamps_of_a_rate_that_varies_are_read_as_written(logged, tmp_path):
+    """A loop timed by the same clock samples 2 or 3 ms apart as it happens: the stamps
+    are the times, and stray from any straight line by far more than half a millisecond."""
+    rng = np.random.default_rng(3)
+    n = len((logged / NAME).read_text().splitlines()[1::4])
+    stamps = np.cumsum(rng.choice([2, 3], size=n)) - 2
+    _restamped(logged, tmp_path / "loop", lambda t: [str(s) for s in stamps])
+    got = load_session(tmp_path / "loop").traces[0].time
+    np.testing.assert_array_equal(got, stamps * 1e-3)
+
+
+def test_fine_stamps_are_read_as_written(logged, tmp_path):
+    t = _restamped(logged, tmp_path / "fine", lambda t: [repr(float(x)) for x in t],
+                   unit="s")
+    np.testing.assert_array_equal(load_session(tmp_path / "fine").traces[0].time, t)
