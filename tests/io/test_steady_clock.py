@@ -69,3 +69,17 @@ def test_fine_stamps_are_read_as_written(logged, tmp_path):
     t = _restamped(logged, tmp_path / "fine", lambda t: [repr(float(x)) for x in t],
                    unit="s")
     np.testing.assert_array_equal(load_session(tmp_path / "fine").traces[0].time, t)
+
+
+def test_seconds_since_1970_to_the_microsecond_are_read_as_written(logged, tmp_path):
+    """A computer's clock (``time.time()``) written to the microsecond: at 1.76e9 s the
+    stamps' resolution cannot be told from their rounding as numbers, and a loop's
+    jitter is its times: no line is put through them."""
+    rng = np.random.default_rng(5)
+    n = len((logged / NAME).read_text().splitlines()[1::4])
+    stamps = 1.7648e9 + np.cumsum(2.2e-3 + rng.normal(0.0, 2e-4, n))
+    _restamped(logged, tmp_path / "epoch", lambda t: [f"{s:.6f}" for s in stamps], unit="s")
+    got = load_session(tmp_path / "epoch").traces[0].time
+    written = np.array([float(f"{s:.6f}") for s in stamps])
+    np.testing.assert_allclose(np.diff(got), np.diff(written), rtol=0, atol=1e-6)
+    assert np.std(np.diff(got)) > 1e-4

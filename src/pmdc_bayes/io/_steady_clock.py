@@ -24,12 +24,17 @@ WITHIN = 0.6  # stamps within this share of the resolution of a line are a stead
 
 def stamp_resolution(t_raw: np.ndarray) -> float:
     """The largest power of ten (10⁻⁹ … 10³ of the column's unit) every stamp is a whole
-    number of: the resolution the times were written to; 0 when none is."""
+    number of: the resolution the times were written to; 0 when none is, or none can be
+    told from the stamps' own rounding as numbers (a clock's seconds since 1970 written
+    to the microsecond)."""
     t = np.asarray(t_raw, dtype=float)
+    own = 8.0 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(t))))
     for k in range(3, -10, -1):
-        r = t / 10.0**k
-        if np.all(np.abs(r - np.round(r)) <= 1e-9 * np.maximum(1.0, np.abs(r))):
-            return 10.0**k
+        q = 10.0**k
+        if own > 1e-3 * q:  # a resolution this fine is lost in the stamps' own rounding
+            break
+        if np.all(np.abs(t - q * np.round(t / q)) <= max(1e-6 * q, own)):
+            return q
     return 0.0
 
 
