@@ -159,17 +159,63 @@ def test_a_current_sense_beside_the_direction_bit_reads_as_the_signed_current(
                                atol=1e-12)
 
 
-def test_a_current_sense_at_0_v_reads_the_braking_current(tmp_path):
+def _negated(src, dst, name):
+    """``src`` driven the other way: the trace ``name``'s voltage, speed and current
+    negated."""
+    dst.mkdir()
+    for f in src.iterdir():
+        (dst / f.name).write_bytes(f.read_bytes())
+    head, *rows = (src / name).read_text().splitlines()
+    cols = head.split(",")
+    flip = [cols.index(c) for c in ("va", "speed", "ia")]
+    out = [head]
+    for row in rows:
+        cells = row.split(",")
+        for j in flip:
+            cells[j] = repr(-float(cells[j]))
+        out.append(",".join(cells))
+    (dst / name).write_text("\n".join(out) + "\n")
+
+
+@pytest.mark.parametrize("backwards", [False, True])
+def test_a_current_sense_at_0_v_reads_the_braking_current(tmp_path, backwards):
     """At 0 V after driving, the driver shorts the armature and the motor, still turning,
-    brakes: its current runs against the direction last driven, and a current sense's
-    magnitude is signed so."""
+    brakes: its current runs against the direction last driven (whatever the bit reads
+    at rest: 1 here), and a current sense's magnitude is signed so."""
     name = "tr1_up_down.csv"
     fuzz_session(44, out=tmp_path / "s", shapes=("up-down",), trace_current=True)
-    _as_pins(tmp_path / "s", tmp_path / "pins", sensed=True, name=name)
-    want = load_session(tmp_path / "s").traces[1]
+    src = tmp_path / "s"
+    if backwards:
+        _negated(src, tmp_path / "neg", name)
+        src = tmp_path / "neg"
+    _as_pins(src, tmp_path / "pins", sensed=True, name=name,
+             bit=lambda v: 0 if v < 0 else 1)
+    want = load_session(src).traces[1]
     got = load_session(tmp_path / "pins").traces[1]
     v = want.voltage.at(want.time)
-    rest = (np.abs(v) < 0.02 * np.abs(v).max()) & (np.cumsum(v > 0) > 0)  # after driving
-    braking = rest & (want.current < -10.0 * difference_sd(want.current))
-    assert braking.sum() >= 100 and np.all(v >= 0)
+    sign = -1.0 if backwards else 1.0
+    rest = (np.abs(v) < 0.02 * np.abs(v).max()) & (np.cumsum(sign * v > 0) > 0)
+    braking = rest & (sign * want.current < -10.0 * difference_sd(want.current))
+    assert braking.sum() >= 100 and np.all(sign * v >= 0)
     np.testing.assert_allclose(got.current[braking], want.current[braking], rtol=1e-9)
+
+
+def test_a_sense_read_below_zero_at_rest_is_still_a_magnitude(both_ways, tmp_path):
+    """A current sense zeroed in software reads a little below zero at rest; where the
+    motor is driven backwards it reads positive: a magnitude, signed."""
+    _as_pins(both_ways, tmp_path / "pins", sensed=True)
+    f = tmp_path / "pins" / "tr0_up_down.csv"
+    head, *rows = f.read_text().splitlines()
+    j = head.split(",").index("ia")
+    top = max(abs(float(r.split(",")[j])) for r in rows)
+    out = [head]
+    for row in rows:
+        cells = row.split(",")
+        cells[j] = repr(float(cells[j]) - 0.05 * top)
+        out.append(",".join(cells))
+    f.write_text("\n".join(out) + "\n")
+    want = load_session(both_ways).traces[0]
+    got = load_session(tmp_path / "pins").traces[0]
+    v = want.voltage.at(want.time)
+    back = v < -0.5 * np.abs(v).max()
+    assert np.median(got.current[back]) < 0 and np.median(want.current[back]) < 0

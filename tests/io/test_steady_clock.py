@@ -38,14 +38,33 @@ def _restamped(src, dst, stamps, unit="ms", every=4):
     return t
 
 
-def test_millisecond_stamps_of_a_steady_rate_read_at_its_times(logged, tmp_path):
-    """Rows 2.2 ms apart stamped in whole milliseconds are each up to 0.5 ms off: read at
-    the line they round, each within a few microseconds of its time."""
-    t = _restamped(logged, tmp_path / "ms", lambda t: [str(round(x * 1e3)) for x in t])
+@pytest.mark.parametrize("comment", [False, True])
+def test_millisecond_stamps_of_a_steady_rate_read_at_its_times(logged, tmp_path, comment):
+    """Rows 2.2 ms apart from 1.3 ms on, stamped in whole milliseconds, are each up to
+    0.5 ms off: read at the line they round, each within a few microseconds of its time
+    (the first too), a comment line among the rows leaving no gap in the rate."""
+    t = _restamped(logged, tmp_path / "ms", lambda t: [str(round(x * 1e3 + 1.3)) for x in t])
+    if comment:
+        f = tmp_path / "ms" / NAME
+        lines = f.read_text().splitlines()
+        f.write_text("\n".join([*lines[:300], "# a note the logger wrote", *lines[300:]])
+                     + "\n")
     got = load_session(tmp_path / "ms").traces[0].time
-    stamped = np.round(t * 1e3) / 1e3
-    assert np.max(np.abs(stamped - t)) > 4e-4  # the stamps themselves: up to 0.5 ms off
-    assert np.max(np.abs(got - t)) < 2e-5
+    true = t + 1.3e-3
+    assert np.max(np.abs(np.round(true * 1e3) / 1e3 - true)) > 4e-4  # the stamps' rounding
+    assert np.max(np.abs(got - true)) < 5e-5
+
+
+def test_stamps_strewn_more_than_a_clock_s_rounding_are_read_as_written(logged, tmp_path):
+    """Samples up to 0.7 ms about a steady rate's times, on a millisecond clock: their
+    stamps stray from its line by more than the clock's rounding, so they are the
+    times."""
+    rng = np.random.default_rng(4)
+    n = len((logged / NAME).read_text().splitlines()[1::6])
+    stamps = np.round(np.arange(n) * 3.3 + 5.0 + rng.uniform(-0.7, 0.7, n)).astype(int)
+    _restamped(logged, tmp_path / "strewn", lambda t: [str(s) for s in stamps], every=6)
+    got = load_session(tmp_path / "strewn").traces[0].time
+    np.testing.assert_array_equal(got, stamps * 1e-3)
 
 
 def test_seconds_written_to_the_millisecond_read_at_the_steady_rate_too(logged, tmp_path):

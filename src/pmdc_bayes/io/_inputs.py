@@ -8,7 +8,7 @@ import numpy as np
 
 from .._errors import SessionError
 from .position import edges_flag
-from .robust import AT_REST, difference_sd
+from .robust import AT_REST, CONSECUTIVE, difference_sd
 from .session import Schedule
 from .toml_tables import Table as _Table
 from .toml_tables import describe as _describe
@@ -142,16 +142,24 @@ def signed_voltage(path, voltage: np.ndarray, signs: np.ndarray, lines) -> np.nd
 def signed_current(current: np.ndarray, signs: np.ndarray, voltage: np.ndarray) -> np.ndarray:
     """A current column beside a driver's direction bit: a magnitude (a driver's current
     sense, which reads the same whichever way the motor is driven) signed by ``signs``
-    where the (signed) ``voltage`` drives the motor, and against the last direction
-    driven where it is at rest (within :data:`AT_REST` of its largest, or its noise: the
-    driver shorts the armature, and the motor, still turning that way, brakes); a column that reads
-    below zero beyond a magnitude's offset (a sensor that reads both ways) as it is."""
+    where ``voltage`` (the signed levels the driver held, at each sample) drives the
+    motor, and against the direction last driven for :data:`~.robust.CONSECUTIVE` rows
+    or more where it is at rest (within :data:`AT_REST` of its largest: the driver
+    shorts the armature, and the motor, still turning that way, brakes).  A column that
+    reads negative where the motor is driven backwards (its median there), or, with no
+    such rows, below zero beyond a magnitude's offset, reads both ways, and is kept as
+    it is.  A magnitude cannot show a current running against a voltage it keeps the
+    sign of (a step down's regeneration); it is signed with the voltage there."""
     i = np.asarray(current, dtype=float)
-    if _first_negative(i) is not None:
-        return i
     v = np.asarray(voltage, dtype=float)
     top = float(np.nanmax(np.abs(v))) if np.isfinite(v).any() else 0.0
-    driven = np.abs(v) > max(AT_REST * top, SIGNED_NOISE * difference_sd(v))
-    last = np.maximum.accumulate(np.where(driven, np.arange(v.size), 0))
-    braking = np.where(driven[last], -signs[last], signs)
-    return np.abs(i) * np.where(driven, signs, braking)
+    driven = np.abs(v) > AT_REST * top
+    backwards = driven & (v < 0)
+    if (np.nanmedian(i[backwards]) < 0 if backwards.any() else _first_negative(i) is not None):
+        return i
+    held = driven.copy()  # a level driven for CONSECUTIVE rows, not a glitch
+    for lag in range(1, CONSECUTIVE):
+        held[lag:] &= driven[:-lag]
+    last = np.maximum.accumulate(np.where(held, np.arange(v.size), 0))
+    braking = np.where(held[last], -np.sign(v[last]), signs)
+    return np.abs(i) * np.where(driven, np.sign(v), braking)

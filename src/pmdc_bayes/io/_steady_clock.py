@@ -28,10 +28,12 @@ def stamp_resolution(t_raw: np.ndarray) -> float:
     told from the stamps' own rounding as numbers (a clock's seconds since 1970 written
     to the microsecond)."""
     t = np.asarray(t_raw, dtype=float)
+    if not t.size:
+        return 0.0
     own = 8.0 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(t))))
     for k in range(3, -10, -1):
         q = 10.0**k
-        if own > 1e-3 * q:  # a resolution this fine is lost in the stamps' own rounding
+        if own > 1e-2 * q:  # a resolution this fine is lost in the stamps' own rounding
             break
         if np.all(np.abs(t - q * np.round(t / q)) <= max(1e-6 * q, own)):
             return q
@@ -43,8 +45,8 @@ def steady_times(t_raw: np.ndarray, rows) -> np.ndarray:
     through ``rows`` (each sample's row number in its file) that they round, when their
     resolution is coarse (:data:`COARSE`) and every stamp lies within :data:`WITHIN`
     of it of the straight line fitted to them; ``t_raw`` itself otherwise (and where it
-    lies on that line already).  The times start at the first stamp, the origin a
-    trace's schedule is written from."""
+    lies on that line already).  ``rows`` number the file's samples (its rows of
+    readings, not its comments), so that a comment line leaves no gap in the rate."""
     t = np.asarray(t_raw, dtype=float)
     k = np.asarray(rows, dtype=float)
     if t.size < 8:
@@ -58,4 +60,4 @@ def steady_times(t_raw: np.ndarray, rows) -> np.ndarray:
     off = float(np.max(np.abs(t - line)))
     if slope <= 0.0 or off > WITHIN * q or off <= 1e-6 * q:  # not a steady rate, or exact
         return t
-    return t[0] + slope * (k - k[0])
+    return line

@@ -209,8 +209,8 @@ def _trace(t: _Table, root: Path) -> Trace:
                "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
     path, raw, t_raw, time, left_out, start, lines = _read_trace_file(t, root, cols, u)
     if "time" in cols and not edges:  # a steady rate's times, from a coarse clock's stamps
-        t_raw = steady_times(t_raw, lines)
-        time = to_si(t_raw, "time", u["time"])
+        rows = np.searchsorted(np.sort(np.union1d(lines, left_out)), lines)  # data rows
+        time = to_si(steady_times(t_raw, rows), "time", u["time"])
     if "direction" in raw:  # a decoder's or a driver's direction bit, row by row
         raw["direction"] = direction_signs(path, raw["direction"], lines)
     si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw
@@ -219,10 +219,8 @@ def _trace(t: _Table, root: Path) -> Trace:
         si["current"] = sensors.current_si(t, raw["current"], u)
     if "voltage" in raw and duty is not None:
         si["voltage"] = duty_to_volts(t, "columns.voltage", raw["voltage"], duty)
-    if "direction" in raw and not edges:  # a driver's PWM, direction and sense pins
+    if "direction" in raw and not edges:  # a driver's PWM and direction pins
         si["voltage"] = signed_voltage(path, si["voltage"], raw["direction"], lines)
-        if "current" in si:
-            si["current"] = signed_current(si["current"], raw["direction"], si["voltage"])
     inputs = {}
     for inp in ("voltage", "load_torque"):
         if inp in si:  # a duty is the command itself, exact however it moves
@@ -234,6 +232,9 @@ def _trace(t: _Table, root: Path) -> Trace:
                                     duty if inp == "voltage" else None)
         else:
             inputs[inp] = Schedule(time[:1].copy(), np.zeros(1))
+    if "direction" in raw and not edges and "current" in si:  # ... and its current sense
+        si["current"] = signed_current(si["current"], raw["direction"],
+                                       inputs["voltage"].at(time))
     initial = _initial(t, sensors.physical(u))
     drag = read_drag(t, sensors.physical(u))
     m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial, left_out)
