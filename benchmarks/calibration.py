@@ -254,6 +254,9 @@ def main(argv=None) -> int:
                     help="also sample each adequate in-class session's posterior")
     ap.add_argument("--between-samples", action="store_true",
                     help="logged voltage columns from a rig that switches between samples")
+    ap.add_argument("--coarse-clock", action="store_true",
+                    help="every trace stamped as a microcontroller logs it (millis() "
+                         "at up to 500 Hz, else micros() on a 4 us tick)")
     ap.add_argument("--shapes", default=None,
                     help="trace shapes to draw from, comma-separated (default: the "
                          "fuzzer's TRACE_SHAPES; EXCITATION_SHAPES on request)")
@@ -272,7 +275,8 @@ def main(argv=None) -> int:
         for seed, key in jobs:
             r = done.get((seed, key)) or run_one(
                 seed, key, Path(tmp), mcmc=args.mcmc and key is None,
-                between_samples=args.between_samples, shapes=shapes)
+                between_samples=args.between_samples, shapes=shapes,
+                coarse_clock=args.coarse_clock)
             if (seed, key) not in done and args.log:
                 with args.log.open("a") as fh:
                     fh.write(json.dumps(r) + "\n")

@@ -18,12 +18,10 @@ COLUMNS = 'columns = { time = "t", speed = "speed", current = "ia", voltage = "v
 UNITS = 'units = { time = "s", speed = "rad/s", current = "A", voltage = "V"'
 
 
-@pytest.fixture(scope="module")
-def both_ways(tmp_path_factory):
+@pytest.fixture
+def both_ways(up_down_session):
     """An up-down step (to each sign of the voltage) logged with its signed voltage."""
-    d = tmp_path_factory.mktemp("direction") / "s"
-    fuzz_session(22, out=d, shapes=("up-down",))
-    return d
+    return up_down_session
 
 
 def _as_pins(src, dst, *, duty: float | None = None, bit=lambda v: 1 if v >= 0 else 0,

@@ -6,17 +6,14 @@ import numpy as np
 import pytest
 
 from pmdc_bayes.io.loader import load_session
-from pmdc_bayes.simulate.fuzz import fuzz_session
 
 NAME = "tr0_up_down.csv"
 
 
-@pytest.fixture(scope="module")
-def logged(tmp_path_factory):
+@pytest.fixture
+def logged(up_down_session):
     """A bench-simulator session of one up-down trace, its samples at a steady rate."""
-    d = tmp_path_factory.mktemp("clock") / "s"
-    fuzz_session(22, out=d, shapes=("up-down",))
-    return d
+    return up_down_session
 
 
 def _restamped(src, dst, stamps, unit="ms", every=4):

@@ -262,3 +262,23 @@ def test_step_reading_is_the_rigs_time_constant(tmp_path):
     tau = t["J"] * t["Ra"] / (t["K"] ** 2 + t["Ra"] * t["B"])
     assert abs(r.tau / tau - 1) < 0.05 + 5 * 0.01  # La/Ra < 5 % of tau; 1 % reading error
     assert json.loads((f.path / "truth.json").read_text())["J"] == t["J"]
+
+
+@pytest.mark.parametrize("seed, unit", [(24, "ms"), (1, "us")])
+def test_a_coarse_clock_rounds_the_stamps_only(tmp_path, seed, unit):
+    """``coarse_clock``: a trace's times written as a microcontroller's integer stamps
+    (whole milliseconds at a few hundred hertz, else micros() on a 4 µs tick) and its
+    schedules in that unit; loaded, each sample keeps its time to within the clock's
+    rounding and sees the same voltage and load as the session's exact stamps."""
+    files, plan, _ = fuzz_files(seed, coarse_clock=True)
+    name = plan["trace"][0]["name"]
+    stamps = [r.split(",")[0] for r in files[f"{name}.csv"].splitlines()[1:]]
+    assert all(s.isdigit() for s in stamps)
+    assert f'units = {{ time = "{unit}"' in files["session.toml"].split(f'name = "{name}"')[1]
+    coarse = load_session(fuzz_session(seed, out=tmp_path / "c", coarse_clock=True).path)
+    exact = load_session(fuzz_session(seed, out=tmp_path / "e").path)
+    for c, e in zip(coarse.traces, exact.traces, strict=True):
+        step = float(np.median(np.diff(e.time)))
+        assert np.max(np.abs(c.time - e.time)) < (2.1e-6 if unit == "us" else 0.05 * step)
+        assert np.array_equal(c.voltage.at(e.time), e.voltage.at(e.time))
+        assert np.array_equal(c.load_torque.at(e.time), e.load_torque.at(e.time))

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._clock import stamp_coarse_clock
 from ._fuzz_extra import (
     NON_IDEALITIES,
     add_step_reading,
@@ -242,8 +243,11 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
                   "shapes": tuple(kinds), "features": frozenset(features)}
 
 
-def fuzz_files(seed: int, **kw) -> tuple[dict[str, str], dict, dict]:
-    """The files of a fuzzed session (name -> text), its plan and extras."""
+def fuzz_files(seed: int, *, coarse_clock: bool = False,
+               **kw) -> tuple[dict[str, str], dict, dict]:
+    """The files of a fuzzed session (name -> text), its plan and extras; with
+    ``coarse_clock``, every trace stamped as a microcontroller logs it (see
+    :func:`~._clock.stamp_coarse_clock`)."""
     plan, extras = fuzz_plan(seed, **kw)
     spec = check_plan(plan)
     files = render_session(spec, int(seed))
@@ -251,17 +255,21 @@ def fuzz_files(seed: int, **kw) -> tuple[dict[str, str], dict, dict]:
         files = log_voltage_column(files, spec, name, **column_reading(seed, name, plan))
     if extras["step_reading"]:
         files = add_step_reading(files, spec, seed)
+    if coarse_clock:
+        for t in plan["trace"]:
+            files = stamp_coarse_clock(files, t["name"])
     return files, plan, extras
 
 
 def fuzz_session(seed: int, *, misspecified: str | tuple[str, ...] | None = None, out=None,
                  shapes=None, trace_current: bool | None = None, steady: str | None = None,
-                 between_samples: bool = False) -> FuzzedSession:
+                 between_samples: bool = False, coarse_clock: bool = False) -> FuzzedSession:
     """Draw the session of ``seed`` (see :func:`fuzz_plan`) and, given ``out``, write it
     there (replacing an earlier fuzzed session) for :func:`~pmdc_bayes.io.loader.load_session`."""
     files, plan, extras = fuzz_files(seed, misspecified=misspecified, shapes=shapes,
                                      trace_current=trace_current, steady=steady,
-                                     between_samples=between_samples)
+                                     between_samples=between_samples,
+                                     coarse_clock=coarse_clock)
     path = None
     if out is not None:
         path = Path(out)
@@ -272,6 +280,8 @@ def fuzz_session(seed: int, *, misspecified: str | tuple[str, ...] | None = None
         features.add("no trace current")
     if extras["columns"]:
         features.add("voltage column")
+    if coarse_clock:
+        features.add("coarse clock")
     if any(column_reading(seed, name, plan) for name in extras["columns"]):
         features.add("noisy voltage column")
     labels = list(extras["shapes"]) + [k.replace("_", " ") for k in
