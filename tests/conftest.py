@@ -154,6 +154,18 @@ def rng():
     return np.random.default_rng(20240611)
 
 
+@pytest.fixture(scope="session")
+def up_down_session(tmp_path_factory) -> Path:
+    """The bench simulator's up-down step of seed 22 (to each sign of the voltage, 0.56
+    ms between samples), logged with its signed voltage and current columns and a steady
+    table, for tests that rewrite it as rigs log it (read only)."""
+    from pmdc_bayes.simulate.fuzz import fuzz_session
+
+    d = tmp_path_factory.mktemp("up_down") / "s"
+    fuzz_session(22, out=d, shapes=("up-down",))
+    return d
+
+
 @pytest.fixture(autouse=True, scope="module")
 def _release_compiled_programs():
     """Drop the compiled programs of a test module after it: hundreds of them kept in one

@@ -264,20 +264,26 @@ def test_step_reading_is_the_rigs_time_constant(tmp_path):
     assert json.loads((f.path / "truth.json").read_text())["J"] == t["J"]
 
 
-@pytest.mark.parametrize("seed, unit", [(24, "ms"), (1, "us")])
-def test_a_coarse_clock_rounds_the_stamps_only(tmp_path, seed, unit):
+@pytest.mark.parametrize("seed, unit, shapes", [(24, "ms", None), (1, "us", None),
+                                                (13, "ms", ("coast-down", "step from rest"))])
+def test_a_coarse_clock_rounds_the_stamps_only(tmp_path, seed, unit, shapes):
     """``coarse_clock``: a trace's times written as a microcontroller's integer stamps
     (whole milliseconds at a few hundred hertz, else micros() on a 4 µs tick) and its
     schedules in that unit; loaded, each sample keeps its time to within the clock's
-    rounding and sees the same voltage and load as the session's exact stamps."""
-    files, plan, _ = fuzz_files(seed, coarse_clock=True)
+    rounding (a steady rate's millisecond stamps read at the rate's times, a coast-down's
+    too) and sees the same voltage and load as the session's exact stamps."""
+    files, plan, _ = fuzz_files(seed, coarse_clock=True, shapes=shapes)
     name = plan["trace"][0]["name"]
     stamps = [r.split(",")[0] for r in files[f"{name}.csv"].splitlines()[1:]]
     assert all(s.isdigit() for s in stamps)
     assert f'units = {{ time = "{unit}"' in files["session.toml"].split(f'name = "{name}"')[1]
-    coarse = load_session(fuzz_session(seed, out=tmp_path / "c", coarse_clock=True).path)
-    exact = load_session(fuzz_session(seed, out=tmp_path / "e").path)
-    for c, e in zip(coarse.traces, exact.traces, strict=True):
+    coarse = load_session(fuzz_session(seed, out=tmp_path / "c", coarse_clock=True,
+                                       shapes=shapes).path)
+    exact = load_session(fuzz_session(seed, out=tmp_path / "e", shapes=shapes).path)
+    pairs = list(zip(coarse.traces + coarse.coast_downs, exact.traces + exact.coast_downs,
+                     strict=True))
+    assert len(pairs) == len(plan["trace"])
+    for c, e in pairs:
         step = float(np.median(np.diff(e.time)))
         assert np.max(np.abs(c.time - e.time)) < (2.1e-6 if unit == "us" else 0.05 * step)
         assert np.array_equal(c.voltage.at(e.time), e.voltage.at(e.time))

@@ -95,9 +95,11 @@ class _TraceFile(NamedTuple):
     lines: list
 
 
-def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
+def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict, *,
+                     edges: bool = False) -> _TraceFile:
     """A trace's CSV file (at least 3 samples, strictly increasing in time; rows left
-    out for a missing reading, :func:`._missing.without_missing`)."""
+    out for a missing reading); its time in s, a coarse clock's stamps of a steady rate
+    read at the rate's times (:func:`.steady_times`; an encoder's edges as stamped)."""
     path = root / t.string("file")
     second = unit_factor("time", u["time"])
     read = read_columns(path, cols, asked_by=f"session.toml {t.path('columns')}",
@@ -142,8 +144,12 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict) -> _TraceFile:
                            "too coarse to see the current, or a setpoint rather than a "
                            "reading; leave current out of columns (the speed alone then "
                            "carries the fit) or log the current itself")
-    time = to_si(t_raw, "time", u["time"])
-    return _TraceFile(path, raw, t_raw, time, left_out, start, lines)
+    clock = t_raw
+    if "time" in cols and not edges:
+        rows = np.searchsorted(np.sort(np.union1d(lines, left_out)), lines)  # data rows
+        clock = steady_times(t_raw, rows)
+    return _TraceFile(path, raw, t_raw, to_si(clock, "time", u["time"]), left_out, start,
+                      lines)
 
 
 def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: bool,
@@ -207,10 +213,8 @@ def _trace(t: _Table, root: Path) -> Trace:
     if "voltage" not in cols and "voltage" not in t.data:
         t.fail("voltage", "no armature voltage given; add a column (columns.voltage = "
                "\"<header name>\") or a schedule (voltage = [[t0, V0], [t1, V1], ...])")
-    path, raw, t_raw, time, left_out, start, lines = _read_trace_file(t, root, cols, u)
-    if "time" in cols and not edges:  # a steady rate's times, from a coarse clock's stamps
-        rows = np.searchsorted(np.sort(np.union1d(lines, left_out)), lines)  # data rows
-        time = to_si(steady_times(t_raw, rows), "time", u["time"])
+    path, raw, t_raw, time, left_out, start, lines = _read_trace_file(t, root, cols, u,
+                                                                      edges=edges)
     if "direction" in raw:  # a decoder's or a driver's direction bit, row by row
         raw["direction"] = direction_signs(path, raw["direction"], lines)
     si = {role: to_si(raw[role], _TRACE_KINDS[role], u[role]) for role in raw
