@@ -275,3 +275,14 @@ def test_a_speed_that_is_no_differenced_count_is_refused_with_counts_per_rev(tmp
         load_session(_write(tmp_path / "s", _SPEED_TOML, csv))
     assert "\n" not in str(err.value) and "counts_per_rev" in str(err.value)
     assert words in str(err.value)
+
+
+def test_a_cut_last_line_leaves_a_differenced_speed_read(tmp_path):
+    """A logger stopped mid-line: the last line a time and no speed (its fields cut),
+    left out; no interval's counts lie after it, so the rows before it read as the
+    counted angle, where a row missing between two others is refused (above)."""
+    counts = np.arange(0.0, 90.0, 3.0)
+    csv = _differenced(counts, unit_scale=60 / (2 * math.pi)) + "0.3"
+    tr = load_session(_write(tmp_path / "s", _SPEED_TOML, csv)).traces[0]
+    assert tr.rows_left_out == (len(counts) + 2,)
+    np.testing.assert_allclose(tr.position, counts * 2 * math.pi / 400, atol=1e-12)

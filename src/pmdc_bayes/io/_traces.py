@@ -148,16 +148,15 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict, *,
     if "time" in cols and not edges:
         rows = np.searchsorted(np.sort(np.union1d(lines, left_out)), lines)  # data rows
         clock = steady_times(t_raw, rows)
-    return _TraceFile(path, raw, t_raw, to_si(clock, "time", u["time"]), left_out, start,
-                      lines)
+    return _TraceFile(path, raw, t_raw, to_si(clock, "time", u["time"]), left_out, start, lines)
 
 
 def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: bool,
             voltage: Schedule, initial, left_out: tuple) -> dict:
     """The trace's time, speed and angle (SI), and the angle of one count.  An edge
     trace starting at rest gets a first sample, unread, at its voltage schedule's start;
-    a speed differenced from encoder counts (``counts_per_rev`` with a speed column and
-    no position) is read as the counted angle (:func:`.position.differenced_angle`)."""
+    a speed differenced from encoder counts (``counts_per_rev``, a speed and no position)
+    is the counted angle, which rows ``left_out`` between the first and last break."""
     if not edges:
         out = {"time": time, "position": None, "encoder_step": 0.0, "differenced": False}
         if "position" in raw:
@@ -241,7 +240,8 @@ def _trace(t: _Table, root: Path) -> Trace:
                                        inputs["voltage"].at(time))
     initial = _initial(t, sensors.physical(u))
     drag = read_drag(t, sensors.physical(u))
-    m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial, left_out)
+    inside = tuple(n for n in left_out if lines[0] < n < lines[-1])
+    m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial, inside)
     check_curve_reach(t, drag, m["speed"], sensors.physical(u))
     if initial == "rest" and "voltage" not in cols:  # a schedule, in the trace's unit
         check_step_timing(t, m["time"], m["speed"], inputs["voltage"], inputs["load_torque"],
