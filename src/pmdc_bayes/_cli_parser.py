@@ -202,6 +202,8 @@ def _add_fit(sub, run) -> None:
                     "source-resistance (the logged voltage is the supply's), "
                     "current-limit (the driver's, fitted; current_limit = A in [model] "
                     "gives its setting), dead-zone (the driver's, a width each way), "
+                    "open-at-zero (the driver opens the armature at a zero command, as an "
+                    "L298N with its enable low: the rotor coasts instead of braking), "
                     "coloured-noise (each analogue channel's noise as AR(1), its correlation "
                     "fitted; [model] coloured_noise = [\"trace\", ...] names the traces); "
                     "same as [model] in session.toml")
@@ -211,6 +213,7 @@ def _add_fit(sub, run) -> None:
                     "+ dead-time, + voltage-drop, + speed-lag, + current-lag, + "
                     "unknown-load, + speed-gain, + speed-offset, + current-gain, + "
                     "current-offset, + source-resistance, + current-limit, + dead-zone, + "
+                    "open-at-zero, + "
                     "Coulomb friction, and + coloured-noise last (also where the data do "
                     "not reject the model: an addition the evidence strongly supports is "
                     "taken), remove what the evidence does not "

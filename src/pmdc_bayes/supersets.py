@@ -6,9 +6,9 @@ A family holds every non-ideality the search may reach from the session (its
 *universe*: what the session's model declares, every single addition with something
 in the session to act on, an unknown load on any driven trace; a dead time per trace
 and one shared by all, which the prediction adds), with a solution of its own only
-when the candidate needs it: the regime-switching solution of a current limit or a
-voltage drop, the solution that sticks and slips of Coulomb friction or an unknown
-load.  Those solutions take several
+when the candidate needs it: the regime-switching solution of a current limit, a
+voltage drop or a driver that opens the armature at a zero command, the solution that
+sticks and slips of Coulomb friction or an unknown load.  Those solutions take several
 times as long to compile and to evaluate as the smooth one, so a candidate without
 them is fitted in a superset without them; the cheap terms (dead times, sensor gains
 and offsets, a source resistance, a dead zone) are in every superset, and the sensors'
@@ -45,7 +45,8 @@ from .terms import LOAD, NOISE, SHARED, nuisance_of, with_terms
 __all__ = ["Supersets", "SWITCHING", "STICKING", "SUPERSET_READINGS"]
 
 SUPERSET_READINGS = 1_000  # a session's readings above which a superset fit costs a compile
-SWITCHING = frozenset({"current_limit", "voltage_drop"})  # need the regime-switching solution
+# the terms that need the regime-switching solution
+SWITCHING = frozenset({"current_limit", "voltage_drop", "open_at_zero"})
 STICKING = frozenset({"coulomb", "unknown_load"})  # need the solution that sticks and slips
 LAGS = frozenset({"speed_lag", "current_lag"})
 

@@ -113,3 +113,30 @@ def test_a_steady_start_with_a_drop_stays_steady_under_any_load(va, tl, tc):
     # and it is the state the drop allows: no current within the drop, else its sign
     drive = va - MOTOR["K"] * w[0]
     assert ia[0] == 0.0 if abs(drive) <= 1.5 else np.sign(ia[0]) == np.sign(drive)
+
+
+@pytest.mark.parametrize(("tc", "drop"), [(0.0, None), (1e-3, None), (1e-3, 0.8)])
+def test_a_driver_that_opens_the_armature_at_zero_lets_the_rotor_coast(tc, drop):
+    """An H-bridge whose enable goes low at a zero command (an L298N in coast mode):
+    the current returns through the diodes against the supply and stops within
+    microseconds, and the rotor then coasts on its friction, far longer than a
+    shorted armature would let it; the exact solution follows the integrator."""
+    bench = BenchMotor(**MOTOR, Tc=tc, voltage_drop=drop or 0.0, freewheel_voltage=13.4)
+    ends = np.append(VT[1:], T[-1])
+    segments = list(zip(VT, ends, VV, np.zeros(VT.size), strict=True))
+    ref = integrate(bench, "t", T, segments, np.zeros(5), w_eps=1e-4, i_eps=1e-7,
+                    max_step=5e-4)
+    exp = make_experiment(T, VT, VV)
+    p = Params(**MOTOR, Tc=tc)
+    ia, w = (np.asarray(exp.unpad(a)) for a in x64(simulate_padded)(
+        p, exp, coulomb=tc > 0, drop=drop, open_volts=13.4))
+    assert np.abs(ia - ref[0]).max() < 1e-5
+    assert np.abs(w - ref[1]).max() < 1e-6 * np.abs(ref[1]).max()
+    open_ = (T > 0.1502) & (T < 0.3)
+    assert np.all(ia[open_] == 0.0)
+    from pmdc_bayes.physics.motor import coast_down
+    t_open = T[open_]
+    coast = coast_down(MOTOR["B"], MOTOR["J"], w[open_][0], t_open - t_open[0], tc)
+    np.testing.assert_allclose(w[open_], coast, rtol=1e-6, atol=1e-9)
+    _, braked = _exact(tc, None, drop if drop else 1e-9)
+    assert w[open_][-1] > 2 * braked[open_][-1]  # a shorted armature brakes it far sooner

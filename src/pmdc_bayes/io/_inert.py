@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from .lattice import analogue_channels
 
 __all__ = ["inert_nuisance"]
@@ -13,8 +15,9 @@ def inert_nuisance(session, names) -> tuple[str, str] | None:
     not read through them), a current sensor's without a logged current, a dead time
     without a driven trace, a dead zone without a commanded voltage, coloured noise
     without an analogue speed or current on the traces it names (a quantised reading's
-    errors are its quantisation's).  A coast-down's speed is read by the speed sensor
-    too."""
+    errors are its quantisation's), a driver that opens the armature at a zero command
+    without a trace commanding zero after driving the motor.  A coast-down's speed is
+    read by the speed sensor too."""
     speed = (any(tr.speed is not None and tr.speed_logged for tr in session.traces)
              or bool(session.coast_downs))
     current = any(tr.current is not None for tr in session.traces)
@@ -30,6 +33,9 @@ def inert_nuisance(session, names) -> tuple[str, str] | None:
         if name == "dead_zone" and not (session.traces or session.steady_tables
                                         or session.operating_points):
             return name, "the session commands no voltage (a driver's dead zone acts on it)"
+        if name == "open_at_zero" and not any(_zero_after_drive(tr) for tr in session.traces):
+            return name, ("no driven trace commands zero after driving the motor (the "
+                          "driver's state at a zero command acts only on a turning rotor)")
         if name == "coloured_noise":
             named = session.coloured_traces or tuple(
                 t.name for t in session.traces + session.coast_downs)
@@ -38,3 +44,12 @@ def inert_nuisance(session, names) -> tuple[str, str] | None:
                               "counted angle's or a quantised reading's errors are its "
                               "quantisation's)")
     return None
+
+
+def _zero_after_drive(trace) -> bool:
+    """Whether ``trace`` commands zero while its rotor may turn: after a nonzero
+    command, or from a start that is not at rest."""
+    v = np.asarray(trace.voltage.values, float)
+    driven = np.cumsum(v != 0) > 0
+    started = not (isinstance(trace.initial, str) and trace.initial == "rest")
+    return bool(np.any((v == 0) & (driven | started)))

@@ -38,7 +38,8 @@ LOAD_KINDS = ("both", "constant", "viscous")  # an unknown drag's fitted parts, 
 DEAD_TIMES = ("per_trace", "shared")  # one dead time per driven trace, or one for all
 NUISANCES = ("dead_time", "voltage_drop", "speed_lag", "current_lag", "unknown_load",
              "speed_gain", "speed_offset", "current_gain", "current_offset",
-             "source_resistance", "current_limit", "dead_zone", "coloured_noise")
+             "source_resistance", "current_limit", "dead_zone", "open_at_zero",
+             "coloured_noise")
 COAST_DOWN = "coast-down"  # the trace kind of a run-down with the armature open
 LA_TIME_CONSTANT = 1e-3  # s: La/Ra assumed when La was not measured ...
 LA_PRIOR_LOG_SD = float(np.log(10.0)) / 2  # ... give or take a factor 10 at 2 sd (log)
@@ -161,10 +162,10 @@ class Session:
     ``"viscous"`` when its drag has only that part; ``"both"`` otherwise), a driver's
     current limit ``"current_limit"``, centred on ``current_limit_setting`` (A) when the
     user gave the driver's setting, a driver's dead zone ``"dead_zone"``, its own width
-    for each direction of the command); ``shared_dead_time``: one dead time for every
+    for each direction of the command, a driver that opens the armature at a zero
+    command ``"open_at_zero"``); ``shared_dead_time``: one dead time for every
     driven trace (one driver, one logger) instead of one per trace.
-    ``coloured_traces``: the traces whose noise ``"coloured_noise"`` fits as AR(1)
-    (empty: every trace).
+    ``coloured_traces``: the traces whose noise ``"coloured_noise"`` fits (none: all).
     ``gear_ratio``: motor turns per output turn when the session was measured at a
     gearbox's output (every speed, angle and torque here is already the motor shaft's,
     :mod:`.gear`); 1 otherwise.

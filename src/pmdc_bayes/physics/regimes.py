@@ -25,7 +25,7 @@ from . import motor
 from .propagator import apply_alpha_beta, coefficients, coefficients_real
 
 __all__ = ["STUCK", "MOVING", "CLAMPED", "NO_LIMIT", "Phase", "phase_voltage", "sign",
-           "moving", "clamped_rate", "state_at", "held_direction", "select",
+           "moving", "clamped_rate", "drop_at", "state_at", "held_direction", "select",
            "clamped_steady"]
 
 STUCK, MOVING, CLAMPED = 0, 1, 2
@@ -51,6 +51,16 @@ class Phase(NamedTuple):
 def phase_voltage(va, drop, ph: Phase):
     """The voltage that drives the armature in phase ``ph``: ``va − c·drop``."""
     return va if drop is None else va - ph.c * drop
+
+
+def drop_at(drop, open_volts, va):
+    """The drop opposing the armature's current under the command ``va``: ``drop``, or,
+    where the driver opens the armature at a zero command (``open_volts`` given: an
+    H-bridge whose enable is low, PWM in coast mode), ``open_volts`` there: the voltage
+    the current's freewheel path (diodes back into the supply) sets against it, which
+    ends the current within a fraction of La/Ra and lets none flow again while the
+    back-emf stays below it; the rotor then coasts on its friction and load."""
+    return drop if open_volts is None else jnp.where(va == 0, open_volts, drop)
 
 
 def sign(x):

@@ -34,7 +34,7 @@ from .experiment import (
 )
 from .motor import state_space
 from .propagator import real_modes
-from .regimes import NO_LIMIT, clamped_steady
+from .regimes import NO_LIMIT, clamped_steady, drop_at
 
 __all__ = ["Params", "Experiment", "experiment_from_trace", "experiment_from_traces",
            "stack_experiments", "make_experiment", "steady_state", "simulate",
@@ -93,7 +93,7 @@ def initial_state(p: Params, exp: Experiment, coulomb: bool):
 
 def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
                     fast: bool = False, limit=None, with_angle: bool = False, lags=None,
-                    drop=None, overflow: bool = False):
+                    drop=None, overflow: bool = False, open_volts=None):
     """Exact ``(ia, ω)`` in the experiment's padded ``(C, L)`` sample layout, and with
     ``with_angle`` the angle turned since each trace's start (rad), exact too
     (:mod:`.angle`).
@@ -105,17 +105,20 @@ def simulate_padded(p: Params, exp: Experiment, *, coulomb: bool = False,
     current and the speed, None for one read without a lag: that signal is then
     returned as its sensor reads it (:mod:`.sensor`), settled at each trace's start.
     ``drop`` (V), when given, is a voltage drop at the brushes and driver, which opposes
-    the current (the regime-switching solution of :mod:`.limited`).
+    the current (:mod:`.limited`); ``open_volts`` (V) the drop at a zero command, where
+    a driver opens the armature (:func:`~.regimes.drop_at`).
     ``overflow=True`` appends, per segment, whether its regime changes more often than
     the :data:`~.limited.PHASES` the regime-switching solution follows (the prediction
     is then not exact after the last of them; always False without a limit or drop).
     """
     lags = (None, None) if lags is None else tuple(lags)
     mus = tuple(None if tau is None else sensor.pole(tau) for tau in lags)
+    drop = 0.0 if open_volts is not None and drop is None else drop
     if drop is not None and limit is None:
         limit = NO_LIMIT
     if limit is not None:
-        out = _simulate_limited(p, exp, coulomb, fast, limit, with_angle, mus, drop, overflow)
+        out = _simulate_limited(p, exp, coulomb, fast, limit, with_angle, mus,
+                                lambda va: drop_at(drop, open_volts, va), overflow)
     else:
         out = _simulate_free(p, exp, coulomb, fast, with_angle, mus)
         if overflow:
@@ -140,14 +143,14 @@ def _drags(p: Params, exp: Experiment, tc0):
     return b_x, tc_x, seen
 
 
-def _pass(start, advance, seen, limit, fast: bool, mus, drop=None):
+def _pass(start, advance, seen, limit, fast: bool, mus, drop_for=None):
     """The step of the pass over the segments: ``start(ps, va, tl, mode, x0)`` the state
     a trace starts from; ``advance(ps, x, va, tl, length)`` a segment's per-sample
     record, its regimes (:class:`~.limited.Phase` records), its end state and its whole
     angle.  Each lagging sensor (pole in ``mus``) is settled at a trace's start and
     carried through every regime; the step also returns the readings at the starts of
     each segment's regimes, and the viscous drag and load the segment saw (its own,
-    with a curved drag's tangent at its starting speed)."""
+    with a curved drag's tangent at its starting speed); ``drop_for(va)`` the drop."""
 
     def step(carry, seg_in):
         x, y = carry
@@ -158,6 +161,7 @@ def _pass(start, advance, seen, limit, fast: bool, mus, drop=None):
         b, tl = along(b, tc, tl, x, length)
         ps = seen(b, tc)
         record, phases, x_end, total = advance(ps, x, va, tl, length)
+        drop = None if drop_for is None else drop_for(va)
         starts, y_end = [], []
         for row, mu in enumerate(mus):
             if mu is None:
@@ -230,17 +234,18 @@ def _simulate_free(p: Params, exp: Experiment, coulomb: bool, fast: bool, angle:
 
 
 def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, limit,
-                      angle: bool, mus, drop, overflow: bool = False):
-    """:func:`_simulate_free` with a current-limited driver or a voltage drop: each
-    segment split into its regimes by :func:`.limited.segment_phases`; with
-    ``overflow``, also whether each segment changes regime more often than they follow."""
+                      angle: bool, mus, drop_for, overflow: bool = False):
+    """:func:`_simulate_free` with a current limit or a drop (``drop_for(va)``), each
+    segment split into its regimes (:func:`.limited.segment_phases`); with ``overflow``,
+    also whether each changes regime more often than they follow."""
     b_x, tc_x, seen = _drags(p, exp, p.Tc if coulomb else 0.0)
 
     def start(ps, va, tl, mode, xg):
-        ia, w = _initial_for(ps, va, tl, mode, xg, coulomb, drop)
+        ia, w = _initial_for(ps, va, tl, mode, xg, coulomb, drop_for(va))
         return clamped_steady(ps, va, tl, ps.Tc, limit, ia, w)
 
     def advance(ps, x, va, tl, length):
+        drop = drop_for(va)
         phases = limited.segment_phases(ps, x, va, tl, ps.Tc, limit, length, coulomb, fast,
                                         drop, overflow)
         record = phases
@@ -253,7 +258,7 @@ def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, lim
     x0 = start(seen(b_x[0], tc_x[0]), exp.seg_va[0], exp.seg_tl[0], exp.seg_mode[0],
                exp.seg_x0[0])
     phases, totals, starts, b_seen, tl_seen = _scan(
-        exp, _pass(start, advance, seen, limit, fast, mus, drop), x0, mus, b_x, tc_x)
+        exp, _pass(start, advance, seen, limit, fast, mus, drop_for), x0, mus, b_x, tc_x)
     flags = None
     if overflow:
         phases, flags = phases
@@ -262,6 +267,7 @@ def _simulate_limited(p: Params, exp: Experiment, coulomb: bool, fast: bool, lim
     per_chunk = jax.tree_util.tree_map(lambda a: jnp.moveaxis(a[c], -1, 0), phases)
     pc = seen(b_seen[c], tc_x[c])
     va, tl = exp.seg_va[c], tl_seen[c]
+    drop = drop_for(va)
     ia, w = limited.state_in_segment(pc, per_chunk, va, tl, pc.Tc, limit, exp.tau, fast, drop)
     ia_r, w_r = _readings(exp, pc, va, tl, limit, per_chunk, starts, mus, ia, w, fast, drop)
     extra = () if flags is None else (flags,)

@@ -1,7 +1,8 @@
 """The bench motor's equations (:class:`~.bench.BenchMotor`), integrated by
 :func:`scipy.integrate.solve_ivp` (LSODA), independently of :mod:`pmdc_bayes.physics`:
 the state ``(ia, ω, ω_sensor, θ_sensor, ia_sensor)`` with the rig's non-idealities
-(brush drop, source resistance, a current-limited driver's current loop, Coulomb
+(brush drop, source resistance, a current-limited driver's current loop, a driver that
+opens the armature at a zero command (its freewheel voltage a drop there), Coulomb
 friction smoothed to a stick-slip blend, extra load (a curved one too: its torque at
 the speed, :mod:`pmdc_bayes.physics.load`), sensor lags)."""
 
@@ -32,7 +33,8 @@ def _rhs(m, name: str, va: float, tl: float, w_eps: float, i_eps: float):
 
     def f(t, x):
         ia, w, ws, _, ias = x
-        v = va - m.voltage_drop * math.tanh(ia / i_eps) - m.source_resistance * ia
+        drop = m.freewheel_voltage if va == 0 and m.freewheel_voltage else m.voltage_drop
+        v = va - drop * math.tanh(ia / i_eps) - m.source_resistance * ia
         if lim is not None:  # the driver's current loop: it can only lower |voltage|
             emf = m.Ra * ia + m.K * w
             v = min(max(v, emf + m.La * gain * (-lim - ia)), emf + m.La * gain * (lim - ia))

@@ -8,18 +8,17 @@ The motor (state ``ia`` A, ``ω`` rad/s; inputs ``Va`` V, ``TL`` N·m)::
 is integrated with :func:`scipy.integrate.solve_ivp` (LSODA, ``rtol=1e-8``), independently
 of :mod:`pmdc_bayes.physics`, with the non-idealities of real benches switched on one by
 one in :class:`BenchMotor`: dead time, sensor lag, brush drop, supply source
-resistance, a current-limited driver, undeclared load, speed-sensor gain error and an
-encoder-based speed estimate.  Because the session declares only the ideal inputs, a
-fit of the package's model to such a session is misspecified in a known way.
+resistance, a current-limited driver, one that opens the armature at a zero command,
+undeclared load, speed-sensor gain error and an encoder-based speed estimate.  The
+session declares only the ideal inputs: a fit of the ideal model is misspecified.
 
 Smoothing: ``sign(ω)`` is ``tanh(ω/ω_eps)`` with ``ω_eps`` = 1e-3 × the no-load speed at
 the largest voltage of the session, blended with static friction so that a motor at rest
 whose driving torque ``|K·ia − TL|`` is below the Coulomb torque stays exactly at rest;
-``sign(ia)`` of the brush drop is ``tanh(ia/i_eps)`` with ``i_eps`` = 1e-4 × the stall
-current ``V/Ra`` (small against the no-load current, so the full drop acts in steady
-state; the step sessions here never brake a turning rotor at 0 V, where a current of
-about ``i_eps`` would flow below the drop's back-emf: a plan's ``[rig]``, which may,
-narrows the band to 1e-7 × the stall current).
+``sign(ia)`` of the brush drop (and of an open armature's freewheel voltage) is
+``tanh(ia/i_eps)``, ``i_eps`` = 1e-4 × the stall current ``V/Ra`` (the full drop acts
+in steady state; below the drop's back-emf a current of about ``i_eps`` flows: a plan's
+``[rig]`` narrows the band to 1e-7 × the stall current).
 """
 
 from __future__ import annotations
@@ -62,6 +61,9 @@ class BenchMotor:
     current_limit : float or None
         The driver lowers its output voltage so that ``|ia|`` never exceeds this (A):
         a current loop that pulls ``ia`` to the limit with time constant 1e-3·La/Ra.
+    freewheel_voltage : float
+        Nonzero: the driver opens the armature at a zero command, its current then
+        returning through diodes against this voltage (V) until it stops.
     speed_gain : float
         Multiplicative calibration error of the speed sensor.
     encoder_counts_per_rev : int or None
@@ -96,6 +98,7 @@ class BenchMotor:
     voltage_drop: float = 0.0
     source_resistance: float = 0.0
     current_limit: float | None = None
+    freewheel_voltage: float = 0.0
     speed_gain: float = 1.0
     encoder_counts_per_rev: int | None = None
     encoder_output: str = "speed"
@@ -151,17 +154,14 @@ def steady_point(motor: BenchMotor, voltage: float, load: float = 0.0,
     Returns
     -------
     (float, float)
-        Current and speed, with the voltage drop, Coulomb friction and current limit
-        (the smoothing of ``sign`` neglected).
+        Current and speed, with the drop, Coulomb friction and limit (sign unsmoothed).
 
     Notes
     -----
-    Turning forward: ``ω = (K·(Va − drop) − R·(TL + Tc)) / (R·B + K²)`` and
-    ``ia = (B·(Va − drop) + K·(TL + Tc)) / (R·B + K²)``, with ``R = Ra + source_resistance``
-    and ``Tc`` and ``B`` including the drag; the reverse by symmetry; held at rest
-    (``ω = 0``, ``ia = (Va − drop·sign Va)/R``, or 0 if ``|Va| ≤ drop``) when
-    ``|K·ia − TL| ≤ Tc``.
-    A current above the limit is held at it, with ``ω`` from the torque balance.
+    Forward: ``ω = (K·(Va − drop) − R·(TL + Tc))/(R·B + K²)``, ``ia = (B·(Va − drop) +
+    K·(TL + Tc))/(R·B + K²)``, ``R = Ra + source_resistance``, ``Tc`` and ``B`` with the
+    drag; the reverse by symmetry; at rest (``ia = (Va − drop·sign Va)/R``, 0 if
+    ``|Va| ≤ drop``) when ``|K·ia − TL| ≤ Tc``; a current past the limit held at it.
     """
     d = Drag(*drag)
     if not d.curved:

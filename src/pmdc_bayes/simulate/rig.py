@@ -11,6 +11,8 @@ the plan's traces and steady readings by the independent bench simulator
     current_limit = 2.0        # A: the driver holds |ia| at it
     dead_zone_forward = 0.5    # V of a positive command the driver does not put out
     dead_zone_reverse = 0.7    # V of a negative command, likewise
+    freewheel_voltage = 13.4   # V: the driver opens the armature at a zero command (an
+                               # L298N's enable low), its diodes returning the current
     speed_lag = 0.005          # s: a first-order lag of the speed sensor (a tachometer)
     current_lag = 0.0          # s: the same of the current sensor
     speed_gain = 1.0           # the traces' speed sensor reads gain × speed + offset
@@ -47,7 +49,7 @@ __all__ = ["RigSpec", "check_rig", "check_encoder", "rig_truth", "rig_steady", "
 
 _KEYS = ("dead_time", "voltage_drop", "source_resistance", "current_limit", "speed_lag",
          "current_lag", "speed_gain", "speed_offset", "current_gain", "current_offset",
-         "unknown_load", "dead_zone_forward", "dead_zone_reverse")
+         "unknown_load", "dead_zone_forward", "dead_zone_reverse", "freewheel_voltage")
 
 
 @dataclass(frozen=True)
@@ -68,6 +70,8 @@ class RigSpec:
     unknown_load: tuple[tuple[str, float, float], ...] = ()
     dead_zone_forward: float = 0.0
     dead_zone_reverse: float = 0.0
+    freewheel_voltage: float = 0.0  # nonzero: the driver opens the armature at a zero
+    # command, its current returning through diodes against this voltage (V)
 
     def driver(self, va: float) -> float:
         """The driver's output (V) for the command ``va``: less its dead zone, and 0
@@ -104,7 +108,8 @@ def check_rig(t: Table, trace_names) -> RigSpec:
                    current_offset=t.number("current_offset", default=0.0),
                    unknown_load=tuple(loads),
                    dead_zone_forward=t.number("dead_zone_forward", default=0.0, low=0.0),
-                   dead_zone_reverse=t.number("dead_zone_reverse", default=0.0, low=0.0))
+                   dead_zone_reverse=t.number("dead_zone_reverse", default=0.0, low=0.0),
+                   freewheel_voltage=t.number("freewheel_voltage", default=0.0, low=0.0))
 
 
 def check_encoder(t: Table) -> tuple[int, str] | None:
@@ -128,6 +133,7 @@ def _motor(truth: dict, rig: RigSpec, encoder=None) -> BenchMotor:
                       current_lag=rig.current_lag, voltage_drop=rig.voltage_drop,
                       source_resistance=rig.source_resistance,
                       current_limit=rig.current_limit,
+                      freewheel_voltage=rig.freewheel_voltage,
                       encoder_counts_per_rev=None if encoder is None else encoder[0],
                       encoder_output="speed" if encoder is None else encoder[1],
                       extra_load={n: (c, v) for n, c, v in rig.unknown_load},

@@ -12,6 +12,8 @@ Each rule reads the data and the MAP prediction:
   drag, a drag declared too strong or too weak); a speed-voltage line crossing zero
   speed well above 0 V means a voltage drop (brushes, driver), a current left at zero
   speed means Coulomb friction;
+* a speed that falls far more slowly after each **switch to zero** than it rises
+  after a switch on (:mod:`.zero_command`): a driver that opens the armature there;
 * **anti-correlated noise** on a speed: a speed differenced from encoder counts;
 * a **bench resistance** below or above the fitted one; and unit slips (a ratio of
   2π, 60/2π or 1000 between the data and the model);
@@ -31,6 +33,7 @@ from .diagnosis_levels import level_rules
 from .findings import Check
 from .onset import departure, onset_shape, step_window
 from .proposals import COULOMB, Proposal, has, said
+from .zero_command import coast_rules
 
 __all__ = ["diagnose", "Proposal"]
 
@@ -258,6 +261,7 @@ def diagnose(model, fit, preds, findings) -> tuple[list[str], list[Proposal]]:
         # fails on those parameters while its traces only warn
         out += _flat_top(tr, pred[0])
         out += _start_rules(model, tr, pred)
+        out += coast_rules(model, tr)
     out += level_rules(model, fit, preds, findings)
     out += _finding_rules(model, fit, findings, out)
     kept, proposals, fitted = [], [], []

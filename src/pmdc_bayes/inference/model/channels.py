@@ -6,16 +6,15 @@ block owns the channels that one prediction serves (one simulation of every trac
 one evaluation of the steady state) and knows three things about them:
 
 * **observations and noise**: it registers its channels (name, unit, number of
-  observations, model-free noise scale and, for a quantised signal that noise does not
-  dither, the share of readings with independent errors) and puts its arrays in the
-  data pytree;
+  observations, model-free noise scale and, for a quantised signal noise does not
+  dither, the share of readings with independent errors); its arrays go in the data;
 * **layout**: for each residual array it returns, the mask of real observations and
   the channel of each entry along the first axis (every entry of a row of a 2-D array
   belongs to that row's channel), and the observed values in the same layout;
 * **prediction**: the residuals (observed − model) at θ.
 
-The objective treats every array alike (sums of squares per channel, weighted residuals,
-pointwise densities), so a new kind of observation is one new block in :func:`blocks_for`.
+The objective treats every array alike (per-channel sums of squares, weighted residuals,
+pointwise densities): a new kind of observation is one block in :func:`blocks_for`.
 """
 
 from __future__ import annotations
@@ -36,6 +35,7 @@ from ...physics.solution import simulate_padded
 from .coloured import COLOURED, breaks, previous_index
 from .column_levels import level_data
 from .noise import effective_fraction, noise_scale, typical_level
+from .nuisances import open_data
 from .switch_lead import lead_data
 from .trace_states import initial_speed_name, position_offset_name
 
@@ -130,6 +130,7 @@ class TraceBlock(Block):
         slot[with_pos] = np.arange(len(with_pos))
         self._data = {"exp": exp, "t": np.concatenate([tr.time for tr in session.traces]),
                       "start": starts, **level_data(session, exp), **lead_data(session, exp),
+                      **open_data(session),
                       "sample_slot": np.repeat(slot, [tr.n for tr in session.traces])}
         for what in chans:
             ch = np.asarray(chans[what])[ct]
@@ -166,7 +167,7 @@ class TraceBlock(Block):
         p = model.circuit(theta)
         sim = simulate_padded(p, exp, coulomb=model.coulomb_path, fast=fast,
                               limit=model.limit(theta), with_angle=bool(self.offsets),
-                              lags=model.lags(theta), drop=model.armature_drop(theta),
+                              lags=model.lags(theta), **model.armature_drop(theta, d),
                               overflow=overflow)
         ia, w = model.sensed(theta, sim[0], sim[1])
         out = [d["speed"] - w, d["current"] - ia]

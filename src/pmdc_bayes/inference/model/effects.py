@@ -36,16 +36,25 @@ class RigEffects:
         reversal, a voltage drop), else None."""
         if "Imax" in self.registry:
             return self.registry.values(theta)["Imax"]
-        return NO_LIMIT if self.reverses or "Vdrop" in self.registry else None
+        return NO_LIMIT if self.reverses or self.switches_drop else None
+
+    @property
+    def switches_drop(self) -> bool:
+        """Whether a drop opposes the current: a fitted one, or a driver's open armature
+        at a zero command (``open_at_zero``)."""
+        return "Vdrop" in self.registry or "open_at_zero" in self.session.nuisances
 
     def drop(self, theta):
         """The fitted voltage drop at θ (V), 0 when the model has none."""
         return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else 0.0
 
-    def armature_drop(self, theta):
-        """The fitted voltage drop at θ (V) for the exact solution, which opposes it to
-        the current; None when the model has none."""
-        return self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else None
+    def armature_drop(self, theta, d):
+        """The drops the exact solution opposes to the current at θ (``simulate_padded``'s
+        ``drop`` and ``open_volts``): the fitted voltage drop (V), None when the model has
+        none; and at a zero command the freewheel voltage of a driver that opens the
+        armature there (``d["open_volts"]``, :func:`.nuisances.open_data`), else None."""
+        drop = self.registry.values(theta)["Vdrop"] if "Vdrop" in self.registry else None
+        return {"drop": drop, "open_volts": d.get("open_volts")}
 
     def steady_at(self, theta, va, tl):
         """Steady ``(ia, ω)`` at θ for the commanded voltages ``va`` and loads ``tl``: the

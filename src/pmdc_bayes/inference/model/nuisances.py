@@ -16,7 +16,7 @@ from .column_levels import level_specs
 from .params import ParamSpec, Prior, identifier
 from .switch_lead import lead_specs
 
-__all__ = ["nuisance_specs", "dead_time_name", "load_names",
+__all__ = ["nuisance_specs", "dead_time_name", "load_names", "open_data", "OPEN_VOLTS",
            "DEAD_TIME_PRIOR", "DROP_PRIOR", "LAG_PRIOR_SAMPLES", "LAG_PRIOR_FACTOR",
            "NO_LIMIT", "DEAD_ZONE_NAMES", "sensor_readings"]
 
@@ -27,6 +27,9 @@ LAG_PRIOR_SAMPLES = 3.0  # centre of a sensor lag's prior, in sample intervals
 LAG_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
 LOAD_PRIOR_SHARE = 0.3  # centre of an unknown drag's prior, as a share of the motor's own
 LOAD_PRIOR_FACTOR = 30.0  # its one-sd width (a factor)
+OPEN_VOLTS = 2.0  # an open armature's freewheel voltage, as a multiple of the largest
+# voltage: the supply's and the diodes' (which stops the current within a fraction of
+# La/Ra and lets none flow while the back-emf stays below it)
 GAIN_PRIOR = 0.1  # sd of a sensor gain's logarithm (a calibration 10 % off at one sd)
 SOURCE_PRIOR = 0.1  # centre of a source resistance's prior, as a share of the bench Ra
 SOURCE_PRIOR_FACTOR = 10.0  # its one-sd width (a factor): 1e-3 to 10 x Ra within 2 sd
@@ -124,6 +127,9 @@ def nuisance_specs(session: Session, drop_seed: float = 0.0,
     * ``dead_zone`` — ``Vdz_fwd`` and ``Vdz_rev`` (V), the widths of a driver's dead zone
       for positive and for negative commands (see :func:`_dead_zone_specs`).
 
+    * ``open_at_zero`` — no parameter: the driver opens the armature at a zero command
+      (:func:`open_data`).
+
     * ``coloured_noise`` — per analogue channel the lag-1 correlation of its noise
       (:func:`.coloured.ar_specs`).
 
@@ -196,6 +202,16 @@ def _dead_time_specs(session: Session) -> list[ParamSpec]:
                       Prior("normal", 0.0, DEAD_TIME_PRIOR * length, "nuisance"), 0.0,
                       transform="identity", description=f"dead time of trace {name!r}",
                       trace=name) for name, length in lengths.items()]
+
+
+def open_data(session: Session) -> dict:
+    """The traces' data of a driver that opens the armature at a zero command
+    (``open_at_zero``): ``open_volts``, :data:`OPEN_VOLTS` × the session's largest
+    voltage, the drop its freewheel path sets against the current
+    (:func:`~pmdc_bayes.physics.regimes.drop_at`); empty without one."""
+    if "open_at_zero" not in session.nuisances:
+        return {}
+    return {"open_volts": np.float64(OPEN_VOLTS * _largest_voltage(session))}
 
 
 def _largest_voltage(session: Session) -> float:
