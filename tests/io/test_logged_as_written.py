@@ -91,6 +91,25 @@ def test_a_last_line_cut_off_mid_write_is_left_out(session_dir):
         load_session(session_dir)
 
 
+def test_a_last_line_cut_inside_its_last_value_is_left_out(session_dir):
+    """A serial log stopped mid-write inside the last number ("0.01" of "0.0123"): the
+    value would read as a sample, wrong; written as wide as the row before it, the
+    line is whole and kept though its newline is missing."""
+    lines = _rows(session_dir)
+    whole = lines[-1]
+    cells = whole.split(",")
+    assert len(cells[-1]) > 2 and len(cells[-1]) == len(lines[-2].split(",")[-1])
+    lines[-1] = ",".join(cells[:-1] + [cells[-1][:-2]])
+    (session_dir / "step.csv").write_text("\n".join(lines), encoding="utf-8")
+    tr = load_session(session_dir).trace("step")
+    assert tr.rows_left_out == (len(lines),) and tr.n == STEP_N - 1
+    lines[-1] = whole
+    (session_dir / "step.csv").write_text("\n".join(lines), encoding="utf-8")
+    tr = load_session(session_dir).trace("step")
+    assert tr.rows_left_out == () and tr.n == STEP_N
+    assert tr.current[-1] == pytest.approx(float(cells[-1]))
+
+
 @pytest.mark.parametrize("code", ["9.9E37", "inf", "-Inf", "\u221e", "\u2212\u221e"])
 def test_an_instrument_overrange_code_is_a_missed_reading(session_dir, code):
     lines = _rows(session_dir)
@@ -529,3 +548,54 @@ def test_a_steady_table_of_millivolts_without_a_unit_is_not_read_as_kilovolts(
     table = load_session(session_dir).steady_tables[0]
     scale = 1.0 if "mV" in units else 1000.0
     assert table.voltage == pytest.approx([2.0 * scale, 4.0 * scale, 6.0 * scale])
+
+
+def _serial_log(path, first: str | None = None, prefix=lambda k: "") -> list[str]:
+    """An Arduino's serial log of millis() and a speed, 20 rows from 3207 ms, its first
+    row written as ``first`` when given; each line behind ``prefix(k)``."""
+    rows = [f"{3207 + 10 * k},{0.5 * k:.2f}" for k in range(20)]
+    if first is not None:
+        rows[0] = first
+    lines = ["ms,rpm", *rows]
+    path.write_text("".join(prefix(k) + ln + "\n" for k, ln in enumerate(lines)))
+    return lines
+
+
+@pytest.mark.parametrize("first", ["0.00", "7,0.00", "07,0.00"])
+def test_a_first_line_cut_at_its_start_is_left_out(tmp_path, first):
+    """A serial monitor opened while the logger was writing a line: the first row is
+    its tail (fewer fields, or a time cut short: ``7`` of ``3207``), not a sample; it is
+    left out, where read as one it made a gap of three seconds before the record."""
+    from pmdc_bayes.io._csv import read_columns
+
+    path = tmp_path / "log.csv"
+    _serial_log(path, first)
+    read = read_columns(path, {"time": "ms", "speed": "rpm"}, asked_by="test")
+    assert read.skipped == (2,) and read.lines[0] == 3
+    np.testing.assert_allclose(read.values["time"], 3217 + 10 * np.arange(19))
+    _serial_log(path)  # the whole first line is a sample
+    whole = read_columns(path, {"time": "ms", "speed": "rpm"}, asked_by="test")
+    assert whole.skipped == () and whole.values["time"][0] == 3207
+
+
+def test_a_first_time_past_a_counter_s_new_digit_is_kept(tmp_path):
+    """``999`` then ``1009``: written shorter, but one interval before the next: a
+    counter gaining a digit, not a cut line."""
+    from pmdc_bayes.io._csv import read_columns
+
+    path = tmp_path / "log.csv"
+    path.write_text("ms,rpm\n" + "".join(f"{999 + 10 * k},1.0\n" for k in range(10)))
+    read = read_columns(path, {"time": "ms", "speed": "rpm"}, asked_by="test")
+    assert read.skipped == () and read.values["time"][0] == 999
+
+
+def test_a_serial_monitor_s_arrival_times_are_read_past(tmp_path):
+    """The Arduino IDE's "Show timestamp" writes the computer's time of arrival before
+    every line (``14:05:11.010 -> ``): the logger's own columns are read behind it."""
+    from pmdc_bayes.io._csv import read_columns
+
+    path = tmp_path / "log.csv"
+    _serial_log(path, prefix=lambda k: f"14:05:{11 + k // 100:02d}.{10 * k % 1000:03d} -> ")
+    read = read_columns(path, {"time": "ms", "speed": "rpm"}, asked_by="test")
+    np.testing.assert_allclose(read.values["time"], 3207 + 10 * np.arange(20))
+    np.testing.assert_allclose(read.values["speed"], 0.5 * np.arange(20))

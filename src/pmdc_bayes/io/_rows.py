@@ -116,6 +116,8 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
     units_line = None
     closing = None  # a line of text after the samples, an error if samples follow it
     end = reader.line_num
+    previous = None  # the last sample's cells
+    kept: list = []  # the first two samples' cells
     for cells in reader:
         start, end = end + 1, reader.line_num
         if not any(cell.strip() for cell in cells) and (len(cells) < 2 or not missable):
@@ -123,8 +125,10 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
         row = _Row(cells, reader.line_num if all("\n" not in c for c in cells) else start)
         kind = _kind(cells, index, stamped, missable)
         short = any(k >= len(cells) for k in index.values())
-        if row.line == cut and short:
+        if row.line == cut and (short or _cut_inside(cells, previous, index)):
             kind = "missed"  # a last line cut off mid-write: its readings are lost
+        if short and timed and header and not lines and not pending and kind == "data":
+            kind = "missed"  # a first line cut at its start: the logger joined mid-line
         if header is None and not lines and (kind != "data" or _worded(cells, index, stamped)):
             continue  # a headerless file's preamble: a numbered field holds a word
         if kind == "text" and all("\n" not in c for c in cells):
@@ -179,7 +183,13 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
                                 else parse_cell(path, row.line, wanted[role], cell, marks,
                                                 role in missing))
         lines.append(row.line)
+        previous = cells
+        kept = kept + [cells] if len(kept) < 2 else kept
     marks.check()
+    if timed and _cut_at_start(kept, index["time"], values["time"]):
+        for role in values:
+            del values[role][0]
+        skipped = sorted([lines.pop(0), *skipped])
     out = {role: np.frombuffer(v, dtype=float).copy() for role, v in values.items()}
     if "clock" in kinds and out[stamped].size:
         out[stamped] = elapsed(out[stamped], stamps[1])
@@ -188,6 +198,29 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
     plain = kinds == {"plain"}
     return Columns(out, lines, tuple(skipped), units, units_line, plain and not fractional,
                    plain)
+
+
+def _cut_inside(cells, previous, index) -> bool:
+    """Whether a last line cut off mid-write may have lost the end of a value: its last
+    field is read and written shorter than the sample's before it (``25`` where the
+    counts stood at ``17681``, ``3.1`` after ``3.1416``)."""
+    last = len(cells) - 1
+    if previous is None or last not in index.values() or last >= len(previous):
+        return False
+    return len(cells[last].strip()) < len(previous[last].strip())
+
+
+def _cut_at_start(kept, k, t) -> bool:
+    """Whether the first sample's line was cut at its start (a logger joined mid-line:
+    ``7,0,1,0.00,4.7`` where ``3207`` was written): its time, the line's first field,
+    written shorter than the next sample's and more than three of the next intervals
+    before it."""
+    if k != 0 or len(kept) < 2 or len(t) < 4:
+        return False
+    steps = np.diff(np.asarray(t[:12], dtype=float))
+    typical = float(np.median(steps[1:]))
+    return (len(kept[0][0].strip()) < len(kept[1][0].strip())
+            and typical > 0 and steps[0] > 3.0 * typical)
 
 
 def _index(path, header, sep, wanted, asked_by, line) -> dict:
