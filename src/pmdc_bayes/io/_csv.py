@@ -31,6 +31,7 @@ Windows-1252, whose letters only its names can hold.
 from __future__ import annotations
 
 import csv
+import re
 from pathlib import Path
 
 from .._errors import SessionError
@@ -117,6 +118,7 @@ def read_columns(path: Path, wanted: dict[str, str], *, asked_by: str,
     text = text.rstrip("\x00")  # a logger's card padded with NULs
     if "\n" not in text:
         text = text.replace("\r", "\n")  # lines ended by a carriage return alone
+    text = _without_monitor_stamps(text)
     positional = all(isinstance(v, int) for v in wanted.values())  # no header
     if not positional:
         text = _uncommented_header(text, wanted)
@@ -231,6 +233,19 @@ def _header_line(text: str, wanted: dict[str, str], first: str) -> tuple[int, st
         if line.strip() and _asked(wanted) <= names(line):
             return k, line
     return _blank_lines_before(text), first
+
+
+_MONITOR = re.compile(r"^[0-2]?\d:[0-5]\d:[0-5]\d\.\d{3} -> ", re.MULTILINE)
+
+
+def _without_monitor_stamps(text: str) -> str:
+    """``text`` without the time of arrival a serial monitor writes before every line it
+    shows (``14:05:11.010 -> ``, the Arduino IDE's "Show timestamp"): the computer's
+    clock on receipt, not the logger's, when every non-blank line starts with one."""
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    if not lines or not all(_MONITOR.match(ln) for ln in lines):
+        return text
+    return _MONITOR.sub("", text)
 
 
 def _blank_lines_before(text: str) -> int:
