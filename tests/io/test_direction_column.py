@@ -26,10 +26,11 @@ def both_ways(up_down_session):
 
 def _as_pins(src, dst, *, duty: float | None = None, bit=lambda v: 1 if v >= 0 else 0,
              declare: bool = True, signed: bool = False, name="tr0_up_down.csv",
-             sensed: bool = False) -> None:
+             sensed: bool = False, tacho: bool = False) -> None:
     """``src``'s session with its voltage column written as a magnitude (a duty in % of
     ``duty`` volts, where given) and a ``dir`` column of ``bit``; with ``sensed``, its
-    current as a magnitude too (a driver's current-sense pin)."""
+    current as a magnitude too (a driver's current-sense pin); with ``tacho``, its speed
+    (a tachometer or a one-channel Hall sensor, which read no direction)."""
     dst.mkdir()
     for f in src.iterdir():
         if f.name != name:
@@ -43,9 +44,9 @@ def _as_pins(src, dst, *, duty: float | None = None, bit=lambda v: 1 if v >= 0 e
         v = float(cells[j])
         m = v if signed else abs(v)
         cells[j] = repr(m / duty * 100.0 if duty else m)
-        if sensed:
-            ia = head.index("ia")
-            cells[ia] = repr(abs(float(cells[ia])))
+        for column, yes in (("ia", sensed), ("speed", tacho)):
+            if yes:
+                cells[head.index(column)] = repr(abs(float(cells[head.index(column)])))
         out.append(",".join([*cells, str(bit(v))]))
     (dst / name).write_text("\n".join(out) + "\n")
     toml = (src / "session.toml").read_text()
@@ -155,6 +156,27 @@ def test_a_current_sense_beside_the_direction_bit_reads_as_the_signed_current(
                                rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(np.abs(got.current), np.abs(want.current), rtol=1e-9,
                                atol=1e-12)
+
+
+@pytest.mark.parametrize("declare", [True, False])
+def test_a_speed_read_as_a_magnitude_is_signed_where_the_rotor_turns(both_ways, tmp_path,
+                                                                    declare):
+    """A tachometer that reads no direction, beside a direction bit or a signed voltage:
+    the rotor turns the way it was first driven and takes each new direction where it
+    turned round (its slowest reading between the two drives), as the signed speed; a
+    speed that reads both ways is kept as logged."""
+    _as_pins(both_ways, tmp_path / "pins", tacho=True, signed=not declare, declare=declare)
+    want = load_session(both_ways).traces[0]
+    got = load_session(tmp_path / "pins").traces[0]
+    v = want.voltage.at(want.time)
+    assert np.any(want.speed[v < 0] < -0.5 * np.abs(want.speed).max())  # it turns back
+    np.testing.assert_allclose(np.abs(got.speed), np.abs(want.speed), rtol=1e-12)
+    clear = np.abs(want.speed) > 10 * difference_sd(want.speed)
+    assert clear.sum() > 0.5 * clear.size
+    np.testing.assert_array_equal(np.sign(got.speed[clear]), np.sign(want.speed[clear]))
+    _as_pins(both_ways, tmp_path / "signed", declare=declare, signed=not declare)
+    np.testing.assert_array_equal(load_session(tmp_path / "signed").traces[0].speed,
+                                  want.speed)
 
 
 def _negated(src, dst, name):

@@ -15,6 +15,7 @@ from .toml_tables import describe as _describe
 from .units import to_si, unit_factor
 
 __all__ = ["schedule", "duty_scale", "duty_to_volts", "signed_voltage", "signed_current",
+           "signed_speed",
            "DUTY_UNITS", "SUPPLY"]
 
 DUTY_UNITS = {"1": 1.0, "%": 100.0}  # a voltage logged as a duty: its full scale
@@ -163,3 +164,37 @@ def signed_current(current: np.ndarray, signs: np.ndarray, voltage: np.ndarray) 
     last = np.maximum.accumulate(np.where(held, np.arange(v.size), 0))
     braking = np.where(held[last], -np.sign(v[last]), signs)
     return np.abs(i) * np.where(driven, np.sign(v), braking)
+
+
+def signed_speed(speed: np.ndarray, time: np.ndarray, inputs: dict) -> np.ndarray:
+    """A logged speed that reads a magnitude (a tachometer or a one-channel Hall sensor:
+    never below zero beyond a magnitude's offset) while the ``inputs`` drive the motor
+    backwards (a voltage held below zero for :data:`~.robust.CONSECUTIVE` rows or more,
+    the speed off rest there), signed: the rotor turns the way first driven, and takes
+    each new direction at the slowest reading between the end of the drive before and
+    the end of this one (where it turned round, or came to rest and started again).
+    Kept as it is where it reads both ways, the motor is never driven backwards, or a
+    load is declared (a load may turn the rotor against its voltage)."""
+    w = np.asarray(speed, dtype=float)
+    v = inputs["voltage"].at(time)
+    if _first_negative(w) is not None or np.any(inputs["load_torque"].values != 0):
+        return w
+    top = float(np.nanmax(np.abs(v))) if np.isfinite(v).any() else 0.0
+    held = np.abs(v) > AT_REST * top
+    for lag in range(1, CONSECUTIVE):
+        held[lag:] &= held[:-lag]
+    backwards = held & (v < 0)
+    w_top = float(np.nanmax(np.abs(w))) if np.isfinite(w).any() else 0.0
+    if not backwards.any() or not np.nanmedian(w[backwards]) > AT_REST * w_top:
+        return w
+    at = np.flatnonzero(held)
+    signs = np.sign(v[at])
+    turns = np.flatnonzero(signs[1:] != signs[:-1]) + 1  # the first row of each new drive
+    ends = np.append(at[turns[1:] - 1], at[-1])  # each new drive's last row
+    sense = np.full(w.size, signs[0])
+    slow = np.where(np.isfinite(w), np.abs(w), np.inf)
+    for j, end in zip(turns, ends, strict=True):
+        lo = at[j - 1]
+        k = lo + int(np.argmin(slow[lo:end + 1]))
+        sense[k:] = signs[j]
+    return w * sense

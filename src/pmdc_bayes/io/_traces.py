@@ -17,6 +17,7 @@ from ._inputs import (
     duty_to_volts,
     schedule,
     signed_current,
+    signed_speed,
     signed_voltage,
 )
 from ._missing import MISSABLE, without_missing, without_repeats
@@ -152,11 +153,11 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict, *,
 
 
 def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: bool,
-            voltage: Schedule, initial, left_out: tuple) -> dict:
-    """The trace's time, speed and angle (SI), and the angle of one count.  An edge
-    trace starting at rest gets a first sample, unread, at its voltage schedule's start;
-    a speed differenced from encoder counts (``counts_per_rev``, a speed and no position)
-    is the counted angle, which rows ``left_out`` between the first and last break."""
+            inputs: dict, initial, left_out: tuple) -> dict:
+    """The trace's time, speed (a magnitude signed: :func:`._inputs.signed_speed`) and
+    angle (SI), the angle of one count.  An edge trace at rest first gets an unread
+    sample at its voltage's start; a speed differenced from encoder counts (no position)
+    is the counted angle, which rows ``left_out`` between first and last break."""
     if not edges:
         out = {"time": time, "position": None, "encoder_step": 0.0, "differenced": False}
         if "position" in raw:
@@ -164,7 +165,7 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
             out["position"], out["encoder_step"] = angle_si(t, counts, u["position"])
         out["speed"] = raw.get("speed")
         if out["speed"] is not None:
-            out["speed"] = sensors.speed_si(t, out["speed"], u)
+            out["speed"] = signed_speed(sensors.speed_si(t, out["speed"], u), time, inputs)
             if "counts_per_rev" in t.data and "position" not in raw:
                 out["position"], out["encoder_step"] = differenced_angle(
                     t, time, out["speed"], left_out)
@@ -174,18 +175,18 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
         return out
     angle, q = edge_angles(t, time.size, raw.get("direction"))
     if initial == "rest":
-        if not voltage.times[0] < time[0]:
+        if not inputs["voltage"].times[0] < time[0]:
             t.fail("voltage", "an encoder-edge trace starting at rest starts at its voltage "
                    "schedule's first time, which must come before the first edge; begin the "
                    "schedule at the time the motor was still at rest")
-        moves = voltage.change_times()
+        moves = inputs["voltage"].change_times()
         span = float(time[-1] - time[0])
         if moves.size and float(time[0] - moves[0]) > 10.0 * max(span, 1e-12):
             t.fail("voltage", f"the voltage first changes {float(time[0] - moves[0]):.6g} s "
                    f"before the first edge, yet the edges span only {span:.3g} s: the "
                    "schedule is not on the time column's clock; give its times in the same "
                    "unit and from the same origin as the edges (a wrapping timer's too)")
-        time = np.concatenate([voltage.times[:1], time])
+        time = np.concatenate([inputs["voltage"].times[:1], time])
         angle = np.concatenate([[np.nan], angle])
     return {"time": time, "position": angle, "encoder_step": q,
             "speed": speed_estimate(time, angle), "differenced": False}
@@ -236,12 +237,11 @@ def _trace(t: _Table, root: Path) -> Trace:
         else:
             inputs[inp] = Schedule(time[:1].copy(), np.zeros(1))
     if "direction" in raw and not edges and "current" in si:  # ... and its current sense
-        si["current"] = signed_current(si["current"], raw["direction"],
-                                       inputs["voltage"].at(time))
+        si["current"] = signed_current(si["current"], raw["direction"], inputs["voltage"].at(time))
     initial = _initial(t, sensors.physical(u))
     drag = read_drag(t, sensors.physical(u))
     inside = tuple(n for n in left_out if lines[0] < n < lines[-1])
-    m = _motion(t, path, raw, u, time, edges, inputs["voltage"], initial, inside)
+    m = _motion(t, path, raw, u, time, edges, inputs, initial, inside)
     check_curve_reach(t, drag, m["speed"], sensors.physical(u))
     if initial == "rest" and "voltage" not in cols:  # a schedule, in the trace's unit
         check_step_timing(t, m["time"], m["speed"], inputs["voltage"], inputs["load_torque"],
