@@ -239,3 +239,23 @@ def test_a_sense_read_below_zero_at_rest_is_still_a_magnitude(both_ways, tmp_pat
     v = want.voltage.at(want.time)
     back = v < -0.5 * np.abs(v).max()
     assert np.median(got.current[back]) < 0 and np.median(want.current[back]) < 0
+
+
+def test_a_brief_drive_backwards_that_only_slows_the_rotor_keeps_the_speed_as_logged():
+    """A voltage below zero for less time than the rotor takes to turn round (a random
+    sequence, a sweep about a positive mean, a braking pulse): the logged speed only
+    falls there and stays positive, as a signed reading does; nothing is signed."""
+    from pmdc_bayes.io._inputs import signed_speed
+    from pmdc_bayes.io.session import Schedule
+
+    t = np.arange(0.0, 1.0, 1e-3)
+    volts = Schedule(np.array([0.0, 0.1, 0.4, 0.45]), np.array([0.0, 12.0, -6.0, 12.0]))
+    w = np.where(t < 0.1, 0.0, 400.0 * (1.0 - np.exp(-(t - 0.1) / 0.05)))
+    braked = (t >= 0.4) & (t < 0.47)  # a sensor's lag: the reading slows on a little
+    w[braked] = w[braked][0] * np.exp(-(t[braked] - 0.4) / 0.08)  # slows, never turns
+    after = t >= 0.47
+    w[after] = 400.0 + (w[braked][-1] - 400.0) * np.exp(-(t[after] - 0.47) / 0.05)
+    noisy = w + np.random.default_rng(3).normal(0.0, 0.5, t.size)
+    load = Schedule(np.array([0.0]), np.array([0.0]))
+    kept = signed_speed(noisy, t, {"voltage": volts, "load_torque": load})
+    np.testing.assert_array_equal(kept, noisy)

@@ -167,14 +167,18 @@ def signed_current(current: np.ndarray, signs: np.ndarray, voltage: np.ndarray) 
 
 
 def signed_speed(speed: np.ndarray, time: np.ndarray, inputs: dict) -> np.ndarray:
-    """A logged speed that reads a magnitude (a tachometer or a one-channel Hall sensor:
-    never below zero beyond a magnitude's offset) while the ``inputs`` drive the motor
-    backwards (a voltage held below zero for :data:`~.robust.CONSECUTIVE` rows or more,
-    the speed off rest there), signed: the rotor turns the way first driven, and takes
-    each new direction at the slowest reading between the end of the drive before and
-    the end of this one (where it turned round, or came to rest and started again).
-    Kept as it is where it reads both ways, the motor is never driven backwards, or a
-    load is declared (a load may turn the rotor against its voltage)."""
+    """A logged speed that reads a magnitude (a tachometer or a one-channel Hall sensor),
+    signed.  It is one where the motor is driven both ways (a voltage held beyond rest
+    each way for :data:`~.robust.CONSECUTIVE` rows or more) and the speed never reads
+    below zero beyond a magnitude's offset, yet shows the rotor turning backwards: driven
+    backwards, its reading rises (from rest, or after falling: a rotor turning forward
+    can only slow down while the voltage is below zero, so the rise is its turn).  A
+    trace driven one way is kept as logged: there a magnitude and a sensor wired
+    against the voltage read alike, which the session's checks refuse, naming both.
+    Signed, the rotor turns the way first driven and takes each new direction at the
+    slowest reading between the end of the drive before and the end of this one.  Kept
+    as logged where a load is declared (a load may turn the rotor against its
+    voltage)."""
     w = np.asarray(speed, dtype=float)
     v = inputs["voltage"].at(time)
     if _first_negative(w) is not None or np.any(inputs["load_torque"].values != 0):
@@ -183,18 +187,34 @@ def signed_speed(speed: np.ndarray, time: np.ndarray, inputs: dict) -> np.ndarra
     held = np.abs(v) > AT_REST * top
     for lag in range(1, CONSECUTIVE):
         held[lag:] &= held[:-lag]
-    backwards = held & (v < 0)
-    w_top = float(np.nanmax(np.abs(w))) if np.isfinite(w).any() else 0.0
-    if not backwards.any() or not np.nanmedian(w[backwards]) > AT_REST * w_top:
-        return w
     at = np.flatnonzero(held)
+    if at.size == 0:
+        return w
     signs = np.sign(v[at])
+    if not (np.any(signs > 0) and np.any(signs < 0)):
+        return w  # driven one way: a magnitude and a sensor wired against it read alike
     turns = np.flatnonzero(signs[1:] != signs[:-1]) + 1  # the first row of each new drive
-    ends = np.append(at[turns[1:] - 1], at[-1])  # each new drive's last row
-    sense = np.full(w.size, signs[0])
+    starts = np.append(0, turns)
+    ends = np.append(at[turns - 1], at[-1])  # each drive's last row
     slow = np.where(np.isfinite(w), np.abs(w), np.inf)
-    for j, end in zip(turns, ends, strict=True):
+    if not any(_turned(w, slow, at[a], end) for a, end in zip(starts, ends, strict=True)
+               if signs[a] < 0):
+        return w
+    sense = np.full(w.size, signs[0])
+    for j, end in zip(turns, ends[1:], strict=True):
         lo = at[j - 1]
         k = lo + int(np.argmin(slow[lo:end + 1]))
         sense[k:] = signs[j]
     return w * sense
+
+
+def _turned(w, slow, first: int, last: int) -> bool:
+    """Whether a positive reading of a drive backwards (rows ``first`` to ``last``) shows
+    the rotor turning backwards: it rises, after its slowest, by a tenth of the record's
+    largest reading and :data:`SIGNED_NOISE` sds of its noise."""
+    k = first + int(np.argmin(slow[first:last + 1]))
+    after = slow[k:last + 1]
+    after = after[np.isfinite(after)]
+    top = float(np.nanmax(np.abs(w)))
+    rise = float(after.max() - slow[k]) if after.size else 0.0
+    return rise > max(0.1 * top, SIGNED_NOISE * difference_sd(w))
