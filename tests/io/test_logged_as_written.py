@@ -110,6 +110,24 @@ def test_a_last_line_cut_inside_its_last_value_is_left_out(session_dir):
     assert tr.current[-1] == pytest.approx(float(cells[-1]))
 
 
+def test_a_last_value_written_as_short_before_is_whole(session_dir):
+    """Floats printed without trailing zeros (Python's ``repr``, ``%g``) vary in width
+    from row to row: a last line without its newline, its value shorter than the row
+    before's but no shorter than one of the rows before, is kept."""
+    lines = _rows(session_dir)
+    for k, places in zip(range(len(lines) - 12, len(lines)), (4, 2, 3, 4, 3, 2, 4, 3, 4, 2, 4, 2),
+                         strict=True):
+        cells = lines[k].split(",")
+        cells[-1] = f"{float(cells[-1]):.{places}f}"
+        lines[k] = ",".join(cells)
+    widths = [len(x.split(",")[-1]) for x in lines[-12:]]
+    assert widths[-1] < widths[-2] and widths[-1] >= min(widths[:-1])
+    (session_dir / "step.csv").write_text("\n".join(lines), encoding="utf-8")
+    tr = load_session(session_dir).trace("step")
+    assert tr.rows_left_out == () and tr.n == STEP_N
+    assert tr.current[-1] == pytest.approx(float(lines[-1].split(",")[-1]))
+
+
 @pytest.mark.parametrize("code", ["9.9E37", "inf", "-Inf", "\u221e", "\u2212\u221e"])
 def test_an_instrument_overrange_code_is_a_missed_reading(session_dir, code):
     lines = _rows(session_dir)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 from array import array
+from collections import deque
 from pathlib import Path
 from typing import NamedTuple
 
@@ -19,6 +20,7 @@ __all__ = ["Columns", "read_rows"]
 
 SEPARATOR_NAMES = {",": "commas", ";": "semicolons", "\t": "tabs"}
 _INTEGER = re.compile(r"[+-]?\d+")
+RECENT = 20  # samples whose last field's width tells a cut value from a short one
 
 
 class Columns(NamedTuple):
@@ -116,7 +118,7 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
     units_line = None
     closing = None  # a line of text after the samples, an error if samples follow it
     end = reader.line_num
-    previous = None  # the last sample's cells
+    recent: deque = deque(maxlen=RECENT)  # the last samples' cells
     kept: list = []  # the first two samples' cells
     for cells in reader:
         start, end = end + 1, reader.line_num
@@ -125,7 +127,7 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
         row = _Row(cells, reader.line_num if all("\n" not in c for c in cells) else start)
         kind = _kind(cells, index, stamped, missable)
         short = any(k >= len(cells) for k in index.values())
-        if row.line == cut and (short or _cut_inside(cells, previous, index)):
+        if row.line == cut and (short or _cut_inside(cells, recent, index)):
             kind = "missed"  # a last line cut off mid-write: its readings are lost
         if short and timed and header and not lines and not pending and kind == "data":
             kind = "missed"  # a first line cut at its start: the logger joined mid-line
@@ -183,7 +185,7 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
                                 else parse_cell(path, row.line, wanted[role], cell, marks,
                                                 role in missing))
         lines.append(row.line)
-        previous = cells
+        recent.append(cells)
         kept = kept + [cells] if len(kept) < 2 else kept
     marks.check()
     if timed and _cut_at_start(kept, index["time"], values["time"]):
@@ -200,14 +202,16 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
                    plain)
 
 
-def _cut_inside(cells, previous, index) -> bool:
+def _cut_inside(cells, recent, index) -> bool:
     """Whether a last line cut off mid-write may have lost the end of a value: its last
-    field is read and written shorter than the sample's before it (``25`` where the
-    counts stood at ``17681``, ``3.1`` after ``3.1416``)."""
+    field is read and written shorter than in every one of the samples before it
+    (``25`` where the counts stood at ``17681``, ``3.1`` after ``3.1416``; a value
+    written as short before, a float printed without trailing zeros, is not cut)."""
     last = len(cells) - 1
-    if previous is None or last not in index.values() or last >= len(previous):
+    if last not in index.values():
         return False
-    return len(cells[last].strip()) < len(previous[last].strip())
+    widths = [len(r[last].strip()) for r in recent if last < len(r)]
+    return bool(widths) and len(cells[last].strip()) < min(widths)
 
 
 def _cut_at_start(kept, k, t) -> bool:
