@@ -10,7 +10,7 @@ import tomllib
 
 import numpy as np
 
-from ._text import pairs
+from ._text import pairs, trace_block
 
 __all__ = ["MICROS_TICK", "stamp_coarse_clock"]
 
@@ -41,9 +41,7 @@ def stamp_coarse_clock(files: dict[str, str], name: str) -> dict[str, str]:
     out = dict(files)
     out[f"{name}.csv"] = "\n".join([rows[0], *(",".join(c) for c in cells)]) + "\n"
     lines = files["session.toml"].split("\n")
-    start = lines.index(f'name = "{name}"')
-    end = next((j for j in range(start, len(lines)) if not lines[j].strip()), len(lines))
-    for j in range(start, end):
+    for j in trace_block(lines, name):
         if lines[j].startswith('units = { time = "s"'):
             lines[j] = lines[j].replace('time = "s"', f'time = "{unit}"', 1)
         key = lines[j].split(" = ", 1)[0]

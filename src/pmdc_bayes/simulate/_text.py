@@ -10,7 +10,8 @@ import numpy as np
 
 from ..io.units import from_si
 
-__all__ = ["stream", "number", "string", "csv_text", "pairs", "inline", "drag_entry"]
+__all__ = ["stream", "number", "string", "csv_text", "pairs", "inline", "drag_entry",
+           "trace_block"]
 
 
 def stream(seed: int, section: str, name: str, n: int = 1):
@@ -57,3 +58,11 @@ def pairs(pairs) -> str:
 
 def inline(table: dict[str, str]) -> str:
     return "{ " + ", ".join(f"{k} = {v}" for k, v in table.items()) + " }"
+
+
+def trace_block(lines: list[str], name: str) -> range:
+    """The line numbers of trace ``name``'s ``[[trace]]`` block in a rendered
+    ``session.toml`` split into ``lines``: from its name to the first blank line."""
+    start = lines.index(f"name = {string(name)}")
+    end = next((k for k in range(start, len(lines)) if not lines[k].strip()), len(lines))
+    return range(start, end)
