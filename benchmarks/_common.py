@@ -116,3 +116,15 @@ def run_measured(cmd: list[str], *, env: dict | None = None, cwd: Path | None = 
         peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
         how = "getrusage(RUSAGE_CHILDREN), largest child so far"
     return {"wall": wall, "returncode": proc.returncode, "peak_mib": peak, "peak_how": how}
+
+
+def rate(k: int, n: int, digits: int = 0) -> str:
+    """``k/n`` as a percentage with its exact (Clopper–Pearson) 95 % interval."""
+    from scipy import stats
+
+    if not n:
+        return "–"
+    lo = float(stats.beta.ppf(0.025, k, n - k + 1)) if k else 0.0
+    hi = float(stats.beta.ppf(0.975, k + 1, n - k)) if k < n else 1.0
+    return (f"{k}/{n} ({100 * k / n:.{digits}f} %; 95 % interval {100 * lo:.{digits}f}–"
+            f"{100 * hi:.{digits}f} %)")

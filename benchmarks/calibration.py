@@ -246,6 +246,8 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, default=300, help="in-class sessions")
     ap.add_argument("--misspecified", type=int, default=10,
                     help="sessions per non-ideality")
+    ap.add_argument("--keys", default=None,
+                    help="non-idealities to draw, comma-separated (default: every one)")
     ap.add_argument("--quick", action="store_true", help="12 in-class, 1 per non-ideality")
     ap.add_argument("--start", type=int, default=0, help="first seed")
     ap.add_argument("--log", type=Path, default=None, help="JSON lines of results (resumed)")
@@ -257,6 +259,10 @@ def main(argv=None) -> int:
     ap.add_argument("--coarse-clock", action="store_true",
                     help="every trace stamped as a microcontroller logs it (millis() "
                          "at up to 500 Hz, else micros() on a 4 us tick)")
+    ap.add_argument("--stopped", action="store_true",
+                    help="every driven trace commanded to zero halfway through its last "
+                         "level (the driver braking, or opening the armature for 'open at "
+                         "zero')")
     ap.add_argument("--shapes", default=None,
                     help="trace shapes to draw from, comma-separated (default: the "
                          "fuzzer's TRACE_SHAPES; EXCITATION_SHAPES on request)")
@@ -264,7 +270,11 @@ def main(argv=None) -> int:
     shapes = tuple(x.strip() for x in args.shapes.split(",")) if args.shapes else None
     n, m = (12, 1) if args.quick else (args.n, args.misspecified)
     jobs = [(s, None) for s in range(args.start, args.start + n)]
-    jobs += [(args.start + k, key) for k in range(m) for key in NON_IDEALITIES]
+    keys = tuple(x.strip() for x in args.keys.split(",")) if args.keys else NON_IDEALITIES
+    for key in keys:
+        if key not in NON_IDEALITIES:
+            ap.error(f"--keys: unknown non-ideality {key!r}; use some of {NON_IDEALITIES}")
+    jobs += [(args.start + k, key) for k in range(m) for key in keys]
     done = {}
     if args.log and args.log.exists():
         for line in args.log.read_text().splitlines():
@@ -276,7 +286,7 @@ def main(argv=None) -> int:
             r = done.get((seed, key)) or run_one(
                 seed, key, Path(tmp), mcmc=args.mcmc and key is None,
                 between_samples=args.between_samples, shapes=shapes,
-                coarse_clock=args.coarse_clock)
+                coarse_clock=args.coarse_clock, stopped=args.stopped)
             if (seed, key) not in done and args.log:
                 with args.log.open("a") as fh:
                     fh.write(json.dumps(r) + "\n")

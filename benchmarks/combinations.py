@@ -31,8 +31,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
-from _common import REPORT, replace_section
-from scipy import stats
+from _common import REPORT, rate, replace_section
 
 from pmdc_bayes.candidate import Candidate
 from pmdc_bayes.io.lattice import analogue_channels
@@ -117,15 +116,6 @@ def run_one(seed: int, keys: tuple[str, ...] | None, root: Path) -> dict:
     return dict(rec, seconds=time.perf_counter() - t0)
 
 
-def _rate(k: int, n: int) -> str:
-    if not n:
-        return "–"
-    lo, hi = stats.beta.ppf([0.025, 0.975], [k, k + 1], [n - k + 1, n - k]) if 0 < k < n \
-        else (stats.beta.ppf(0.025, k, n - k + 1) if k else 0.0,
-              stats.beta.ppf(0.975, k + 1, n - k) if k < n else 1.0)
-    return f"{k}/{n} ({100 * k / n:.0f} %; 95 % interval {100 * lo:.0f}–{100 * hi:.0f} %)"
-
-
 def report(records, argv) -> str:
     now = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     cmd = f"python benchmarks/combinations.py {' '.join(argv)}"
@@ -134,27 +124,27 @@ def report(records, argv) -> str:
     found = [r for r in ok if not r["missing"] and r["verdict"] == "adequate"]
     lines = [f"## {TITLE}", "", f"Measured {now} by `{cmd}` (see the script's docstring).",
              "", f"- recovered (every non-ideality chosen, verdict adequate): "
-             f"{_rate(len(found), len(mis))}; errors {len(mis) - len(ok)}",
+             f"{rate(len(found), len(mis))}; errors {len(mis) - len(ok)}",
              f"- every non-ideality chosen, whatever the verdict: "
-             f"{_rate(sum(not r['missing'] for r in ok), len(mis))}",
+             f"{rate(sum(not r['missing'] for r in ok), len(mis))}",
              "- chosen model adequate: "
-             f"{_rate(sum(r['verdict'] == 'adequate' for r in ok), len(mis))}"]
+             f"{rate(sum(r['verdict'] == 'adequate' for r in ok), len(mis))}"]
     beside = [r for r in ok if r["missing"] and r["verdict"] == "adequate" and any(
         {TERM[k] for k in r["keys"]} <= {nuisance_of(t) for t in eq}
         for eq in r.get("equivalent", ()))]
     lines.append("- recovered, or every non-ideality in a model reported beside the chosen "
-                 f"one as equally good: {_rate(len(found) + len(beside), len(mis))}")
+                 f"one as equally good: {rate(len(found) + len(beside), len(mis))}")
     for k in (2, 3):
         sub = [r for r in mis if len(r["keys"]) == k]
         rec = [r for r in sub if r["outcome"] == "searched" and not r["missing"]
                and r["verdict"] == "adequate"]
-        lines.append(f"- {k} at once: {_rate(len(rec), len(sub))}")
+        lines.append(f"- {k} at once: {rate(len(rec), len(sub))}")
     inclass = [r for r in records if not r["keys"]]
     if inclass:
         ideal = [r for r in inclass if r["outcome"] == "searched"
                  and set(r["terms"]) <= {"coulomb"}]
         lines.append(f"- in-class sessions that add no non-ideality (the friction aside): "
-                     f"{_rate(len(ideal), len(inclass))}")
+                     f"{rate(len(ideal), len(inclass))}")
     lines += ["", "| non-ideality | sessions carrying it | chosen |", "|---|---:|---:|"]
     for key in COMBINED:
         sub = [r for r in ok if key in r["keys"]]

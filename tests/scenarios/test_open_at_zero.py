@@ -10,9 +10,10 @@ from types import SimpleNamespace
 import pytest
 from conftest import SMALL_MOTOR, fit_and_assess, plan
 
-from pmdc_bayes.inference.adequacy.zero_command import COAST_RATIO, _time_constants, coast_rules
+from pmdc_bayes.inference.adequacy.zero_command import COAST_RATIO, coast_rules, time_constants
 from pmdc_bayes.io.loader import load_session
 from pmdc_bayes.search import search_model
+from pmdc_bayes.simulate.fuzz import fuzz_session
 from pmdc_bayes.simulate.session import simulate_session
 
 VOLTAGE = [[0.0, 0.0], [0.01, 8.0], [0.15, 0.0], [0.6, 5.0], [0.75, 0.0]]
@@ -30,13 +31,13 @@ def _session(tmp_path, freewheel: float, voltage=VOLTAGE, friction=None):
 
 def test_the_rule_proposes_it_where_the_rotor_coasts_and_not_where_it_is_braked(tmp_path):
     coasting = _session(tmp_path / "open", 9.4)
-    rises, falls = _time_constants(coasting.traces[0])
+    rises, falls = time_constants(coasting.traces[0])
     assert len(rises) == 2 and len(falls) == 2
     assert min(falls) > 10 * max(rises)  # J/B against the electromechanical time scale
     [sentence] = coast_rules(SimpleNamespace(session=coasting), coasting.traces[0])
     assert [p.nuisance for p in sentence.proposals] == ["open_at_zero"]
     braked = _session(tmp_path / "braked", 0.0)
-    rises, falls = _time_constants(braked.traces[0])
+    rises, falls = time_constants(braked.traces[0])
     assert max(falls) < COAST_RATIO * min(rises)
     assert coast_rules(SimpleNamespace(session=braked), braked.traces[0]) == []
     held = dataclasses.replace(coasting, nuisances=("open_at_zero",))
@@ -72,3 +73,23 @@ def test_the_search_finds_it_on_its_own(tmp_path):
     assert record["terms"] == ["open_at_zero"], record["candidates"]
     chosen = [c for c in record["candidates"] if c["decision"] == "chosen"]
     assert [c["verdict"] for c in chosen] == ["adequate"], chosen
+
+
+def _proposes(seed, tmp_path, key):
+    f = fuzz_session(seed, misspecified=key, out=tmp_path / f"{key}{seed}", stopped=True)
+    session = load_session(f.path)
+    model = SimpleNamespace(session=session)
+    readable = [tr for tr in session.traces if tr.speed is not None
+                and all(time_constants(tr))]
+    return bool(readable), any(coast_rules(model, tr) for tr in session.traces)
+
+
+def test_the_rule_on_sessions_drawn_over_the_session_format(tmp_path):
+    """Random motors and plans of the bench simulator (benchmarks/coast_rule.py measures
+    the rates over 300 of each): every trace stopped halfway through its last level, the
+    driver braking there or opening the armature."""
+    braked = [_proposes(seed, tmp_path, None) for seed in range(20)]
+    opened = [_proposes(seed, tmp_path, "open at zero") for seed in range(20)]
+    assert sum(r for r, _ in braked) >= 15 and sum(r for r, _ in opened) >= 15
+    assert not any(p for _, p in braked)
+    assert sum(p for r, p in opened if r) >= sum(r for r, _ in opened) - 2

@@ -163,6 +163,16 @@ def test_a_non_ideality_keeps_the_draw_and_records_its_truth(key, tmp_path):
         noisy = [t for t in plan["trace"] if "speed_noise" in t]
         assert noisy and all(0.8 <= t["speed_noise_correlation"] <= 0.97 for t in noisy)
         assert "AR(1)" in (bad.path / "session.toml").read_text()
+    elif key == "open at zero":  # every trace driven by a schedule stops, the rotor coasting
+        plan, _ = fuzz_plan(seed, misspecified=key)
+        clean_plan, _ = fuzz_plan(seed)
+        assert plan["rig"]["freewheel_voltage"] > 0
+        for t, c in zip(plan["trace"], clean_plan["trace"], strict=True):
+            if c["kind"] in ("step", "free-form") and c["voltage"][-1][1] != 0.0:
+                assert t["voltage"][-1][1] == 0.0 and c["duration"] == t["duration"]
+                assert c["voltage"][-1][0] < t["voltage"][-1][0] < t["duration"]
+            else:
+                assert t == c
     else:  # every driven trace's speed is the encoder's counts differenced
         plan, _ = fuzz_plan(seed, misspecified=key)
         assert all(t["encoder"] == {"counts_per_rev": 64, "output": "speed"}

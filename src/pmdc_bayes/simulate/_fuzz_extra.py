@@ -11,17 +11,17 @@ import zlib
 
 import numpy as np
 
-from ._text import csv_text, inline, number
+from ._text import csv_text, inline, number, trace_block
 from .bench import BenchMotor, steady_point
 from .plan import Plan, TraceSpec
 from .rig import rig_steady, rig_trace
 
-__all__ = ["NON_IDEALITIES", "rig_table", "column_reading", "log_voltage_column",
+__all__ = ["NON_IDEALITIES", "rig_table", "stop_before_end", "column_reading", "log_voltage_column",
            "add_step_reading", "STEP_READING_SD", "draw_sensors", "log_uniform"]
 
 NON_IDEALITIES = ("dead time", "speed lag", "voltage drop", "source resistance",
                   "current limit", "unknown load", "encoder speed", "speed gain",
-                  "speed offset", "dead zone", "coloured noise")
+                  "speed offset", "dead zone", "coloured noise", "open at zero")
 
 STEP_READING_SD = 0.01  # relative error of a time and a speed read off a plot
 
@@ -62,6 +62,9 @@ def rig_table(rng, key: str | None, truth: dict, v: float, tau_m: float, names, 
                 t["speed_noise"] = float(f"{sd:.4g}")
                 t["speed_noise_correlation"] = float(f"{rng.uniform(0.8, 0.97):.3g}")
         return {}
+    if key == "open at zero":  # every driven trace stopped before its end, the rotor coasting
+        stop_before_end(traces)
+        return {"freewheel_voltage": float(f"{rng.uniform(1.0, 1.5) * v:.4g}")}
     if key == "encoder speed":
         for t in traces:  # every driven trace's speed: encoder counts differenced
             if t["kind"] != "coast-down":
@@ -69,6 +72,18 @@ def rig_table(rng, key: str | None, truth: dict, v: float, tau_m: float, names, 
                 t["encoder"] = {"counts_per_rev": 64, "output": "speed"}
         return {}
     raise ValueError(f"unknown non-ideality {key!r}; use one of {NON_IDEALITIES}")
+
+
+def stop_before_end(traces) -> None:
+    """A zero command halfway through the last level of every trace driven by a
+    voltage schedule that ends driven (on the sample grid, where a logged column is
+    exact); a load change at constant voltage is left as drawn."""
+    for t in traces:
+        if t["kind"] in ("step", "free-form") and t["voltage"][-1][1] != 0.0:
+            last, rate = t["voltage"][-1][0], t["rate"]
+            stop = round((last + 0.5 * (t["duration"] - last)) * rate) / rate
+            t["voltage"].append([stop, 0.0])
+            t["kind"] = "free-form"
 
 
 def _held(pairs, t: np.ndarray) -> np.ndarray:
@@ -125,9 +140,7 @@ def log_voltage_column(files: dict[str, str], plan: Plan, name: str, *,
     out = dict(files)
     out[f"{name}.csv"] = csv_text(cols)
     lines = files["session.toml"].split("\n")
-    start = lines.index(f'name = "{name}"')
-    end = next((k for k in range(start, len(lines)) if not lines[k].strip()), len(lines))
-    for k in range(start, end):
+    for k in trace_block(lines, name):
         if lines[k].startswith("columns = { "):
             lines[k] = lines[k][:-2] + ', voltage = "va" }'
         elif lines[k].startswith("voltage = ["):

@@ -37,6 +37,7 @@ from ._fuzz_extra import (
     log_uniform,
     log_voltage_column,
     rig_table,
+    stop_before_end,
 )
 from ._fuzz_shapes import EXCITATION_SHAPES, excitation
 from ._write import write_session_files
@@ -154,7 +155,7 @@ def _trace(rng, shape: str, name: str, truth: dict, v: float, tau_m: float,
 
 def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, shapes=None,
               trace_current: bool | None = None, steady: str | None = None,
-              between_samples: bool = False) -> tuple[dict, dict]:
+              between_samples: bool = False, stopped: bool = False) -> tuple[dict, dict]:
     """A random plan and what it holds.
 
     Parameters
@@ -169,6 +170,8 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
         steady reading (and no other); default a random mix.
     between_samples : a column's voltage switches between samples (a rig the logger's
         clock does not time), shown at the first sample after; all else the same.
+    stopped : every trace driven by a schedule that ends driven commanded to zero
+        halfway through its last level (as the rig of ``"open at zero"`` is).
 
     Returns
     -------
@@ -239,6 +242,8 @@ def fuzz_plan(seed: int, *, misspecified: str | tuple[str, ...] | None = None, s
         plan["rig"].update(rig_table(rng, key, truth, v, tau_m,
                                      [t["name"] for t in traces if t["kind"] != "coast-down"],
                                      traces))
+    if stopped:
+        stop_before_end(traces)
     return plan, {"columns": tuple(columns), "step_reading": bool(step),
                   "shapes": tuple(kinds), "features": frozenset(features)}
 
@@ -263,12 +268,13 @@ def fuzz_files(seed: int, *, coarse_clock: bool = False,
 
 def fuzz_session(seed: int, *, misspecified: str | tuple[str, ...] | None = None, out=None,
                  shapes=None, trace_current: bool | None = None, steady: str | None = None,
-                 between_samples: bool = False, coarse_clock: bool = False) -> FuzzedSession:
+                 between_samples: bool = False, coarse_clock: bool = False,
+                 stopped: bool = False) -> FuzzedSession:
     """Draw the session of ``seed`` (see :func:`fuzz_plan`) and, given ``out``, write it
     there (replacing an earlier fuzzed session) for :func:`~pmdc_bayes.io.loader.load_session`."""
     files, plan, extras = fuzz_files(seed, misspecified=misspecified, shapes=shapes,
                                      trace_current=trace_current, steady=steady,
-                                     between_samples=between_samples,
+                                     between_samples=between_samples, stopped=stopped,
                                      coarse_clock=coarse_clock)
     path = None
     if out is not None:
@@ -282,6 +288,8 @@ def fuzz_session(seed: int, *, misspecified: str | tuple[str, ...] | None = None
         features.add("voltage column")
     if coarse_clock:
         features.add("coarse clock")
+    if stopped:
+        features.add("stopped")
     if any(column_reading(seed, name, plan) for name in extras["columns"]):
         features.add("noisy voltage column")
     labels = list(extras["shapes"]) + [k.replace("_", " ") for k in

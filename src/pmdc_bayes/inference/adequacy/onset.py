@@ -12,7 +12,8 @@ import numpy as np
 
 from ...io.robust import first_run
 
-__all__ = ["departure", "onset_shape", "rise_time", "step_time", "step_window"]
+__all__ = ["crossing_time", "departure", "onset_shape", "rise_time", "smoothed", "step_time",
+           "step_window"]
 
 
 def _rise(t, y, t_step):
@@ -131,23 +132,40 @@ def step_window(trace) -> tuple[float, np.ndarray]:
     return t_step, np.asarray(trace.time) < _step_end(trace, t_step)
 
 
-def rise_time(t, y, t_step, level: float = 0.632) -> float | None:
-    """Time after ``t_step`` for ``y`` (smoothed by a moving average long enough to
-    quiet its noise) to cover ``level`` of its change from
-    the value at the step to the mean of its last tenth; None without a clear change."""
+def smoothed(y) -> np.ndarray:
+    """``y`` under a moving average long enough to quiet its noise (to a small share of
+    its span), and no longer than a twentieth of it (near either end, of the samples
+    there are)."""
     from ..model.noise import noise_scale
 
-    t, y = np.asarray(t, float), np.asarray(y, float)
+    y = np.asarray(y, float)
     span = float(np.max(y) - np.min(y))
-    # average enough samples that the noise left is a small share of the span
     need = (3 * noise_scale(y) / max(0.02 * span, 1e-300)) ** 2 if span > 0 else 1.0
     w = int(min(max(y.size // 200, np.ceil(need), 1), max(1, y.size // 20)))
-    ys = np.convolve(y, np.ones(w) / w, mode="same") if w > 1 else y
+    if w == 1:
+        return y
+    box = np.ones(w)
+    return np.convolve(y, box, mode="same") / np.convolve(np.ones_like(y), box, mode="same")
+
+
+def crossing_time(t, ys, t_step, start, end, level: float = 0.632) -> float | None:
+    """Time after ``t_step`` for ``ys`` to cover ``level`` of the way from ``start`` to
+    ``end`` (the first sample after it that does); None when it never does."""
+    mark = start + level * (end - start)
+    after = np.flatnonzero((t > t_step) & (np.sign(end - start) * (ys - mark) >= 0))
+    return float(t[after[0]] - t_step) if after.size else None
+
+
+def rise_time(t, y, t_step, level: float = 0.632) -> float | None:
+    """Time after ``t_step`` for ``y`` (:func:`smoothed`) to cover ``level`` of its
+    change from the value at the step to the mean of its last tenth; None without a
+    clear change."""
+    t, y = np.asarray(t, float), np.asarray(y, float)
+    span = float(np.max(y) - np.min(y))
+    ys = smoothed(y)
     before = ys[t <= t_step]
     y0 = float(before[-1]) if before.size else float(ys[0])
     yf = float(np.mean(y[-max(3, y.size // 10):]))
     if not abs(yf - y0) > 0.2 * span or span == 0:
         return None
-    s = (ys - y0) / (yf - y0)
-    after = np.nonzero((t > t_step) & (s >= level))[0]
-    return float(t[after[0]] - t_step) if after.size else None
+    return crossing_time(t, ys, t_step, y0, yf, level)

@@ -14,27 +14,51 @@ from __future__ import annotations
 
 import numpy as np
 
+from .onset import crossing_time, smoothed
 from .proposals import Proposal, said
 
-__all__ = ["coast_rules", "COAST_RATIO"]
+__all__ = ["coast_rules", "time_constants", "COAST_RATIO"]
 
 COAST_RATIO = 3.0  # a decay at a zero command this many times slower than every rise
 EDGE = 3  # samples averaged for the level at a switch
 
 
-def _crossing(t, y, t0, start, target):
-    """The time after ``t0`` at which ``y`` (samples after it) first gets from ``start``
-    to ``target`` (63.2 % of the way), or None when it never does."""
-    level = start + (1.0 - np.exp(-1.0)) * (target - start)
-    sense = np.sign(target - start)
-    past = np.flatnonzero(sense * (y - level) >= 0)
-    return float(t[past[0]] - t0) if past.size else None
+def _fall(t, ys, t0, start) -> float | None:
+    """The 63.2 % time of a fall toward rest from ``start``: where ``ys`` gets there,
+    else read off the share left at its end (``-T / ln(share)``, an exponential's),
+    infinite where nothing has gone; None where it set off away from rest."""
+    tau = crossing_time(t, ys, t0, start, 0.0)
+    if tau is not None:
+        return tau
+    share = float(np.mean(ys[-EDGE:])) / start
+    if share > 1.0 + 1e-9:
+        return None
+    span = float(t[-EDGE:].mean() - t0)
+    return span / -np.log(share) if share < 1.0 else np.inf
 
 
-def _time_constants(tr):
-    """The data's 63.2 % times: of each rise toward a nonzero command's settled level,
-    and of each fall toward rest after a switch to zero (its segment's length where it
-    never gets there: a lower bound)."""
+def _rise(t, ys, t0, start) -> float | None:
+    """The 63.2 % time of a rise from ``start``: read at the crossing where the segment
+    has settled (crossed in its first third), else from three equally spaced points,
+    an exponential's ``-h / ln((y3 - y2) / (y2 - y1))`` (cut short before it settles,
+    the crossing of its end level comes early); None where it is no such rise."""
+    end = float(np.mean(ys[-EDGE:]))
+    span = float(np.mean(t[-EDGE:]) - t0)
+    tau = crossing_time(t, ys, t0, start, end)
+    if tau is not None and tau < span / 3.0:
+        return tau
+    mid = float(np.interp(t0 + span / 2.0, t, ys))
+    if mid == start:
+        return None
+    ratio = (end - mid) / (mid - start)
+    return span / 2.0 / -np.log(ratio) if 0.0 < ratio < 1.0 else None
+
+
+def time_constants(tr):
+    """The data's 63.2 % times (of the speed smoothed to quiet its noise): of each rise
+    toward a nonzero command's level, and of each fall toward rest after a
+    switch to zero (read off the share of its speed left at the segment's end where it
+    never gets there)."""
     values = np.asarray(tr.voltage.values, float)
     runs = np.flatnonzero(np.r_[True, values[1:] != values[:-1]])  # a logged column's
     times = np.append(np.asarray(tr.voltage.times, float)[runs], np.inf)  # levels
@@ -47,14 +71,14 @@ def _time_constants(tr):
         if on.sum() < 4 * EDGE or before.size == 0:
             continue
         start = float(np.mean(y[before]))
-        tt, yy = t[on], y[on]
-        if values[k] == 0 and np.any(values[:k] != 0):
-            tau = _crossing(tt, yy, times[k], start, 0.0)
-            falls.append(tau if tau is not None else float(tt[-1] - times[k]))
+        tt, ys = t[on], smoothed(y[on])
+        if values[k] == 0 and np.any(values[:k] != 0) and start != 0.0:
+            tau = _fall(tt, ys, times[k], start)
+            if tau is not None:
+                falls.append(tau)
         elif values[k] != 0:
-            end = float(np.mean(yy[-max(EDGE, yy.size // 10):]))
-            tau = _crossing(tt, yy, times[k], start, end)
-            if tau is not None and abs(end - start) > 0:
+            tau = _rise(tt, ys, times[k], start)
+            if tau is not None:
                 rises.append(tau)
     return rises, falls
 
@@ -66,7 +90,7 @@ def coast_rules(model, tr) -> list:
     together brakes on the time scale it rises on), proposing ``open_at_zero``."""
     if "open_at_zero" in model.session.nuisances or tr.speed is None:
         return []
-    rises, falls = _time_constants(tr)
+    rises, falls = time_constants(tr)
     if not rises or not falls or min(falls) < COAST_RATIO * max(rises):
         return []
     return [said(f"{tr.name}: after each switch to a zero command the speed takes "
