@@ -12,8 +12,10 @@ session counts as recovered when every non-ideality it carries is among the chos
 terms and the chosen model's verdict is adequate.  Where one is missing, the model of
 what the rig carries is fitted alone, to tell a miss of the search (its evidence clearly
 higher than every candidate's) from data that cannot tell it from what was chosen.
-``--in-class`` sessions (no non-ideality) count when the search adds none (the
-friction, viscous or Coulomb, aside).  Each result is one JSON line in ``--log``
+``--carry`` gives every session the same non-idealities instead (one alone, or "open at
+zero", which a random combination never draws).  ``--in-class`` sessions (no
+non-ideality) count when the search adds none (the friction, viscous or Coulomb,
+aside).  Each result is one JSON line in ``--log``
 (resumable); the section ``## Model search on combined non-idealities`` of
 ``reports/benchmarks.md`` is replaced.
 """
@@ -44,8 +46,9 @@ TITLE = "Model search on combined non-idealities"
 TERM = {"dead time": "dead_time", "speed lag": "speed_lag", "voltage drop": "voltage_drop",
         "source resistance": "source_resistance", "current limit": "current_limit",
         "unknown load": "unknown_load", "speed offset": "speed_offset",
-        "dead zone": "dead_zone", "coloured noise": "coloured_noise"}
-COMBINED = tuple(TERM)
+        "dead zone": "dead_zone", "coloured noise": "coloured_noise",
+        "open at zero": "open_at_zero"}
+COMBINED = tuple(TERM)[:9]  # the random combinations' pool (as first drawn, seed for seed)
 
 
 def combination(seed: int) -> tuple[str, ...]:
@@ -146,7 +149,7 @@ def report(records, argv) -> str:
         lines.append(f"- in-class sessions that add no non-ideality (the friction aside): "
                      f"{rate(len(ideal), len(inclass))}")
     lines += ["", "| non-ideality | sessions carrying it | chosen |", "|---|---:|---:|"]
-    for key in COMBINED:
+    for key in TERM:
         sub = [r for r in ok if key in r["keys"]]
         lines.append(f"| {key} | {len(sub)} | {sum(key not in r['missing'] for r in sub)} |")
     misses = [r for r in ok if r["missing"] or r["verdict"] != "adequate"]
@@ -185,6 +188,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("--n", type=int, default=30, help="sessions with a combination")
     ap.add_argument("--in-class", type=int, default=0, help="in-class sessions too")
+    ap.add_argument("--carry", default=None,
+                    help="every session carries these non-idealities (comma-separated) "
+                         "instead of a random combination")
     ap.add_argument("--start", type=int, default=0, help="first seed")
     ap.add_argument("--part", type=str, default="0/1",
                     help="K/N: run only every N-th session from the K-th (side by side)")
@@ -197,7 +203,11 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     part, parts = (int(x) for x in args.part.split("/"))
     seeds = range(args.start, args.start + args.n)
-    jobs = [(s, combination(s)) for s in seeds] + [
+    carry = tuple(sorted(x.strip() for x in args.carry.split(","))) if args.carry else None
+    for key in carry or ():
+        if key not in TERM:
+            ap.error(f"--carry: unknown non-ideality {key!r}; use some of {tuple(TERM)}")
+    jobs = [(s, carry or combination(s)) for s in seeds] + [
         (s, None) for s in range(args.start, args.start + args.in_class)]
     jobs = jobs[part::parts]
     done = {}
