@@ -128,6 +128,20 @@ def test_a_last_value_written_as_short_before_is_whole(session_dir):
     assert tr.current[-1] == pytest.approx(float(lines[-1].split(",")[-1]))
 
 
+def test_a_last_value_that_lost_its_sign_is_whole(session_dir):
+    """Fixed decimals with a sign before some: a last value without its minus is as
+    long after the decimal mark as every one before it, so not cut."""
+    lines = _rows(session_dir)
+    for k in range(len(lines) - 12, len(lines)):
+        cells = lines[k].split(",")
+        cells[-1] = f"{(-1.0 if k < len(lines) - 1 else 1.0) * abs(float(cells[-1])):.4f}"
+        lines[k] = ",".join(cells)
+    assert len(lines[-1].split(",")[-1]) < len(lines[-2].split(",")[-1])
+    (session_dir / "step.csv").write_text("\n".join(lines), encoding="utf-8")
+    tr = load_session(session_dir).trace("step")
+    assert tr.rows_left_out == () and tr.n == STEP_N
+
+
 @pytest.mark.parametrize("code", ["9.9E37", "inf", "-Inf", "\u221e", "\u2212\u221e"])
 def test_an_instrument_overrange_code_is_a_missed_reading(session_dir, code):
     lines = _rows(session_dir)

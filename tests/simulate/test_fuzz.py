@@ -298,3 +298,24 @@ def test_a_coarse_clock_rounds_the_stamps_only(tmp_path, seed, unit, shapes):
         assert np.max(np.abs(c.time - e.time)) < (2.1e-6 if unit == "us" else 0.05 * step)
         assert np.array_equal(c.voltage.at(e.time), e.voltage.at(e.time))
         assert np.array_equal(c.load_torque.at(e.time), e.load_torque.at(e.time))
+
+
+@pytest.mark.parametrize("shapes", [None, ("sweep",), ("random sequence",)])
+def test_a_stop_falls_inside_the_last_level_and_the_record(shapes):
+    """Stopped traces (excitations whose last level lasts a sample or less among them)
+    keep schedules the loader reads: times strictly increasing, the stop on the sample
+    grid and a sample or more before the record's end."""
+    stopped = 0
+    for seed in range(30):
+        plan, _ = fuzz_plan(seed, shapes=shapes, stopped=True)
+        clean, _ = fuzz_plan(seed, shapes=shapes)
+        for t, c in zip(plan["trace"], clean["trace"], strict=True):
+            times = [a for a, _ in t.get("voltage", ())]
+            assert all(b > a for a, b in zip(times, times[1:], strict=False))
+            if len(times) > len(c.get("voltage", ())):
+                stop = times[-1]
+                assert t["voltage"][-1][1] == 0.0 and t["voltage"][:-1] == c["voltage"]
+                assert stop <= t["duration"] - 1.0 / t["rate"]
+                assert abs(stop * t["rate"] - round(stop * t["rate"])) < 1e-6
+                stopped += 1
+    assert stopped >= 30

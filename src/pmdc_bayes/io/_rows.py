@@ -204,14 +204,27 @@ def read_rows(path: Path, reader, sep: str, wanted: dict, asked_by: str, *, stam
 
 def _cut_inside(cells, recent, index) -> bool:
     """Whether a last line cut off mid-write may have lost the end of a value: its last
-    field is read and written shorter than in every one of the samples before it
-    (``25`` where the counts stood at ``17681``, ``3.1`` after ``3.1416``; a value
-    written as short before, a float printed without trailing zeros, is not cut)."""
+    field is read and written with fewer digits than in every one of the samples before
+    it (``25`` where the counts stood at ``17681``, ``3.1`` after ``3.1416``: after the
+    decimal mark where every one has one, else in all); a value written as short before
+    (a float printed without trailing zeros, a sign lost) is not cut."""
     last = len(cells) - 1
     if last not in index.values():
         return False
-    widths = [len(r[last].strip()) for r in recent if last < len(r)]
-    return bool(widths) and len(cells[last].strip()) < min(widths)
+    fields = [r[last] for r in recent if last < len(r)]
+    if not fields:
+        return False
+    return _digits(cells[last], fields) < min(_digits(f, fields) for f in fields)
+
+
+def _digits(field: str, fields) -> int:
+    """The digits of ``field`` after its decimal mark where ``fields`` all have one, else
+    its length without a sign."""
+    text = field.strip().lstrip("+-")
+    if all("." in f or "," in f for f in fields):
+        mark = max(text.rfind("."), text.rfind(","))
+        return len(text) - mark - 1 if mark >= 0 else 0
+    return len(text)
 
 
 def _cut_at_start(kept, k, t) -> bool:

@@ -76,14 +76,17 @@ def rig_table(rng, key: str | None, truth: dict, v: float, tau_m: float, names, 
 
 def stop_before_end(traces) -> None:
     """A zero command halfway through the last level of every trace driven by a
-    voltage schedule that ends driven (on the sample grid, where a logged column is
-    exact); a load change at constant voltage is left as drawn."""
+    voltage schedule that ends driven, on the sample grid (where a logged column is
+    exact) strictly after the level's start and a sample or more before the record's
+    end; a level too short for one is left as drawn, and so is a load change at
+    constant voltage."""
     for t in traces:
         if t["kind"] in ("step", "free-form") and t["voltage"][-1][1] != 0.0:
-            last, rate = t["voltage"][-1][0], t["rate"]
-            stop = round((last + 0.5 * (t["duration"] - last)) * rate) / rate
-            t["voltage"].append([stop, 0.0])
-            t["kind"] = "free-form"
+            last, rate, end = t["voltage"][-1][0], t["rate"], t["duration"]
+            stop = round((last + 0.5 * (end - last)) * rate) / rate
+            if last < stop < end - 1.0 / rate:
+                t["voltage"].append([stop, 0.0])
+                t["kind"] = "free-form"
 
 
 def _held(pairs, t: np.ndarray) -> np.ndarray:

@@ -63,6 +63,8 @@ def inline(table: dict[str, str]) -> str:
 def trace_block(lines: list[str], name: str) -> range:
     """The line numbers of trace ``name``'s ``[[trace]]`` block in a rendered
     ``session.toml`` split into ``lines``: from its name to the first blank line."""
-    start = lines.index(f"name = {string(name)}")
+    named = f"name = {string(name)}"
+    start = next(k for k in range(1, len(lines))
+                 if lines[k] == named and lines[k - 1] == "[[trace]]")
     end = next((k for k in range(start, len(lines)) if not lines[k].strip()), len(lines))
     return range(start, end)

@@ -134,14 +134,16 @@ def step_window(trace) -> tuple[float, np.ndarray]:
 
 def smoothed(y) -> np.ndarray:
     """``y`` under a moving average long enough to quiet its noise (to a small share of
-    its span), and no longer than a twentieth of it (near either end, of the samples
-    there are)."""
+    its span), and no longer than a twentieth of it (an odd number of samples, centred
+    on each; near either end, of the samples there are)."""
     from ..model.noise import noise_scale
 
     y = np.asarray(y, float)
+    if y.size < 3:
+        return y
     span = float(np.max(y) - np.min(y))
     need = (3 * noise_scale(y) / max(0.02 * span, 1e-300)) ** 2 if span > 0 else 1.0
-    w = int(min(max(y.size // 200, np.ceil(need), 1), max(1, y.size // 20)))
+    w = int(min(max(y.size // 200, np.ceil(need), 1), max(1, y.size // 20))) | 1  # centred
     if w == 1:
         return y
     box = np.ones(w)
@@ -151,6 +153,8 @@ def smoothed(y) -> np.ndarray:
 def crossing_time(t, ys, t_step, start, end, level: float = 0.632) -> float | None:
     """Time after ``t_step`` for ``ys`` to cover ``level`` of the way from ``start`` to
     ``end`` (the first sample after it that does); None when it never does."""
+    if end == start:
+        return None
     mark = start + level * (end - start)
     after = np.flatnonzero((t > t_step) & (np.sign(end - start) * (ys - mark) >= 0))
     return float(t[after[0]] - t_step) if after.size else None
@@ -158,13 +162,13 @@ def crossing_time(t, ys, t_step, start, end, level: float = 0.632) -> float | No
 
 def rise_time(t, y, t_step, level: float = 0.632) -> float | None:
     """Time after ``t_step`` for ``y`` (:func:`smoothed`) to cover ``level`` of its
-    change from the value at the step to the mean of its last tenth; None without a
-    clear change."""
+    change from its value at the step (the mean of the last five samples at or before
+    it) to the mean of its last tenth; None without a clear change."""
     t, y = np.asarray(t, float), np.asarray(y, float)
     span = float(np.max(y) - np.min(y))
     ys = smoothed(y)
-    before = ys[t <= t_step]
-    y0 = float(before[-1]) if before.size else float(ys[0])
+    before = y[t <= t_step]
+    y0 = float(np.mean(before[-5:])) if before.size else float(y[0])
     yf = float(np.mean(y[-max(3, y.size // 10):]))
     if not abs(yf - y0) > 0.2 * span or span == 0:
         return None

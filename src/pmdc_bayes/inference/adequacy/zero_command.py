@@ -12,29 +12,39 @@ of the braking model shows (it compromises between the two time scales).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .onset import crossing_time, smoothed
 from .proposals import Proposal, said
 
-__all__ = ["coast_rules", "time_constants", "COAST_RATIO"]
+__all__ = ["coast_rules", "time_constants", "TimeConstants", "COAST_RATIO", "CLEAR"]
 
 COAST_RATIO = 3.0  # a decay at a zero command this many times slower than every rise
 EDGE = 3  # samples averaged for the level at a switch
+CLEAR = 0.2  # a rise or a fall read only where it covers this share of the speed's range
 
 
-def _fall(t, ys, t0, start) -> float | None:
-    """The 63.2 % time of a fall toward rest from ``start``: where ``ys`` gets there,
-    else read off the share left at its end (``-T / ln(share)``, an exponential's),
-    infinite where nothing has gone; None where it set off away from rest."""
-    tau = crossing_time(t, ys, t0, start, 0.0)
+class TimeConstants(NamedTuple):
+    """A trace's 63.2 % times (s): of its rises toward a nonzero command's level, and of
+    its falls toward rest after a switch to zero."""
+
+    rises: list[float]
+    falls: list[float]
+
+
+def _fall(t, ys, t0, start, rest) -> float | None:
+    """The 63.2 % time of a fall from ``start`` toward ``rest``: where ``ys`` gets there,
+    else read off the share of the way left at its end (``-T / ln(share)``, an
+    exponential's); None where it set off away from rest or moved no measurable way."""
+    tau = crossing_time(t, ys, t0, start, rest)
     if tau is not None:
         return tau
-    share = float(np.mean(ys[-EDGE:])) / start
-    if share > 1.0 + 1e-9:
+    share = (float(np.mean(ys[-EDGE:])) - rest) / (start - rest)
+    if not 0.0 < share < 1.0:
         return None
-    span = float(t[-EDGE:].mean() - t0)
-    return span / -np.log(share) if share < 1.0 else np.inf
+    return float(np.mean(t[-EDGE:]) - t0) / -np.log(share)
 
 
 def _rise(t, ys, t0, start) -> float | None:
@@ -54,33 +64,54 @@ def _rise(t, ys, t0, start) -> float | None:
     return span / 2.0 / -np.log(ratio) if 0.0 < ratio < 1.0 else None
 
 
-def time_constants(tr):
+def _rest(tr, t, y, times, values) -> float:
+    """The speed the sensor reads at rest: its mean before the first nonzero command
+    of a trace that starts at rest and at zero (a sensor's offset), else zero."""
+    if tr.initial != "rest" or values[0] != 0 or values.size < 2:
+        return 0.0
+    before = y[t < times[1]]
+    return float(np.mean(before)) if before.size >= EDGE else 0.0
+
+
+def time_constants(tr) -> TimeConstants:
     """The data's 63.2 % times (of the speed smoothed to quiet its noise): of each rise
-    toward a nonzero command's level, and of each fall toward rest after a
-    switch to zero (read off the share of its speed left at the segment's end where it
-    never gets there)."""
+    toward a nonzero command's level (from rest at the first sample too), and of each
+    fall toward the speed read at rest after a switch to zero (read off the share of its
+    way left at the segment's end where it never gets there); a rise or fall that
+    covers less than :data:`CLEAR` of the speed's range is not read."""
     values = np.asarray(tr.voltage.values, float)
     runs = np.flatnonzero(np.r_[True, values[1:] != values[:-1]])  # a logged column's
     times = np.append(np.asarray(tr.voltage.times, float)[runs], np.inf)  # levels
     values = values[runs]
     t, y = np.asarray(tr.time, float), np.asarray(tr.speed, float)
-    rises, falls = [], []
-    for k in range(1, values.size):
+    keep = np.isfinite(y)
+    t, y = t[keep], y[keep]
+    out = TimeConstants([], [])
+    if y.size < 4 * EDGE:
+        return out
+    clear = CLEAR * float(np.max(y) - np.min(y))
+    rest = _rest(tr, t, y, times, values)
+    for k in range(values.size):
         on = (t > times[k]) & (t < times[k + 1])
         before = np.flatnonzero(t <= times[k])[-EDGE:]
-        if on.sum() < 4 * EDGE or before.size == 0:
+        if on.sum() < 4 * EDGE:
             continue
-        start = float(np.mean(y[before]))
+        if before.size:
+            start = float(np.mean(y[before]))
+        elif k == 0 and tr.initial == "rest":
+            start = rest
+        else:
+            continue
         tt, ys = t[on], smoothed(y[on])
-        if values[k] == 0 and np.any(values[:k] != 0) and start != 0.0:
-            tau = _fall(tt, ys, times[k], start)
+        if values[k] == 0 and np.any(values[:k] != 0):
+            tau = _fall(tt, ys, times[k], start, rest) if abs(start - rest) > clear else None
             if tau is not None:
-                falls.append(tau)
-        elif values[k] != 0:
+                out.falls.append(tau)
+        elif values[k] != 0 and abs(float(np.mean(ys[-EDGE:])) - start) > clear:
             tau = _rise(tt, ys, times[k], start)
             if tau is not None:
-                rises.append(tau)
-    return rises, falls
+                out.rises.append(tau)
+    return out
 
 
 def coast_rules(model, tr) -> list:
