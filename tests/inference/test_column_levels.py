@@ -35,7 +35,12 @@ def test_each_level_of_a_noisy_column_is_a_parameter_known_to_its_standard_error
     held = [tr for tr in session.traces if tr.voltage.se is not None]
     assert [tr.name for tr in held] == ["tr0_step_from_rest", "tr1_staircase"]
     specs = level_specs(session)
-    assert len(specs) == sum(tr.voltage.values.size for tr in held)
+    assert len(specs) == sum(int(np.sum(tr.voltage.se > 0)) for tr in held)
+    zero = [tr.voltage.se == 0 for tr in held]
+    assert any(z.any() for z in zero)  # a level read as zero is not a parameter
+    assert all(np.all(tr.voltage.values[z] == 0) for tr, z in zip(held, zero, strict=True))
+    assert all(f"voltage_level_{tr.name}_{j}" not in level_names(session, "voltage")
+               for tr, z in zip(held, zero, strict=True) for j in np.flatnonzero(z))
     assert tuple(s.name for s in specs) == level_names(session, "voltage")
     first = held[1]
     spec = next(s for s in specs if s.name == "voltage_level_tr1_staircase_2")
@@ -51,11 +56,13 @@ def test_each_segment_takes_the_level_that_holds_at_its_start(seed81):
     exp = experiment_from_traces(session.traces)
     index = segment_levels(session, exp.seg_t0, exp.seg_len, exp.seg_trace, "voltage")
     va, trace = np.asarray(exp.seg_va), np.asarray(exp.seg_trace)
-    values = np.concatenate([tr.voltage.values for tr in session.traces[:2]])
+    values = np.concatenate([tr.voltage.values[tr.voltage.se > 0]
+                             for tr in session.traces[:2]])
     assert np.all(index[trace == 2] == -1)  # the column read as written
     on = index >= 0
     np.testing.assert_allclose(va[on], values[index[on]], rtol=1e-6)
     assert set(index[on]) == set(range(values.size))
+    assert np.all(va[(trace < 2) & ~on] == 0)  # a level read as zero drives its own
     assert segment_levels(session, exp.seg_t0, exp.seg_len, exp.seg_trace, "load") is None
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pmdc_bayes.io.held_levels import FALSE_SPLIT, held_levels, switched_swing
+from pmdc_bayes.io.held_levels import FALSE_SPLIT, ZERO_MISS, held_levels, switched_swing
 from pmdc_bayes.io.robust import difference_sd
 
 RATE = 1000.0
@@ -23,9 +23,29 @@ def test_a_noisy_staircase_column_is_read_as_its_levels_at_the_samples_that_show
     t, _, noisy = _staircase(steps, hold, sigma)
     levels = held_levels(t, noisy)
     assert np.allclose(levels.times, t[::hold])
-    assert np.allclose(levels.se, difference_sd(noisy) / np.sqrt(hold))
+    driven = np.asarray(steps) != 0
+    assert np.allclose(levels.se[driven], difference_sd(noisy) / np.sqrt(hold))
+    assert np.all(levels.values[~driven] == 0) and np.all(levels.se[~driven] == 0)
     assert np.all(np.abs(levels.values - steps) < 5 * sigma / np.sqrt(hold)), levels.values
     assert abs(difference_sd(noisy) / sigma - 1.0) < 0.1
+
+
+def test_a_level_held_at_zero_is_read_as_zero_as_often_as_stated():
+    """Of levels held at zero between two driven ones, a share ``ZERO_MISS`` at most is
+    left a fitted level off zero (a binomial bound); one a few standard errors off zero
+    is kept as read."""
+    sigma, hold, n_columns = 0.05, 200, 600
+    missed = 0
+    for seed in range(n_columns):
+        t, _, noisy = _staircase([6.0, 0.0, 6.0], hold, sigma, seed=seed)
+        levels = held_levels(t, noisy)
+        j = int(np.searchsorted(levels.times, t[hold + hold // 2], side="right")) - 1
+        missed += levels.values[j] != 0
+        assert (levels.values[j] == 0) == (levels.se[j] == 0)
+    assert missed <= stats.binom.isf(1e-3, n_columns, ZERO_MISS), missed
+    t, _, noisy = _staircase([6.0, 5 * sigma / np.sqrt(hold), 6.0], hold, sigma, seed=1)
+    off = held_levels(t, noisy)
+    assert off.values[1] != 0 and off.se[1] > 0
 
 
 def test_a_column_without_noise_is_read_as_written():
@@ -77,10 +97,11 @@ def test_a_sampled_switching_output_is_read_as_the_levels_of_its_duty():
     assert levels.values.size == len(duties), levels.values
     off = np.abs(levels.times - t[::hold]) * RATE
     assert off[1] <= 3 and np.all(off <= 20), off  # a start from rest to a few samples
-    assert np.all(levels.se > 0)
-    z = (levels.values - rail * np.asarray(duties)) / levels.se
+    rest = np.asarray(duties) == 0  # levels that never switched are read as zero
+    assert np.all(levels.values[rest] == 0) and np.all(levels.se[rest] == 0)
+    assert np.all(levels.se[~rest] > 0.01 * rail)
+    z = (levels.values - rail * np.asarray(duties))[~rest] / levels.se[~rest]
     assert np.all(np.abs(z) < 4), z
-    assert levels.se[0] < 0.01 * rail < levels.se[1]  # a level that never switched
 
 
 @pytest.mark.parametrize("kind", ["held steps", "noisy steps", "quantised noise",

@@ -24,6 +24,13 @@ likelihood says the duty changed (:func:`_duty_levels`), each level's error the 
 own from its readings.  Where a change falls is known only to the samples its two
 duties' draws take to differ; the fit's lead of each change carries that
 (:func:`pmdc_bayes.inference.model.switch_lead.placement_sd`).
+
+A level whose readings do not tell it from zero (its mean within the two-sided
+:data:`ZERO_MISS` quantile of its standard errors) is read as zero, exactly, with no
+error (:func:`_zeros`): the driver commanded zero (a stop, a coast, an unloaded rig),
+which the readings of a level a hair off zero cannot be told from, and what the rig does
+at a zero command (a driver that opens the armature there, a load that is none) acts
+only on a zero.
 """
 
 from __future__ import annotations
@@ -35,9 +42,10 @@ from scipy.special import xlogy
 from .robust import difference_sd, smooth
 from .session import Schedule
 
-__all__ = ["held_levels", "switched_swing", "FALSE_SPLIT"]
+__all__ = ["held_levels", "switched_swing", "FALSE_SPLIT", "ZERO_MISS"]
 
 FALSE_SPLIT = 0.01  # the chance that a column of constant level is split anywhere
+ZERO_MISS = 0.01  # the chance that a level held at zero is not read as zero
 MAD_EFFICIENCY = 0.37  # a MAD's σ is as good as a sample sd from this share of its readings
 SWITCH_TOLERANCE = 0.1  # a switched column's readings lie this share of its swing from a rail
 MIN_SWITCHES = 5  # ... or zero, and it flips for one or two samples this often at least
@@ -67,7 +75,14 @@ def held_levels(time: np.ndarray, values: np.ndarray, switching: bool = False) -
     c = float(stats.t.isf(FALSE_SPLIT / (2.0 * values.size), dof))
     bounds = np.array([0, *_cuts(values, _cusum(sigma), c), values.size])
     levels = np.array([values[a:b].mean() for a, b in zip(bounds[:-1], bounds[1:], strict=True)])
-    return Schedule(time[bounds[:-1]], levels, sigma / np.sqrt(np.diff(bounds)), sigma)
+    return Schedule(time[bounds[:-1]], *_zeros(levels, sigma / np.sqrt(np.diff(bounds))), sigma)
+
+
+def _zeros(levels: np.ndarray, se: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``levels`` and their standard errors ``se`` with every level its readings do not
+    tell from zero read as zero, known exactly (module docstring)."""
+    zero = np.abs(levels) <= stats.norm.isf(ZERO_MISS / 2.0) * se
+    return np.where(zero, 0.0, levels), np.where(zero, 0.0, se)
 
 
 def _duty_levels(time: np.ndarray, values: np.ndarray, swing: float) -> Schedule:
@@ -100,7 +115,7 @@ def _duty_levels(time: np.ndarray, values: np.ndarray, swing: float) -> Schedule
         scatter = float(np.mean((values[a:b] - states[code[a:b]]) ** 2))
         levels.append(float(values[a:b].mean()))
         se.append(float(np.sqrt((spread + scatter) / n)))
-    return Schedule(time[bounds[:-1]], np.array(levels), np.array(se), swing / 2.0, True)
+    return Schedule(time[bounds[:-1]], *_zeros(np.array(levels), np.array(se)), swing / 2.0, True)
 
 
 def _loglik(k: np.ndarray) -> np.ndarray:

@@ -53,7 +53,7 @@ class Schedule:
     The last value holds to the end of the trace.  A logged input column is a
     schedule with one breakpoint per sample (zero-order hold), or, where the column is
     noisy, one per level it held (:mod:`.held_levels`), ``se`` each level's standard
-    error (what its readings leave of it), ``noise`` the readings' noise sd (both or
+    error (0 for one read as zero), ``noise`` the readings' noise sd (both or
     neither given), and ``switched`` whether the column sampled a switching driver's
     output (its levels the duty's).
     """

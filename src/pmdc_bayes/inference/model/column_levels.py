@@ -12,7 +12,8 @@ such level is a parameter, ``voltage_level_<trace>_<j>`` (V) or
 standard error (what the column's readings say of it; source :data:`READINGS`), fitted
 in value; the segments the level drives take its value (:func:`segment_levels`,
 :meth:`.effects.RigEffects.held`), and the Laplace approximation and the posterior
-carry its uncertainty into the motor's parameters.  A column of more than
+carry its uncertainty into the motor's parameters.  A level read as zero (the driver's
+zero command: its se 0) is not fitted: it is zero.  A column of more than
 :data:`MAX_LEVELS` levels (a drifting supply cut into many) keeps them as read.
 """
 
@@ -50,18 +51,21 @@ def _schedule(tr: Trace, what: str) -> Schedule:
     return getattr(tr, INPUTS[what].schedule)
 
 
-def _held(tr: Trace, what: str) -> bool:
-    """Whether ``tr``'s ``what`` input is a noisy column read as fitted levels."""
+def _fitted(tr: Trace, what: str) -> np.ndarray:
+    """The indices of ``tr``'s ``what`` levels fitted: every level of a noisy column read
+    as levels but one read as zero, none of a column of more than :data:`MAX_LEVELS`."""
     s = _schedule(tr, what)
-    return (bool(getattr(tr, INPUTS[what].logged)) and s.se is not None
-            and 1 <= s.values.size <= MAX_LEVELS and bool(np.all(np.asarray(s.se) > 0)))
+    if not (getattr(tr, INPUTS[what].logged) and s.se is not None
+            and 1 <= s.values.size <= MAX_LEVELS):
+        return np.zeros(0, dtype=int)
+    return np.flatnonzero(np.asarray(s.se) > 0)
 
 
 def level_names(session: Session, what: str) -> tuple[str, ...]:
     """The parameter names of every fitted ``what`` (``"voltage"`` or ``"load"``) level
-    of the session, trace after trace."""
+    of the session, trace after trace, each named by its index among its column's."""
     return tuple(f"{what}_level_{identifier(tr.name)}_{j}" for tr in session.traces
-                 if _held(tr, what) for j in range(_schedule(tr, what).values.size))
+                 for j in _fitted(tr, what))
 
 
 def level_specs(session: Session) -> list[ParamSpec]:
@@ -71,10 +75,9 @@ def level_specs(session: Session) -> list[ParamSpec]:
     specs = []
     for what, spec in INPUTS.items():
         for tr in session.traces:
-            if not _held(tr, what):
-                continue
             s = _schedule(tr, what)
-            for j, (m, se) in enumerate(zip(s.values, s.se, strict=True)):
+            for j in _fitted(tr, what):
+                m, se = s.values[j], s.se[j]
                 specs.append(ParamSpec(
                     f"{what}_level_{identifier(tr.name)}_{j}", spec.unit, "trace",
                     Prior("normal", float(m), float(se), READINGS), float(m),
@@ -89,20 +92,23 @@ def segment_levels(session: Session, seg_t0, seg_len, seg_trace,
     """Per segment of an experiment of the session's traces (``seg_t0`` on each trace's
     clock, lasting ``seg_len``, ``seg_trace`` its trace), the index of its fitted
     ``what`` level in :func:`level_names` (the level holding at the segment's middle: a
-    level's segments lie within it), −1 for a segment no fitted level drives; None when
-    no trace has one."""
+    level's segments lie within it), −1 for a segment no fitted level drives (a level
+    read as zero among them); None when no trace has one."""
     middle = np.asarray(seg_t0, float) + 0.5 * np.asarray(seg_len, float)
     seg_trace = np.asarray(seg_trace, int)
     out = np.full(middle.size, -1, dtype=np.int32)
     base = 0
     for k, tr in enumerate(session.traces):
-        if not _held(tr, what):
+        fitted = _fitted(tr, what)
+        if not fitted.size:
             continue
         s = _schedule(tr, what)
+        rank = np.full(s.values.size, -1, dtype=np.int32)
+        rank[fitted] = base + np.arange(fitted.size)
         mine = seg_trace == k
         j = np.searchsorted(s.times, middle[mine], side="right") - 1
-        out[mine] = base + np.clip(j, 0, s.values.size - 1)
-        base += s.values.size
+        out[mine] = rank[np.clip(j, 0, s.values.size - 1)]
+        base += fitted.size
     return out if base else None
 
 
