@@ -11,6 +11,7 @@ from pmdc_bayes.inference.fit.joint import fit_map
 from pmdc_bayes.inference.model.objective import build_model
 from pmdc_bayes.inference.model.seed import fit_seed
 from pmdc_bayes.io.loader import load_session
+from pmdc_bayes.simulate.bench import BenchMotor, StepSpec, bench_session
 from pmdc_bayes.simulate.fuzz import fuzz_session
 
 
@@ -51,5 +52,54 @@ def test_a_speed_differenced_from_counts_fits_once_its_counts_per_rev_is_declare
     names = list(fit.names)
     theta = np.asarray(model.theta({k: v for k, v in fz.truth.items() if k in names}))
     for k in ("Ra", "La", "K", "B", "J"):
+        i = names.index(k)
+        assert abs(theta[i] - fit.theta[i]) < 2.576 * np.sqrt(fit.cov_log[i, i]), k
+
+
+def _loop_session(root, seed):
+    """The bench simulator's motor (Coulomb friction, no current logged) stepped 0 → 12 V
+    at 200 ms, logged as an Arduino loop logs an encoder: each pass ~10 ms plus up to
+    0.8 ms of work, the counts (360 a turn) over the pass's own ``micros()`` interval
+    written as a speed, the row stamped with ``millis()``; the true parameters."""
+    motor = BenchMotor(Ra=2.0, La=1.5e-3, K=0.02, B=2e-6, J=5e-6, Tc=1e-3, speed_noise=0.0)
+    fine = bench_session(motor, [StepSpec("step", 12.0, 1.2, 1e-5, t_step=0.2,
+                                          log_current=False)], seed=seed).traces[0]
+    angle = np.r_[0.0, np.cumsum(0.5 * (fine.speed[1:] + fine.speed[:-1]) * np.diff(fine.time))]
+    rng = np.random.default_rng(seed)
+    t = np.r_[0.0, np.cumsum(0.010 + rng.uniform(0.0, 8e-4, 120))]
+    t = t[t < fine.time[-1]]
+    q = 2 * np.pi / 360
+    counts = np.floor(np.interp(t, fine.time, angle) / q + 1e-9)
+    speed = np.r_[0.0, np.diff(counts) * q / np.diff(t)]
+    root.mkdir()
+    (root / "step.csv").write_text("ms,w\n" + "".join(
+        f"{int(a)},{b:.4f}\n" for a, b in zip(np.floor(t * 1e3), speed, strict=True)))
+    (root / "session.toml").write_text(
+        '[motor]\nname = "loop"\nfriction = "coulomb"\n\n[bench.Ra]\nvalue = 2.0\n'
+        'sd = 0.06\nunit = "ohm"\n\n[[trace]]\nname = "step"\nfile = "step.csv"\n'
+        'kind = "step"\ncolumns = { time = "ms", speed = "w" }\n'
+        'units = { time = "ms", speed = "rad/s" }\ncounts_per_rev = 360\n'
+        'voltage = [[0, 0.0], [200, 12.0]]\n')
+    return {k: getattr(motor, k) for k in ("Ra", "La", "K", "B", "J", "Tc")}
+
+
+@pytest.mark.compiles
+def test_counts_over_a_loops_own_interval_stamped_in_milliseconds_fit_as_the_rig_ran(
+        tmp_path):
+    """A speed whose counts are whole only over intervals the log does not hold (the
+    loop's ``micros()``, stamped by ``millis()``) is read as the angle it integrates over
+    the logged intervals: the ideal model, which the rig is, is adequate and every motor
+    parameter lies inside its 99 % Laplace interval."""
+    truth = _loop_session(tmp_path / "s", seed=5)
+    session = load_session(tmp_path / "s")
+    assert not session.traces[0].speed_logged and session.traces[0].encoder_step > 0
+    cf = fit_seed(session)
+    model = build_model(session, cf)
+    fit = fit_map(model, seed=5)
+    assert fit.ok, fit.message
+    assert str(assess(model, fit, cf).verdict) == "adequate"
+    names = list(fit.names)
+    theta = np.asarray(model.theta({k: v for k, v in truth.items() if k in names}))
+    for k in ("Ra", "La", "K", "B", "J", "Tc"):
         i = names.index(k)
         assert abs(theta[i] - fit.theta[i]) < 2.576 * np.sqrt(fit.cov_log[i, i]), k

@@ -277,6 +277,64 @@ def test_a_speed_that_is_no_differenced_count_is_refused_with_counts_per_rev(tmp
     assert words in str(err.value)
 
 
+def _loop_logged(rng, speed_at, n=120, tick_ms=1.0):
+    """An Arduino loop's log: each pass ~10 ms plus up to 0.6 ms of work, the encoder's
+    counts (of 2π/400 rad) over the pass's own interval (``micros()``) written as a
+    speed in rad/s, the row stamped with ``millis()`` (the true time floored to
+    ``tick_ms``); the rotor turning at ``speed_at(t)`` rad/s.  Returns the CSV text,
+    the true times (s) and the counts."""
+    t = np.r_[0.0, np.cumsum(0.010 + rng.uniform(0.0, 6e-4, n - 1))]
+    fine = np.linspace(0.0, t[-1], 20001)
+    w = speed_at(fine)
+    angle = np.r_[0.0, np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(fine))]
+    q = 2 * math.pi / 400
+    counts = np.floor(np.interp(t, fine, angle) / q + 1e-9)
+    speed = np.r_[0.0, np.diff(counts) * q / np.diff(t)]
+    stamps = np.floor(t * 1e3 / tick_ms) * tick_ms
+    text = "ms,w\n" + "".join(f"{a:g},{b:.6f}\n" for a, b in zip(stamps, speed, strict=True))
+    return text, t, counts
+
+
+_LOOP_TOML = _SPEED_TOML.replace('units = { speed = "rpm" }', 'units = { time = "ms" }')
+_LOOP_TOML = _LOOP_TOML.replace('time = "t"', 'time = "ms"')
+
+
+def test_a_speed_divided_by_an_interval_the_log_does_not_hold_is_read_as_its_angle(tmp_path):
+    """Counts over each loop's own ``micros()`` interval, stamped in whole milliseconds:
+    whole against no logged or nominal interval, the speed is read as the angle it
+    integrates over the logged intervals, which is the counted angle at the stamps: at
+    each row within a count and the distance one millisecond turns (the stamps'
+    rounding) of the counts at the true times; the nominal interval instead would be
+    3 % (the loop's mean work) off by the end."""
+    csv, t, counts = _loop_logged(np.random.default_rng(4),
+                                  lambda s: 300.0 * (1.0 - np.exp(-s / 0.08)))
+    tr = load_session(_write(tmp_path / "s", _LOOP_TOML, csv)).traces[0]
+    q = 2 * math.pi / 400
+    assert not tr.speed_logged and tr.encoder_step == pytest.approx(q)
+    miss = np.abs(tr.position - (counts - counts[0]) * q)
+    assert np.max(miss) < q + 2 * 300.0 * 1e-3
+    assert np.max(miss) > 0.0  # not on the counts' lattice: the intervals are not logged
+    nominal = np.r_[0.0, np.cumsum(np.diff(counts) * q / np.diff(t) * 0.010)]
+    assert np.max(np.abs(nominal - (counts - counts[0]) * q)) > 10 * (q + 2 * 300.0 * 1e-3)
+
+
+@pytest.mark.parametrize("at_rest", [True, False])
+def test_a_measured_speed_declared_as_counts_over_unlogged_intervals_is_refused(tmp_path,
+                                                                               at_rest):
+    """A tachometer's speed (noise of 0.3 rad/s) stamped in whole milliseconds with
+    counts_per_rev declared: at rest its readings are no whole count over any interval a
+    millisecond from the logged one (a count needs 157 rad/s over 10 ms); turning at
+    2 rad/s neither (a count there takes 79 ms)."""
+    rng = np.random.default_rng(2)
+    n = 60
+    w = (0.0 if at_rest else 2.0) + 0.3 * rng.standard_normal(n)
+    csv = "ms,w\n" + "".join(f"{10 * k},{b:.4f}\n" for k, b in enumerate(w))
+    with pytest.raises(SessionError) as err:
+        load_session(_write(tmp_path / "s", _LOOP_TOML, csv))
+    assert "\n" not in str(err.value) and "counts_per_rev" in str(err.value)
+    assert "two ticks of the time stamps' clock" in str(err.value)
+
+
 def test_a_cut_last_line_leaves_a_differenced_speed_read(tmp_path):
     """A logger stopped mid-line: the last line a time and no speed (its fields cut),
     left out; no interval's counts lie after it, so the rows before it read as the

@@ -168,7 +168,7 @@ def _motion(t: _Table, path: Path, raw: dict, u: dict, time: np.ndarray, edges: 
             out["speed"] = signed_speed(sensors.speed_si(t, out["speed"], u), time, inputs)
             if "counts_per_rev" in t.data and "position" not in raw:
                 out["position"], out["encoder_step"] = differenced_angle(
-                    t, time, out["speed"], left_out)
+                    t, time, out["speed"], left_out, (raw.get("time"), u["time"]))
                 out["speed"], out["differenced"] = speed_estimate(time, out["position"]), True
         else:
             out["speed"] = speed_estimate(time, out["position"])

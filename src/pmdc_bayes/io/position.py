@@ -16,13 +16,14 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import SessionError
+from ._steady_clock import stamp_resolution
 from .toml_tables import Table
 from .toml_tables import describe as _describe
 from .units import to_si
 
 __all__ = ["check_motion_columns", "direction_signs", "unwrap_time", "unwrap_position",
            "angle_si", "edge_angles", "speed_estimate", "speed_window", "counts_step",
-           "differenced_angle", "SPEED_WINDOW", "WHOLE_COUNT", "edges_flag"]
+           "differenced_angle", "stamp_tick", "SPEED_WINDOW", "WHOLE_COUNT", "edges_flag"]
 
 SPEED_WINDOW = 0.005  # half-width of the speed estimate's difference, as a share of the samples
 WHOLE_COUNT = 0.05  # a differenced speed's counts per interval lie this close to whole numbers
@@ -111,35 +112,71 @@ def angle_si(t: Table, raw: np.ndarray, unit: str) -> tuple[np.ndarray, float]:
     return to_si(raw, "angle", unit), 0.0
 
 
-def differenced_angle(t: Table, time: np.ndarray, speed: np.ndarray,
-                      left_out: tuple) -> tuple[np.ndarray, float]:
+def differenced_angle(t: Table, time: np.ndarray, speed: np.ndarray, left_out: tuple,
+                      stamps: tuple = (None, "s")) -> tuple[np.ndarray, float]:
     """The counted angle (rad, 0 at the first sample) behind a speed (rad/s) that is an
     encoder's counts differenced over each sample interval, and the angle of one count:
     each interval's counts, the speed times the interval (its own, or the trace's
     median: a logger that divides by its nominal rate), are whole numbers to within
-    :data:`WHOLE_COUNT`.  The first row's speed (the interval before it) is not read.
-    A trace that declares ``counts_per_rev`` with a speed column and no position is
-    read so; its speed is refused with the fix where the counts are not whole or a row
-    is missing (the counts of its interval are lost)."""
+    :data:`WHOLE_COUNT`.  A logger that divides by an interval of its own clock and
+    stamps the row with a coarser one (an Arduino's ``micros()`` interval beside a
+    ``millis()`` stamp) writes counts that are whole only against that unlogged
+    interval, within two ticks of the stamps' clock (``stamps``: the raw time column and
+    its unit; :func:`stamp_tick`) of the logged one: where every row admits such a
+    whole count (:func:`_unlogged_intervals`), the angle is the speed integrated over
+    the logged intervals, which is the counted angle at the stamps up to the stamps'
+    rounding.  The first row's speed (the interval before it) is not read.  A trace
+    that declares ``counts_per_rev`` with a speed column and no position is read so;
+    its speed is refused with the fix where no whole counts fit or a row is missing
+    (the counts of its interval are lost)."""
     q = counts_step(t, "a speed differenced from encoder counts")
     dt = np.diff(time)
     for step in (dt, np.full_like(dt, np.median(dt))):
         n = speed[1:] * step / q
         off = np.abs(n - np.rint(n))
         if n.size and np.all(off < WHOLE_COUNT):
+            n = np.rint(n)
             break
     else:
-        k = int(np.argmax(off)) + 1 if n.size else 0
-        t.fail("counts_per_rev", f"with a speed column (and no position) the speed is read as "
-               f"the encoder's counts differenced over each sample interval, but row {k + 1}'s "
-               f"speed times its interval is {n[k - 1] if n.size else float('nan'):.4g} "
-               "counts, not a whole number; remove counts_per_rev (a speed the sensor "
-               "measured), or log the counts as columns.position")
+        tick = stamp_tick(*stamps)
+        k = (_unlogged_intervals(speed[1:], dt, q, tick) if 0.0 < tick < 0.5 * np.min(dt)
+             else int(np.argmax(off)))
+        if k >= 0:
+            t.fail("counts_per_rev", f"with a speed column (and no position) the speed is "
+                   f"read as the encoder's counts differenced over each sample interval, but "
+                   f"row {k + 2}'s speed times its interval is {n[k]:.4g} counts, a whole "
+                   "number neither over it nor over any interval within two ticks of the "
+                   "time stamps' clock; remove counts_per_rev (a speed the sensor "
+                   "measured), or log the counts as columns.position")
+        n = speed[1:] * dt / q
     if left_out:
         t.fail("counts_per_rev", f"a speed differenced from encoder counts is read as the "
                f"counted angle, which rows left out break (row {left_out[0]} and "
                f"{len(left_out) - 1} more); fill in those rows, or remove counts_per_rev")
-    return q * np.concatenate([[0.0], np.cumsum(np.rint(n))]), q
+    return q * np.concatenate([[0.0], np.cumsum(n)]), q
+
+
+def stamp_tick(stamps, unit: str) -> float:
+    """The tick (s) of the clock that wrote a time column's raw ``stamps``: the
+    resolution they are written to (:func:`~._steady_clock.stamp_resolution`), at most
+    one unit of the column (``millis()`` stamps 10 ms apart tick in 1 ms); 0 when there
+    are no stamps (a trace given a ``sample_rate``) or none can be told."""
+    if stamps is None:
+        return 0.0
+    return float(to_si(min(stamp_resolution(stamps), 1.0), "time", unit))
+
+
+def _unlogged_intervals(speed: np.ndarray, dt: np.ndarray, q: float, tick: float) -> int:
+    """The first interval (index into ``dt``) whose ``speed`` is not a whole number of
+    counts ``q`` over some interval within two ticks (``tick``) of the logged ``dt`` (each end
+    stamped up to two ticks late, as by a ``millis()`` that steps by two at times), to
+    :data:`WHOLE_COUNT`; a speed of 0 is 0 counts, any other at least one; −1 when
+    every interval admits one."""
+    v = np.abs(speed)
+    lo = np.ceil(v * (dt - 2.0 * tick) / q - WHOLE_COUNT)
+    hi = np.floor(v * (dt + 2.0 * tick) / q + WHOLE_COUNT)
+    ok = np.where(v > 0.0, hi >= np.maximum(lo, 1.0), True)
+    return int(np.argmin(ok)) if not np.all(ok) else -1
 
 
 def edge_angles(t: Table, n: int, signs: np.ndarray | None) -> tuple:
