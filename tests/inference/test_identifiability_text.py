@@ -12,6 +12,7 @@ import pytest
 from pmdc_bayes.inference.fit.undetermined import identifiability
 
 NAMES = ("Ra", "La", "K", "B", "J", "dead_time_step")
+STEADY = np.arange(50) * 1e-4  # sample times at a steady rate
 
 
 def _spec(transform):
@@ -27,7 +28,7 @@ def test_a_weak_direction_names_a_dead_time_without_a_log():
         prior_sd=np.ones(6),
         registry={n: _spec("identity" if n == "dead_time_step" else "log") for n in NAMES},
         session=SimpleNamespace(traces=[SimpleNamespace(current=np.zeros(3), dt=1e-4,
-                                                        speed_logged=False)],
+                                                        time=STEADY, speed_logged=False)],
                                 coast_downs=(), nuisances=()))
     (finding,) = [f for f in identifiability(model, fit)["findings"] if "fix the combination" in f]
     assert "·log J" in finding and "·dead_time_step" in finding
@@ -37,7 +38,8 @@ def test_a_weak_direction_names_a_dead_time_without_a_log():
 def _log_model(names):
     """A Coulomb model of log-transformed parameters with one step trace logging the
     current fast."""
-    trace = SimpleNamespace(current=np.zeros(3), dt=1e-4, kind="step", speed_logged=False,
+    trace = SimpleNamespace(current=np.zeros(3), dt=1e-4, time=STEADY, kind="step",
+                            speed_logged=False,
                             load_torque=SimpleNamespace(values=np.zeros(1)))
     session = SimpleNamespace(traces=[trace], coast_downs=(), nuisances=(),
                               La=SimpleNamespace(source=""))
@@ -100,3 +102,54 @@ def test_a_tied_combination_of_one_visible_part_is_recorded_but_not_worded():
     (tied,) = out["tied_combinations"]
     assert tied["direction"]["Tc"] == pytest.approx(0.01, rel=1e-6)
     assert not [f for f in out["findings"] if "fix the combination" in f]
+
+
+def _loop_stamps(tick, seed=0, n=120):
+    """The times of a loop of 10 ms and up to 0.8 ms of work a pass, each stamped by a
+    clock of ``tick`` (truncated, as ``millis()`` and ``micros()`` do)."""
+    t = np.r_[0.0, np.cumsum(0.010 + np.random.default_rng(seed).uniform(0.0, 8e-4, n))]
+    return np.floor(t / tick + 1e-9) * tick
+
+
+def _la_fit(traces, sd_la):
+    names = ("Ra", "La", "K", "B", "J")
+    session = SimpleNamespace(traces=traces, coast_downs=(), nuisances=(),
+                              La=SimpleNamespace(source=""))
+    model = SimpleNamespace(prior_sd=np.ones(5), registry={n: _spec("log") for n in names},
+                            session=session, coulomb=False)
+    fit = SimpleNamespace(names=names, corr=np.eye(5), cov_log=np.diag([1e-4] * 5),
+                          values={"Ra": 2.0, "La": 1.5e-3, "K": 0.02, "B": 2e-6, "J": 5e-6},
+                          sd={"Ra": 0.02, "La": sd_la})
+    return identifiability(model, fit)
+
+
+def _trace(time, current):
+    return SimpleNamespace(time=time, current=current, dt=float(np.median(np.diff(time))),
+                           kind="step", speed_logged=False, position=None,
+                           load_torque=SimpleNamespace(values=np.zeros(1)))
+
+
+def test_la_read_through_a_coarse_clocks_stamps_is_said_to_carry_their_error():
+    """A loop's rows stamped to the millisecond: every row's time may be off by up to a
+    tick, which shifts the response τe = La/Ra absorbs, so La (Ra 2 Ω) may be off by up
+    to Ra·tick = 2 mH whatever its sd.  Stamped to the microsecond the shift is
+    within La's sd; at a steady rate, or where the current La is read from has exact
+    times, there is nothing to say."""
+    ms = _loop_stamps(1e-3)
+    out = _la_fit([_trace(ms, np.zeros(ms.size))], sd_la=1e-5)
+    assert out["clock_tick_s"] == pytest.approx(1e-3)
+    (said,) = [f for f in out["findings"] if "stamped to" in f]
+    assert "stamped to 1 ms" in said and "Ra·tick = 2.0 ×1e-3 H" in said
+    assert not [f for f in _la_fit([_trace(ms, np.zeros(ms.size))], sd_la=3e-3)["findings"]
+                if "stamped to" in f]  # an sd wider than the stamps' error says it all
+    us = _loop_stamps(1e-6)
+    assert _la_fit([_trace(us, None)], sd_la=1e-5)["clock_tick_s"] == pytest.approx(1e-6)
+    assert not [f for f in _la_fit([_trace(us, None)], sd_la=1e-5)["findings"]
+                if "stamped to" in f]
+    steady = np.arange(120) * 1e-3
+    assert _la_fit([_trace(steady, None)], sd_la=1e-5)["clock_tick_s"] == 0.0
+    # a speed-only trace stamped to the millisecond beside a current logged at a steady
+    # rate: La is read from the current, whose times are exact
+    out = _la_fit([_trace(ms, None), _trace(steady, np.zeros(steady.size))], sd_la=1e-5)
+    assert out["clock_tick_s"] == 0.0
+    assert not [f for f in out["findings"] if "stamped to" in f]

@@ -1,10 +1,12 @@
 """A steady sampling rate stamped by a coarse clock (an Arduino's ``millis()`` at a few
 hundred hertz): its rows are read at the steady rate's times, not at the stamps' rounding;
-stamps of a rate that itself varies, or of a fine clock, are read as written."""
+stamps of a rate that itself varies, or of a fine clock, are read as written, and the
+clock's tick (``clock_tick``) is what the former's times are uncertain by."""
 
 import numpy as np
 import pytest
 
+from pmdc_bayes.io.lattice import clock_tick
 from pmdc_bayes.io.loader import load_session
 
 NAME = "tr0_up_down.csv"
@@ -50,6 +52,7 @@ def test_millisecond_stamps_of_a_steady_rate_read_at_its_times(logged, tmp_path,
     true = t + 1.3e-3
     assert np.max(np.abs(np.round(true * 1e3) / 1e3 - true)) > 4e-4  # the stamps' rounding
     assert np.max(np.abs(got - true)) < 5e-5
+    assert clock_tick(got) == 0.0  # a steady rate's times, known to far better than a tick
 
 
 def test_stamps_strewn_more_than_a_clock_s_rounding_are_read_as_written(logged, tmp_path):
@@ -62,12 +65,14 @@ def test_stamps_strewn_more_than_a_clock_s_rounding_are_read_as_written(logged, 
     _restamped(logged, tmp_path / "strewn", lambda t: [str(s) for s in stamps], every=6)
     got = load_session(tmp_path / "strewn").traces[0].time
     np.testing.assert_array_equal(got, stamps * 1e-3)
+    assert clock_tick(got) == pytest.approx(1e-3)
 
 
 def test_seconds_written_to_the_millisecond_read_at_the_steady_rate_too(logged, tmp_path):
     t = _restamped(logged, tmp_path / "s3", lambda t: [f"{x:.3f}" for x in t], unit="s")
     got = load_session(tmp_path / "s3").traces[0].time
     assert np.max(np.abs(got - t)) < 2e-5
+    assert clock_tick(got) == 0.0
 
 
 def test_stamps_of_a_rate_that_varies_are_read_as_written(logged, tmp_path):
@@ -79,12 +84,15 @@ def test_stamps_of_a_rate_that_varies_are_read_as_written(logged, tmp_path):
     _restamped(logged, tmp_path / "loop", lambda t: [str(s) for s in stamps])
     got = load_session(tmp_path / "loop").traces[0].time
     np.testing.assert_array_equal(got, stamps * 1e-3)
+    assert clock_tick(got) == pytest.approx(1e-3)
 
 
 def test_fine_stamps_are_read_as_written(logged, tmp_path):
     t = _restamped(logged, tmp_path / "fine", lambda t: [repr(float(x)) for x in t],
                    unit="s")
-    np.testing.assert_array_equal(load_session(tmp_path / "fine").traces[0].time, t)
+    got = load_session(tmp_path / "fine").traces[0].time
+    np.testing.assert_array_equal(got, t)
+    assert clock_tick(got) == 0.0
 
 
 def test_seconds_since_1970_to_the_microsecond_are_read_as_written(logged, tmp_path):
@@ -98,4 +106,5 @@ def test_seconds_since_1970_to_the_microsecond_are_read_as_written(logged, tmp_p
     got = load_session(tmp_path / "epoch").traces[0].time
     written = np.array([float(f"{s:.6f}") for s in stamps])
     np.testing.assert_allclose(np.diff(got), np.diff(written), rtol=0, atol=1e-6)
+    assert clock_tick(got) == 0.0  # a resolution its rounding as numbers cannot show
     assert np.std(np.diff(got)) > 1e-4

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._steady_clock import stamp_resolution
 from .channel import ChannelId
 
-__all__ = ["quantum", "analogue", "analogue_channels"]
+__all__ = ["quantum", "analogue", "analogue_channels", "clock_tick"]
 
 
 def quantum(y: np.ndarray) -> float:
@@ -25,6 +26,19 @@ def quantum(y: np.ndarray) -> float:
         return 0.0
     q = float(d.min())
     return q if np.all(np.abs(d / q - np.rint(d / q)) < 1e-6) else 0.0
+
+
+def clock_tick(time) -> float:
+    """The tick (s) of the clock a trace's times were stamped by, where those stamps
+    are all it knows of when each row was read: the resolution its times are written to
+    (:func:`~._steady_clock.stamp_resolution`, a power of ten of a second) where its
+    intervals are not whole multiples of one interval (a loop's own pace stamped by a
+    coarse clock, 10 or 11 ms apart); 0 where they are (a steady rate, its times exact
+    or read back from rounded stamps) or the times are written to no such resolution."""
+    t = np.asarray(time, dtype=float)
+    if t.size < 3 or quantum(t) > 0.0:
+        return 0.0
+    return stamp_resolution(t)
 
 
 def analogue(y) -> bool:

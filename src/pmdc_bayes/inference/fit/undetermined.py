@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..._format import row_format
+from ...io.lattice import clock_tick
 from ...io.session import LA_ASSUMED
 from ..model.column_levels import READINGS
 from ..model.objective import SessionModel
@@ -63,6 +64,10 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
     la_finding = _la_finding(model, fit, "La" in prior_bound, ratio[names.index("La")])
     if la_finding:
         findings.append(la_finding)
+    tick = _la_tick(model)
+    stamps = None if "La" in prior_bound else _stamp_finding(model, fit, tick)
+    if stamps:
+        findings.append(stamps)
     scale = _speed_scale_finding(model.session)
     if scale:
         findings.append(scale)
@@ -77,7 +82,7 @@ def identifiability(model: SessionModel, fit: FitResult) -> dict:
     return {"condition_number": cond, "tied_combinations": tied,
             "prior_dominated": prior_bound,
             "posterior_to_prior_width": dict(zip(names, map(float, ratio), strict=True)),
-            "findings": findings}
+            "clock_tick_s": tick, "findings": findings}
 
 
 def _coordinate(model: SessionModel, name: str) -> str:
@@ -125,6 +130,37 @@ def _la_finding(model: SessionModel, fit: FitResult, prior_bound: bool, ratio: f
     dt = min(tr.dt for tr in with_current)
     return (f"La is determined by {_la_prior(model)} alone: no trace samples the current fast "
             f"enough (τe = {tau_e * 1e3:.2g} ms, sampling {dt * 1e3:.3g} ms).")
+
+
+def _la_tick(model: SessionModel) -> float:
+    """The finest clock tick (s) among the traces La is read from (those that log the
+    current, else every driven trace): 0 where one of them has exact times
+    (:func:`~pmdc_bayes.io.lattice.clock_tick`)."""
+    traces = model.session.traces
+    traces = [tr for tr in traces if tr.current is not None] or traces
+    return min((clock_tick(tr.time) for tr in traces), default=0.0)
+
+
+def _stamp_finding(model: SessionModel, fit: FitResult, tick: float) -> str | None:
+    """That La, fitted from traces whose rows are stamped by a clock of ``tick`` at
+    their loop's own pace, is uncertain beyond its sd: each row was read up to a tick
+    after (or, by another convention, about) its stamp, a shift of the response against
+    its inputs that the model takes as exact and τe = La/Ra absorbs, so La may be off by
+    up to Ra·tick, which no sd shows (nothing said where that is within its sd)."""
+    bound = tick * fit.values["Ra"]
+    if not (tick > 0.0 and bound > fit.sd["La"]):
+        return None
+    lag = [words for key, words in (("dead_time", "a dead time"), ("_lag", "a sensor's lag"))
+           if any(n.startswith(key) or n.endswith(key) for n in fit.names)]
+    also = f"; so may {' and '.join(lag)}, by up to the tick" if lag else ""
+    la = row_format(fit.values["La"], bound)
+    return (f"La = {la.value(fit.values['La'])} {la.suffix}H is read from times on the "
+            f"scale of τe = La/Ra = {fit.values['La'] / fit.values['Ra'] * 1e3:.2g} ms, "
+            f"but the traces' rows are stamped to {tick * 1e3:.3g} ms by a clock that "
+            "does not set their pace: each row's time may be off by up to that tick, "
+            "which the model takes as exact, so La may be off by up to Ra·tick = "
+            f"{la.value(bound)} {la.suffix}H beyond its sd{also}. Stamps of a finer clock "
+            "(micros()) or rows at a steady rate fix it.")
 
 
 def _speed_scale_finding(session) -> str | None:
