@@ -552,6 +552,53 @@ def test_a_voltage_column_of_thousands_without_a_unit_is_not_read_as_volts(
     assert v.max() == pytest.approx(want)
 
 
+@pytest.mark.parametrize(("written", "unit", "refused"), [
+    ("255", "", True), ("100", "", True), ("255", 'voltage = "pwm", ', False),
+    ("60", 'voltage = "V", ', False), ("60.13", "", False), ("24", "", False),
+])
+def test_whole_numbers_up_to_a_pwm_timers_full_scale_are_not_read_as_volts(
+        session_dir, written, unit, refused):
+    """A step logged as ``analogWrite``'s counts (0 then 255) or a duty in per cent
+    (100), under a header naming no unit and none in session.toml, would read as a
+    255 V or 100 V supply: refused, naming the PWM unit and its full scale; stated as
+    counts (with their supply) or as volts, or read as an analogue voltage's readings
+    (not all whole) or a low voltage's, it is read."""
+    lines = _rows(session_dir)
+    _write(session_dir, [lines[0] + ",va"] + [
+        line + "," + (written if float(line.split(",")[0]) >= 0.1 else "0")
+        for line in lines[1:]])
+    toml = session_dir / "session.toml"
+    replace_once(toml, 'current = "ia" }', 'current = "ia", voltage = "va" }')
+    replace_once(toml, 'voltage = [[0.0, 0.0], [0.1, 6.0]]\n',
+                 "supply_voltage = 12.0\npwm_full_scale = 255\n" if "pwm" in unit else "")
+    replace_once(toml, 'current = "A", voltage = "V" }', f'current = "A", {unit}}}'.replace(
+        ", }", " }"))
+    if refused:
+        with pytest.raises(SessionError) as err:
+            load_session(session_dir)
+        said = str(err.value)
+        assert (f"step.csv:header: the voltage column 'va' gives no unit and reads only "
+                f"whole numbers, up to {written}" in said)
+        assert f"units.voltage = \"pwm\" with pwm_full_scale = {written} " in said
+        return
+    v = load_session(session_dir).trace("step").voltage.values
+    assert v.max() == pytest.approx(12.0 if "pwm" in unit else float(written))
+
+
+def test_a_steady_table_of_whole_counts_is_not_read_as_volts(session_dir):
+    """A steady table's voltage column of a PWM timer's counts (64, 128, 255) under a
+    header naming no unit: refused, asking for volts (a table reads no duty)."""
+    (session_dir / "sweep.csv").write_text("Va,w\n64,10.0\n128,30.0\n255,50.0\n")
+    replace_once(session_dir / "session.toml", 'units = { voltage = "V", speed = "rad/s" }',
+                 'units = { speed = "rad/s" }')
+    with pytest.raises(SessionError) as err:
+        load_session(session_dir)
+    said = str(err.value)
+    assert "sweep.csv:header: the voltage column 'Va' gives no unit and reads only whole " \
+        "numbers, up to 255" in said
+    assert "convert them to volts" in said and "pwm" not in said
+
+
 @pytest.mark.parametrize(("units", "header", "refused"), [
     ('units = { speed = "rad/s" }', "Va,w", True),
     ('units = { voltage = "mV", speed = "rad/s" }', "Va,w", False),

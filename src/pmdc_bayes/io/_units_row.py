@@ -127,23 +127,42 @@ def unit_stated(role: str, given, name, row: dict) -> bool:
 
 
 KILOVOLT = 1000.0  # no bench drives a permanent-magnet DC motor at a kilovolt
+WHOLE_VOLTS = 50.0  # whole numbers this high with no unit: a PWM timer's counts, a duty in %
 
 
 def check_unstated_volts(path: Path, column: str, values, where: str, *,
                          duty: bool = True) -> None:
     """Refuse a voltage column with no unit given (the caller's to judge,
     :func:`unit_stated`) that reads :data:`KILOVOLT` or more: read as volts it is a
-    kilovolt, as millivolts or a PWM timer's or an ADC's counts written as numbers are
-    (``where``: the column's table in session.toml; ``duty``: whether that table reads
-    a PWM duty, as a trace does)."""
+    kilovolt, as millivolts or a PWM timer's or an ADC's counts written as numbers are;
+    or that reads only whole numbers, up to :data:`WHOLE_VOLTS` or more: a PWM timer's
+    counts (``analogWrite``'s 0–255), an ADC's, or a duty in per cent, which an analogue
+    voltage's readings never all are (``where``: the column's table in session.toml;
+    ``duty``: whether that table reads a PWM duty, as a trace does)."""
     finite = np.abs(np.asarray(values, dtype=float))
     finite = finite[np.isfinite(finite)]
-    if not finite.size or finite.max() < KILOVOLT:
+    if not finite.size:
         return
     top = float(finite.max())
     other = "\"pwm\" with pwm_full_scale and supply_voltage; " if duty else ""
-    raise SessionError(path, f"the voltage column {column!r} gives no unit and reads up to "
-                       f"{top:g}, {top / KILOVOLT:.3g} kV if these were volts: millivolts, "
-                       "or a PWM timer's or an ADC's counts, read so; set "
-                       f"{where}.units.voltage = \"mV\" (or {other}\"V\" if they are "
-                       "volts)", where="header")
+    if top >= KILOVOLT:
+        raise SessionError(path, f"the voltage column {column!r} gives no unit and reads up "
+                           f"to {top:g}, {top / KILOVOLT:.3g} kV if these were volts: "
+                           "millivolts, or a PWM timer's or an ADC's counts, read so; set "
+                           f"{where}.units.voltage = \"mV\" (or {other}\"V\" if they are "
+                           "volts)", where="header")
+    if top >= WHOLE_VOLTS and np.all(finite == np.round(finite)):
+        counts = (f"set {where}.units.voltage = \"pwm\" with pwm_full_scale = {_full(top)} "
+                  "and supply_voltage (\"%\" with supply_voltage for a duty in per cent), "
+                  "or \"V\" if they are volts" if duty else
+                  f"convert them to volts, or set {where}.units.voltage = \"V\" if they are")
+        raise SessionError(path, f"the voltage column {column!r} gives no unit and reads "
+                           f"only whole numbers, up to {top:g}: a PWM timer's or an ADC's "
+                           f"counts or a duty in per cent rather than {top:g} V; {counts}",
+                           where="header")
+
+
+def _full(top: float) -> int:
+    """The full scale a PWM timer reading up to ``top`` most likely counts to: the
+    smallest 2ⁿ − 1 (255, 1023, …) at or above it, or 100 for a per-cent duty's."""
+    return 100 if top == 100 else int(2 ** np.ceil(np.log2(top + 1)) - 1)
