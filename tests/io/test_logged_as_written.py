@@ -585,6 +585,37 @@ def test_whole_numbers_up_to_a_pwm_timers_full_scale_are_not_read_as_volts(
     assert v.max() == pytest.approx(12.0 if "pwm" in unit else float(written))
 
 
+@pytest.mark.parametrize(("unit", "to_counts", "refused"), [
+    ("", lambda a: round(512 + 37.8 * a), True), ("", lambda a: round(1000 * a), True),
+    ('current = "mA", ', lambda a: round(1000 * a), False),
+    ("", lambda a: round(a, 4), False), ("", lambda a: round(40 * a), False),
+])
+def test_a_current_column_of_counts_is_not_read_as_amperes(session_dir, unit, to_counts,
+                                                            refused):
+    """A current logged as an ADC's counts (a Hall sensor's 512 at zero, 37.8 counts an
+    ampere) or as whole milliamperes, under a header naming no unit and none in
+    session.toml, would read as hundreds of amperes: refused, naming the units to give;
+    stated, or read as an analogue sensor's readings or as whole amperes below 100, it is
+    read."""
+    lines = _rows(session_dir)
+    _write(session_dir, [lines[0]] + [
+        ",".join([*line.split(",")[:2], str(to_counts(float(line.split(",")[2])))])
+        for line in lines[1:]])
+    replace_once(session_dir / "session.toml", 'current = "A", voltage = "V" }',
+                 f'{unit}voltage = "V" }}')
+    if refused:
+        with pytest.raises(SessionError) as err:
+            load_session(session_dir)
+        said = str(err.value)
+        assert "step.csv:header: the current column 'ia' gives no unit and reads only " \
+            "whole numbers, up to " in said
+        assert "set trace['step'].units.current = \"mA\"" in said
+        return
+    ia = load_session(session_dir).trace("step").current
+    want = [float(to_counts(float(line.split(",")[2]))) for line in lines[1:]]
+    assert ia == pytest.approx(np.asarray(want) * (1e-3 if "mA" in unit else 1.0))
+
+
 def test_a_steady_table_of_whole_counts_is_not_read_as_volts(session_dir):
     """A steady table's voltage column of a PWM timer's counts (64, 128, 255) under a
     header naming no unit: refused, asking for volts (a table reads no duty)."""

@@ -24,7 +24,7 @@ from ._missing import MISSABLE, without_missing, without_repeats
 from ._steady_clock import steady_times
 from ._step_timing import check_step_timing
 from ._time_order import check_date_serial, check_increasing, check_slow_time
-from ._units_row import check_column_units, check_unstated_volts, unit_stated
+from ._units_row import check_column_units, check_unstated, unit_stated
 from .drag import check_curve_reach, read_drag
 from .held_levels import held_levels
 from .position import (
@@ -128,9 +128,7 @@ def _read_trace_file(t: _Table, root: Path, cols: dict, u: dict, *,
         if read.plain_stamps and not unit_stated("time", t.data.get("units"), cols["time"],
                                                  read.units):
             check_slow_time(path, cols["time"], t_raw, t.where, whole=read.whole_stamps)
-    if "voltage" in raw and not unit_stated("voltage", t.data.get("units"), cols["voltage"],
-                                            read.units):
-        check_unstated_volts(path, cols["voltage"], raw["voltage"], t.where)
+    check_unstated(path, cols, raw, t.data.get("units"), read.units, t.where)
     for role in ("speed", "position"):
         y = raw.get(role)
         if y is not None and np.all(y == y[0]):

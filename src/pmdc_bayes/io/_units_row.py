@@ -16,7 +16,7 @@ from ._sensors import CONSTANT
 from .units import KINDS, unit_factor, unit_named
 
 __all__ = ["check_column_units", "check_units_row", "check_header_units", "header_unit",
-           "unit_stated", "check_unstated_volts", "KILOVOLT"]
+           "unit_stated", "check_unstated", "KILOVOLT"]
 
 
 def check_units_row(path: Path, cols: dict, row: dict, line: int | None, read_in: dict,
@@ -127,39 +127,56 @@ def unit_stated(role: str, given, name, row: dict) -> bool:
 
 
 KILOVOLT = 1000.0  # no bench drives a permanent-magnet DC motor at a kilovolt
-WHOLE_VOLTS = 50.0  # whole numbers this high with no unit: a PWM timer's counts, a duty in %
+WHOLE = {"voltage": 50.0, "current": 100.0}  # whole numbers this high with no unit: counts
 
 
-def check_unstated_volts(path: Path, column: str, values, where: str, *,
-                         duty: bool = True) -> None:
-    """Refuse a voltage column with no unit given (the caller's to judge,
-    :func:`unit_stated`) that reads :data:`KILOVOLT` or more: read as volts it is a
-    kilovolt, as millivolts or a PWM timer's or an ADC's counts written as numbers are;
-    or that reads only whole numbers, up to :data:`WHOLE_VOLTS` or more: a PWM timer's
-    counts (``analogWrite``'s 0–255), an ADC's, or a duty in per cent, which an analogue
-    voltage's readings never all are (``where``: the column's table in session.toml;
-    ``duty``: whether that table reads a PWM duty, as a trace does)."""
+def check_unstated(path: Path, cols: dict, raw: dict, given, row: dict, where: str, *,
+                   duty: bool = True) -> None:
+    """Refuse a voltage or current column with no unit given (in session.toml's
+    ``given`` units, its header or the file's row of units ``row``) that reads a
+    thousand or more (volts: a kilovolt, which millivolts or a PWM timer's or an ADC's
+    counts written as numbers are; amperes: milliamperes or an ADC's counts), or only
+    whole numbers up to :data:`WHOLE` or more (a PWM timer's counts, ``analogWrite``'s
+    0–255, an ADC's, a duty in per cent, which an analogue sensor's readings never all
+    are).  ``where``: the columns' table in session.toml; ``duty``: whether that table
+    reads a PWM duty, as a trace does."""
+    for role in ("voltage", "current"):
+        if role in raw and not unit_stated(role, given, cols[role], row):
+            _check_numbers(path, role, cols[role], raw[role], where, duty)
+
+
+def _check_numbers(path: Path, role: str, column: str, values, where: str,
+                   duty: bool) -> None:
     finite = np.abs(np.asarray(values, dtype=float))
     finite = finite[np.isfinite(finite)]
     if not finite.size:
         return
     top = float(finite.max())
-    other = "\"pwm\" with pwm_full_scale and supply_voltage; " if duty else ""
-    if top >= KILOVOLT:
-        raise SessionError(path, f"the voltage column {column!r} gives no unit and reads up "
-                           f"to {top:g}, {top / KILOVOLT:.3g} kV if these were volts: "
-                           "millivolts, or a PWM timer's or an ADC's counts, read so; set "
-                           f"{where}.units.voltage = \"mV\" (or {other}\"V\" if they are "
+    whole = WHOLE[role] <= top < KILOVOLT and bool(np.all(finite == np.round(finite)))
+    if top < KILOVOLT and not whole:
+        return
+    read = (f"reads only whole numbers, up to {top:g}" if whole
+            else f"reads up to {top:g}")
+    if role == "current":
+        raise SessionError(path, f"the current column {column!r} gives no unit and {read}: "
+                           f"milliamperes or an ADC's counts rather than {top:g} A; set "
+                           f"{where}.units.current = \"mA\", or convert counts to the "
+                           "sensor's volts (units.current = \"V\" with current_sensitivity "
+                           "and current_zero), or \"A\" if they are amperes", where="header")
+    pwm = "\"pwm\" with pwm_full_scale and supply_voltage; " if duty else ""
+    if not whole:
+        raise SessionError(path, f"the voltage column {column!r} gives no unit and {read}, "
+                           f"{top / KILOVOLT:.3g} kV if these were volts: millivolts, or a "
+                           "PWM timer's or an ADC's counts, read so; set "
+                           f"{where}.units.voltage = \"mV\" (or {pwm}\"V\" if they are "
                            "volts)", where="header")
-    if top >= WHOLE_VOLTS and np.all(finite == np.round(finite)):
-        counts = (f"set {where}.units.voltage = \"pwm\" with pwm_full_scale = {_full(top)} "
-                  "and supply_voltage (\"%\" with supply_voltage for a duty in per cent), "
-                  "or \"V\" if they are volts" if duty else
-                  f"convert them to volts, or set {where}.units.voltage = \"V\" if they are")
-        raise SessionError(path, f"the voltage column {column!r} gives no unit and reads "
-                           f"only whole numbers, up to {top:g}: a PWM timer's or an ADC's "
-                           f"counts or a duty in per cent rather than {top:g} V; {counts}",
-                           where="header")
+    fix = (f"set {where}.units.voltage = \"pwm\" with pwm_full_scale = {_full(top)} "
+           "and supply_voltage (\"%\" with supply_voltage for a duty in per cent), or "
+           "\"V\" if they are volts" if duty else
+           f"convert them to volts, or set {where}.units.voltage = \"V\" if they are")
+    raise SessionError(path, f"the voltage column {column!r} gives no unit and {read}: a "
+                       "PWM timer's or an ADC's counts or a duty in per cent rather than "
+                       f"{top:g} V; {fix}", where="header")
 
 
 def _full(top: float) -> int:

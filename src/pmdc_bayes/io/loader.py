@@ -20,7 +20,7 @@ from . import gear
 from ._csv import read_columns
 from ._model_table import read_model_table
 from ._traces import read_traces
-from ._units_row import check_column_units, check_unstated_volts, unit_stated
+from ._units_row import check_column_units, check_unstated
 from .bundled import BUNDLED, session_path
 from .session import (
     FRICTION_MODELS,
@@ -119,8 +119,7 @@ def _steady_table(t: _Table, root: Path) -> SteadyTable:
     raw = read.values
     if raw["voltage"].size == 0:
         raise SessionError(path, "no data rows; add one row per steady operating point")
-    if not unit_stated("voltage", t.data.get("units"), cols["voltage"], read.units):
-        check_unstated_volts(path, cols["voltage"], raw["voltage"], t.where, duty=False)
+    check_unstated(path, cols, raw, t.data.get("units"), read.units, t.where, duty=False)
     si = {role: to_si(raw[role], _TABLE_KINDS[role], u[role]) for role in raw}
     load = si.get("load_torque", np.zeros_like(si["speed"]))
     return SteadyTable(name, path, si["voltage"], si["speed"], si.get("current"), load)
