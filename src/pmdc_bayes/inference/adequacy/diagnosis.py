@@ -18,7 +18,9 @@ Each rule reads the data and the MAP prediction:
 * a **bench resistance** below or above the fitted one; and unit slips (a ratio of
   2π, 60/2π or 1000 between the data and the model);
 * the **steady readings** missed beyond their scatter (:mod:`.steady`): the traces'
-  sensor's calibration, or for the currents Coulomb friction.
+  sensor's calibration, or for the currents Coulomb friction;
+* a failing channel of a trace stamped by a clock that does not set its pace
+  (:mod:`.clock_rule`): a misfit its stamps alone can make.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from ...io.channel import ChannelId
 from ...io.lattice import analogue_channels
 from ..model.noise import noise_scale
 from ..model.nuisances import sensor_readings
+from .clock_rule import clock_rules
 from .diagnosis_levels import level_rules
 from .findings import Check
 from .onset import departure, onset_shape, step_window
@@ -253,7 +256,7 @@ def diagnose(model, fit, preds, findings) -> tuple[list[str], list[Proposal]]:
     """Sentences naming what the data suggest the model lacks, most specific first, and
     the additions they propose.  A sentence whose every proposal the model already fits
     is left out; when that leaves nothing to propose, a sentence says so."""
-    out = []
+    out = clock_rules(model, findings)
     for tr in model.session.traces:
         out += _still(model, tr)
     for tr, pred in zip(model.session.traces, preds, strict=True):
